@@ -1,0 +1,148 @@
+//! The discrete Levi-Civita connection: vertex tangent frames and parallel transport.
+//!
+//! A tangent vector at vertex `i` is a 2-vector in the vertex's own frame. The frame is defined
+//! in *scaled polar coordinates* (Knöppel et al. 2013; Sharp, Soliman & Crane 2019, §5.1): the
+//! corners around `i` are laid side by side counter-clockwise, starting at a reference outgoing
+//! edge, and their angles are scaled by `s_i = 2π / Θ_i` so that they fill a whole turn
+//! (`s_i = 1` at boundary vertices, which keeps boundary corners undistorted). The outgoing edge
+//! `i→j` then has the vertex-frame polar angle
+//!
+//! ```text
+//! ϑ_i(i→j) = s_i · (sum of the corner angles from the reference edge to i→j)
+//! ```
+//!
+//! The reference edge is the first edge of the first corner of [`Mesh::vertex_fan`].
+//!
+//! # Vertex → face transport
+//!
+//! For the corner of face `T` at vertex `i`, with face-frame angle `φ` of its first edge
+//! ([`Triangle::first_edge_angles`](crate::geometry::Triangle::first_edge_angles)) and vertex-frame angle `ϑ` of the same edge, the rotation
+//! `R_{T,i}` by
+//!
+//! ```text
+//! r_{T,i} = φ − ϑ + θ_i (1 − s_i) / 2
+//! ```
+//!
+//! maps vertex-frame vectors into `T`'s face frame, aligning the corner's bisector in both. This
+//! is the transport the finite elements use (`docs/discretization.md` §4).
+//!
+//! # Vertex → vertex transport
+//!
+//! Across halfedge `i→j` a vector at polar angle `ψ` in `i`'s frame becomes the vector at polar
+//! angle `ψ + ρ_{ij}` in `j`'s frame, `ρ_{ij} = ϑ_j(j→i) + π − ϑ_i(i→j)` (the connection of the
+//! Vector Heat Method). It is exact on flat regions and is what a discrete parallel transport
+//! along a path of edges uses; the finite elements do not need it.
+
+mod push_forward;
+
+pub use push_forward::{push_forward, vertex_frames_in_r3};
+
+use crate::geometry::IntrinsicGeometry;
+use crate::mesh::Mesh;
+use nalgebra::{Matrix2, Vector2};
+use std::f64::consts::PI;
+
+/// Vertex frames and transports of one intrinsic geometry.
+#[derive(Clone, Debug)]
+pub struct Connection {
+    vertex_scales: Vec<f64>,
+    /// Vertex-frame polar angle of each halfedge at its tail vertex.
+    halfedge_angles: Vec<f64>,
+    /// `r_{T,i}` for each face and local corner.
+    corner_rotations: Vec<[f64; 3]>,
+}
+
+impl Connection {
+    pub fn new(mesh: &Mesh, geometry: &IntrinsicGeometry) -> Self {
+        let mut vertex_scales = vec![1.0; mesh.n_vertices()];
+        let mut halfedge_angles = vec![0.0; mesh.n_halfedges()];
+        let mut corner_rotations = vec![[0.0; 3]; mesh.n_faces()];
+        for (i, scale) in vertex_scales.iter_mut().enumerate() {
+            if !mesh.is_boundary_vertex(i) {
+                *scale = 2.0 * PI / geometry.vertex_angle_sums()[i];
+            }
+            let mut swept = 0.0;
+            for corner in mesh.vertex_fan(i) {
+                let (f, c) = (corner.face as usize, corner.local as usize);
+                let triangle = geometry.triangle(f);
+                let theta = triangle.angles[c];
+                let vartheta = *scale * swept;
+                halfedge_angles[corner.first_halfedge()] = vartheta;
+                corner_rotations[f][c] =
+                    triangle.first_edge_angles()[c] - vartheta + theta * (1.0 - *scale) / 2.0;
+                swept += theta;
+            }
+        }
+        Self {
+            vertex_scales,
+            halfedge_angles,
+            corner_rotations,
+        }
+    }
+
+    /// `s_i`: the factor that scales corner angles at vertex `i` to polar angles.
+    pub fn vertex_scales(&self) -> &[f64] {
+        &self.vertex_scales
+    }
+
+    /// `ϑ_i(h)`: the polar angle of halfedge `h` in the frame of its tail vertex.
+    pub fn halfedge_angle(&self, h: usize) -> f64 {
+        self.halfedge_angles[h]
+    }
+
+    /// `r_{T,i}` for face `face` and local corner `local`.
+    pub fn corner_rotation_angle(&self, face: usize, local: usize) -> f64 {
+        self.corner_rotations[face][local]
+    }
+
+    /// `[r_{T,a}, r_{T,b}, r_{T,c}]` for face `T = face`.
+    pub fn face_rotation_angles(&self, face: usize) -> [f64; 3] {
+        self.corner_rotations[face]
+    }
+
+    /// `R_{T,i}`: maps a vertex-frame vector at corner `local` of `face` into the face frame.
+    pub fn vertex_to_face(&self, face: usize, local: usize) -> Matrix2<f64> {
+        rotation(self.corner_rotations[face][local])
+    }
+
+    /// `ρ_{ij}` for halfedge `h = i→j`: the rotation angle that carries a vector at `i` to `j`.
+    ///
+    /// `ϑ_j(j→i)` is the second-edge angle of `j`'s corner in `h`'s face, which exists on the
+    /// boundary too.
+    pub fn transport_angle(&self, mesh: &Mesh, geometry: &IntrinsicGeometry, h: usize) -> f64 {
+        let (f, c) = (h / 3, h % 3);
+        let head_corner = 3 * f + (c + 1) % 3;
+        let [_, j] = mesh.halfedge_vertices(h);
+        let theta_j = geometry.triangle(f).angles[(c + 1) % 3];
+        let vartheta_ji =
+            self.halfedge_angles[head_corner] + self.vertex_scales[j as usize] * theta_j;
+        wrap_angle(vartheta_ji + PI - self.halfedge_angles[h])
+    }
+
+    /// Transports the tangent vector `u` at the tail of halfedge `h` to its head.
+    pub fn transport(
+        &self,
+        mesh: &Mesh,
+        geometry: &IntrinsicGeometry,
+        h: usize,
+        u: Vector2<f64>,
+    ) -> Vector2<f64> {
+        rotation(self.transport_angle(mesh, geometry, h)) * u
+    }
+}
+
+/// The counter-clockwise rotation by `angle`.
+pub fn rotation(angle: f64) -> Matrix2<f64> {
+    let (s, c) = angle.sin_cos();
+    Matrix2::new(c, -s, s, c)
+}
+
+/// `angle` reduced to `(−π, π]`.
+pub fn wrap_angle(angle: f64) -> f64 {
+    let wrapped = angle.rem_euclid(2.0 * PI);
+    if wrapped > PI {
+        wrapped - 2.0 * PI
+    } else {
+        wrapped
+    }
+}

@@ -1,0 +1,56 @@
+//! Element matrices of one triangle: P1 scalar stiffness and mass, and their vector versions.
+//!
+//! Scalar matrices are 3×3, indexed by local corner `(a, b, c)`. Vector matrices are 6×6 with
+//! DOFs `2a, 2a + 1` the components of the tangent vector at corner `a` in *its vertex frame*;
+//! a scalar bilinear form `Σ_ab m_ab (R_a u_a)·(R_b u_b)` of face-frame vectors becomes the block
+//! `(a, b) = m_ab R_aᵀ R_b = m_ab · Rot(r_b − r_a)`.
+
+use crate::connection::rotation;
+use crate::geometry::Triangle;
+use nalgebra::{Matrix3, Matrix6, Vector2};
+
+/// P1 cotan stiffness `S_ab = −½ cot θ_opposite(ab)` for `a ≠ b`, `S_aa = −Σ_{b≠a} S_ab`.
+///
+/// `uᵀ S u = ∫_T |∇u|²` for the P1 interpolant; positive semi-definite, rows sum to zero.
+pub fn cotan_stiffness(triangle: &Triangle) -> Matrix3<f64> {
+    let mut s = Matrix3::zeros();
+    for c in 0..3 {
+        // The edge opposite corner c joins corners c + 1 and c + 2.
+        let (i, j) = ((c + 1) % 3, (c + 2) % 3);
+        let w = 0.5 * triangle.cotans[c];
+        s[(i, j)] -= w;
+        s[(j, i)] -= w;
+        s[(i, i)] += w;
+        s[(j, j)] += w;
+    }
+    s
+}
+
+/// Consistent P1 mass `A/12 · [[2,1,1],[1,2,1],[1,1,2]]`: `uᵀ m v = ∫_T u v` exactly.
+pub fn consistent_mass(triangle: &Triangle) -> Matrix3<f64> {
+    (Matrix3::repeat(1.0) + Matrix3::identity()) * (triangle.area / 12.0)
+}
+
+/// Lumped (barycentric) mass `A/3 · I`: the row sums of the consistent mass.
+pub fn lumped_mass(triangle: &Triangle) -> Matrix3<f64> {
+    Matrix3::identity() * (triangle.area / 3.0)
+}
+
+/// The 6×6 vector version of the scalar element matrix `m`, with block `(a, b) = m_ab R_aᵀ R_b`
+/// for the vertex→face rotation angles `rotations = [r_a, r_b, r_c]`.
+pub fn vector_element(m: &Matrix3<f64>, rotations: &[f64; 3]) -> Matrix6<f64> {
+    let mut out = Matrix6::zeros();
+    for a in 0..3 {
+        for b in 0..3 {
+            let block = rotation(rotations[b] - rotations[a]) * m[(a, b)];
+            out.fixed_view_mut::<2, 2>(2 * a, 2 * b).copy_from(&block);
+        }
+    }
+    out
+}
+
+/// Face-frame gradient `G = Σ_a f_a ∇φ_a` of the P1 function with corner values `values`.
+pub fn face_gradient(triangle: &Triangle, values: [f64; 3]) -> Vector2<f64> {
+    let grads = triangle.hat_gradients();
+    grads[0] * values[0] + grads[1] * values[1] + grads[2] * values[2]
+}

@@ -1,0 +1,73 @@
+//! # meshflow: optical flow on moving surfaces
+//!
+//! Given a deforming triangle mesh (frames `k = 0..K−1` at times `t_k`, fixed connectivity) and a
+//! grey value `I_k(i)` per vertex and frame, meshflow finds the tangent vector field `u` that
+//! moves the image along the surface. It minimizes the energy of Bauer, Grasmair & Kirisits,
+//! "Optical Flow on Moving Manifolds" (SIAM J. Imaging Sci. 8(1), 2015):
+//!
+//! ```text
+//! E(u) = ∫∫ (∂_t I + dI(u))² + β |u|²_g + γ |∇u|²_g + (γ/α²) |∇_t u|²_g  dA_g dt
+//! ```
+//!
+//! with `g(t)` the metric of the surface at time `t` and `∇` its Levi-Civita connection, whose
+//! Euler–Lagrange equation involves the Bochner (connection) Laplacian `∇*∇`.
+//!
+//! Everything is intrinsic: operators depend on edge lengths only. The discretization (P1
+//! tangent-field finite elements with the connection of [`connection`]) is written out in
+//! `docs/discretization.md`; each module opens with the part of it that it implements.
+//!
+//! Data flows one way through the modules: [`mesh`] (connectivity) → [`geometry`] (intrinsic
+//! quantities) → [`connection`] (frames and transport) → [`fem`] (element matrices and
+//! assembly); [`io`] reads and writes files, [`shapes`] makes sample surfaces.
+//!
+//! ```
+//! use meshflow::{connection::Connection, fem, geometry::IntrinsicGeometry, shapes};
+//!
+//! let sphere = shapes::icosphere(2); // 162 vertices on the unit sphere
+//! let mesh = sphere.mesh()?;
+//! let geometry = IntrinsicGeometry::from_positions(&mesh, &sphere.positions)?;
+//! let connection = Connection::new(&mesh, &geometry);
+//!
+//! // Bochner Laplacian and vector mass, 2V × 2V, DOFs (2i, 2i+1) = vertex i's frame.
+//! let k = fem::connection_laplacian(&mesh, &geometry, &connection);
+//! let m = fem::vector_mass(&mesh, &geometry, &connection, fem::MassKind::Consistent);
+//! assert_eq!((k.nrows(), m.nrows()), (2 * 162, 2 * 162));
+//!
+//! // Tangent vectors in R^3: P_i maps vertex i's frame components to R^3.
+//! let frames = meshflow::connection::vertex_frames_in_r3(&mesh, &geometry, &connection, &sphere.positions)?;
+//! assert!(frames[0].column(0).dot(&sphere.positions[0]).abs() < 1e-2);
+//! # Ok::<(), meshflow::Error>(())
+//! ```
+
+pub mod connection;
+pub mod fem;
+pub mod geometry;
+pub mod io;
+pub mod mesh;
+pub mod shapes;
+
+use std::path::PathBuf;
+
+/// Any error meshflow reports. Variants carry the element (vertex, face, edge, line) at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error(transparent)]
+    Connectivity(#[from] mesh::ConnectivityError),
+    #[error(transparent)]
+    Geometry(#[from] geometry::GeometryError),
+    #[error(transparent)]
+    Io(#[from] io::IoError),
+    /// An error in the contents of a file, with the file's name.
+    #[error("{}: {source}", path.display())]
+    InFile { path: PathBuf, source: Box<Error> },
+}
+
+impl Error {
+    /// Attaches the file whose contents caused this error.
+    pub fn in_file(self, path: impl Into<PathBuf>) -> Self {
+        Error::InFile {
+            path: path.into(),
+            source: Box::new(self),
+        }
+    }
+}

@@ -1,0 +1,109 @@
+//! The `meshflow` command line. Every failure is one line on stderr and a non-zero exit code.
+
+use clap::{Parser, Subcommand};
+use meshflow::connection::{vertex_frames_in_r3, Connection};
+use meshflow::fem::{self, MassKind};
+use meshflow::geometry::IntrinsicGeometry;
+use meshflow::io::{read_obj, write_matrix_market, write_npy, IoError};
+use meshflow::mesh::Mesh;
+use meshflow::Error;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "meshflow",
+    version,
+    about = "Optical flow on moving surfaces (intrinsic P1 tangent-field FEM)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Write the finite-element operators of a mesh for SciPy/MATLAB: cotan.mtx (V×V cotan
+    /// Laplacian), mass_scalar.mtx (V×V P1 mass), stiffness.mtx (2V×2V connection Laplacian),
+    /// mass.mtx (2V×2V vector mass) and frames.npy (V×2×3 vertex frames in R^3).
+    Operators {
+        /// Triangle mesh (.obj)
+        mesh: PathBuf,
+        /// Output directory (created if missing)
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Operators { mesh, out } => write_operators(&mesh, &out),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("meshflow: error: {error}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn write_operators(mesh_path: &Path, out: &Path) -> Result<(), Error> {
+    let obj = read_obj(mesh_path)?;
+    let in_file = |e: Error| e.in_file(mesh_path);
+    let mesh = Mesh::new(obj.positions.len(), obj.faces).map_err(|e| in_file(e.into()))?;
+    let geometry =
+        IntrinsicGeometry::from_positions(&mesh, &obj.positions).map_err(|e| in_file(e.into()))?;
+    let connection = Connection::new(&mesh, &geometry);
+    let frames = vertex_frames_in_r3(&mesh, &geometry, &connection, &obj.positions)
+        .map_err(|e| in_file(e.into()))?;
+    let matrices = [
+        ("cotan.mtx", fem::cotan_laplacian(&mesh, &geometry)),
+        (
+            "mass_scalar.mtx",
+            fem::scalar_mass(&mesh, &geometry, MassKind::Consistent),
+        ),
+        (
+            "stiffness.mtx",
+            fem::connection_laplacian(&mesh, &geometry, &connection),
+        ),
+        (
+            "mass.mtx",
+            fem::vector_mass(&mesh, &geometry, &connection, MassKind::Consistent),
+        ),
+    ];
+    std::fs::create_dir_all(out).map_err(|e| IoError::File {
+        path: out.to_path_buf(),
+        source: e,
+    })?;
+    for (name, matrix) in &matrices {
+        write_matrix_market(&out.join(name), matrix)?;
+    }
+    // frames.npy[i][k] = R^3 image of basis vector k of vertex i's frame.
+    let frame_values: Vec<f64> = frames
+        .iter()
+        .flat_map(|p| {
+            [p.column(0), p.column(1)]
+                .into_iter()
+                .flat_map(|c| [c[0], c[1], c[2]])
+        })
+        .collect();
+    write_npy(
+        &out.join("frames.npy"),
+        &[mesh.n_vertices() as u64, 2, 3],
+        &frame_values,
+    )?;
+    println!(
+        "{}: {} vertices, {} faces, {} boundary vertices, Euler characteristic {} -> {}",
+        mesh_path.display(),
+        mesh.n_vertices(),
+        mesh.n_faces(),
+        (0..mesh.n_vertices())
+            .filter(|&i| mesh.is_boundary_vertex(i))
+            .count(),
+        mesh.euler_characteristic(),
+        out.display()
+    );
+    Ok(())
+}
