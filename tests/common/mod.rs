@@ -1,0 +1,136 @@
+//! Helpers shared by the integration tests: dense views of sparse operators and eigen solvers
+//! that are independent of the code under test (nalgebra dense, faer sparse Cholesky).
+#![allow(dead_code)]
+
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::{Mat, Side};
+use meshflow::fem::SparseMatrix;
+use nalgebra::{DMatrix, Rotation3, Vector3};
+
+pub fn dense(a: &SparseMatrix) -> DMatrix<f64> {
+    let mut out = DMatrix::zeros(a.nrows(), a.ncols());
+    for_each_entry(a, |i, j, v| out[(i, j)] += v);
+    out
+}
+
+pub fn for_each_entry(a: &SparseMatrix, mut f: impl FnMut(usize, usize, f64)) {
+    let (symbolic, values) = a.parts();
+    let (col_ptr, row_idx) = (symbolic.col_ptr(), symbolic.row_idx());
+    for j in 0..a.ncols() {
+        for k in col_ptr[j]..col_ptr[j + 1] {
+            f(row_idx[k], j, values[k]);
+        }
+    }
+}
+
+/// `A X` for a sparse `A` and dense `X`.
+pub fn mul(a: &SparseMatrix, x: &DMatrix<f64>) -> DMatrix<f64> {
+    let mut y = DMatrix::zeros(a.nrows(), x.ncols());
+    for_each_entry(a, |i, j, v| {
+        for c in 0..x.ncols() {
+            y[(i, c)] += v * x[(j, c)];
+        }
+    });
+    y
+}
+
+/// Largest entry of |A − Aᵀ|.
+pub fn asymmetry(a: &SparseMatrix) -> f64 {
+    let d = dense(a);
+    (&d - d.transpose()).amax()
+}
+
+/// Largest |a_k − b_k| over the stored values, relative to the largest |a_k| (same pattern).
+pub fn relative_value_difference(a: &SparseMatrix, b: &SparseMatrix) -> f64 {
+    let (sa, va) = a.parts();
+    let (sb, vb) = b.parts();
+    assert_eq!(sa.col_ptr(), sb.col_ptr());
+    assert_eq!(sa.row_idx(), sb.row_idx());
+    let scale = va.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    va.iter()
+        .zip(vb)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+        / scale
+}
+
+/// Eigenvalues (ascending) and B-orthonormal eigenvectors of the dense pencil (A, B), B SPD.
+pub fn generalized_eigen(a: &DMatrix<f64>, b: &DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
+    let l = b.clone().cholesky().expect("B is positive definite").l();
+    let l_inv = l.try_inverse().unwrap();
+    let c = &l_inv * a * l_inv.transpose();
+    let c = (&c + c.transpose()) * 0.5;
+    let eigen = c.symmetric_eigen();
+    let mut order: Vec<usize> = (0..eigen.eigenvalues.len()).collect();
+    order.sort_by(|&i, &j| eigen.eigenvalues[i].total_cmp(&eigen.eigenvalues[j]));
+    let values = order.iter().map(|&i| eigen.eigenvalues[i]).collect();
+    let vectors = l_inv.transpose() * eigen.eigenvectors.select_columns(&order);
+    (values, vectors)
+}
+
+pub fn eigenvalues(a: &DMatrix<f64>) -> Vec<f64> {
+    let mut v: Vec<f64> = a.clone().symmetric_eigenvalues().iter().copied().collect();
+    v.sort_by(f64::total_cmp);
+    v
+}
+
+/// The `count` smallest eigenvalues of the sparse pencil (K, M), K and M SPD, by subspace
+/// iteration on `K⁻¹M` with a block of `block > count` vectors and Rayleigh–Ritz projection.
+pub fn lowest_generalized_eigenvalues(
+    k: &SparseMatrix,
+    m: &SparseMatrix,
+    count: usize,
+    block: usize,
+) -> Vec<f64> {
+    let n = k.nrows();
+    let symbolic = SymbolicLlt::try_new(k.symbolic(), Side::Lower).unwrap();
+    let llt = Llt::try_new_with_symbolic(symbolic, k.as_ref(), Side::Lower)
+        .expect("K is positive definite");
+    let mut seed = 12345u64;
+    let mut x = DMatrix::from_fn(n, block, |_, _| {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    });
+    let mut previous = vec![f64::INFINITY; count];
+    for _ in 0..200 {
+        let mx = mul(m, &x);
+        let mut rhs = Mat::from_fn(n, block, |i, j| mx[(i, j)]);
+        llt.solve_in_place(rhs.as_mut());
+        let y = DMatrix::from_fn(n, block, |i, j| rhs[(i, j)]);
+        let ky = y.transpose() * mul(k, &y);
+        let my = y.transpose() * mul(m, &y);
+        let (values, z) = generalized_eigen(&ky, &my);
+        x = y * z;
+        let change = values
+            .iter()
+            .zip(&previous)
+            .map(|(a, b)| ((a - b) / a).abs())
+            .fold(0.0, f64::max);
+        previous = values[..count].to_vec();
+        if change < 1e-13 {
+            break;
+        }
+    }
+    previous
+}
+
+/// A fixed rotation and translation applied to every position.
+pub fn rigid_motion(positions: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+    let rotation = Rotation3::from_euler_angles(0.3, -1.1, 2.4);
+    let shift = Vector3::new(1.5, -40.0, 7.25);
+    positions.iter().map(|p| rotation * p + shift).collect()
+}
+
+/// Deterministic pseudo-random numbers in [-1, 1).
+pub fn noise(count: usize, mut seed: u64) -> Vec<f64> {
+    (0..count)
+        .map(|_| {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            2.0 * ((seed >> 11) as f64 / (1u64 << 53) as f64) - 1.0
+        })
+        .collect()
+}
