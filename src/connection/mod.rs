@@ -24,7 +24,7 @@
 //! ```
 //!
 //! maps vertex-frame vectors into `T`'s face frame, aligning the corner's bisector in both. This
-//! is the transport the finite elements use (`docs/discretization.md` §4).
+//! is the transport the finite elements use (`docs/discretization.md` §5).
 //!
 //! # Vertex → vertex transport
 //!

@@ -1,4 +1,4 @@
-//! Push-forward of vertex tangent vectors to R^3 (`docs/discretization.md` §7).
+//! Push-forward of vertex tangent vectors to R^3 (`docs/discretization.md` §8).
 //!
 //! Face `T = (a, b, c)` maps its layout onto its embedding by the affine map with linear part
 //! `F_T = E3 · E2⁻¹` (3×2), `E3 = [x_b − x_a, x_c − x_a]` in R^3 and `E2` the same edge vectors

@@ -61,7 +61,7 @@ pub fn scalar_mass(mesh: &Mesh, geometry: &IntrinsicGeometry, kind: MassKind) ->
 }
 
 /// Connection Laplacian `K` (2V×2V, positive semi-definite): block `(a, b)` of face `T` is
-/// `S^T_ab R_{T,a}ᵀ R_{T,b}` (`docs/discretization.md` §5).
+/// `S^T_ab R_{T,a}ᵀ R_{T,b}` (`docs/discretization.md` §6).
 pub fn connection_laplacian(
     mesh: &Mesh,
     geometry: &IntrinsicGeometry,

@@ -55,18 +55,30 @@ pub fn read_npy(path: &Path) -> Result<NpyArray, IoError> {
         ));
     }
     let shape = file.shape().to_vec();
-    let count = shape.iter().try_fold(1u64, |acc, &d| acc.checked_mul(d));
-    if count.is_none_or(|n| n.saturating_mul(8) > bytes.len() as u64) {
+    let needed = shape.iter().try_fold(8u64, |acc, &d| acc.checked_mul(d));
+    let present = bytes.len().saturating_sub(data_offset(&bytes)) as u64;
+    if needed != Some(present) {
         return Err(IoError::format(
             path,
-            format!(
-                "shape {shape:?} does not fit the file's {} bytes",
-                bytes.len()
-            ),
+            format!("shape {shape:?} does not fit the {present} bytes of data (truncated or corrupt file)"),
         ));
     }
     let data = file
         .into_vec::<f64>()
         .map_err(|e| IoError::format(path, format!("truncated or corrupt data ({e})")))?;
     Ok(NpyArray { shape, data })
+}
+
+/// Where the data starts: magic (6 bytes), version (2), header length (2 bytes in format 1.0,
+/// 4 bytes later), header.
+fn data_offset(bytes: &[u8]) -> usize {
+    let le = |range: std::ops::Range<usize>| {
+        bytes
+            .get(range)
+            .map(|b| b.iter().rev().fold(0usize, |acc, &x| acc << 8 | x as usize))
+    };
+    match bytes.get(6) {
+        Some(1) => 10 + le(8..10).unwrap_or(0),
+        _ => 12 + le(8..12).unwrap_or(0),
+    }
 }

@@ -116,11 +116,18 @@ pub fn lowest_generalized_eigenvalues(
     previous
 }
 
+/// The rotation part of [`rigid_motion`].
+pub fn rigid_rotation() -> Rotation3<f64> {
+    Rotation3::from_euler_angles(0.3, -1.1, 2.4)
+}
+
 /// A fixed rotation and translation applied to every position.
 pub fn rigid_motion(positions: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
-    let rotation = Rotation3::from_euler_angles(0.3, -1.1, 2.4);
     let shift = Vector3::new(1.5, -40.0, 7.25);
-    positions.iter().map(|p| rotation * p + shift).collect()
+    positions
+        .iter()
+        .map(|p| rigid_rotation() * p + shift)
+        .collect()
 }
 
 /// Deterministic pseudo-random numbers in [-1, 1).
