@@ -2,7 +2,7 @@
 
 use clap::{Parser, Subcommand};
 use meshflow::connection::{vertex_frames_in_r3, Connection};
-use meshflow::fem::{self, MassKind};
+use meshflow::fem;
 use meshflow::geometry::IntrinsicGeometry;
 use meshflow::io::{read_obj, write_matrix_market, write_npy, IoError};
 use meshflow::mesh::Mesh;
@@ -58,27 +58,13 @@ fn write_operators(mesh_path: &Path, out: &Path) -> Result<(), Error> {
     let connection = Connection::new(&mesh, &geometry);
     let frames = vertex_frames_in_r3(&mesh, &geometry, &connection, &obj.positions)
         .map_err(|e| in_file(e.into()))?;
-    let matrices = [
-        ("cotan.mtx", fem::cotan_laplacian(&mesh, &geometry)),
-        (
-            "mass_scalar.mtx",
-            fem::scalar_mass(&mesh, &geometry, MassKind::Consistent),
-        ),
-        (
-            "stiffness.mtx",
-            fem::connection_laplacian(&mesh, &geometry, &connection),
-        ),
-        (
-            "mass.mtx",
-            fem::vector_mass(&mesh, &geometry, &connection, MassKind::Consistent),
-        ),
-    ];
+    let matrices = fem::exported_operators(&mesh, &geometry, &connection);
     std::fs::create_dir_all(out).map_err(|e| IoError::File {
         path: out.to_path_buf(),
         source: e,
     })?;
     for (name, matrix) in &matrices {
-        write_matrix_market(&out.join(name), matrix)?;
+        write_matrix_market(&out.join(format!("{name}.mtx")), matrix)?;
     }
     // frames.npy[i][k] = R^3 image of basis vector k of vertex i's frame.
     let frame_values: Vec<f64> = frames

@@ -13,9 +13,9 @@ use meshflow::shapes::icosphere;
 use nalgebra::Vector3;
 use std::path::Path;
 
-fn write_text(dir: &Path, name: &str, text: &str) -> std::path::PathBuf {
+fn write_file(dir: &Path, name: &str, contents: impl AsRef<[u8]>) -> std::path::PathBuf {
     let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
+    std::fs::write(&path, contents).unwrap();
     path
 }
 
@@ -46,7 +46,7 @@ fn obj_reader_handles_polygons_references_and_keeps_vertex_order() {
                 v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nvt 0 0\n\
                 o square\ng part\nusemtl none\ns off\n\
                 f 4/1/1 1/1/1 2/1/1 3/1/1\nv 2 0.5 0\nf -4//1 -1//1 -3//1\n";
-    let mesh = read_obj(&write_text(dir.path(), "quad.obj", text)).unwrap();
+    let mesh = read_obj(&write_file(dir.path(), "quad.obj", text)).unwrap();
     assert_eq!(mesh.positions.len(), 5);
     assert_eq!(mesh.positions[3], Vector3::new(0.0, 1.0, 0.0));
     assert_eq!(mesh.faces, vec![[3, 0, 1], [3, 1, 2], [1, 4, 2]]);
@@ -55,7 +55,7 @@ fn obj_reader_handles_polygons_references_and_keeps_vertex_order() {
 
 fn obj_error(text: &str) -> IoError {
     let dir = tempfile::tempdir().unwrap();
-    read_obj(&write_text(dir.path(), "bad.obj", text)).unwrap_err()
+    read_obj(&write_file(dir.path(), "bad.obj", text)).unwrap_err()
 }
 
 #[test]
@@ -114,7 +114,7 @@ fn npy_round_trip_and_validation() {
 
     // Truncated: drop the last value.
     let bytes = std::fs::read(&path).unwrap();
-    let cut = write_bytes(dir.path(), "cut.npy", &bytes[..bytes.len() - 8]);
+    let cut = write_file(dir.path(), "cut.npy", &bytes[..bytes.len() - 8]);
     assert!(read_npy(&cut)
         .unwrap_err()
         .to_string()
@@ -123,20 +123,14 @@ fn npy_round_trip_and_validation() {
     let mut relabelled = bytes.clone();
     let at = relabelled.windows(3).position(|w| w == b"<f8").unwrap();
     relabelled[at..at + 3].copy_from_slice(b"<i4");
-    let wrong = write_bytes(dir.path(), "int.npy", &relabelled);
+    let wrong = write_file(dir.path(), "int.npy", &relabelled);
     let message = read_npy(&wrong).unwrap_err().to_string();
     assert!(message.contains("expected float64"), "{message}");
-    let garbage = write_bytes(dir.path(), "garbage.npy", b"definitely not numpy");
+    let garbage = write_file(dir.path(), "garbage.npy", b"definitely not numpy");
     assert!(read_npy(&garbage)
         .unwrap_err()
         .to_string()
         .contains("not a valid .npy"));
-}
-
-fn write_bytes(dir: &Path, name: &str, bytes: &[u8]) -> std::path::PathBuf {
-    let path = dir.join(name);
-    std::fs::write(&path, bytes).unwrap();
-    path
 }
 
 #[test]

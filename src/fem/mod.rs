@@ -117,6 +117,30 @@ pub fn face_gradient_operator(mesh: &Mesh, geometry: &IntrinsicGeometry) -> Spar
         .expect("gradient triplets are in range")
 }
 
+/// The operators `meshflow operators` exports, with their file stems: `cotan` (L),
+/// `mass_scalar` (consistent m), `stiffness` (K) and `mass` (consistent M).
+pub fn exported_operators(
+    mesh: &Mesh,
+    geometry: &IntrinsicGeometry,
+    connection: &Connection,
+) -> [(&'static str, SparseMatrix); 4] {
+    [
+        ("cotan", cotan_laplacian(mesh, geometry)),
+        (
+            "mass_scalar",
+            scalar_mass(mesh, geometry, MassKind::Consistent),
+        ),
+        (
+            "stiffness",
+            connection_laplacian(mesh, geometry, connection),
+        ),
+        (
+            "mass",
+            vector_mass(mesh, geometry, connection, MassKind::Consistent),
+        ),
+    ]
+}
+
 /// Barycentric vertex areas `A_i = Σ_{T∋i} A_T / 3` (the lumped mass diagonal).
 pub fn vertex_areas(mesh: &Mesh, geometry: &IntrinsicGeometry) -> Vec<f64> {
     let mut areas = vec![0.0; mesh.n_vertices()];
