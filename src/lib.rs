@@ -41,6 +41,7 @@
 
 pub mod connection;
 pub mod fem;
+pub mod flow;
 pub mod geometry;
 pub mod io;
 pub mod mesh;
@@ -57,6 +58,8 @@ pub enum Error {
     Geometry(#[from] geometry::GeometryError),
     #[error(transparent)]
     Io(#[from] io::IoError),
+    #[error(transparent)]
+    Flow(#[from] flow::FlowError),
     /// An error in the contents of a file, with the file's name.
     #[error("{}: {source}", path.display())]
     InFile { path: PathBuf, source: Box<Error> },

@@ -34,8 +34,10 @@
 //! along a path of edges uses; the finite elements do not need it.
 
 mod push_forward;
+mod time_transport;
 
 pub use push_forward::{push_forward, vertex_frames_in_r3};
+pub use time_transport::polar_rotation_angles;
 
 use crate::geometry::IntrinsicGeometry;
 use crate::mesh::Mesh;

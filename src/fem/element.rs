@@ -7,7 +7,7 @@
 
 use crate::connection::rotation;
 use crate::geometry::Triangle;
-use nalgebra::{Matrix3, Matrix6, Vector2};
+use nalgebra::{Matrix3, Matrix6, Vector2, Vector6};
 
 /// P1 cotan stiffness `S_ab = −½ cot θ_opposite(ab)` for `a ≠ b`, `S_aa = −Σ_{b≠a} S_ab`.
 ///
@@ -39,14 +39,68 @@ pub fn lumped_mass(triangle: &Triangle) -> Matrix3<f64> {
 /// The 6×6 vector version of the scalar element matrix `m`, with block `(a, b) = m_ab R_aᵀ R_b`
 /// for the vertex→face rotation angles `rotations = [r_a, r_b, r_c]`.
 pub fn vector_element(m: &Matrix3<f64>, rotations: &[f64; 3]) -> Matrix6<f64> {
+    rotated_element(m, rotations, rotations, 0.0)
+}
+
+/// Block `(a, b) = m_ab Rot(extra + col_b − row_a)`: the form `Σ_ab m_ab (R_a v_a)·(Q R'_b w_b)`
+/// between vectors `v` transported by `row_rotations` and `w` transported by `col_rotations`
+/// and then rotated by `extra` (`Q = Rot(extra)`).
+pub fn rotated_element(
+    m: &Matrix3<f64>,
+    row_rotations: &[f64; 3],
+    col_rotations: &[f64; 3],
+    extra: f64,
+) -> Matrix6<f64> {
     let mut out = Matrix6::zeros();
     for a in 0..3 {
         for b in 0..3 {
-            let block = rotation(rotations[b] - rotations[a]) * m[(a, b)];
+            let block = rotation(extra + col_rotations[b] - row_rotations[a]) * m[(a, b)];
             out.fixed_view_mut::<2, 2>(2 * a, 2 * b).copy_from(&block);
         }
     }
     out
+}
+
+/// The brightness-constancy (data) term `∫_T (τ + G·u)²` of one face as the quadratic
+/// `uᵀ Q u + 2 lᵀ u + c` in the corners' vertex-frame DOFs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DataElement {
+    pub quadratic: Matrix6<f64>,
+    pub linear: Vector6<f64>,
+    pub constant: f64,
+}
+
+/// The data element for P1 intensity `intensity` (face gradient `G`) and P1 temporal rate
+/// `rate` (τ) on `triangle`: with `g_a = R_aᵀ G`, block `(a, b) = m_ab g_a g_bᵀ`,
+/// `l_a = Σ_b m_ab τ_b g_a`, `c = τᵀ m τ` (`m` the consistent mass). This is the exact integral
+/// of `(Σ_a φ_a (τ_a + G·R_a u_a))²` (`docs/discretization.md` §6).
+pub fn data_element(
+    triangle: &Triangle,
+    rotations: &[f64; 3],
+    intensity: [f64; 3],
+    rate: [f64; 3],
+) -> DataElement {
+    let gradient = face_gradient(triangle, intensity);
+    let m = consistent_mass(triangle);
+    let g = rotations.map(|r| rotation(r).transpose() * gradient);
+    let mut quadratic = Matrix6::zeros();
+    let mut linear = Vector6::zeros();
+    for a in 0..3 {
+        for b in 0..3 {
+            quadratic
+                .fixed_view_mut::<2, 2>(2 * a, 2 * b)
+                .copy_from(&(g[a] * g[b].transpose() * m[(a, b)]));
+            linear
+                .fixed_rows_mut::<2>(2 * a)
+                .axpy(m[(a, b)] * rate[b], &g[a], 1.0);
+        }
+    }
+    let tau = nalgebra::Vector3::from(rate);
+    DataElement {
+        quadratic,
+        linear,
+        constant: tau.dot(&(m * tau)),
+    }
 }
 
 /// Face-frame gradient `G = Σ_a f_a ∇φ_a` of the P1 function with corner values `values`.

@@ -1,0 +1,58 @@
+//! What can go wrong between a sequence and its flow.
+
+use crate::geometry::GeometryError;
+
+/// Why a flow could not be computed. Variants name the frame, vertex or parameter at fault.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FlowError {
+    #[error("a sequence needs at least 2 frames, got {0}")]
+    TooFewFrames(usize),
+    #[error("expected {expected} {what}, got {got}")]
+    CountMismatch {
+        what: &'static str,
+        expected: usize,
+        got: usize,
+    },
+    #[error("frame {frame}: {source}")]
+    Frame {
+        frame: usize,
+        #[source]
+        source: GeometryError,
+    },
+    #[error("slab {slab} (frames {slab} and {}): {source}", slab + 1)]
+    Slab {
+        slab: usize,
+        #[source]
+        source: GeometryError,
+    },
+    #[error("frame {frame}: intensity at vertex {vertex} is {value}, not a finite number")]
+    NonFiniteIntensity {
+        frame: usize,
+        vertex: usize,
+        value: f64,
+    },
+    #[error("frame times must be finite and strictly increasing, but t[{frame}] = {value} follows t[{}] = {previous}", frame - 1)]
+    NonIncreasingTimes {
+        frame: usize,
+        value: f64,
+        previous: f64,
+    },
+    #[error("frame time t[{frame}] = {value} is not a finite number")]
+    NonFiniteTime { frame: usize, value: f64 },
+    #[error("parameter {name} = {value} is invalid: it must be {requirement}")]
+    InvalidParameter {
+        name: &'static str,
+        value: f64,
+        requirement: &'static str,
+    },
+    #[error("the energy has no unique minimizer ({reason}); set beta > 0 (e.g. --beta 1e-3) to penalize the undetermined field")]
+    Singular { reason: String },
+    #[error("the sparse Cholesky factorization of {what} failed ({detail}); the system is not numerically positive definite: try beta > 0")]
+    Factorization { what: String, detail: String },
+    #[error("the solver stopped after {iterations} iterations at relative residual {residual:.3e}, above the tolerance {tolerance:.1e}")]
+    NotConverged {
+        iterations: usize,
+        residual: f64,
+        tolerance: f64,
+    },
+}

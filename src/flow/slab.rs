@@ -1,0 +1,135 @@
+//! Slabs: the time interval between two frames, with its mean geometry and image rates
+//! (`docs/discretization.md` §3).
+
+use super::{FlowError, FlowParams, MeshSequence, TimeCoupling};
+use crate::connection::{polar_rotation_angles, Connection};
+use crate::fem::element::{self, DataElement};
+use crate::geometry::IntrinsicGeometry;
+use nalgebra::{Matrix3, Matrix6};
+use rayon::prelude::*;
+
+/// Slab `s = [t_s, t_{s+1}]`: lengths are the mean of the two frames' lengths;
+/// `I_mid = (I_s + I_{s+1}) / 2`, `τ = (I_{s+1} − I_s) / Δt_s` per vertex.
+#[derive(Clone, Debug)]
+pub struct Slab {
+    pub geometry: IntrinsicGeometry,
+    pub connection: Connection,
+    pub dt: f64,
+    pub intensity_mid: Vec<f64>,
+    pub rate: Vec<f64>,
+}
+
+/// The element matrices of one face of one slab, before weighting by `Δt`, `β`, `γ`.
+pub struct FaceElements {
+    pub data: DataElement,
+    pub mass: Matrix6<f64>,
+    pub stiffness: Matrix6<f64>,
+}
+
+impl Slab {
+    fn new(sequence: &MeshSequence, s: usize) -> Result<Self, FlowError> {
+        let mean: Vec<f64> = sequence
+            .edge_lengths(s)
+            .iter()
+            .zip(sequence.edge_lengths(s + 1))
+            .map(|(a, b)| 0.5 * (a + b))
+            .collect();
+        let geometry = IntrinsicGeometry::new(sequence.mesh(), mean)
+            .map_err(|source| FlowError::Slab { slab: s, source })?;
+        let connection = Connection::new(sequence.mesh(), &geometry);
+        let dt = sequence.times()[s + 1] - sequence.times()[s];
+        let (before, after) = (sequence.intensities(s), sequence.intensities(s + 1));
+        Ok(Self {
+            geometry,
+            connection,
+            dt,
+            intensity_mid: before
+                .iter()
+                .zip(after)
+                .map(|(a, b)| 0.5 * (a + b))
+                .collect(),
+            rate: before
+                .iter()
+                .zip(after)
+                .map(|(a, b)| (b - a) / dt)
+                .collect(),
+        })
+    }
+
+    /// Data, vector mass and connection stiffness of face `f` of this slab.
+    pub fn face_elements(&self, face: &[u32; 3], f: usize) -> FaceElements {
+        let triangle = self.geometry.triangle(f);
+        let rotations = self.connection.face_rotation_angles(f);
+        let at = |values: &[f64]| face.map(|v| values[v as usize]);
+        FaceElements {
+            data: element::data_element(
+                triangle,
+                &rotations,
+                at(&self.intensity_mid),
+                at(&self.rate),
+            ),
+            mass: element::vector_element(&element::consistent_mass(triangle), &rotations),
+            stiffness: element::vector_element(&element::cotan_stiffness(triangle), &rotations),
+        }
+    }
+}
+
+/// All slabs of a sequence, built in parallel.
+pub fn build_slabs(sequence: &MeshSequence) -> Result<Vec<Slab>, FlowError> {
+    (0..sequence.n_slabs())
+        .into_par_iter()
+        .map(|s| Slab::new(sequence, s))
+        .collect()
+}
+
+/// The temporal coupling between slab `s` ("before") and `s + 1` ("after")
+/// (`docs/discretization.md` §7): weight `c = γ / (α² h)`, `h = (Δt_s + Δt_{s+1}) / 2`, polar
+/// rotation `Q_T` and mid area `Ā_T = (A^s_T + A^{s+1}_T) / 2` per face.
+#[derive(Clone, Debug)]
+pub struct TimeLink {
+    pub weight: f64,
+    pub polar_angles: Vec<f64>,
+}
+
+/// The three blocks one face contributes to the coupling of two slabs: `w_a = R¹_a u¹_a −
+/// Q R⁰_a u⁰_a` gives `c Σ_ab m̄_ab w_a·w_b = u⁰ᵀ B u⁰ + u¹ᵀ A u¹ + 2 u¹ᵀ X u⁰`.
+pub struct LinkElements {
+    pub before: Matrix6<f64>,
+    pub after: Matrix6<f64>,
+    pub cross: Matrix6<f64>,
+}
+
+impl TimeLink {
+    pub fn new(before: &Slab, after: &Slab, params: &FlowParams) -> Self {
+        let h = 0.5 * (before.dt + after.dt);
+        Self {
+            weight: params.gamma / (params.alpha * params.alpha * h),
+            polar_angles: polar_rotation_angles(&before.geometry, &after.geometry),
+        }
+    }
+
+    pub fn face_elements(
+        &self,
+        before: &Slab,
+        after: &Slab,
+        f: usize,
+        coupling: TimeCoupling,
+    ) -> LinkElements {
+        let mid_area = 0.5 * (before.geometry.triangle(f).area + after.geometry.triangle(f).area);
+        let scalar = match coupling {
+            TimeCoupling::Lumped => Matrix3::identity() * (mid_area / 3.0),
+            TimeCoupling::Consistent => {
+                (Matrix3::repeat(1.0) + Matrix3::identity()) * (mid_area / 12.0)
+            }
+        } * self.weight;
+        let (r0, r1) = (
+            before.connection.face_rotation_angles(f),
+            after.connection.face_rotation_angles(f),
+        );
+        LinkElements {
+            before: element::vector_element(&scalar, &r0),
+            after: element::vector_element(&scalar, &r1),
+            cross: -element::rotated_element(&scalar, &r1, &r0, self.polar_angles[f]),
+        }
+    }
+}

@@ -1,0 +1,366 @@
+//! The space-time linear system `A u = b` (`b = −f`) of all slabs, block-tridiagonal in time.
+//!
+//! Unknowns are slab-major: `u = [u_0, …, u_{S−1}]`, each `u_s` the `2V` vertex-frame DOFs of
+//! slab `s`. Diagonal block `s` is `Δt_s (D_s + β M_s + γ K_s)` plus the diagonal parts of the
+//! time links to slabs `s ± 1`; the block below the diagonal, `X_s` at `(s + 1, s)`, is the
+//! cross part of link `s`. All diagonal blocks share one [`VertexPattern`]; a lumped link is a
+//! 2×2 block per vertex, a consistent one uses the vertex pattern as well. With Dirichlet
+//! boundary conditions boundary DOFs get identity rows and a zero right-hand side.
+//!
+//! The energy is `E(u) = uᵀAu − 2bᵀu + c`.
+
+use super::slab::{Slab, TimeLink};
+use super::{Boundary, FlowParams};
+use crate::fem::{SparseMatrix, VertexPattern};
+use crate::mesh::Mesh;
+use nalgebra::{Matrix2, Matrix6};
+use rayon::prelude::*;
+
+/// The coupling block `X_s` between slab `s` and `s + 1`.
+#[derive(Clone, Debug)]
+pub enum LinkMatrix {
+    /// One 2×2 block per vertex.
+    Lumped(Vec<Matrix2<f64>>),
+    /// A `2V × 2V` matrix on the vertex pattern (not symmetric).
+    Consistent(SparseMatrix),
+}
+
+#[derive(Clone, Debug)]
+pub struct SpaceTimeSystem {
+    pattern: VertexPattern,
+    blocks: Vec<SparseMatrix>,
+    links: Vec<LinkMatrix>,
+    rhs: Vec<f64>,
+    constant: f64,
+}
+
+impl SpaceTimeSystem {
+    /// Assembles the system of `slabs` (with `links[s]` between slab `s` and `s + 1`; no links
+    /// for frame-by-frame flow). Slabs are assembled in parallel.
+    pub fn assemble(mesh: &Mesh, slabs: &[Slab], links: &[TimeLink], params: &FlowParams) -> Self {
+        let pattern = VertexPattern::new(mesh, 2);
+        let n_slabs = slabs.len();
+        let diagonal: Vec<(Vec<f64>, Vec<f64>, f64)> = (0..n_slabs)
+            .into_par_iter()
+            .map(|s| {
+                let coupled = !links.is_empty();
+                let link_before = (coupled && s > 0).then(|| (&links[s - 1], &slabs[s - 1]));
+                let link_after = (coupled && s + 1 < n_slabs).then(|| (&links[s], &slabs[s + 1]));
+                assemble_slab(mesh, &pattern, &slabs[s], link_before, link_after, params)
+            })
+            .collect();
+        let links = (0..links.len())
+            .into_par_iter()
+            .map(|s| assemble_link(mesh, &pattern, &links[s], &slabs[s], &slabs[s + 1], params))
+            .collect();
+        let constant = diagonal.iter().map(|d| d.2).sum();
+        let (blocks, rhs): (Vec<_>, Vec<_>) = diagonal
+            .into_iter()
+            .map(|(a, b, _)| (pattern.matrix(a), b))
+            .unzip();
+        let mut system = Self {
+            pattern,
+            blocks,
+            links,
+            rhs: rhs.concat(),
+            constant,
+        };
+        if params.boundary == Boundary::Dirichlet {
+            let fixed: Vec<bool> = (0..mesh.n_vertices())
+                .flat_map(|i| [mesh.is_boundary_vertex(i); 2])
+                .collect();
+            system.fix_dofs(&fixed);
+        }
+        system
+    }
+
+    pub fn n_slabs(&self) -> usize {
+        self.blocks.len()
+    }
+
+    /// `2V`: unknowns per slab.
+    pub fn slab_dimension(&self) -> usize {
+        self.pattern.dimension()
+    }
+
+    /// `S · 2V`.
+    pub fn dimension(&self) -> usize {
+        self.n_slabs() * self.slab_dimension()
+    }
+
+    pub fn pattern(&self) -> &VertexPattern {
+        &self.pattern
+    }
+
+    /// Diagonal block `s`.
+    pub fn block(&self, s: usize) -> &SparseMatrix {
+        &self.blocks[s]
+    }
+
+    /// `X_s`, the block at `(s + 1, s)`.
+    pub fn link(&self, s: usize) -> &LinkMatrix {
+        &self.links[s]
+    }
+
+    pub fn has_links(&self) -> bool {
+        !self.links.is_empty()
+    }
+
+    /// `b = −f`.
+    pub fn rhs(&self) -> &[f64] {
+        &self.rhs
+    }
+
+    /// `y = A x`, parallel over slabs.
+    pub fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let n = self.slab_dimension();
+        y.par_chunks_mut(n).enumerate().for_each(|(s, ys)| {
+            symmetric_mul(&self.blocks[s], &x[s * n..(s + 1) * n], ys);
+            if s > 0 {
+                self.link_mul(s - 1, &x[(s - 1) * n..s * n], ys);
+            }
+            if s + 1 < self.n_slabs() && self.has_links() {
+                self.link_transpose_mul(s, &x[(s + 1) * n..(s + 2) * n], ys);
+            }
+        });
+    }
+
+    /// `ys += X_s x`.
+    pub fn link_mul(&self, s: usize, x: &[f64], ys: &mut [f64]) {
+        match &self.links[s] {
+            LinkMatrix::Lumped(blocks) => {
+                for (i, b) in blocks.iter().enumerate() {
+                    let v = b * nalgebra::Vector2::new(x[2 * i], x[2 * i + 1]);
+                    ys[2 * i] += v.x;
+                    ys[2 * i + 1] += v.y;
+                }
+            }
+            LinkMatrix::Consistent(m) => for_each_column(m, |j, rows, values| {
+                for (&i, &v) in rows.iter().zip(values) {
+                    ys[i] += v * x[j];
+                }
+            }),
+        }
+    }
+
+    /// `ys += X_sᵀ x`.
+    pub fn link_transpose_mul(&self, s: usize, x: &[f64], ys: &mut [f64]) {
+        match &self.links[s] {
+            LinkMatrix::Lumped(blocks) => {
+                for (i, b) in blocks.iter().enumerate() {
+                    let v = b.transpose() * nalgebra::Vector2::new(x[2 * i], x[2 * i + 1]);
+                    ys[2 * i] += v.x;
+                    ys[2 * i + 1] += v.y;
+                }
+            }
+            LinkMatrix::Consistent(m) => for_each_column(m, |j, rows, values| {
+                ys[j] += rows
+                    .iter()
+                    .zip(values)
+                    .map(|(&i, &v)| v * x[i])
+                    .sum::<f64>();
+            }),
+        }
+    }
+
+    /// `E(u) = uᵀAu − 2bᵀu + c`.
+    pub fn energy(&self, u: &[f64]) -> f64 {
+        let mut au = vec![0.0; u.len()];
+        self.apply(u, &mut au);
+        dot(u, &au) - 2.0 * dot(&self.rhs, u) + self.constant
+    }
+
+    /// The diagonal of `A`.
+    pub fn diagonal(&self) -> Vec<f64> {
+        self.blocks
+            .iter()
+            .flat_map(|block| {
+                let mut d = vec![0.0; block.ncols()];
+                for_each_column(block, |j, rows, values| {
+                    d[j] = rows
+                        .iter()
+                        .zip(values)
+                        .filter(|(&i, _)| i == j)
+                        .map(|(_, &v)| v)
+                        .sum();
+                });
+                d
+            })
+            .collect()
+    }
+
+    /// The whole of `A` as one sparse matrix (for the direct solver).
+    pub fn to_sparse(&self) -> SparseMatrix {
+        let n = self.slab_dimension();
+        let mut triplets = Vec::new();
+        let mut push = |m: &SparseMatrix, row0: usize, col0: usize, transpose: bool| {
+            for_each_column(m, |j, rows, values| {
+                for (&i, &v) in rows.iter().zip(values) {
+                    let (r, c) = if transpose { (j, i) } else { (i, j) };
+                    triplets.push(faer::sparse::Triplet::new(row0 + r, col0 + c, v));
+                }
+            })
+        };
+        for (s, block) in self.blocks.iter().enumerate() {
+            push(block, s * n, s * n, false);
+        }
+        for (s, link) in self.links.iter().enumerate() {
+            let m = match link {
+                LinkMatrix::Consistent(m) => m.clone(),
+                LinkMatrix::Lumped(blocks) => block_diagonal(blocks),
+            };
+            push(&m, (s + 1) * n, s * n, false);
+            push(&m, s * n, (s + 1) * n, true);
+        }
+        SparseMatrix::try_new_from_triplets(self.dimension(), self.dimension(), &triplets)
+            .expect("space-time triplets are in range")
+    }
+
+    /// Identity rows and columns and zero right-hand side for the DOFs marked in `fixed`
+    /// (`2V` flags, the same in every slab).
+    fn fix_dofs(&mut self, fixed: &[bool]) {
+        let n = self.slab_dimension();
+        for block in &mut self.blocks {
+            mask(block, fixed, true);
+        }
+        for link in &mut self.links {
+            match link {
+                LinkMatrix::Consistent(m) => mask(m, fixed, false),
+                LinkMatrix::Lumped(blocks) => {
+                    for (i, b) in blocks.iter_mut().enumerate() {
+                        if fixed[2 * i] {
+                            *b = Matrix2::zeros();
+                        }
+                    }
+                }
+            }
+        }
+        for (k, b) in self.rhs.iter_mut().enumerate() {
+            if fixed[k % n] {
+                *b = 0.0;
+            }
+        }
+    }
+}
+
+/// Assembles diagonal block, right-hand side and energy constant of one slab.
+fn assemble_slab(
+    mesh: &Mesh,
+    pattern: &VertexPattern,
+    slab: &Slab,
+    link_before: Option<(&TimeLink, &Slab)>,
+    link_after: Option<(&TimeLink, &Slab)>,
+    params: &FlowParams,
+) -> (Vec<f64>, Vec<f64>, f64) {
+    let mut values = vec![0.0; pattern.nnz()];
+    let mut rhs = vec![0.0; pattern.dimension()];
+    let mut constant = 0.0;
+    for (f, face) in mesh.faces().iter().enumerate() {
+        let e = slab.face_elements(face, f);
+        let mut a: Matrix6<f64> =
+            (e.data.quadratic + e.mass * params.beta + e.stiffness * params.gamma) * slab.dt;
+        if let Some((link, previous)) = link_before {
+            a += link
+                .face_elements(previous, slab, f, params.time_coupling)
+                .after;
+        }
+        if let Some((link, next)) = link_after {
+            a += link
+                .face_elements(slab, next, f, params.time_coupling)
+                .before;
+        }
+        pattern.add_element(f, &a, &mut values);
+        for (corner, &v) in face.iter().enumerate() {
+            for r in 0..2 {
+                rhs[2 * v as usize + r] -= slab.dt * e.data.linear[2 * corner + r];
+            }
+        }
+        constant += slab.dt * e.data.constant;
+    }
+    (values, rhs, constant)
+}
+
+fn assemble_link(
+    mesh: &Mesh,
+    pattern: &VertexPattern,
+    link: &TimeLink,
+    before: &Slab,
+    after: &Slab,
+    params: &FlowParams,
+) -> LinkMatrix {
+    let cross = |f| {
+        link.face_elements(before, after, f, params.time_coupling)
+            .cross
+    };
+    match params.time_coupling {
+        super::TimeCoupling::Lumped => {
+            let mut blocks = vec![Matrix2::zeros(); mesh.n_vertices()];
+            for (f, face) in mesh.faces().iter().enumerate() {
+                let x = cross(f);
+                for (corner, &v) in face.iter().enumerate() {
+                    blocks[v as usize] += x.fixed_view::<2, 2>(2 * corner, 2 * corner);
+                }
+            }
+            LinkMatrix::Lumped(blocks)
+        }
+        super::TimeCoupling::Consistent => {
+            LinkMatrix::Consistent(pattern.assemble(mesh.n_faces(), cross))
+        }
+    }
+}
+
+/// `y = A x` for symmetric `A` stored in full: `y_j` is column `j` dotted with `x`.
+fn symmetric_mul(a: &SparseMatrix, x: &[f64], y: &mut [f64]) {
+    for_each_column(a, |j, rows, values| {
+        y[j] = rows.iter().zip(values).map(|(&i, &v)| v * x[i]).sum();
+    });
+}
+
+/// Calls `f(j, row indices, values)` for every column `j`.
+pub(crate) fn for_each_column(a: &SparseMatrix, mut f: impl FnMut(usize, &[usize], &[f64])) {
+    let (symbolic, values) = a.parts();
+    let col_ptr = symbolic.col_ptr();
+    for j in 0..a.ncols() {
+        let range = col_ptr[j]..col_ptr[j + 1];
+        f(j, &symbolic.row_idx()[range.clone()], &values[range]);
+    }
+}
+
+/// Zeroes the entries in fixed rows or columns; with `unit_diagonal`, puts 1 on their diagonal.
+fn mask(a: &mut SparseMatrix, fixed: &[bool], unit_diagonal: bool) {
+    let (symbolic, values) = a.parts_mut();
+    let (col_ptr, row_idx) = (symbolic.col_ptr(), symbolic.row_idx());
+    for j in 0..col_ptr.len() - 1 {
+        for k in col_ptr[j]..col_ptr[j + 1] {
+            let i = row_idx[k];
+            if fixed[i] || fixed[j] {
+                values[k] = if unit_diagonal && i == j { 1.0 } else { 0.0 };
+            }
+        }
+    }
+}
+
+fn block_diagonal(blocks: &[Matrix2<f64>]) -> SparseMatrix {
+    let triplets: Vec<_> = blocks
+        .iter()
+        .enumerate()
+        .flat_map(|(i, b)| {
+            (0..4).map(move |k| {
+                faer::sparse::Triplet::new(2 * i + k % 2, 2 * i + k / 2, b[(k % 2, k / 2)])
+            })
+        })
+        .collect();
+    let n = 2 * blocks.len();
+    SparseMatrix::try_new_from_triplets(n, n, &triplets)
+        .expect("block-diagonal triplets are in range")
+}
+
+/// Deterministic parallel dot product (fixed chunking, so results do not depend on scheduling).
+pub fn dot(x: &[f64], y: &[f64]) -> f64 {
+    x.par_chunks(8192)
+        .zip(y.par_chunks(8192))
+        .map(|(a, b)| a.iter().zip(b).map(|(p, q)| p * q).sum::<f64>())
+        .collect::<Vec<f64>>()
+        .iter()
+        .sum()
+}
