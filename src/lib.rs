@@ -46,6 +46,7 @@ pub mod geometry;
 pub mod io;
 pub mod mesh;
 pub mod shapes;
+pub mod synth;
 
 use std::path::PathBuf;
 

@@ -10,7 +10,7 @@ use meshflow::fem::{
 };
 use meshflow::geometry::IntrinsicGeometry;
 use meshflow::mesh::Mesh;
-use meshflow::shapes::{grid, icosphere, torus, Surface};
+use meshflow::shapes::{icosphere, torus, Surface};
 use nalgebra::{DMatrix, DVector, Matrix3x2, Vector2, Vector3};
 
 struct Setup {
@@ -34,17 +34,7 @@ fn setup(surface: Surface) -> Setup {
 
 /// A flat 6×5 grid with boundary whose interior vertices are moved off the lattice.
 fn jittered_flat_patch() -> Setup {
-    let mut surface = grid(6, 5, 1.2, 1.0);
-    let jitter = common::noise(2 * surface.positions.len(), 7);
-    for (i, p) in surface.positions.iter_mut().enumerate() {
-        let on_boundary =
-            p.x == 0.0 || p.y == 0.0 || (p.x - 1.2).abs() < 1e-12 || (p.y - 1.0).abs() < 1e-12;
-        if !on_boundary {
-            p.x += 0.06 * jitter[2 * i];
-            p.y += 0.06 * jitter[2 * i + 1];
-        }
-    }
-    setup(surface)
+    setup(common::jittered_grid(6, 5, 1.2, 1.0, 0.06))
 }
 
 fn single_triangle(c: Vector3<f64>) -> Setup {

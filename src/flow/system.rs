@@ -116,10 +116,10 @@ impl SpaceTimeSystem {
         let n = self.slab_dimension();
         y.par_chunks_mut(n).enumerate().for_each(|(s, ys)| {
             symmetric_mul(&self.blocks[s], &x[s * n..(s + 1) * n], ys);
-            if s > 0 {
+            if s > 0 && self.has_links() {
                 self.link_mul(s - 1, &x[(s - 1) * n..s * n], ys);
             }
-            if s + 1 < self.n_slabs() && self.has_links() {
+            if s < self.links.len() {
                 self.link_transpose_mul(s, &x[(s + 1) * n..(s + 2) * n], ys);
             }
         });

@@ -6,6 +6,7 @@ use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::{Mat, Side};
 use meshflow::fem::SparseMatrix;
+use meshflow::shapes::{grid, Surface};
 use nalgebra::{DMatrix, Rotation3, Vector3};
 
 pub fn dense(a: &SparseMatrix) -> DMatrix<f64> {
@@ -140,4 +141,20 @@ pub fn noise(count: usize, mut seed: u64) -> Vec<f64> {
             2.0 * ((seed >> 11) as f64 / (1u64 << 53) as f64) - 1.0
         })
         .collect()
+}
+
+/// A flat `nx × ny` grid over `width × height` whose interior vertices are moved off the lattice
+/// by up to `amplitude` in x and y (the boundary stays straight).
+pub fn jittered_grid(nx: usize, ny: usize, width: f64, height: f64, amplitude: f64) -> Surface {
+    let mut surface = grid(nx, ny, width, height);
+    let jitter = noise(2 * surface.positions.len(), 7);
+    for (i, p) in surface.positions.iter_mut().enumerate() {
+        let on_boundary =
+            p.x == 0.0 || p.y == 0.0 || (p.x - width).abs() < 1e-12 || (p.y - height).abs() < 1e-12;
+        if !on_boundary {
+            p.x += amplitude * jitter[2 * i];
+            p.y += amplitude * jitter[2 * i + 1];
+        }
+    }
+    surface
 }
