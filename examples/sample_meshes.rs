@@ -3,6 +3,7 @@
 
 use meshflow::io::write_obj;
 use meshflow::shapes::{grid, icosphere, torus};
+use meshflow::synth::rotating_sphere;
 use std::path::Path;
 
 fn main() -> Result<(), meshflow::Error> {
@@ -20,5 +21,25 @@ fn main() -> Result<(), meshflow::Error> {
             surface.faces.len()
         );
     }
+    // A texture turning by 0.05 rad per frame about the z-axis of the unit sphere (642 vertices),
+    // grey values as vertex colours r = g = b.
+    let truth = rotating_sphere(3, 6, 1.0, 0.05)?;
+    let sequence_dir = dir.join("rotating_sphere");
+    std::fs::create_dir_all(&sequence_dir).map_err(|e| meshflow::io::IoError::File {
+        path: sequence_dir.clone(),
+        source: e,
+    })?;
+    let sequence = &truth.sequence;
+    for k in 0..sequence.n_frames() {
+        let grey: Vec<[f64; 3]> = sequence.intensities(k).iter().map(|&g| [g; 3]).collect();
+        let positions = sequence.positions(k).expect("embedded");
+        write_obj(
+            &sequence_dir.join(format!("frame_{k}.obj")),
+            positions,
+            sequence.mesh().faces(),
+            Some(&grey),
+        )?;
+    }
+    println!("rotating_sphere/: {} frames", sequence.n_frames());
     Ok(())
 }

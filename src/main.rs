@@ -3,7 +3,9 @@
 use clap::{Parser, Subcommand};
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::fem;
+use meshflow::flow::{Boundary, FlowParams, FlowProblem, SolveEvent, SolverChoice, TimeCoupling};
 use meshflow::geometry::IntrinsicGeometry;
+use meshflow::io::{load_obj_sequence, write_flow_outputs};
 use meshflow::io::{read_obj, write_matrix_market, write_npy, IoError};
 use meshflow::mesh::Mesh;
 use meshflow::Error;
@@ -33,12 +35,53 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Compute the optical flow of a mesh sequence: INPUT is a directory of OBJ frames (natural
+    /// order, same faces), grey values from vertex colours or --intensity. Writes flow.npy
+    /// (S×V×3, R^3 vectors on frame s), flow_intrinsic.npy (S×V×2) and summary.json.
+    Solve(SolveArgs),
+}
+
+#[derive(clap::Args)]
+struct SolveArgs {
+    /// Directory of .obj frames
+    input: PathBuf,
+    /// Output directory (created if missing)
+    #[arg(long)]
+    out: PathBuf,
+    /// Time regularity scale, a speed (inf: frame-by-frame flow)
+    #[arg(long, default_value_t = FlowParams::default().alpha, allow_negative_numbers = true)]
+    alpha: f64,
+    /// Weight of |u|² (speed penalty)
+    #[arg(long, default_value_t = FlowParams::default().beta, allow_negative_numbers = true)]
+    beta: f64,
+    /// Weight of the spatial smoothness |∇u|²
+    #[arg(long, default_value_t = FlowParams::default().gamma, allow_negative_numbers = true)]
+    gamma: f64,
+    /// neumann or dirichlet (u = 0 on the boundary)
+    #[arg(long, default_value = "neumann")]
+    boundary: Boundary,
+    /// lumped or consistent discretization of the time term
+    #[arg(long, default_value = "lumped")]
+    time_coupling: TimeCoupling,
+    /// auto, direct, pcg-slab-gauss-seidel or pcg-jacobi
+    #[arg(long, default_value = "auto")]
+    solver: SolverChoice,
+    /// Relative residual at which the iterative solver stops
+    #[arg(long, default_value_t = FlowParams::default().tolerance, allow_negative_numbers = true)]
+    tolerance: f64,
+    /// Grey values as a float64 .npy of shape (frames, vertices) instead of vertex colours
+    #[arg(long)]
+    intensity: Option<PathBuf>,
+    /// Frame times t0,t1,… (default 0,1,2,…)
+    #[arg(long, value_delimiter = ',')]
+    times: Option<Vec<f64>>,
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Operators { mesh, out } => write_operators(&mesh, &out),
+        Command::Solve(args) => solve(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -92,4 +135,72 @@ fn write_operators(mesh_path: &Path, out: &Path) -> Result<(), Error> {
         out.display()
     );
     Ok(())
+}
+
+fn solve(args: &SolveArgs) -> Result<(), Error> {
+    let params = FlowParams {
+        alpha: args.alpha,
+        beta: args.beta,
+        gamma: args.gamma,
+        boundary: args.boundary,
+        time_coupling: args.time_coupling,
+        solver: args.solver,
+        tolerance: args.tolerance,
+        ..FlowParams::default()
+    };
+    params.validate()?;
+    let sequence = load_obj_sequence(&args.input, args.intensity.as_deref(), args.times.clone())?;
+    let problem = FlowProblem::new(&sequence, &params)?;
+    let progress = solver_progress(params.tolerance);
+    let result = problem.solve(&|event| match event {
+        SolveEvent::Factorizing { slabs } => progress.set_message(match slabs {
+            0 => "factorizing the space-time system".to_string(),
+            n => format!("factorizing {n} slabs"),
+        }),
+        SolveEvent::Iteration {
+            iteration,
+            relative_residual,
+        } => {
+            progress.set_position((-relative_residual.log10()).clamp(0.0, 16.0) as u64);
+            progress.set_message(format!(
+                "CG iteration {iteration}, residual {relative_residual:.1e}"
+            ));
+        }
+    });
+    progress.finish_and_clear();
+    let result = result?;
+    write_flow_outputs(
+        &args.out,
+        &args.input.to_string_lossy(),
+        &sequence,
+        &params,
+        &result,
+    )?;
+    println!(
+        "{}: {} frames x {} vertices -> {} slabs; {} solver, {} iterations, residual {:.1e}; energy {:.4e} (zero flow {:.4e}); {:.2} s -> {}",
+        args.input.display(),
+        sequence.n_frames(),
+        sequence.mesh().n_vertices(),
+        sequence.n_slabs(),
+        result.method,
+        result.iterations,
+        result.relative_residual,
+        result.energy,
+        result.energy_at_zero,
+        result.timings.total,
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// A bar that fills with the digits of residual reduction; hidden when stderr is not a terminal.
+fn solver_progress(tolerance: f64) -> indicatif::ProgressBar {
+    let digits = (-tolerance.log10()).ceil() as u64;
+    let bar = indicatif::ProgressBar::new(digits);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {msg}")
+            .expect("valid template"),
+    );
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    bar
 }

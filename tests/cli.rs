@@ -159,3 +159,173 @@ fn missing_input_and_unwritable_output_are_reported() {
     assert!(!run.status.success());
     assert!(String::from_utf8_lossy(&run.stderr).contains("file/out"));
 }
+
+/// Copies the shipped rotating-sphere frames into a fresh directory, for editing.
+fn sample_copy() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    for k in 0..6 {
+        let name = format!("frame_{k}.obj");
+        std::fs::copy(
+            Path::new(&shipped("rotating_sphere")).join(&name),
+            dir.path().join(&name),
+        )
+        .unwrap();
+    }
+    dir
+}
+
+#[test]
+fn solve_command_writes_the_library_flow() {
+    let out = tempfile::tempdir().unwrap();
+    let input = shipped("rotating_sphere");
+    let run = meshflow(&[
+        "solve",
+        &input,
+        "--out",
+        out.path().to_str().unwrap(),
+        "--gamma",
+        "0.01",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let flow = read_npy(&out.path().join("flow.npy")).unwrap();
+    let intrinsic = read_npy(&out.path().join("flow_intrinsic.npy")).unwrap();
+    assert_eq!(
+        (flow.shape.as_slice(), intrinsic.shape.as_slice()),
+        ([5, 642, 3].as_slice(), [5, 642, 2].as_slice())
+    );
+
+    let sequence = meshflow::io::load_obj_sequence(Path::new(&input), None, None).unwrap();
+    let params = meshflow::flow::FlowParams {
+        gamma: 0.01,
+        ..Default::default()
+    };
+    let expected = meshflow::flow::compute_flow(&sequence, &params).unwrap();
+    let values: Vec<f64> = expected
+        .vectors
+        .unwrap()
+        .iter()
+        .flatten()
+        .flat_map(|u| [u.x, u.y, u.z])
+        .collect();
+    let scale = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(scale > 0.01);
+    assert!(values
+        .iter()
+        .zip(&flow.data)
+        .all(|(a, b)| (a - b).abs() <= 1e-12 * scale));
+
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["slabs"], 5);
+    assert_eq!(summary["vertices"], 642);
+    assert_eq!(summary["params"]["gamma"], 0.01);
+    assert!(summary["relative_residual"].as_f64().unwrap() < 1e-8);
+    assert!(summary["energy"].as_f64().unwrap() < summary["energy_at_zero"].as_f64().unwrap());
+    for term in ["data", "speed", "spatial", "temporal"] {
+        assert!(summary["energy_terms"][term].is_number(), "{term}");
+    }
+    assert!(summary["iterations"].is_number() && summary["seconds"]["total"].is_number());
+}
+
+/// Runs `solve` with `args` appended and checks the failure contract; returns stderr.
+fn failing_solve(input: &Path, args: &[&str]) -> String {
+    let out = tempfile::tempdir().unwrap();
+    let target = out.path().join("result");
+    let mut all = vec![
+        "solve",
+        input.to_str().unwrap(),
+        "--out",
+        target.to_str().unwrap(),
+    ];
+    all.extend_from_slice(args);
+    let run = meshflow(&all);
+    assert!(!run.status.success(), "{args:?} should fail");
+    let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+    assert_eq!(stderr.lines().count(), 1, "one line: {stderr}");
+    assert!(!target.exists(), "no output for {args:?}");
+    stderr
+}
+
+#[test]
+fn solve_rejects_bad_sequences_and_parameters() {
+    let dir = sample_copy();
+    let cases: [(&[&str], &str); 6] = [
+        (&["--alpha", "-1"], "alpha"),
+        (&["--gamma", "0"], "gamma"),
+        (&["--beta", "nan"], "beta"),
+        (&["--times", "0,1,2,2,3,4"], "strictly increasing"),
+        (&["--times", "0,1,2"], "expected 6 frame times"),
+        (&["--intensity", "/nonexistent/i.npy"], "/nonexistent/i.npy"),
+    ];
+    for (args, expected) in cases {
+        let stderr = failing_solve(dir.path(), args);
+        assert!(stderr.contains(expected), "{expected:?} not in {stderr}");
+    }
+    let intensity = dir.path().join("wrong.npy");
+    meshflow::io::write_npy(&intensity, &[6, 641], &vec![0.5; 6 * 641]).unwrap();
+    let stderr = failing_solve(dir.path(), &["--intensity", intensity.to_str().unwrap()]);
+    assert!(stderr.contains("expected (6, 642)"), "{stderr}");
+
+    // A frame with a vertex less: named by file.
+    let frame = dir.path().join("frame_3.obj");
+    let text = std::fs::read_to_string(&frame).unwrap();
+    let first_v = text.find("\nv ").unwrap();
+    let next_line = first_v + 1 + text[first_v + 1..].find('\n').unwrap();
+    std::fs::write(
+        &frame,
+        format!("{}{}", &text[..first_v], &text[next_line..]),
+    )
+    .unwrap();
+    let stderr = failing_solve(dir.path(), &[]);
+    assert!(
+        stderr.contains("frame_3.obj") && stderr.contains("641 vertices"),
+        "{stderr}"
+    );
+    // Only one frame left.
+    for k in 1..6 {
+        std::fs::remove_file(dir.path().join(format!("frame_{k}.obj"))).unwrap();
+    }
+    assert!(failing_solve(dir.path(), &[]).contains("at least 2 frames"));
+}
+
+#[test]
+fn solve_reports_undetermined_flow_and_suggests_beta() {
+    // A flat square whose image varies along x only: nothing fixes the y component.
+    let dir = tempfile::tempdir().unwrap();
+    let surface = meshflow::shapes::grid(4, 4, 1.0, 1.0);
+    for k in 0..3 {
+        let grey: Vec<[f64; 3]> = surface
+            .positions
+            .iter()
+            .map(|p| [(3.0 * p.x - 0.1 * k as f64).sin(); 3])
+            .collect();
+        meshflow::io::write_obj(
+            &dir.path().join(format!("f{k}.obj")),
+            &surface.positions,
+            &surface.faces,
+            Some(&grey),
+        )
+        .unwrap();
+    }
+    let stderr = failing_solve(dir.path(), &[]);
+    assert!(stderr.contains("beta > 0"), "{stderr}");
+    let out = tempfile::tempdir().unwrap();
+    let run = meshflow(&[
+        "solve",
+        dir.path().to_str().unwrap(),
+        "--out",
+        out.path().to_str().unwrap(),
+        "--beta",
+        "0.001",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}

@@ -5,14 +5,18 @@
 //! half-written output behind.
 
 mod atomic;
+mod flow_output;
 mod mtx;
 mod npy;
 mod obj;
+mod sequence;
 
 pub use atomic::write_atomically;
+pub use flow_output::{summary_json, write_flow_outputs};
 pub use mtx::{read_matrix_market, write_matrix_market};
 pub use npy::{read_npy, write_npy, NpyArray};
 pub use obj::{read_obj, write_obj, ObjMesh};
+pub use sequence::{load_obj_sequence, natural_order, obj_frames};
 
 use std::path::PathBuf;
 

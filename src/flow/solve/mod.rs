@@ -33,6 +33,17 @@ pub enum SolverMethod {
     PcgJacobi,
 }
 
+impl std::fmt::Display for SolverMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            SolverMethod::Direct => "direct",
+            SolverMethod::SlabwiseDirect => "slab-wise direct",
+            SolverMethod::PcgSlabGaussSeidel => "PCG (slab Gauss-Seidel)",
+            SolverMethod::PcgJacobi => "PCG (Jacobi)",
+        })
+    }
+}
+
 /// Progress reports from a running solve.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SolveEvent {
