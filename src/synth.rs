@@ -69,3 +69,69 @@ pub fn endpoint_error(u: &Vector3<f64>, v: &Vector3<f64>) -> f64 {
 pub fn weighted_mean(values: &[f64], weights: &[f64]) -> f64 {
     values.iter().zip(weights).map(|(v, w)| v * w).sum::<f64>() / weights.iter().sum::<f64>()
 }
+
+/// The moving surface of Bauer, Grasmair & Kirisits' Experiment I on an `n1 × n2` periodic
+/// parameter grid, frames `t = 0, 1, …, n_frames − 1` (`T = n_frames − 1`): a ring torus whose
+/// major circle stretches into an ellipse while its tube grows ripples,
+/// `f(t, x1, x2) = ((R + t/T + r cos x2) cos x1, (R + r cos x2) sin x1, r sin x2)`, `R = 2`,
+/// `r = 1 + t/(5T) sin 8x1`. The image (in place of the paper's taxi video) is a textured
+/// background with bright blobs moving in different directions in the parameter domain.
+pub fn paper_torus(n1: usize, n2: usize, n_frames: usize) -> Result<MeshSequence, FlowError> {
+    use std::f64::consts::TAU;
+    let surface = crate::shapes::torus(2.0, 1.0, n1, n2);
+    let mesh = surface.mesh().expect("a periodic grid is a valid torus");
+    let t_end = (n_frames - 1).max(1) as f64;
+    let parameters: Vec<(f64, f64)> = (0..n1)
+        .flat_map(|i| {
+            (0..n2).map(move |j| (TAU * i as f64 / n1 as f64, TAU * j as f64 / n2 as f64))
+        })
+        .collect();
+    let frames = (0..n_frames)
+        .map(|k| {
+            let t = k as f64 / t_end;
+            parameters
+                .iter()
+                .map(|&(x1, x2)| {
+                    let r = 1.0 + t / 5.0 * (8.0 * x1).sin();
+                    Vector3::new(
+                        (2.0 + t + r * x2.cos()) * x1.cos(),
+                        (2.0 + r * x2.cos()) * x1.sin(),
+                        r * x2.sin(),
+                    )
+                })
+                .collect()
+        })
+        .collect();
+    let intensities = (0..n_frames)
+        .map(|k| {
+            parameters
+                .iter()
+                .map(|&(x1, x2)| moving_blobs(x1, x2, k as f64))
+                .collect()
+        })
+        .collect();
+    MeshSequence::new(mesh, frames, intensities, None)
+}
+
+/// Background texture plus four Gaussian blobs ("cars") moving through the periodic parameter
+/// domain `[0, 2π)²` with constant velocities (radians per frame).
+pub fn moving_blobs(x1: f64, x2: f64, t: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let periodic = |d: f64| (d + PI).rem_euclid(TAU) - PI;
+    let cars = [
+        (1.0, 2.0, 0.03, 0.0),
+        (3.0, 4.5, -0.02, 0.015),
+        (4.5, 1.0, 0.0, -0.03),
+        (5.5, 3.5, 0.025, 0.025),
+    ];
+    let background =
+        0.35 + 0.08 * (7.0 * x1).sin() * (5.0 * x2).cos() + 0.05 * (3.0 * x1 + 11.0 * x2).sin();
+    background
+        + cars
+            .iter()
+            .map(|&(c1, c2, v1, v2)| {
+                let (d1, d2) = (periodic(x1 - c1 - v1 * t), periodic(x2 - c2 - v2 * t));
+                0.5 * (-(d1 * d1 + d2 * d2) / (2.0 * 0.15f64.powi(2))).exp()
+            })
+            .sum::<f64>()
+}

@@ -52,6 +52,8 @@ pub struct Connection {
     halfedge_angles: Vec<f64>,
     /// `r_{T,i}` for each face and local corner.
     corner_rotations: Vec<[f64; 3]>,
+    /// `R_{T,i}` as matrices (the element assembly's hot path needs no trigonometry).
+    corner_matrices: Vec<[Matrix2<f64>; 3]>,
 }
 
 impl Connection {
@@ -75,10 +77,15 @@ impl Connection {
                 swept += theta;
             }
         }
+        let corner_matrices = corner_rotations
+            .iter()
+            .map(|angles| angles.map(rotation))
+            .collect();
         Self {
             vertex_scales,
             halfedge_angles,
             corner_rotations,
+            corner_matrices,
         }
     }
 
@@ -104,7 +111,12 @@ impl Connection {
 
     /// `R_{T,i}`: maps a vertex-frame vector at corner `local` of `face` into the face frame.
     pub fn vertex_to_face(&self, face: usize, local: usize) -> Matrix2<f64> {
-        rotation(self.corner_rotations[face][local])
+        self.corner_matrices[face][local]
+    }
+
+    /// `[R_{T,a}, R_{T,b}, R_{T,c}]` for face `T = face`.
+    pub fn face_rotations(&self, face: usize) -> &[Matrix2<f64>; 3] {
+        &self.corner_matrices[face]
     }
 
     /// `ρ_{ij}` for halfedge `h = i→j`: the rotation angle that carries a vector at `i` to `j`.

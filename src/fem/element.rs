@@ -5,9 +5,8 @@
 //! a scalar bilinear form `Σ_ab m_ab (R_a u_a)·(R_b u_b)` of face-frame vectors becomes the block
 //! `(a, b) = m_ab R_aᵀ R_b = m_ab · Rot(r_b − r_a)`.
 
-use crate::connection::rotation;
 use crate::geometry::Triangle;
-use nalgebra::{Matrix3, Matrix6, Vector2, Vector6};
+use nalgebra::{Matrix2, Matrix3, Matrix6, Vector2, Vector6};
 
 /// P1 cotan stiffness `S_ab = −½ cot θ_opposite(ab)` for `a ≠ b`, `S_aa = −Σ_{b≠a} S_ab`.
 ///
@@ -37,24 +36,25 @@ pub fn lumped_mass(triangle: &Triangle) -> Matrix3<f64> {
 }
 
 /// The 6×6 vector version of the scalar element matrix `m`, with block `(a, b) = m_ab R_aᵀ R_b`
-/// for the vertex→face rotation angles `rotations = [r_a, r_b, r_c]`.
-pub fn vector_element(m: &Matrix3<f64>, rotations: &[f64; 3]) -> Matrix6<f64> {
-    rotated_element(m, rotations, rotations, 0.0)
+/// for the vertex→face rotations `rotations = [R_a, R_b, R_c]`.
+pub fn vector_element(m: &Matrix3<f64>, rotations: &[Matrix2<f64>; 3]) -> Matrix6<f64> {
+    rotated_element(m, rotations, rotations, &Matrix2::identity())
 }
 
-/// Block `(a, b) = m_ab Rot(extra + col_b − row_a)`: the form `Σ_ab m_ab (R_a v_a)·(Q R'_b w_b)`
-/// between vectors `v` transported by `row_rotations` and `w` transported by `col_rotations`
-/// and then rotated by `extra` (`Q = Rot(extra)`).
+/// Block `(a, b) = m_ab R_aᵀ Q R'_b`: the form `Σ_ab m_ab (R_a v_a)·(Q R'_b w_b)` between
+/// vectors `v` transported by `row_rotations` and `w` transported by `col_rotations` and then
+/// rotated by `q`.
 pub fn rotated_element(
     m: &Matrix3<f64>,
-    row_rotations: &[f64; 3],
-    col_rotations: &[f64; 3],
-    extra: f64,
+    row_rotations: &[Matrix2<f64>; 3],
+    col_rotations: &[Matrix2<f64>; 3],
+    q: &Matrix2<f64>,
 ) -> Matrix6<f64> {
+    let cols = col_rotations.map(|c| q * c);
     let mut out = Matrix6::zeros();
     for a in 0..3 {
         for b in 0..3 {
-            let block = rotation(extra + col_rotations[b] - row_rotations[a]) * m[(a, b)];
+            let block = row_rotations[a].transpose() * cols[b] * m[(a, b)];
             out.fixed_view_mut::<2, 2>(2 * a, 2 * b).copy_from(&block);
         }
     }
@@ -76,13 +76,13 @@ pub struct DataElement {
 /// of `(Σ_a φ_a (τ_a + G·R_a u_a))²` (`docs/discretization.md` §6).
 pub fn data_element(
     triangle: &Triangle,
-    rotations: &[f64; 3],
+    rotations: &[Matrix2<f64>; 3],
     intensity: [f64; 3],
     rate: [f64; 3],
 ) -> DataElement {
     let gradient = face_gradient(triangle, intensity);
     let m = consistent_mass(triangle);
-    let g = rotations.map(|r| rotation(r).transpose() * gradient);
+    let g = rotations.map(|r| r.transpose() * gradient);
     let mut quadratic = Matrix6::zeros();
     let mut linear = Vector6::zeros();
     for a in 0..3 {

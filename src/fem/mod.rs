@@ -33,6 +33,9 @@ use nalgebra::Matrix6;
 /// Compressed sparse column matrix (faer) with sorted row indices; both triangles stored.
 pub type SparseMatrix = SparseColMat<usize, f64>;
 
+/// A borrowed [`SparseMatrix`], e.g. values on a shared [`VertexPattern`].
+pub type SparseMatrixRef<'a> = faer::sparse::SparseColMatRef<'a, usize, f64>;
+
 /// Which P1 mass matrix to build.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum MassKind {
@@ -70,7 +73,7 @@ pub fn connection_laplacian(
     assemble_vector(mesh, |f| {
         element::vector_element(
             &element::cotan_stiffness(geometry.triangle(f)),
-            &connection.face_rotation_angles(f),
+            connection.face_rotations(f),
         )
     })
 }
@@ -87,7 +90,7 @@ pub fn vector_mass(
         MassKind::Consistent => assemble_vector(mesh, |f| {
             element::vector_element(
                 &element::consistent_mass(geometry.triangle(f)),
-                &connection.face_rotation_angles(f),
+                connection.face_rotations(f),
             )
         }),
         MassKind::Lumped => diagonal_matrix(

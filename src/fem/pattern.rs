@@ -6,7 +6,7 @@
 //! where its 3×3 blocks land, so assembling new values (another slab, another parameter) is a
 //! scatter with no search and no allocation but the value array.
 
-use super::SparseMatrix;
+use super::{SparseMatrix, SparseMatrixRef};
 use crate::mesh::Mesh;
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use nalgebra::SMatrix;
@@ -101,11 +101,25 @@ impl VertexPattern {
         n_faces: usize,
         element: impl Fn(usize) -> SMatrix<f64, N, N>,
     ) -> SparseMatrix {
+        self.matrix(self.assemble_values(n_faces, element))
+    }
+
+    /// The values (in this pattern's order) of the sum of the element matrices of all faces.
+    pub fn assemble_values<const N: usize>(
+        &self,
+        n_faces: usize,
+        element: impl Fn(usize) -> SMatrix<f64, N, N>,
+    ) -> Vec<f64> {
         let mut values = vec![0.0; self.nnz()];
         for face in 0..n_faces {
             self.add_element(face, &element(face), &mut values);
         }
-        self.matrix(values)
+        values
+    }
+
+    /// A view of `values` (laid out like this pattern) as a matrix.
+    pub fn view<'a>(&'a self, values: &'a [f64]) -> SparseMatrixRef<'a> {
+        SparseMatrixRef::new(self.symbolic.as_ref(), values)
     }
 
     /// The matrix with this pattern and the given values.

@@ -2,10 +2,10 @@
 //! (`docs/discretization.md` §3).
 
 use super::{FlowError, FlowParams, MeshSequence, TimeCoupling};
-use crate::connection::{polar_rotation_angles, Connection};
+use crate::connection::{polar_rotation_angles, rotation, Connection};
 use crate::fem::element::{self, DataElement};
 use crate::geometry::IntrinsicGeometry;
-use nalgebra::{Matrix3, Matrix6};
+use nalgebra::{Matrix2, Matrix3, Matrix6};
 use rayon::prelude::*;
 
 /// Slab `s = [t_s, t_{s+1}]`: lengths are the mean of the two frames' lengths;
@@ -59,17 +59,17 @@ impl Slab {
     /// Data, vector mass and connection stiffness of face `f` of this slab.
     pub fn face_elements(&self, face: &[u32; 3], f: usize) -> FaceElements {
         let triangle = self.geometry.triangle(f);
-        let rotations = self.connection.face_rotation_angles(f);
+        let rotations = self.connection.face_rotations(f);
         let at = |values: &[f64]| face.map(|v| values[v as usize]);
         FaceElements {
             data: element::data_element(
                 triangle,
-                &rotations,
+                rotations,
                 at(&self.intensity_mid),
                 at(&self.rate),
             ),
-            mass: element::vector_element(&element::consistent_mass(triangle), &rotations),
-            stiffness: element::vector_element(&element::cotan_stiffness(triangle), &rotations),
+            mass: element::vector_element(&element::consistent_mass(triangle), rotations),
+            stiffness: element::vector_element(&element::cotan_stiffness(triangle), rotations),
         }
     }
 }
@@ -89,6 +89,8 @@ pub fn build_slabs(sequence: &MeshSequence) -> Result<Vec<Slab>, FlowError> {
 pub struct TimeLink {
     pub weight: f64,
     pub polar_angles: Vec<f64>,
+    /// `Q_T` as matrices.
+    pub polar_rotations: Vec<Matrix2<f64>>,
 }
 
 /// The three blocks one face contributes to the coupling of two slabs: `w_a = R¹_a u¹_a −
@@ -102,12 +104,64 @@ pub struct LinkElements {
 impl TimeLink {
     pub fn new(before: &Slab, after: &Slab, params: &FlowParams) -> Self {
         let h = 0.5 * (before.dt + after.dt);
+        let polar_angles = polar_rotation_angles(&before.geometry, &after.geometry);
         Self {
             weight: params.gamma / (params.alpha * params.alpha * h),
-            polar_angles: polar_rotation_angles(&before.geometry, &after.geometry),
+            polar_rotations: polar_angles.iter().map(|&q| rotation(q)).collect(),
+            polar_angles,
         }
     }
 
+    /// The scalar weight matrix `c m̄` of face `f`: lumped `c Ā/3 I` or consistent `c Ā/12 (1 + I)`.
+    pub fn scalar_element(
+        &self,
+        before: &Slab,
+        after: &Slab,
+        f: usize,
+        coupling: TimeCoupling,
+    ) -> Matrix3<f64> {
+        let mid_area = 0.5 * (before.geometry.triangle(f).area + after.geometry.triangle(f).area);
+        self.weight
+            * match coupling {
+                TimeCoupling::Lumped => Matrix3::identity() * (mid_area / 3.0),
+                TimeCoupling::Consistent => {
+                    (Matrix3::repeat(1.0) + Matrix3::identity()) * (mid_area / 12.0)
+                }
+            }
+    }
+
+    /// The part of face `f` on the diagonal block of `slab` (either end of the link).
+    pub fn diagonal_element(
+        &self,
+        before: &Slab,
+        after: &Slab,
+        slab: &Slab,
+        f: usize,
+        coupling: TimeCoupling,
+    ) -> Matrix6<f64> {
+        element::vector_element(
+            &self.scalar_element(before, after, f, coupling),
+            slab.connection.face_rotations(f),
+        )
+    }
+
+    /// The part of face `f` in the block below the diagonal (rows: after, columns: before).
+    pub fn cross_element(
+        &self,
+        before: &Slab,
+        after: &Slab,
+        f: usize,
+        coupling: TimeCoupling,
+    ) -> Matrix6<f64> {
+        let scalar = self.scalar_element(before, after, f, coupling);
+        let (r0, r1) = (
+            before.connection.face_rotations(f),
+            after.connection.face_rotations(f),
+        );
+        -element::rotated_element(&scalar, r1, r0, &self.polar_rotations[f])
+    }
+
+    /// All three blocks of face `f`.
     pub fn face_elements(
         &self,
         before: &Slab,
@@ -115,21 +169,10 @@ impl TimeLink {
         f: usize,
         coupling: TimeCoupling,
     ) -> LinkElements {
-        let mid_area = 0.5 * (before.geometry.triangle(f).area + after.geometry.triangle(f).area);
-        let scalar = match coupling {
-            TimeCoupling::Lumped => Matrix3::identity() * (mid_area / 3.0),
-            TimeCoupling::Consistent => {
-                (Matrix3::repeat(1.0) + Matrix3::identity()) * (mid_area / 12.0)
-            }
-        } * self.weight;
-        let (r0, r1) = (
-            before.connection.face_rotation_angles(f),
-            after.connection.face_rotation_angles(f),
-        );
         LinkElements {
-            before: element::vector_element(&scalar, &r0),
-            after: element::vector_element(&scalar, &r1),
-            cross: -element::rotated_element(&scalar, &r1, &r0, self.polar_angles[f]),
+            before: self.diagonal_element(before, after, before, f, coupling),
+            after: self.diagonal_element(before, after, after, f, coupling),
+            cross: self.cross_element(before, after, f, coupling),
         }
     }
 }

@@ -11,7 +11,7 @@
 
 use super::slab::{Slab, TimeLink};
 use super::{Boundary, FlowParams};
-use crate::fem::{SparseMatrix, VertexPattern};
+use crate::fem::{SparseMatrix, SparseMatrixRef, VertexPattern};
 use crate::mesh::Mesh;
 use nalgebra::{Matrix2, Matrix6};
 use rayon::prelude::*;
@@ -21,14 +21,15 @@ use rayon::prelude::*;
 pub enum LinkMatrix {
     /// One 2×2 block per vertex.
     Lumped(Vec<Matrix2<f64>>),
-    /// A `2V × 2V` matrix on the vertex pattern (not symmetric).
-    Consistent(SparseMatrix),
+    /// Values of a `2V × 2V` matrix on the vertex pattern (not symmetric).
+    Consistent(Vec<f64>),
 }
 
 #[derive(Clone, Debug)]
 pub struct SpaceTimeSystem {
     pattern: VertexPattern,
-    blocks: Vec<SparseMatrix>,
+    /// Values of the diagonal blocks on `pattern`.
+    blocks: Vec<Vec<f64>>,
     links: Vec<LinkMatrix>,
     rhs: Vec<f64>,
     constant: f64,
@@ -54,10 +55,7 @@ impl SpaceTimeSystem {
             .map(|s| assemble_link(mesh, &pattern, &links[s], &slabs[s], &slabs[s + 1], params))
             .collect();
         let constant = diagonal.iter().map(|d| d.2).sum();
-        let (blocks, rhs): (Vec<_>, Vec<_>) = diagonal
-            .into_iter()
-            .map(|(a, b, _)| (pattern.matrix(a), b))
-            .unzip();
+        let (blocks, rhs): (Vec<_>, Vec<_>) = diagonal.into_iter().map(|(a, b, _)| (a, b)).unzip();
         let mut system = Self {
             pattern,
             blocks,
@@ -93,8 +91,8 @@ impl SpaceTimeSystem {
     }
 
     /// Diagonal block `s`.
-    pub fn block(&self, s: usize) -> &SparseMatrix {
-        &self.blocks[s]
+    pub fn block(&self, s: usize) -> SparseMatrixRef<'_> {
+        self.pattern.view(&self.blocks[s])
     }
 
     /// `X_s`, the block at `(s + 1, s)`.
@@ -115,7 +113,7 @@ impl SpaceTimeSystem {
     pub fn apply(&self, x: &[f64], y: &mut [f64]) {
         let n = self.slab_dimension();
         y.par_chunks_mut(n).enumerate().for_each(|(s, ys)| {
-            symmetric_mul(&self.blocks[s], &x[s * n..(s + 1) * n], ys);
+            symmetric_mul(self.block(s), &x[s * n..(s + 1) * n], ys);
             if s > 0 && self.has_links() {
                 self.link_mul(s - 1, &x[(s - 1) * n..s * n], ys);
             }
@@ -135,11 +133,13 @@ impl SpaceTimeSystem {
                     ys[2 * i + 1] += v.y;
                 }
             }
-            LinkMatrix::Consistent(m) => for_each_column(m, |j, rows, values| {
-                for (&i, &v) in rows.iter().zip(values) {
-                    ys[i] += v * x[j];
-                }
-            }),
+            LinkMatrix::Consistent(m) => {
+                for_each_column(self.pattern.view(m), |j, rows, values| {
+                    for (&i, &v) in rows.iter().zip(values) {
+                        ys[i] += v * x[j];
+                    }
+                })
+            }
         }
     }
 
@@ -153,13 +153,15 @@ impl SpaceTimeSystem {
                     ys[2 * i + 1] += v.y;
                 }
             }
-            LinkMatrix::Consistent(m) => for_each_column(m, |j, rows, values| {
-                ys[j] += rows
-                    .iter()
-                    .zip(values)
-                    .map(|(&i, &v)| v * x[i])
-                    .sum::<f64>();
-            }),
+            LinkMatrix::Consistent(m) => {
+                for_each_column(self.pattern.view(m), |j, rows, values| {
+                    ys[j] += rows
+                        .iter()
+                        .zip(values)
+                        .map(|(&i, &v)| v * x[i])
+                        .sum::<f64>();
+                })
+            }
         }
     }
 
@@ -172,11 +174,10 @@ impl SpaceTimeSystem {
 
     /// The diagonal of `A`.
     pub fn diagonal(&self) -> Vec<f64> {
-        self.blocks
-            .iter()
-            .flat_map(|block| {
-                let mut d = vec![0.0; block.ncols()];
-                for_each_column(block, |j, rows, values| {
+        (0..self.n_slabs())
+            .flat_map(|s| {
+                let mut d = vec![0.0; self.slab_dimension()];
+                for_each_column(self.block(s), |j, rows, values| {
                     d[j] = rows
                         .iter()
                         .zip(values)
@@ -193,7 +194,7 @@ impl SpaceTimeSystem {
     pub fn to_sparse(&self) -> SparseMatrix {
         let n = self.slab_dimension();
         let mut triplets = Vec::new();
-        let mut push = |m: &SparseMatrix, row0: usize, col0: usize, transpose: bool| {
+        let mut push = |m: SparseMatrixRef<'_>, row0: usize, col0: usize, transpose: bool| {
             for_each_column(m, |j, rows, values| {
                 for (&i, &v) in rows.iter().zip(values) {
                     let (r, c) = if transpose { (j, i) } else { (i, j) };
@@ -201,16 +202,20 @@ impl SpaceTimeSystem {
                 }
             })
         };
-        for (s, block) in self.blocks.iter().enumerate() {
-            push(block, s * n, s * n, false);
+        for s in 0..self.n_slabs() {
+            push(self.block(s), s * n, s * n, false);
         }
         for (s, link) in self.links.iter().enumerate() {
+            let lumped;
             let m = match link {
-                LinkMatrix::Consistent(m) => m.clone(),
-                LinkMatrix::Lumped(blocks) => block_diagonal(blocks),
+                LinkMatrix::Consistent(values) => self.pattern.view(values),
+                LinkMatrix::Lumped(blocks) => {
+                    lumped = block_diagonal(blocks);
+                    lumped.as_ref()
+                }
             };
-            push(&m, (s + 1) * n, s * n, false);
-            push(&m, s * n, (s + 1) * n, true);
+            push(m, (s + 1) * n, s * n, false);
+            push(m, s * n, (s + 1) * n, true);
         }
         SparseMatrix::try_new_from_triplets(self.dimension(), self.dimension(), &triplets)
             .expect("space-time triplets are in range")
@@ -221,11 +226,11 @@ impl SpaceTimeSystem {
     fn fix_dofs(&mut self, fixed: &[bool]) {
         let n = self.slab_dimension();
         for block in &mut self.blocks {
-            mask(block, fixed, true);
+            mask(&self.pattern, block, fixed, true);
         }
         for link in &mut self.links {
             match link {
-                LinkMatrix::Consistent(m) => mask(m, fixed, false),
+                LinkMatrix::Consistent(values) => mask(&self.pattern, values, fixed, false),
                 LinkMatrix::Lumped(blocks) => {
                     for (i, b) in blocks.iter_mut().enumerate() {
                         if fixed[2 * i] {
@@ -260,14 +265,10 @@ fn assemble_slab(
         let mut a: Matrix6<f64> =
             (e.data.quadratic + e.mass * params.beta + e.stiffness * params.gamma) * slab.dt;
         if let Some((link, previous)) = link_before {
-            a += link
-                .face_elements(previous, slab, f, params.time_coupling)
-                .after;
+            a += link.diagonal_element(previous, slab, slab, f, params.time_coupling);
         }
         if let Some((link, next)) = link_after {
-            a += link
-                .face_elements(slab, next, f, params.time_coupling)
-                .before;
+            a += link.diagonal_element(slab, next, slab, f, params.time_coupling);
         }
         pattern.add_element(f, &a, &mut values);
         for (corner, &v) in face.iter().enumerate() {
@@ -288,10 +289,7 @@ fn assemble_link(
     after: &Slab,
     params: &FlowParams,
 ) -> LinkMatrix {
-    let cross = |f| {
-        link.face_elements(before, after, f, params.time_coupling)
-            .cross
-    };
+    let cross = |f| link.cross_element(before, after, f, params.time_coupling);
     match params.time_coupling {
         super::TimeCoupling::Lumped => {
             let mut blocks = vec![Matrix2::zeros(); mesh.n_vertices()];
@@ -304,20 +302,20 @@ fn assemble_link(
             LinkMatrix::Lumped(blocks)
         }
         super::TimeCoupling::Consistent => {
-            LinkMatrix::Consistent(pattern.assemble(mesh.n_faces(), cross))
+            LinkMatrix::Consistent(pattern.assemble_values(mesh.n_faces(), cross))
         }
     }
 }
 
 /// `y = A x` for symmetric `A` stored in full: `y_j` is column `j` dotted with `x`.
-fn symmetric_mul(a: &SparseMatrix, x: &[f64], y: &mut [f64]) {
+fn symmetric_mul(a: SparseMatrixRef<'_>, x: &[f64], y: &mut [f64]) {
     for_each_column(a, |j, rows, values| {
         y[j] = rows.iter().zip(values).map(|(&i, &v)| v * x[i]).sum();
     });
 }
 
 /// Calls `f(j, row indices, values)` for every column `j`.
-pub(crate) fn for_each_column(a: &SparseMatrix, mut f: impl FnMut(usize, &[usize], &[f64])) {
+pub(crate) fn for_each_column(a: SparseMatrixRef<'_>, mut f: impl FnMut(usize, &[usize], &[f64])) {
     let (symbolic, values) = a.parts();
     let col_ptr = symbolic.col_ptr();
     for j in 0..a.ncols() {
@@ -326,10 +324,10 @@ pub(crate) fn for_each_column(a: &SparseMatrix, mut f: impl FnMut(usize, &[usize
     }
 }
 
-/// Zeroes the entries in fixed rows or columns; with `unit_diagonal`, puts 1 on their diagonal.
-fn mask(a: &mut SparseMatrix, fixed: &[bool], unit_diagonal: bool) {
-    let (symbolic, values) = a.parts_mut();
-    let (col_ptr, row_idx) = (symbolic.col_ptr(), symbolic.row_idx());
+/// Zeroes the entries (values on `pattern`) in fixed rows or columns; with `unit_diagonal`,
+/// puts 1 on their diagonal.
+fn mask(pattern: &VertexPattern, values: &mut [f64], fixed: &[bool], unit_diagonal: bool) {
+    let (col_ptr, row_idx) = (pattern.symbolic().col_ptr(), pattern.symbolic().row_idx());
     for j in 0..col_ptr.len() - 1 {
         for k in col_ptr[j]..col_ptr[j + 1] {
             let i = row_idx[k];

@@ -1,7 +1,7 @@
 //! Sparse Cholesky factors through faer's low-level API, so that many factorizations can run
 //! in parallel under rayon, each single-threaded (`Par::Seq`), sharing one symbolic analysis.
 
-use crate::fem::SparseMatrix;
+use crate::fem::SparseMatrixRef;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
 use faer::sparse::SymbolicSparseColMatRef;
@@ -26,7 +26,7 @@ impl CholeskyFactor {
     /// Factors `matrix`; `Err` carries faer's reason when it is not numerically positive definite.
     pub fn new(
         symbolic: &Arc<SymbolicCholesky<usize>>,
-        matrix: &SparseMatrix,
+        matrix: SparseMatrixRef<'_>,
         par: Par,
     ) -> Result<Self, String> {
         let mut values = vec![0.0; symbolic.len_val()];
@@ -34,7 +34,7 @@ impl CholeskyFactor {
         symbolic
             .factorize_numeric_llt::<f64>(
                 &mut values,
-                matrix.as_ref(),
+                matrix,
                 Side::Lower,
                 Default::default(),
                 par,

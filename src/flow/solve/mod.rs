@@ -110,7 +110,8 @@ pub fn solve(
             let factors = factor_slabs(system, &slab_symbolic)?;
             let factor_seconds = start.elapsed().as_secs_f64();
             let factor_entries = factors.iter().map(CholeskyFactor::stored_entries).sum();
-            let preconditioner = SlabGaussSeidel::new(system, factors, Par::Seq);
+            let preconditioner =
+                SlabGaussSeidel::new(system, factors, rayon::current_num_threads());
             let mut s = iterate(system, &preconditioner, params, observer)?;
             s.factor_seconds = factor_seconds;
             s.factor_entries = factor_entries;
@@ -194,7 +195,7 @@ fn direct(
     let matrix = system.to_sparse();
     let symbolic = analyze(matrix.symbolic());
     let par = Par::rayon(rayon::current_num_threads());
-    let factor = CholeskyFactor::new(&symbolic, &matrix, par)
+    let factor = CholeskyFactor::new(&symbolic, matrix.as_ref(), par)
         .map_err(factorization_error("the space-time system".into()))?;
     let factor_seconds = start.elapsed().as_secs_f64();
     let mut u = system.rhs().to_vec();

@@ -1,0 +1,89 @@
+//! Benchmark at the size of the paper's Experiment I: the 255×190 periodic torus grid, 20
+//! frames (19 slabs, 1.84 M unknowns), α = γ = 1, β = 0. Prints assembly and solve times,
+//! iterations, residual and peak memory.
+//!
+//! `cargo run --release --example bench_paper_torus [-- N1 N2 FRAMES [solver]]`
+
+use meshflow::flow::{FlowParams, FlowProblem, SolveEvent};
+use meshflow::synth::paper_torus;
+use std::time::Instant;
+
+fn main() -> Result<(), meshflow::Error> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let number = |i: usize, default: usize| {
+        args.get(i)
+            .map_or(default, |a| a.parse().expect("a whole number"))
+    };
+    let (n1, n2, frames) = (number(0, 255), number(1, 190), number(2, 20));
+    let solver = args
+        .get(3)
+        .map_or(Ok(Default::default()), |s| s.parse())
+        .expect("a solver name");
+    let params = FlowParams {
+        alpha: 1.0,
+        beta: 0.0,
+        gamma: 1.0,
+        solver,
+        ..FlowParams::default()
+    };
+    println!(
+        "paper torus {n1}×{n2}, {frames} frames, α = {}, β = {}, γ = {}, {} threads",
+        params.alpha,
+        params.beta,
+        params.gamma,
+        rayon::current_num_threads()
+    );
+
+    let start = Instant::now();
+    let sequence = paper_torus(n1, n2, frames)?;
+    let generate = start.elapsed().as_secs_f64();
+    let problem = FlowProblem::new(&sequence, &params)?;
+    let assembled = start.elapsed().as_secs_f64();
+    let report = |event: SolveEvent| {
+        if let SolveEvent::Iteration {
+            iteration,
+            relative_residual,
+        } = event
+        {
+            if iteration % 10 == 0 {
+                eprintln!("  iteration {iteration:4}: residual {relative_residual:.2e}");
+            }
+        }
+    };
+    let result = problem.solve(&report)?;
+    let total = start.elapsed().as_secs_f64();
+
+    println!("unknowns            {}", problem.system().dimension());
+    println!("generate sequence   {generate:8.2} s");
+    println!("assembly            {:8.2} s", assembled - generate);
+    println!(
+        "factorization       {:8.2} s  ({:.1} M factor entries)",
+        result.timings.factorization,
+        result.factor_entries as f64 / 1e6
+    );
+    println!("solve (incl. fact.) {:8.2} s", result.timings.solve);
+    println!("end to end          {total:8.2} s");
+    println!("solver              {}", result.method);
+    println!("iterations          {}", result.iterations);
+    println!("relative residual   {:.2e}", result.relative_residual);
+    println!(
+        "energy              {:.6e} (zero flow {:.6e})",
+        result.energy, result.energy_at_zero
+    );
+    println!(
+        "peak memory         {:.2} GB",
+        peak_memory_bytes() as f64 / 1e9
+    );
+    Ok(())
+}
+
+/// The process's peak resident set size (VmHWM), 0 where /proc is unavailable.
+fn peak_memory_bytes() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|status| {
+            let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+            line.split_whitespace().nth(1)?.parse::<u64>().ok()
+        })
+        .map_or(0, |kib| kib * 1024)
+}
