@@ -17,6 +17,17 @@ fn meshflow(args: &[&str]) -> Output {
         .unwrap()
 }
 
+/// Runs the binary and asserts that it succeeded.
+fn meshflow_ok(args: &[&str]) -> Output {
+    let run = meshflow(args);
+    assert!(
+        run.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    run
+}
+
 fn shipped(name: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("meshes")
@@ -30,12 +41,7 @@ fn operators_command_writes_the_library_operators() {
     let out = tempfile::tempdir().unwrap();
     let dir = out.path().join("ops");
     let mesh_path = shipped("torus.obj");
-    let run = meshflow(&["operators", &mesh_path, "--out", dir.to_str().unwrap()]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let run = meshflow_ok(&["operators", &mesh_path, "--out", dir.to_str().unwrap()]);
 
     let obj = read_obj(Path::new(&mesh_path)).unwrap();
     let mesh = meshflow::mesh::Mesh::new(obj.positions.len(), obj.faces).unwrap();
@@ -178,7 +184,7 @@ fn sample_copy() -> tempfile::TempDir {
 fn solve_command_writes_the_library_flow() {
     let out = tempfile::tempdir().unwrap();
     let input = shipped("rotating_sphere");
-    let run = meshflow(&[
+    meshflow_ok(&[
         "solve",
         &input,
         "--out",
@@ -186,11 +192,6 @@ fn solve_command_writes_the_library_flow() {
         "--gamma",
         "0.01",
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
     let flow = read_npy(&out.path().join("flow.npy")).unwrap();
     let intrinsic = read_npy(&out.path().join("flow_intrinsic.npy")).unwrap();
     assert_eq!(
@@ -315,7 +316,7 @@ fn solve_reports_undetermined_flow_and_suggests_beta() {
     let stderr = failing_solve(dir.path(), &[]);
     assert!(stderr.contains("beta > 0"), "{stderr}");
     let out = tempfile::tempdir().unwrap();
-    let run = meshflow(&[
+    meshflow_ok(&[
         "solve",
         dir.path().to_str().unwrap(),
         "--out",
@@ -323,9 +324,4 @@ fn solve_reports_undetermined_flow_and_suggests_beta() {
         "--beta",
         "0.001",
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
 }

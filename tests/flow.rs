@@ -358,51 +358,17 @@ fn undetermined_flow_is_an_error_that_suggests_beta() {
 #[test]
 fn invalid_parameters_are_named() {
     let sequence = stripes(2);
-    let cases: [(FlowParams, &str); 6] = [
-        (
-            FlowParams {
-                alpha: 0.0,
-                ..FlowParams::default()
-            },
-            "alpha",
-        ),
-        (
-            FlowParams {
-                alpha: f64::NAN,
-                ..FlowParams::default()
-            },
-            "alpha",
-        ),
-        (
-            FlowParams {
-                beta: -1.0,
-                ..FlowParams::default()
-            },
-            "beta",
-        ),
-        (
-            FlowParams {
-                gamma: 0.0,
-                ..FlowParams::default()
-            },
-            "gamma",
-        ),
-        (
-            FlowParams {
-                gamma: f64::INFINITY,
-                ..FlowParams::default()
-            },
-            "gamma",
-        ),
-        (
-            FlowParams {
-                tolerance: 0.0,
-                ..FlowParams::default()
-            },
-            "tolerance",
-        ),
+    let cases: [(fn(&mut FlowParams), &str); 6] = [
+        (|p| p.alpha = 0.0, "alpha"),
+        (|p| p.alpha = f64::NAN, "alpha"),
+        (|p| p.beta = -1.0, "beta"),
+        (|p| p.gamma = 0.0, "gamma"),
+        (|p| p.gamma = f64::INFINITY, "gamma"),
+        (|p| p.tolerance = 0.0, "tolerance"),
     ];
-    for (params, name) in cases {
+    for (spoil, name) in cases {
+        let mut params = FlowParams::default();
+        spoil(&mut params);
         match compute_flow(&sequence, &params).unwrap_err() {
             FlowError::InvalidParameter { name: n, .. } => assert_eq!(n, name),
             other => panic!("{name}: {other:?}"),
