@@ -4,7 +4,7 @@
 use crate::fem::SparseMatrixRef;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
-use faer::sparse::SymbolicSparseColMatRef;
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use std::sync::Arc;
 
@@ -16,25 +16,53 @@ pub fn analyze(pattern: SymbolicSparseColMatRef<'_, usize>) -> Arc<SymbolicChole
     Arc::new(symbolic)
 }
 
-/// `L Lᵀ = A` for one symmetric positive definite matrix with the analysed pattern.
-pub struct CholeskyFactor {
-    symbolic: Arc<SymbolicCholesky<usize>>,
-    values: Vec<f64>,
+/// A floating-point type the factors can be stored in; the system stays in `f64`.
+pub trait Precision: faer::traits::ComplexField + Copy {
+    fn from_f64(x: f64) -> Self;
+    fn to_f64(self) -> f64;
 }
 
-impl CholeskyFactor {
-    /// Factors `matrix`; `Err` carries faer's reason when it is not numerically positive definite.
+impl Precision for f64 {
+    fn from_f64(x: f64) -> Self {
+        x
+    }
+    fn to_f64(self) -> f64 {
+        self
+    }
+}
+
+impl Precision for f32 {
+    fn from_f64(x: f64) -> Self {
+        x as f32
+    }
+    fn to_f64(self) -> f64 {
+        self as f64
+    }
+}
+
+/// `L Lᵀ = A` for one symmetric positive definite matrix with the analysed pattern, stored in
+/// precision `T` (`f32` halves the memory and the memory traffic of a preconditioner's solves).
+pub struct CholeskyFactor<T = f64> {
+    symbolic: Arc<SymbolicCholesky<usize>>,
+    values: Vec<T>,
+}
+
+impl<T: Precision> CholeskyFactor<T> {
+    /// Factors `matrix` (rounded to `T`); `Err` carries faer's reason when it is not
+    /// numerically positive definite.
     pub fn new(
         symbolic: &Arc<SymbolicCholesky<usize>>,
         matrix: SparseMatrixRef<'_>,
         par: Par,
     ) -> Result<Self, String> {
-        let mut values = vec![0.0; symbolic.len_val()];
-        let scratch = symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default());
+        let (pattern, entries) = matrix.parts();
+        let rounded: Vec<T> = entries.iter().map(|&v| T::from_f64(v)).collect();
+        let mut values = vec![T::from_f64(0.0); symbolic.len_val()];
+        let scratch = symbolic.factorize_numeric_llt_scratch::<T>(par, Default::default());
         symbolic
-            .factorize_numeric_llt::<f64>(
+            .factorize_numeric_llt::<T>(
                 &mut values,
-                matrix,
+                SparseColMatRef::new(pattern, &rounded),
                 Side::Lower,
                 Default::default(),
                 par,
@@ -48,16 +76,18 @@ impl CholeskyFactor {
         })
     }
 
-    /// Overwrites `x` with `A⁻¹ x`.
+    /// Overwrites `x` with `A⁻¹ x` (computed in precision `T`).
     pub fn solve_in_place(&self, x: &mut [f64], par: Par) {
         let n = x.len();
-        let scratch = self.symbolic.solve_in_place_scratch::<f64>(1, par);
-        LltRef::<'_, usize, f64>::new(&self.symbolic, &self.values).solve_in_place_with_conj(
+        let mut rhs: Vec<T> = x.iter().map(|&v| T::from_f64(v)).collect();
+        let scratch = self.symbolic.solve_in_place_scratch::<T>(1, par);
+        LltRef::<'_, usize, T>::new(&self.symbolic, &self.values).solve_in_place_with_conj(
             Conj::No,
-            MatMut::from_column_major_slice_mut(x, n, 1),
+            MatMut::from_column_major_slice_mut(&mut rhs, n, 1),
             par,
             MemStack::new(&mut MemBuffer::new(scratch)),
         );
+        x.iter_mut().zip(&rhs).for_each(|(x, r)| *x = r.to_f64());
     }
 
     /// Stored entries of `L`.

@@ -6,8 +6,11 @@
 //!   parallel.
 //! - **PCG with slab Gauss–Seidel**: conjugate gradients preconditioned by a symmetric block
 //!   Gauss–Seidel sweep in time whose blocks are exact per-slab Cholesky factors (one symbolic
-//!   analysis, numeric factorizations in parallel). Iteration counts stay flat under spatial
-//!   refinement; they grow when the time coupling dominates (small `α`).
+//!   analysis, numeric factorizations in parallel). The factors are stored in single
+//!   precision (half the memory and memory traffic; CG itself runs in double precision, so
+//!   only the convergence rate could suffer), in double precision when a block is too
+//!   ill-conditioned for that. Iteration counts stay flat under spatial refinement; they grow
+//!   when the time coupling dominates (small `α`).
 //! - **PCG with Jacobi**: no factors at all; the fallback when the slab factors would not fit
 //!   the memory budget.
 
@@ -17,7 +20,7 @@ mod precondition;
 
 use super::system::{dot, SpaceTimeSystem};
 use super::{FlowError, FlowParams, SolverChoice};
-use cholesky::{analyze, CholeskyFactor};
+use cholesky::{analyze, CholeskyFactor, Precision};
 use faer::Par;
 use precondition::{Jacobi, SlabGaussSeidel};
 use rayon::prelude::*;
@@ -107,15 +110,18 @@ pub fn solve(
             observer(SolveEvent::Factorizing {
                 slabs: system.n_slabs(),
             });
-            let factors = factor_slabs(system, &slab_symbolic)?;
-            let factor_seconds = start.elapsed().as_secs_f64();
-            let factor_entries = factors.iter().map(CholeskyFactor::stored_entries).sum();
-            let preconditioner =
-                SlabGaussSeidel::new(system, factors, rayon::current_num_threads());
-            let mut s = iterate(system, &preconditioner, params, observer)?;
-            s.factor_seconds = factor_seconds;
-            s.factor_entries = factor_entries;
-            s
+            // Single-precision factors suffice for a preconditioner; f64 if a block is too
+            // ill-conditioned for them.
+            match factor_slabs::<f32>(system, &slab_symbolic) {
+                Ok(factors) => slab_gauss_seidel(system, factors, start, params, observer)?,
+                Err(_) => slab_gauss_seidel(
+                    system,
+                    factor_slabs::<f64>(system, &slab_symbolic)?,
+                    start,
+                    params,
+                    observer,
+                )?,
+            }
         }
         SolverMethod::PcgJacobi => iterate(system, &Jacobi::new(system), params, observer)?,
     };
@@ -173,10 +179,10 @@ fn factorization_error(what: String) -> impl Fn(String) -> FlowError {
 }
 
 /// Cholesky factors of every diagonal block, in parallel, each single-threaded.
-fn factor_slabs(
+fn factor_slabs<T: Precision>(
     system: &SpaceTimeSystem,
     symbolic: &std::sync::Arc<faer::sparse::linalg::cholesky::SymbolicCholesky<usize>>,
-) -> Result<Vec<CholeskyFactor>, FlowError> {
+) -> Result<Vec<CholeskyFactor<T>>, FlowError> {
     (0..system.n_slabs())
         .into_par_iter()
         .map(|s| {
@@ -184,6 +190,23 @@ fn factor_slabs(
                 .map_err(factorization_error(format!("slab {s}")))
         })
         .collect()
+}
+
+/// PCG with the slab Gauss–Seidel preconditioner built from `factors` (factored since `start`).
+fn slab_gauss_seidel<T: Precision>(
+    system: &SpaceTimeSystem,
+    factors: Vec<CholeskyFactor<T>>,
+    start: Instant,
+    params: &FlowParams,
+    observer: &(dyn Fn(SolveEvent) + Sync),
+) -> Result<Solution, FlowError> {
+    let factor_seconds = start.elapsed().as_secs_f64();
+    let factor_entries = factors.iter().map(CholeskyFactor::stored_entries).sum();
+    let preconditioner = SlabGaussSeidel::new(system, factors, rayon::current_num_threads());
+    let mut solution = iterate(system, &preconditioner, params, observer)?;
+    solution.factor_seconds = factor_seconds;
+    solution.factor_entries = factor_entries;
+    Ok(solution)
 }
 
 fn direct(
@@ -195,7 +218,7 @@ fn direct(
     let matrix = system.to_sparse();
     let symbolic = analyze(matrix.symbolic());
     let par = Par::rayon(rayon::current_num_threads());
-    let factor = CholeskyFactor::new(&symbolic, matrix.as_ref(), par)
+    let factor = CholeskyFactor::<f64>::new(&symbolic, matrix.as_ref(), par)
         .map_err(factorization_error("the space-time system".into()))?;
     let factor_seconds = start.elapsed().as_secs_f64();
     let mut u = system.rhs().to_vec();
@@ -225,7 +248,7 @@ fn slabwise_direct(
         .par_chunks_mut(n)
         .enumerate()
         .map(|(s, us)| {
-            let factor = CholeskyFactor::new(symbolic, system.block(s), Par::Seq)
+            let factor = CholeskyFactor::<f64>::new(symbolic, system.block(s), Par::Seq)
                 .map_err(factorization_error(format!("slab {s}")))?;
             factor.solve_in_place(us, Par::Seq);
             Ok(factor.stored_entries())

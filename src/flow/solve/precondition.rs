@@ -1,6 +1,6 @@
 //! Preconditioners for the block-tridiagonal space-time system.
 
-use super::cholesky::CholeskyFactor;
+use super::cholesky::{CholeskyFactor, Precision};
 use super::pcg::Preconditioner;
 use crate::flow::system::SpaceTimeSystem;
 use faer::Par;
@@ -35,15 +35,19 @@ impl Preconditioner for Jacobi {
 /// The sweep is sequential in time, so the slabs are split into `chunks` contiguous runs swept
 /// in parallel, each ignoring the links that leave it (block Jacobi between chunks): one core
 /// per chunk for a few more iterations.
-pub struct SlabGaussSeidel<'a> {
+pub struct SlabGaussSeidel<'a, T: Precision> {
     system: &'a SpaceTimeSystem,
-    factors: Vec<CholeskyFactor>,
+    factors: Vec<CholeskyFactor<T>>,
     slabs_per_chunk: usize,
 }
 
-impl<'a> SlabGaussSeidel<'a> {
+impl<'a, T: Precision> SlabGaussSeidel<'a, T> {
     /// `factors[s]` must factor `system.block(s)`.
-    pub fn new(system: &'a SpaceTimeSystem, factors: Vec<CholeskyFactor>, chunks: usize) -> Self {
+    pub fn new(
+        system: &'a SpaceTimeSystem,
+        factors: Vec<CholeskyFactor<T>>,
+        chunks: usize,
+    ) -> Self {
         let slabs_per_chunk = system.n_slabs().div_ceil(chunks.max(1));
         Self {
             system,
@@ -82,7 +86,7 @@ impl<'a> SlabGaussSeidel<'a> {
     }
 }
 
-impl Preconditioner for SlabGaussSeidel<'_> {
+impl<T: Precision> Preconditioner for SlabGaussSeidel<'_, T> {
     fn apply(&self, r: &[f64], z: &mut [f64]) {
         let chunk = self.slabs_per_chunk * self.system.slab_dimension();
         z.copy_from_slice(r);
