@@ -12,12 +12,13 @@ use meshflow::shapes::{grid, icosphere, Surface};
 use meshflow::synth::{angular_error, rotating_sphere, texture, weighted_mean};
 use nalgebra::{Rotation3, Vector3};
 
+/// Positions per frame, and grey values per frame.
+type Frames = Vec<Vec<Vector3<f64>>>;
+type Intensities = Vec<Vec<f64>>;
+
 /// A flat grid (interior moved off the lattice by up to `jitter`) that stretches in x and
 /// shears over `n_frames` frames, with a moving texture.
-fn deforming_patch(
-    n_frames: usize,
-    jitter: f64,
-) -> (Surface, Vec<Vec<Vector3<f64>>>, Vec<Vec<f64>>) {
+fn deforming_patch(n_frames: usize, jitter: f64) -> (Surface, Frames, Intensities) {
     let surface = common::jittered_grid(8, 6, 1.2, 1.0, jitter);
     let frames: Vec<Vec<Vector3<f64>>> = (0..n_frames)
         .map(|k| {
@@ -358,7 +359,8 @@ fn undetermined_flow_is_an_error_that_suggests_beta() {
 #[test]
 fn invalid_parameters_are_named() {
     let sequence = stripes(2);
-    let cases: [(fn(&mut FlowParams), &str); 6] = [
+    type Spoil = fn(&mut FlowParams);
+    let cases: [(Spoil, &str); 6] = [
         (|p| p.alpha = 0.0, "alpha"),
         (|p| p.alpha = f64::NAN, "alpha"),
         (|p| p.beta = -1.0, "beta"),

@@ -158,7 +158,7 @@ impl<'a> FlowProblem<'a> {
         Ok(FlowResult {
             energy: energy_terms.total(),
             energy_terms,
-            energy_at_zero: self.system.energy(&vec![0.0; solution.u.len()]),
+            energy_at_zero: self.system.constant(),
             relative_residual: solution.relative_residual,
             iterations: solution.iterations,
             method: solution.method,

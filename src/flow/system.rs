@@ -109,6 +109,11 @@ impl SpaceTimeSystem {
         &self.rhs
     }
 
+    /// `c = E(0)`.
+    pub fn constant(&self) -> f64 {
+        self.constant
+    }
+
     /// `y = A x`, parallel over slabs.
     pub fn apply(&self, x: &[f64], y: &mut [f64]) {
         let n = self.slab_dimension();
@@ -126,13 +131,7 @@ impl SpaceTimeSystem {
     /// `ys += X_s x`.
     pub fn link_mul(&self, s: usize, x: &[f64], ys: &mut [f64]) {
         match &self.links[s] {
-            LinkMatrix::Lumped(blocks) => {
-                for (i, b) in blocks.iter().enumerate() {
-                    let v = b * nalgebra::Vector2::new(x[2 * i], x[2 * i + 1]);
-                    ys[2 * i] += v.x;
-                    ys[2 * i + 1] += v.y;
-                }
-            }
+            LinkMatrix::Lumped(blocks) => add_block_diagonal_mul(blocks, false, x, ys),
             LinkMatrix::Consistent(m) => {
                 for_each_column(self.pattern.view(m), |j, rows, values| {
                     for (&i, &v) in rows.iter().zip(values) {
@@ -146,13 +145,7 @@ impl SpaceTimeSystem {
     /// `ys += X_sᵀ x`.
     pub fn link_transpose_mul(&self, s: usize, x: &[f64], ys: &mut [f64]) {
         match &self.links[s] {
-            LinkMatrix::Lumped(blocks) => {
-                for (i, b) in blocks.iter().enumerate() {
-                    let v = b.transpose() * nalgebra::Vector2::new(x[2 * i], x[2 * i + 1]);
-                    ys[2 * i] += v.x;
-                    ys[2 * i + 1] += v.y;
-                }
-            }
+            LinkMatrix::Lumped(blocks) => add_block_diagonal_mul(blocks, true, x, ys),
             LinkMatrix::Consistent(m) => {
                 for_each_column(self.pattern.view(m), |j, rows, values| {
                     ys[j] += rows
@@ -304,6 +297,20 @@ fn assemble_link(
         super::TimeCoupling::Consistent => {
             LinkMatrix::Consistent(pattern.assemble_values(mesh.n_faces(), cross))
         }
+    }
+}
+
+/// `ys += B x` (or `Bᵀ x`) for the block-diagonal `B` with 2×2 `blocks`.
+fn add_block_diagonal_mul(blocks: &[Matrix2<f64>], transpose: bool, x: &[f64], ys: &mut [f64]) {
+    for (i, b) in blocks.iter().enumerate() {
+        let xi = nalgebra::Vector2::new(x[2 * i], x[2 * i + 1]);
+        let v = if transpose {
+            b.transpose() * xi
+        } else {
+            b * xi
+        };
+        ys[2 * i] += v.x;
+        ys[2 * i + 1] += v.y;
     }
 }
 

@@ -89,12 +89,14 @@ pub fn solve(
             factor_entries: 0,
         });
     }
-    let slab_symbolic = analyze(system.block(0).symbolic());
-    let factor_bytes = slab_symbolic.len_val() * system.n_slabs() * std::mem::size_of::<f64>();
+    // One symbolic analysis serves every slab; only the slab-wise methods need it.
+    let slab_symbolic = std::cell::LazyCell::new(|| analyze(system.block(0).symbolic()));
+    // Budgeted at f64 size, the worst case of the single-precision factors' fallback.
+    let factor_bytes = || slab_symbolic.len_val() * system.n_slabs() * std::mem::size_of::<f64>();
     let method = match params.solver {
         SolverChoice::Auto if !system.has_links() => SolverMethod::SlabwiseDirect,
         SolverChoice::Auto if system.dimension() <= params.direct_limit => SolverMethod::Direct,
-        SolverChoice::Auto if factor_bytes <= params.factor_memory_limit => {
+        SolverChoice::Auto if factor_bytes() <= params.factor_memory_limit => {
             SolverMethod::PcgSlabGaussSeidel
         }
         SolverChoice::Auto => SolverMethod::PcgJacobi,
