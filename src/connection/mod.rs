@@ -104,11 +104,6 @@ impl Connection {
         self.corner_rotations[face][local]
     }
 
-    /// `[r_{T,a}, r_{T,b}, r_{T,c}]` for face `T = face`.
-    pub fn face_rotation_angles(&self, face: usize) -> [f64; 3] {
-        self.corner_rotations[face]
-    }
-
     /// `R_{T,i}`: maps a vertex-frame vector at corner `local` of `face` into the face frame.
     pub fn vertex_to_face(&self, face: usize, local: usize) -> Matrix2<f64> {
         self.corner_matrices[face][local]
