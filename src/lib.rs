@@ -45,6 +45,7 @@ pub mod flow;
 pub mod geometry;
 pub mod io;
 pub mod mesh;
+pub mod render;
 pub mod shapes;
 pub mod synth;
 

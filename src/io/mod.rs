@@ -6,17 +6,25 @@
 
 mod atomic;
 mod flow_output;
+mod frame;
+pub mod gltf_read;
+pub mod gltf_write;
 mod mtx;
 mod npy;
 mod obj;
+pub mod ply;
 mod sequence;
+mod texture;
+pub mod vtk;
 
 pub use atomic::write_atomically;
 pub use flow_output::{summary_json, write_flow_outputs};
+pub use frame::{grey_value, FrameMesh, RawSequence};
 pub use mtx::{read_matrix_market, write_matrix_market};
 pub use npy::{read_npy, write_npy, NpyArray};
 pub use obj::{read_obj, write_obj, ObjMesh};
 pub use sequence::{load_obj_sequence, natural_order, obj_frames};
+pub use texture::Texture;
 
 use std::path::PathBuf;
 

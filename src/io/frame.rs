@@ -1,0 +1,38 @@
+//! What every reader produces: one frame's triangle mesh with optional grey values, and
+//! a whole sequence read from a single file.
+
+use nalgebra::Vector3;
+use std::path::PathBuf;
+
+/// One frame as read from one file, before any validation: vertex positions, triangles
+/// (0-based, counter-clockwise seen from outside) and a grey value per vertex if the file
+/// carries one.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameMesh {
+    pub positions: Vec<Vector3<f64>>,
+    pub faces: Vec<[u32; 3]>,
+    pub intensity: Option<Vec<f64>>,
+}
+
+/// A sequence read from one file (a glTF morph animation): one connectivity, positions and
+/// optional grey values per frame, and the frame times when the file defines them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RawSequence {
+    pub faces: Vec<[u32; 3]>,
+    pub positions: Vec<Vec<Vector3<f64>>>,
+    pub intensities: Option<Vec<Vec<f64>>>,
+    pub times: Option<Vec<f64>>,
+    /// The file each frame came from, for error messages.
+    pub sources: Vec<PathBuf>,
+}
+
+/// The grey value of a colour: the value itself when `r = g = b` (so grey data passes through
+/// exactly, unclamped), Rec. 709 luma `0.2126 r + 0.7152 g + 0.0722 b` otherwise. Colours are
+/// taken as stored (no gamma decoding): brightness constancy only needs a consistent grey scale.
+pub fn grey_value([r, g, b]: [f64; 3]) -> f64 {
+    if r == g && g == b {
+        r
+    } else {
+        0.2126 * r + 0.7152 * g + 0.0722 * b
+    }
+}

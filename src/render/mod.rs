@@ -1,0 +1,3 @@
+//! Pictures of flows: colour coding of tangent vectors.
+
+pub mod color_wheel;
