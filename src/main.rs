@@ -5,7 +5,7 @@ use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::fem;
 use meshflow::flow::{Boundary, FlowParams, FlowProblem, SolveEvent, SolverChoice, TimeCoupling};
 use meshflow::geometry::IntrinsicGeometry;
-use meshflow::io::{load_obj_sequence, write_flow_outputs};
+use meshflow::io::{load_sequence, write_flow_outputs, LoadOptions, OutputFormat, StagedDir};
 use meshflow::io::{read_obj, write_matrix_market, write_npy, IoError};
 use meshflow::mesh::Mesh;
 use meshflow::Error;
@@ -35,15 +35,19 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// Compute the optical flow of a mesh sequence: INPUT is a directory of OBJ frames (natural
-    /// order, same faces), grey values from vertex colours or --intensity. Writes flow.npy
-    /// (S×V×3, R^3 vectors on frame s), flow_intrinsic.npy (S×V×2) and summary.json.
+    /// Compute the optical flow of a mesh sequence. INPUT is a directory of .obj/.ply/.gltf/.glb
+    /// frames (natural order, same faces), a glob ('dir/frame_*.ply'), one .gltf/.glb morph
+    /// animation, or a directory with positions.npy, faces.npy, intensity.npy. Grey values come
+    /// from vertex colours, textures, a PLY property or --intensity; times from --times,
+    /// the glTF animation, a times.txt beside the frames, or 0,1,2,… Writes flow.npy (S×V×3),
+    /// flow_intrinsic.npy (S×V×2), flow_SSSS.vtu + flow.pvd (ParaView), flow.glb and
+    /// summary.json.
     Solve(SolveArgs),
 }
 
 #[derive(clap::Args)]
 struct SolveArgs {
-    /// Directory of .obj frames
+    /// Frames directory, glob, .gltf/.glb animation, or NPY directory
     input: PathBuf,
     /// Output directory (created if missing)
     #[arg(long)]
@@ -72,9 +76,22 @@ struct SolveArgs {
     /// Grey values as a float64 .npy of shape (frames, vertices) instead of vertex colours
     #[arg(long)]
     intensity: Option<PathBuf>,
-    /// Frame times t0,t1,… (default 0,1,2,…)
-    #[arg(long, value_delimiter = ',')]
+    /// PLY vertex property holding the grey values (instead of the colours)
+    #[arg(long)]
+    intensity_attribute: Option<String>,
+    /// Frame times t0,t1,… (default: from the files or times.txt, else 0,1,2,…)
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     times: Option<Vec<f64>>,
+    /// Resample a glTF animation at N frames per unit of time (default: its keyframes)
+    #[arg(long, value_name = "N")]
+    fps: Option<f64>,
+    /// Keep vertices that coincide in every frame apart (default: weld them, as exporters split
+    /// vertices at texture seams)
+    #[arg(long)]
+    no_weld: bool,
+    /// Output files: any of npy, vtu, glb (summary.json is always written)
+    #[arg(long, value_delimiter = ',', default_value = "npy,vtu,glb")]
+    format: Vec<OutputFormat>,
 }
 
 fn main() -> ExitCode {
@@ -149,8 +166,29 @@ fn solve(args: &SolveArgs) -> Result<(), Error> {
         ..FlowParams::default()
     };
     params.validate()?;
-    let sequence = load_obj_sequence(&args.input, args.intensity.as_deref(), args.times.clone())?;
-    let problem = FlowProblem::new(&sequence, &params)?;
+    // Before any long computation: fail now if the output cannot be written.
+    let out = StagedDir::new(&args.out)?;
+    let options = LoadOptions {
+        intensity: args.intensity.clone(),
+        intensity_attribute: args.intensity_attribute.clone(),
+        times: args.times.clone(),
+        fps: args.fps,
+        weld: !args.no_weld,
+    };
+    let loaded = load_sequence(&args.input, &options)?;
+    let sequence = &loaded.sequence;
+    println!(
+        "{}: {}, {} vertices, {} faces{}",
+        args.input.display(),
+        loaded.source.describe(),
+        sequence.mesh().n_vertices(),
+        sequence.mesh().n_faces(),
+        match loaded.welding.n_welded() {
+            0 => String::new(),
+            n => format!(" (welded {n} duplicate vertices)"),
+        }
+    );
+    let problem = FlowProblem::new(sequence, &params)?;
     let progress = solver_progress(params.tolerance);
     let result = problem.solve(&|event| match event {
         SolveEvent::Factorizing { slabs } => progress.set_message(match slabs {
@@ -169,13 +207,8 @@ fn solve(args: &SolveArgs) -> Result<(), Error> {
     });
     progress.finish_and_clear();
     let result = result?;
-    write_flow_outputs(
-        &args.out,
-        &args.input.to_string_lossy(),
-        &sequence,
-        &params,
-        &result,
-    )?;
+    write_flow_outputs(&out, &loaded, &params, &result, &args.format)?;
+    out.commit()?;
     println!(
         "{}: {} frames x {} vertices -> {} slabs; {} solver, {} iterations, residual {:.1e}; energy {:.4e} (zero flow {:.4e}); {:.2} s -> {}",
         args.input.display(),

@@ -199,7 +199,9 @@ fn solve_command_writes_the_library_flow() {
         ([5, 642, 3].as_slice(), [5, 642, 2].as_slice())
     );
 
-    let sequence = meshflow::io::load_obj_sequence(Path::new(&input), None, None).unwrap();
+    let sequence = meshflow::io::load_sequence(Path::new(&input), &Default::default())
+        .unwrap()
+        .sequence;
     let params = meshflow::flow::FlowParams {
         gamma: 0.01,
         ..Default::default()

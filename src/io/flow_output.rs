@@ -1,25 +1,95 @@
-//! Writing a computed flow: NPY arrays and a JSON summary.
+//! Writing a computed flow: NPY arrays, ParaView files, a glTF animation and a JSON summary.
+//!
+//! | file | contents |
+//! |---|---|
+//! | `flow.npy` | (S, V, 3) float64: R^3 flow vectors of slab `s` at the vertices of frame `s` |
+//! | `flow_intrinsic.npy` | (S, V, 2) float64: components in the vertex frames |
+//! | `vertex_map.npy` | (V_file,) int64: mesh vertex of each file vertex, when vertices were welded |
+//! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` with point data `flow`, `flow_intrinsic`, `speed`, `intensity`; the `.pvd` plays the slabs at their start times |
+//! | `flow.glb` | the frames as a morph-target animation, coloured by the flow (Middlebury colour wheel of the intrinsic vectors, scaled by a robust maximum speed) |
+//! | `summary.json` | energy and its terms, residual, iterations, solver, sizes, parameters, input, timings |
+//!
+//! Slab `s` spans `[t_s, t_{s+1}]`; `S = K − 1` slabs for `K` frames.
 
-use super::{write_atomically, write_npy, IoError};
+use super::gltf_write::{write_glb_animation, AnimationFrame};
+use super::vtk::{write_pvd, write_vtu, PointArray};
+use super::{write_atomically, write_npy, IoError, LoadedSequence, StagedDir};
 use crate::flow::{FlowParams, FlowResult, MeshSequence};
+use crate::render::color_wheel::{flow_colors, robust_max};
+use nalgebra::Vector3;
 use std::io::Write;
 use std::path::Path;
+use std::str::FromStr;
 
-/// Writes `dir/flow.npy` (S, V, 3: R^3 vectors on frame s; embedded sequences only),
-/// `dir/flow_intrinsic.npy` (S, V, 2: vertex-frame components) and `dir/summary.json`
-/// (energy and its terms, residual, iterations, solver, sizes, parameters, timings), each
-/// atomically. `input` is recorded in the summary.
+/// The file groups [`write_flow_outputs`] can write; `summary.json` is always written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// `flow.npy`, `flow_intrinsic.npy` (and `vertex_map.npy`).
+    Npy,
+    /// `flow_SSSS.vtu` and `flow.pvd`.
+    Vtu,
+    /// `flow.glb`.
+    Glb,
+}
+
+impl OutputFormat {
+    pub const ALL: [OutputFormat; 3] = [Self::Npy, Self::Vtu, Self::Glb];
+}
+
+impl FromStr for OutputFormat {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "npy" => Ok(Self::Npy),
+            "vtu" | "vtk" | "paraview" => Ok(Self::Vtu),
+            "glb" | "gltf" => Ok(Self::Glb),
+            other => Err(format!("unknown output format '{other}' (npy, vtu, glb)")),
+        }
+    }
+}
+
+/// Writes the outputs of `result` for `loaded` into `out` (see the module table).
 pub fn write_flow_outputs(
-    dir: &Path,
-    input: &str,
-    sequence: &MeshSequence,
+    out: &StagedDir,
+    loaded: &LoadedSequence,
     params: &FlowParams,
     result: &FlowResult,
+    formats: &[OutputFormat],
 ) -> Result<(), IoError> {
-    std::fs::create_dir_all(dir).map_err(|e| IoError::file(dir, e))?;
+    write_all(out.path(), loaded, params, result, formats).map_err(|e| out.in_target(e))
+}
+
+fn write_all(
+    dir: &Path,
+    loaded: &LoadedSequence,
+    params: &FlowParams,
+    result: &FlowResult,
+    formats: &[OutputFormat],
+) -> Result<(), IoError> {
+    let sequence = &loaded.sequence;
+    if formats.contains(&OutputFormat::Npy) {
+        write_flow_npy(dir, loaded, result)?;
+    }
+    if let Some(vectors) = &result.vectors {
+        if formats.contains(&OutputFormat::Vtu) {
+            write_flow_vtk(dir, sequence, result, vectors)?;
+        }
+        if formats.contains(&OutputFormat::Glb) {
+            write_flow_glb(&dir.join("flow.glb"), sequence, result)?;
+        }
+    }
+    let summary = summary_json(loaded, params, result);
+    write_atomically(&dir.join("summary.json"), |w| {
+        serde_json::to_writer_pretty(&mut *w, &summary).map_err(std::io::Error::other)?;
+        writeln!(w)
+    })
+}
+
+fn write_flow_npy(dir: &Path, loaded: &LoadedSequence, result: &FlowResult) -> Result<(), IoError> {
     let (s, v) = (
         result.intrinsic.len() as u64,
-        sequence.mesh().n_vertices() as u64,
+        loaded.sequence.mesh().n_vertices() as u64,
     );
     let intrinsic: Vec<f64> = result
         .intrinsic
@@ -29,35 +99,124 @@ pub fn write_flow_outputs(
         .collect();
     write_npy(&dir.join("flow_intrinsic.npy"), &[s, v, 2], &intrinsic)?;
     if let Some(vectors) = &result.vectors {
-        let values: Vec<f64> = vectors
-            .iter()
-            .flatten()
-            .flat_map(|u| [u.x, u.y, u.z])
-            .collect();
-        write_npy(&dir.join("flow.npy"), &[s, v, 3], &values)?;
+        write_npy(
+            &dir.join("flow.npy"),
+            &[s, v, 3],
+            &flatten3(vectors.iter().flatten()),
+        )?;
     }
-    let summary = summary_json(input, sequence, params, result);
-    write_atomically(&dir.join("summary.json"), |w| {
-        serde_json::to_writer_pretty(&mut *w, &summary).map_err(std::io::Error::other)?;
-        writeln!(w)
-    })
+    let map = &loaded.welding.vertex_map;
+    if loaded.welding.n_welded() > 0 {
+        let map: Vec<i64> = map.iter().map(|&w| w as i64).collect();
+        write_npy(&dir.join("vertex_map.npy"), &[map.len() as u64], &map)?;
+    }
+    Ok(())
 }
 
-/// The summary written next to the flow.
-pub fn summary_json(
-    input: &str,
+fn flatten3<'a>(vectors: impl Iterator<Item = &'a Vector3<f64>>) -> Vec<f64> {
+    vectors.flat_map(|u| [u.x, u.y, u.z]).collect()
+}
+
+/// One `.vtu` per slab on the positions of its first frame, and the `.pvd` that plays them.
+fn write_flow_vtk(
+    dir: &Path,
     sequence: &MeshSequence,
-    params: &FlowParams,
     result: &FlowResult,
-) -> serde_json::Value {
+    vectors: &[Vec<Vector3<f64>>],
+) -> Result<(), IoError> {
+    let faces = sequence.mesh().faces();
+    let mut datasets = Vec::with_capacity(vectors.len());
+    for (s, (slab_vectors, intrinsic)) in vectors.iter().zip(&result.intrinsic).enumerate() {
+        let positions = sequence
+            .positions(s)
+            .expect("vectors exist for embedded sequences");
+        let flow = flatten3(slab_vectors.iter());
+        let flow_intrinsic: Vec<f64> = intrinsic.iter().flat_map(|u| [u.x, u.y]).collect();
+        let speed: Vec<f64> = slab_vectors.iter().map(|u| u.norm()).collect();
+        let point_data = [
+            PointArray {
+                name: "flow",
+                components: 3,
+                values: &flow,
+            },
+            PointArray {
+                name: "flow_intrinsic",
+                components: 2,
+                values: &flow_intrinsic,
+            },
+            PointArray {
+                name: "speed",
+                components: 1,
+                values: &speed,
+            },
+            PointArray {
+                name: "intensity",
+                components: 1,
+                values: sequence.intensities(s),
+            },
+        ];
+        let name = format!("flow_{s:04}.vtu");
+        write_vtu(&dir.join(&name), positions, faces, &point_data)?;
+        datasets.push((sequence.times()[s], name));
+    }
+    write_pvd(&dir.join("flow.pvd"), &datasets)
+}
+
+/// All frames as a morph animation; frame `k` is coloured by slab `min(k, S − 1)`.
+fn write_flow_glb(
+    path: &Path,
+    sequence: &MeshSequence,
+    result: &FlowResult,
+) -> Result<(), IoError> {
+    let vectors: Vec<Vec<[f64; 2]>> = result
+        .intrinsic
+        .iter()
+        .map(|slab| slab.iter().map(|u| [u.x, u.y]).collect())
+        .collect();
     let speeds: Vec<f64> = result
         .intrinsic
         .iter()
         .flatten()
         .map(|u| u.norm())
         .collect();
+    let scale = robust_max(&speeds);
+    let colors: Vec<Vec<[f64; 3]>> = vectors.iter().map(|v| flow_colors(v, scale)).collect();
+    let frames: Vec<AnimationFrame> = (0..sequence.n_frames())
+        .map(|k| AnimationFrame {
+            time: sequence.times()[k],
+            positions: sequence.positions(k).expect("embedded sequence"),
+            colors: &colors[k.min(colors.len() - 1)],
+        })
+        .collect();
+    write_glb_animation(path, sequence.mesh().faces(), &frames)
+}
+
+/// The summary written next to the flow.
+pub fn summary_json(
+    loaded: &LoadedSequence,
+    params: &FlowParams,
+    result: &FlowResult,
+) -> serde_json::Value {
+    let sequence = &loaded.sequence;
+    let speeds: Vec<f64> = match &result.vectors {
+        Some(vectors) => vectors.iter().flatten().map(|u| u.norm()).collect(),
+        None => result
+            .intrinsic
+            .iter()
+            .flatten()
+            .map(|u| u.norm())
+            .collect(),
+    };
+    let files: Vec<String> = loaded
+        .source
+        .files()
+        .iter()
+        .map(|f| f.to_string_lossy().into_owned())
+        .collect();
     serde_json::json!({
-        "input": input,
+        "input": loaded.source.describe(),
+        "input_files": files,
+        "welded_vertices": loaded.welding.n_welded(),
         "energy": result.energy,
         "energy_terms": result.energy_terms,
         "energy_at_zero": result.energy_at_zero,

@@ -1,4 +1,8 @@
-//! Reading and writing files: OBJ meshes, MatrixMarket matrices, NPY arrays.
+//! Reading and writing files.
+//!
+//! In: mesh sequences as OBJ, PLY or glTF frames, one glTF morph animation, or NPY arrays
+//! ([`load_sequence`]); OBJ meshes for single-mesh commands. Out: the flow as NPY, ParaView
+//! VTU/PVD and glTF ([`write_flow_outputs`]), operators as MatrixMarket.
 //!
 //! Every writer goes through [`write_atomically`]: the bytes land in a temporary file next to the
 //! target, which is renamed over it only when complete, so a failed run never leaves a
@@ -9,6 +13,8 @@ mod flow_output;
 mod frame;
 pub mod gltf_read;
 pub mod gltf_write;
+mod input;
+mod mtl;
 mod mtx;
 mod npy;
 mod obj;
@@ -16,15 +22,19 @@ pub mod ply;
 mod sequence;
 mod texture;
 pub mod vtk;
+mod weld;
 
-pub use atomic::write_atomically;
-pub use flow_output::{summary_json, write_flow_outputs};
+pub use atomic::{write_atomically, StagedDir};
+pub use flow_output::{summary_json, write_flow_outputs, OutputFormat};
 pub use frame::{grey_value, FrameMesh, RawSequence};
+pub use input::{FrameFormat, SequenceSource};
+pub use mtl::{texture_intensity, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};
-pub use npy::{read_npy, write_npy, NpyArray};
+pub use npy::{read_npy, read_npy_indices, write_npy, NpyArray};
 pub use obj::{read_obj, write_obj, ObjMesh};
-pub use sequence::{load_obj_sequence, natural_order, obj_frames};
+pub use sequence::{load_sequence, natural_order, LoadOptions, LoadedSequence};
 pub use texture::Texture;
+pub use weld::Welding;
 
 use std::path::PathBuf;
 
@@ -52,6 +62,19 @@ impl IoError {
         Self::File {
             path: path.into(),
             source,
+        }
+    }
+
+    /// The file the error is about.
+    pub fn path(&self) -> &std::path::Path {
+        match self {
+            Self::File { path, .. } | Self::Parse { path, .. } | Self::Format { path, .. } => path,
+        }
+    }
+
+    fn path_mut(&mut self) -> &mut PathBuf {
+        match self {
+            Self::File { path, .. } | Self::Parse { path, .. } | Self::Format { path, .. } => path,
         }
     }
 

@@ -1,4 +1,4 @@
-//! NumPy `.npy` arrays of float64 through npyz.
+//! NumPy `.npy` arrays through npyz: float64 data, integer index arrays.
 
 use super::{write_atomically, IoError};
 use npyz::WriterBuilder;
@@ -11,8 +11,13 @@ pub struct NpyArray {
     pub data: Vec<f64>,
 }
 
-/// Writes `data` (C order) as a little-endian float64 `.npy` of the given shape.
-pub fn write_npy(path: &Path, shape: &[u64], data: &[f64]) -> Result<(), IoError> {
+/// Writes `data` (C order) as a little-endian `.npy` of the given shape (`f64` → float64,
+/// `i64` → int64, …).
+pub fn write_npy<T: npyz::AutoSerialize + Copy>(
+    path: &Path,
+    shape: &[u64],
+    data: &[T],
+) -> Result<(), IoError> {
     let expected: u64 = shape.iter().product();
     if expected != data.len() as u64 {
         return Err(IoError::format(
@@ -38,14 +43,83 @@ pub fn write_npy(path: &Path, shape: &[u64], data: &[f64]) -> Result<(), IoError
 /// matches the data actually present before allocating for it.
 pub fn read_npy(path: &Path) -> Result<NpyArray, IoError> {
     let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
-    let file = npyz::NpyFile::new(&bytes[..])
+    let file = open_npy(
+        path,
+        &bytes,
+        |t| t.type_char() == npyz::TypeChar::Float && t.size_field() == 8,
+        "float64",
+    )?;
+    let shape = file.shape().to_vec();
+    let data = file
+        .into_vec::<f64>()
+        .map_err(|e| IoError::format(path, format!("truncated or corrupt data ({e})")))?;
+    Ok(NpyArray { shape, data })
+}
+
+/// Reads an integer `.npy` of vertex indices (int8…int64 or uint8…uint64, either byte order,
+/// C order) as `u32`, with its shape; negative or ≥ 2³² values are errors naming the entry.
+pub fn read_npy_indices(path: &Path) -> Result<(Vec<u64>, Vec<u32>), IoError> {
+    use npyz::TypeChar::{Int, Uint};
+    let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
+    let file = open_npy(
+        path,
+        &bytes,
+        |t| matches!(t.type_char(), Int | Uint),
+        "an integer type",
+    )?;
+    let shape = file.shape().to_vec();
+    let corrupt =
+        |e: std::io::Error| IoError::format(path, format!("truncated or corrupt data ({e})"));
+    let npyz::DType::Plain(dtype) = file.dtype() else {
+        unreachable!("open_npy accepts plain integer types only")
+    };
+    let values: Vec<i128> = match (dtype.type_char(), dtype.size_field()) {
+        (Int, 1) => widen(file.into_vec::<i8>().map_err(corrupt)?),
+        (Int, 2) => widen(file.into_vec::<i16>().map_err(corrupt)?),
+        (Int, 4) => widen(file.into_vec::<i32>().map_err(corrupt)?),
+        (Int, _) => widen(file.into_vec::<i64>().map_err(corrupt)?),
+        (_, 1) => widen(file.into_vec::<u8>().map_err(corrupt)?),
+        (_, 2) => widen(file.into_vec::<u16>().map_err(corrupt)?),
+        (_, 4) => widen(file.into_vec::<u32>().map_err(corrupt)?),
+        _ => widen(file.into_vec::<u64>().map_err(corrupt)?),
+    };
+    let indices = values
+        .iter()
+        .enumerate()
+        .map(|(at, &v)| {
+            u32::try_from(v).map_err(|_| {
+                IoError::format(path, format!("entry {at} is {v}, not a vertex index"))
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    Ok((shape, indices))
+}
+
+fn widen<T: Into<i128>>(values: Vec<T>) -> Vec<i128> {
+    values.into_iter().map(Into::into).collect()
+}
+
+/// Parses the header, checks the dtype with `accepts` (described as `expected` in the error),
+/// C order, and that the shape fits the bytes present (before anything is allocated for it).
+fn open_npy<'a>(
+    path: &Path,
+    bytes: &'a [u8],
+    accepts: impl Fn(&npyz::TypeStr) -> bool,
+    expected: &str,
+) -> Result<npyz::NpyFile<&'a [u8]>, IoError> {
+    let file = npyz::NpyFile::new(bytes)
         .map_err(|e| IoError::format(path, format!("not a valid .npy file ({e})")))?;
     let dtype = file.dtype();
-    let is_f8 = matches!(&dtype, npyz::DType::Plain(t) if t.type_char() == npyz::TypeChar::Float && t.size_field() == 8);
-    if !is_f8 {
+    let npyz::DType::Plain(type_str) = &dtype else {
         return Err(IoError::format(
             path,
-            format!("dtype is {}, expected float64", dtype.descr()),
+            format!("dtype is {}, expected {expected}", dtype.descr()),
+        ));
+    };
+    if !accepts(type_str) {
+        return Err(IoError::format(
+            path,
+            format!("dtype is {}, expected {expected}", dtype.descr()),
         ));
     }
     if file.order() != npyz::Order::C {
@@ -54,19 +128,17 @@ pub fn read_npy(path: &Path) -> Result<NpyArray, IoError> {
             "array is in Fortran order; save it with C order (np.ascontiguousarray)",
         ));
     }
-    let shape = file.shape().to_vec();
-    let needed = shape.iter().try_fold(8u64, |acc, &d| acc.checked_mul(d));
-    let present = bytes.len().saturating_sub(data_offset(&bytes)) as u64;
+    let shape = file.shape();
+    let item = type_str.size_field() as u64;
+    let needed = shape.iter().try_fold(item, |acc, &d| acc.checked_mul(d));
+    let present = bytes.len().saturating_sub(data_offset(bytes)) as u64;
     if needed != Some(present) {
         return Err(IoError::format(
             path,
             format!("shape {shape:?} does not fit the {present} bytes of data (truncated or corrupt file)"),
         ));
     }
-    let data = file
-        .into_vec::<f64>()
-        .map_err(|e| IoError::format(path, format!("truncated or corrupt data ({e})")))?;
-    Ok(NpyArray { shape, data })
+    Ok(file)
 }
 
 /// Where the data starts: magic (6 bytes), version (2), header length (2 bytes in format 1.0,

@@ -1,8 +1,9 @@
-//! Wavefront OBJ: the subset that carries a triangle mesh with per-vertex colours.
+//! Wavefront OBJ: the subset that carries a triangle mesh with per-vertex colours or a texture.
 //!
-//! Read: `v x y z [w]` and `v x y z r g b` (colours, unclamped), `f` with `v`, `v/vt`, `v//vn`
-//! or `v/vt/vn` references (negative = relative), polygons fan-triangulated. Other statements
-//! (`vt`, `vn`, `o`, `g`, `s`, `usemtl`, `mtllib`, …) are skipped.
+//! Read: `v x y z [w]` and `v x y z r g b` (colours, unclamped), `vt u [v [w]]`, `f` with `v`,
+//! `v/vt`, `v//vn` or `v/vt/vn` references (negative = relative), polygons fan-triangulated,
+//! `mtllib` and `usemtl` (for textures, see [`super::mtl`]). Other statements (`vn`, `o`, `g`,
+//! `s`, …) are skipped.
 //!
 //! Why not tobj: it renumbers vertices by first use in the faces, which drops isolated vertices
 //! silently and breaks the identity "vertex i of frame k is vertex i of frame k + 1" whenever the
@@ -21,6 +22,16 @@ pub struct ObjMesh {
     pub faces: Vec<[u32; 3]>,
     /// One RGB colour per vertex when the file gives colours on its `v` lines.
     pub colors: Option<Vec<[f64; 3]>>,
+    /// `(u, v)` of each `vt` line, `v` upwards.
+    pub texcoords: Vec<[f64; 2]>,
+    /// Per face: the texture coordinates of its corners, when its `f` line gives them.
+    pub face_texcoords: Vec<Option<[u32; 3]>>,
+    /// Per face: the index into `materials` of the `usemtl` in force, if any.
+    pub face_materials: Vec<Option<u32>>,
+    /// Material names in order of first `usemtl`.
+    pub materials: Vec<String>,
+    /// The `mtllib` file names, relative to the OBJ file.
+    pub material_libraries: Vec<String>,
 }
 
 /// Reads an OBJ file (see the module docs for the supported subset).
@@ -67,34 +78,27 @@ type ParseError = (usize, String);
 fn parse_obj(text: &str) -> Result<ObjMesh, ParseError> {
     let mut mesh = ObjMesh::default();
     let mut colors = Vec::new();
-    // (line, vertex index) of each face corner, checked once all `v` lines are known.
+    let mut material = None;
+    // (line) of each face, for range checks once all `v` and `vt` lines are known.
     let mut face_lines = Vec::new();
+    let mut corners = Vec::new();
     for (number, line) in text.lines().enumerate().map(|(n, l)| (n + 1, l)) {
         let mut tokens = line.split_whitespace();
         match tokens.next() {
             Some("v") => {
-                let values = tokens
-                    .map(|t| {
-                        t.parse::<f64>()
-                            .map_err(|_| (number, format!("'{t}' is not a number")))
-                    })
-                    .collect::<Result<Vec<_>, _>>()?;
-                let (position, color) = split_vertex(&values).ok_or_else(|| {
-                    (
-                        number,
-                        format!(
-                            "a vertex needs 3, 4, 6 or 7 numbers, found {}",
-                            values.len()
-                        ),
-                    )
-                })?;
+                let (position, color) = parse_vertex(tokens).map_err(|m| (number, m))?;
                 mesh.positions.push(position);
                 colors.extend(color);
             }
+            Some("vt") => mesh
+                .texcoords
+                .push(parse_texcoord(tokens).map_err(|m| (number, m))?),
             Some("f") => {
-                let corners = tokens
-                    .map(|t| vertex_reference(t, mesh.positions.len()).map_err(|m| (number, m)))
-                    .collect::<Result<Vec<_>, _>>()?;
+                corners.clear();
+                for token in tokens {
+                    let corner = face_corner(token, mesh.positions.len(), mesh.texcoords.len());
+                    corners.push(corner.map_err(|m| (number, m))?);
+                }
                 if corners.len() < 3 {
                     return Err((
                         number,
@@ -102,25 +106,21 @@ fn parse_obj(text: &str) -> Result<ObjMesh, ParseError> {
                     ));
                 }
                 for k in 1..corners.len() - 1 {
-                    mesh.faces.push([corners[0], corners[k], corners[k + 1]]);
+                    let [a, b, c] = [corners[0], corners[k], corners[k + 1]];
+                    mesh.faces.push([a.0, b.0, c.0]);
+                    mesh.face_texcoords
+                        .push(a.1.zip(b.1).zip(c.1).map(|((a, b), c)| [a, b, c]));
+                    mesh.face_materials.push(material);
                     face_lines.push(number);
                 }
             }
+            Some("usemtl") => material = Some(material_index(&mut mesh.materials, rest(line, 6))),
+            Some("mtllib") => mesh.material_libraries.push(rest(line, 6).to_string()),
             _ => {}
         }
     }
+    check_face_references(&mesh, &face_lines)?;
     let n = mesh.positions.len();
-    for (face, &line) in mesh.faces.iter().zip(&face_lines) {
-        if let Some(&bad) = face.iter().find(|&&v| v as usize >= n) {
-            return Err((
-                line,
-                format!(
-                    "vertex {} does not exist (the file has {n} vertices)",
-                    bad as u64 + 1
-                ),
-            ));
-        }
-    }
     mesh.colors = match colors.len() {
         0 => None,
         k if k == n => Some(colors),
@@ -134,26 +134,111 @@ fn parse_obj(text: &str) -> Result<ObjMesh, ParseError> {
     Ok(mesh)
 }
 
-fn split_vertex(values: &[f64]) -> Option<(Vector3<f64>, Option<[f64; 3]>)> {
-    let position = Vector3::new(*values.first()?, *values.get(1)?, *values.get(2)?);
-    match values.len() {
-        3 | 4 => Some((position, None)),
-        6 | 7 => Some((position, Some([values[3], values[4], values[5]]))),
-        _ => None,
+/// The text after a keyword of `len` bytes, trimmed: names may contain spaces.
+fn rest(line: &str, len: usize) -> &str {
+    line.trim_start()[len..].trim()
+}
+
+fn material_index(materials: &mut Vec<String>, name: &str) -> u32 {
+    let index = materials.iter().position(|m| m == name).unwrap_or_else(|| {
+        materials.push(name.to_string());
+        materials.len() - 1
+    });
+    index as u32
+}
+
+/// Faces may refer forward, so the ranges are checked once the file is read.
+fn check_face_references(mesh: &ObjMesh, face_lines: &[usize]) -> Result<(), ParseError> {
+    let (n, n_vt) = (mesh.positions.len(), mesh.texcoords.len());
+    for ((face, texcoords), &line) in mesh.faces.iter().zip(&mesh.face_texcoords).zip(face_lines) {
+        if let Some(&bad) = face.iter().find(|&&v| v as usize >= n) {
+            return Err((
+                line,
+                format!(
+                    "vertex {} does not exist (the file has {n} vertices)",
+                    bad as u64 + 1
+                ),
+            ));
+        }
+        if let Some(&bad) = texcoords.iter().flatten().find(|&&t| t as usize >= n_vt) {
+            return Err((
+                line,
+                format!(
+                    "texture coordinate {} does not exist (the file has {n_vt})",
+                    bad as u64 + 1
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn parse_numbers<'a, const N: usize>(
+    tokens: impl Iterator<Item = &'a str>,
+) -> Result<([f64; N], usize), String> {
+    let mut values = [0.0; N];
+    let mut count = 0;
+    for token in tokens {
+        let value = token
+            .parse::<f64>()
+            .map_err(|_| format!("'{token}' is not a number"))?;
+        if count < N {
+            values[count] = value;
+        }
+        count += 1;
+    }
+    Ok((values, count))
+}
+
+fn parse_vertex<'a>(
+    tokens: impl Iterator<Item = &'a str>,
+) -> Result<(Vector3<f64>, Option<[f64; 3]>), String> {
+    let (v, count) = parse_numbers::<7>(tokens)?;
+    let position = Vector3::new(v[0], v[1], v[2]);
+    match count {
+        3 | 4 => Ok((position, None)),
+        6 | 7 => Ok((position, Some([v[3], v[4], v[5]]))),
+        n => Err(format!("a vertex needs 3, 4, 6 or 7 numbers, found {n}")),
     }
 }
 
-/// The 0-based vertex index of a face token `v[/vt[/vn]]`; negative indices count back from the
-/// `n_defined` vertices read so far.
-fn vertex_reference(token: &str, n_defined: usize) -> Result<u32, String> {
-    let index_text = token.split('/').next().unwrap_or_default();
-    let index: i64 = index_text
-        .parse()
-        .map_err(|_| format!("'{token}' is not a vertex reference"))?;
+fn parse_texcoord<'a>(tokens: impl Iterator<Item = &'a str>) -> Result<[f64; 2], String> {
+    match parse_numbers::<3>(tokens)? {
+        (t, 1..=3) => Ok([t[0], t[1]]),
+        (_, n) => Err(format!(
+            "a texture coordinate needs 1 to 3 numbers, found {n}"
+        )),
+    }
+}
+
+/// The 0-based vertex and texture-coordinate indices of a face token `v[/vt[/vn]]`.
+fn face_corner(
+    token: &str,
+    n_vertices: usize,
+    n_texcoords: usize,
+) -> Result<(u32, Option<u32>), String> {
+    let mut parts = token.split('/');
+    let vertex = parts.next().unwrap_or_default();
+    let vertex = resolve_reference(vertex, n_vertices)
+        .map_err(|m| format!("'{token}' is not a vertex reference{m}"))?;
+    let texcoord = match parts.next() {
+        Some(t) if !t.is_empty() => Some(
+            resolve_reference(t, n_texcoords)
+                .map_err(|m| format!("'{token}' has a bad texture coordinate reference{m}"))?,
+        ),
+        _ => None,
+    };
+    Ok((vertex, texcoord))
+}
+
+/// A 1-based OBJ index (negative: counts back from the `n_defined` entries read so far) as a
+/// 0-based index; the error is a suffix for the caller's message.
+fn resolve_reference(text: &str, n_defined: usize) -> Result<u32, String> {
+    let index: i64 = text.parse().map_err(|_| String::new())?;
     let resolved = match index {
         i if i > 0 => i - 1,
         i if i < 0 => n_defined as i64 + i,
-        _ => return Err("vertex index 0 is invalid (OBJ indices start at 1)".into()),
+        _ => return Err(": index 0 is invalid (OBJ indices start at 1)".into()),
     };
-    u32::try_from(resolved).map_err(|_| format!("vertex reference {index} is out of range"))
+    u32::try_from(resolved).map_err(|_| format!(": reference {index} is out of range"))
 }

@@ -1,73 +1,295 @@
-//! A directory of OBJ frames as a [`MeshSequence`].
+//! Reading a [`MeshSequence`] from files, whatever the format.
+//!
+//! Every source (see [`SequenceSource`]) is first read into a [`RawSequence`] with the files'
+//! own vertex numbering, checked frame by frame (same vertex count and faces as frame 0, finite
+//! values), then welded (see [`Welding`]) and validated as a [`MeshSequence`]. Errors name the
+//! file, and the frame, vertex or face at fault.
+//!
+//! Grey values come from `--intensity` (a float64 `.npy` of shape (K, V) over the files'
+//! vertices) when given, else from each format's own data: OBJ vertex colours or `map_Kd`
+//! texture, a PLY scalar property (`intensity_attribute`) or its colours, glTF `COLOR_0` or
+//! base-colour texture, `intensity.npy` next to NPY arrays. Colours become grey by
+//! [`grey_value`]. Frame times come from `--times`, else a glTF animation's keyframes, else a
+//! `times.txt` next to the frames (numbers separated by white space or commas, `#` comments),
+//! else `0, 1, 2, …`.
 
-use super::{read_npy, read_obj, IoError, ObjMesh};
-use crate::flow::MeshSequence;
+use super::gltf_read::{read_gltf_animation, read_gltf_frame};
+use super::input::{FrameFormat, SequenceSource};
+use super::ply::read_ply;
+use super::{grey_value, read_npy, read_npy_indices, read_obj, texture_intensity};
+use super::{FrameMesh, IoError, RawSequence, TextureCache, Welding};
+use crate::flow::{FlowError, MeshSequence};
+use crate::geometry::GeometryError;
 use crate::mesh::Mesh;
 use crate::Error;
+use nalgebra::Vector3;
+use rayon::prelude::*;
 use std::cmp::Ordering;
 use std::path::{Path, PathBuf};
 
-/// The `.obj` files of `dir` in natural order (`frame_2` before `frame_10`).
-pub fn obj_frames(dir: &Path) -> Result<Vec<PathBuf>, IoError> {
-    let entries = std::fs::read_dir(dir).map_err(|e| IoError::file(dir, e))?;
-    let mut files = Vec::new();
-    for entry in entries {
-        let path = entry.map_err(|e| IoError::file(dir, e))?.path();
-        if path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("obj"))
-        {
-            files.push(path);
-        }
-    }
-    files.sort_by(|a, b| natural_order(&a.to_string_lossy(), &b.to_string_lossy()));
-    Ok(files)
+/// Choices for [`load_sequence`]; `Default` is "everything from the files, welded".
+#[derive(Clone, Debug)]
+pub struct LoadOptions {
+    /// Grey values from this float64 `.npy` of shape (frames, file vertices).
+    pub intensity: Option<PathBuf>,
+    /// The PLY vertex property holding the grey value (instead of the colours).
+    pub intensity_attribute: Option<String>,
+    /// Frame times, overriding any in the files.
+    pub times: Option<Vec<f64>>,
+    /// Resample a glTF animation at this many frames per unit of time.
+    pub fps: Option<f64>,
+    /// Weld vertices that coincide in every frame (split at texture seams by exporters).
+    pub weld: bool,
 }
 
-/// Loads one frame per OBJ file of `dir`. Intensities come from `intensity` (a float64 `.npy`
-/// of shape `(K, V)`) when given, else from the vertex colours: the value itself when
-/// `r = g = b` (unclamped), Rec. 709 luma `0.2126 r + 0.7152 g + 0.0722 b` otherwise.
-/// `times = None` means `0, 1, 2, …`.
-pub fn load_obj_sequence(
-    dir: &Path,
-    intensity: Option<&Path>,
-    times: Option<Vec<f64>>,
-) -> Result<MeshSequence, Error> {
-    let files = obj_frames(dir)?;
-    if files.is_empty() {
-        return Err(IoError::format(dir, "no .obj files in this directory").into());
+impl Default for LoadOptions {
+    fn default() -> Self {
+        Self {
+            intensity: None,
+            intensity_attribute: None,
+            times: None,
+            fps: None,
+            weld: true,
+        }
     }
+}
+
+/// A sequence read from files, with where it came from.
+#[derive(Clone, Debug)]
+pub struct LoadedSequence {
+    pub sequence: MeshSequence,
+    pub source: SequenceSource,
+    /// File vertices → mesh vertices.
+    pub welding: Welding,
+    /// The file each frame came from.
+    pub frame_files: Vec<PathBuf>,
+}
+
+/// Reads the sequence that `path` names (a directory, a glob, a glTF animation; see
+/// [`SequenceSource`]).
+pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequence, Error> {
+    let source = SequenceSource::detect(path)?;
+    check_options(&source, options, path)?;
+    let raw = read_raw(&source, options)?;
+    let files = &raw.sources;
+    check_finite_positions(&raw.positions).map_err(|e| in_frame_file(e, files))?;
+    let welding = match options.weld {
+        true => Welding::of_coincident(&raw.positions),
+        false => Welding::identity(raw.positions[0].len()),
+    };
+    let mesh = Mesh::new(welding.n_vertices(), welding.faces(&raw.faces))
+        .map_err(|e| Error::from(e).in_file(&files[0]))?;
+    let intensities = match &options.intensity {
+        Some(file) => intensity_array(file, raw.positions.len(), raw.positions[0].len())?,
+        None => raw.intensities.clone().ok_or_else(|| {
+            IoError::format(
+                &files[0],
+                "no grey values (vertex colours, texture or intensity property); give --intensity FILE.npy",
+            )
+        })?,
+    };
+    check_finite_intensities(&intensities).map_err(|e| in_frame_file(e, files))?;
+    let times = match (&options.times, &raw.times) {
+        (Some(times), _) | (None, Some(times)) => Some(times.clone()),
+        (None, None) => read_times_file(&source.directory().join("times.txt"))?,
+    };
+    let positions = raw.positions.iter().map(|p| welding.positions(p)).collect();
+    let intensities = intensities.iter().map(|v| welding.values(v)).collect();
+    let sequence = MeshSequence::new(mesh, positions, intensities, times)
+        .map_err(|e| in_frame_file(e, files))?;
+    Ok(LoadedSequence {
+        sequence,
+        source,
+        welding,
+        frame_files: raw.sources,
+    })
+}
+
+fn check_options(
+    source: &SequenceSource,
+    options: &LoadOptions,
+    path: &Path,
+) -> Result<(), IoError> {
+    let is_animation = matches!(source, SequenceSource::GltfAnimation(_));
+    let is_ply = matches!(
+        source,
+        SequenceSource::Frames {
+            format: FrameFormat::Ply,
+            ..
+        }
+    );
+    if options.fps.is_some() && !is_animation {
+        return Err(IoError::format(
+            path,
+            "--fps applies to a glTF animation (one .gltf/.glb file) only",
+        ));
+    }
+    if let Some(fps) = options.fps.filter(|f| !(f.is_finite() && *f > 0.0)) {
+        return Err(IoError::format(
+            path,
+            format!("--fps must be a positive number, got {fps}"),
+        ));
+    }
+    if options.intensity_attribute.is_some() && !is_ply {
+        return Err(IoError::format(
+            path,
+            "--intensity-attribute applies to PLY frames only",
+        ));
+    }
+    Ok(())
+}
+
+fn read_raw(source: &SequenceSource, options: &LoadOptions) -> Result<RawSequence, Error> {
+    match source {
+        SequenceSource::Frames { format, files } => read_frames(*format, files, options),
+        SequenceSource::GltfAnimation(file) => Ok(read_gltf_animation(file, options.fps)?),
+        SequenceSource::Npy(dir) => read_npy_sequence(dir),
+    }
+}
+
+/// Reads the frame files in parallel and checks that they share one connectivity.
+fn read_frames(
+    format: FrameFormat,
+    files: &[PathBuf],
+    options: &LoadOptions,
+) -> Result<RawSequence, Error> {
+    let textures = TextureCache::default();
     let frames = files
-        .iter()
-        .map(|f| read_obj(f))
+        .par_iter()
+        .map(|file| read_frame(format, file, options, &textures))
         .collect::<Result<Vec<_>, _>>()?;
     let first = &frames[0];
-    for (k, (frame, file)) in frames.iter().zip(&files).enumerate().skip(1) {
+    for (k, (frame, file)) in frames.iter().zip(files).enumerate().skip(1) {
         check_same_connectivity(first, frame, k).map_err(|m| IoError::format(file, m))?;
     }
-    let mesh = Mesh::new(first.positions.len(), first.faces.clone())
-        .map_err(|e| Error::from(e).in_file(&files[0]))?;
-    let intensities = match intensity {
-        Some(path) => intensity_array(path, frames.len(), mesh.n_vertices())?,
-        None => frames
-            .iter()
-            .zip(&files)
-            .map(|(frame, file)| {
-                grey_values(frame).ok_or_else(|| {
-                    IoError::format(
-                        file,
-                        "no vertex colours to take intensities from; give --intensity FILE.npy",
-                    )
-                })
-            })
-            .collect::<Result<_, _>>()?,
+    let intensities = match frames.iter().position(|f| f.intensity.is_none()) {
+        None => Some(frames.iter().map(|f| f.intensity.clone().unwrap_or_default()).collect()),
+        Some(_) if options.intensity.is_some() => None,
+        Some(0) if frames.iter().all(|f| f.intensity.is_none()) => None,
+        Some(k) => {
+            return Err(IoError::format(
+                &files[k],
+                "this frame has no grey values (vertex colours, texture or intensity property) but others do",
+            )
+            .into())
+        }
     };
-    let positions = frames.into_iter().map(|f| f.positions).collect();
-    MeshSequence::new(mesh, positions, intensities, times).map_err(|e| in_frame_file(e, &files))
+    let faces = first.faces.clone();
+    Ok(RawSequence {
+        faces,
+        positions: frames.into_iter().map(|f| f.positions).collect(),
+        intensities,
+        times: None,
+        sources: files.to_vec(),
+    })
+}
+
+fn read_frame(
+    format: FrameFormat,
+    file: &Path,
+    options: &LoadOptions,
+    textures: &TextureCache,
+) -> Result<FrameMesh, IoError> {
+    match format {
+        FrameFormat::Obj => {
+            let obj = read_obj(file)?;
+            let intensity = match &obj.colors {
+                Some(colors) => Some(colors.iter().map(|&c| grey_value(c)).collect()),
+                None => texture_intensity(&obj, file, textures)?,
+            };
+            Ok(FrameMesh {
+                positions: obj.positions,
+                faces: obj.faces,
+                intensity,
+            })
+        }
+        FrameFormat::Ply => {
+            let ply = read_ply(file)?;
+            let intensity = match &options.intensity_attribute {
+                Some(name) => Some(ply_property(ply.properties, name, file)?),
+                None => ply
+                    .colors
+                    .map(|c| c.iter().map(|&c| grey_value(c)).collect()),
+            };
+            Ok(FrameMesh {
+                positions: ply.positions,
+                faces: ply.faces,
+                intensity,
+            })
+        }
+        FrameFormat::Gltf => read_gltf_frame(file),
+    }
+}
+
+fn ply_property(
+    properties: Vec<(String, Vec<f64>)>,
+    name: &str,
+    file: &Path,
+) -> Result<Vec<f64>, IoError> {
+    let names: Vec<String> = properties.iter().map(|(n, _)| n.clone()).collect();
+    properties
+        .into_iter()
+        .find(|(n, _)| n == name)
+        .map(|(_, values)| values)
+        .ok_or_else(|| {
+            IoError::format(
+                file,
+                format!(
+                    "no vertex property '{name}' (the file has: {})",
+                    names.join(", ")
+                ),
+            )
+        })
+}
+
+/// `positions.npy` (K, V, 3), `faces.npy` (F, 3) and, if present, `intensity.npy` (K, V).
+fn read_npy_sequence(dir: &Path) -> Result<RawSequence, Error> {
+    let positions_file = dir.join("positions.npy");
+    let array = read_npy(&positions_file)?;
+    let [k, v, 3] = array.shape[..] else {
+        return Err(IoError::format(
+            &positions_file,
+            format!("shape {:?}, expected (frames, vertices, 3)", array.shape),
+        )
+        .into());
+    };
+    let positions: Vec<Vec<Vector3<f64>>> = array
+        .data
+        .chunks_exact(3 * v as usize)
+        .map(|frame| {
+            frame
+                .chunks_exact(3)
+                .map(Vector3::from_column_slice)
+                .collect()
+        })
+        .collect();
+    let faces_file = dir.join("faces.npy");
+    let (shape, indices) = read_npy_indices(&faces_file)?;
+    if !matches!(shape[..], [_, 3]) {
+        return Err(
+            IoError::format(&faces_file, format!("shape {shape:?}, expected (faces, 3)")).into(),
+        );
+    }
+    let faces = indices
+        .chunks_exact(3)
+        .map(|f| [f[0], f[1], f[2]])
+        .collect();
+    let intensity_file = dir.join("intensity.npy");
+    let intensities = match intensity_file.exists() {
+        true => Some(intensity_array(&intensity_file, k as usize, v as usize)?),
+        false => None,
+    };
+    Ok(RawSequence {
+        faces,
+        positions,
+        intensities,
+        times: None,
+        sources: vec![positions_file; k as usize],
+    })
 }
 
 /// Attaches the file of the frame a sequence error names.
-fn in_frame_file(error: crate::flow::FlowError, files: &[PathBuf]) -> Error {
+fn in_frame_file(error: FlowError, files: &[PathBuf]) -> Error {
     use crate::flow::FlowError::{Frame, NonFiniteIntensity};
     match &error {
         Frame { frame, .. } | NonFiniteIntensity { frame, .. } => {
@@ -78,7 +300,35 @@ fn in_frame_file(error: crate::flow::FlowError, files: &[PathBuf]) -> Error {
     }
 }
 
-fn check_same_connectivity(first: &ObjMesh, frame: &ObjMesh, k: usize) -> Result<(), String> {
+fn check_finite_positions(frames: &[Vec<Vector3<f64>>]) -> Result<(), FlowError> {
+    for (frame, positions) in frames.iter().enumerate() {
+        if let Some(vertex) = positions
+            .iter()
+            .position(|p| !p.iter().all(|x| x.is_finite()))
+        {
+            let position = positions[vertex].into();
+            let source = GeometryError::NonFinitePosition { vertex, position };
+            return Err(FlowError::Frame { frame, source });
+        }
+    }
+    Ok(())
+}
+
+fn check_finite_intensities(frames: &[Vec<f64>]) -> Result<(), FlowError> {
+    for (frame, values) in frames.iter().enumerate() {
+        if let Some(vertex) = values.iter().position(|v| !v.is_finite()) {
+            let value = values[vertex];
+            return Err(FlowError::NonFiniteIntensity {
+                frame,
+                vertex,
+                value,
+            });
+        }
+    }
+    Ok(())
+}
+
+fn check_same_connectivity(first: &FrameMesh, frame: &FrameMesh, k: usize) -> Result<(), String> {
     if frame.positions.len() != first.positions.len() {
         return Err(format!(
             "frame {k} has {} vertices, frame 0 has {}",
@@ -98,22 +348,6 @@ fn check_same_connectivity(first: &ObjMesh, frame: &ObjMesh, k: usize) -> Result
     Ok(())
 }
 
-fn grey_values(frame: &ObjMesh) -> Option<Vec<f64>> {
-    let colors = frame.colors.as_ref()?;
-    Some(
-        colors
-            .iter()
-            .map(|&[r, g, b]| {
-                if r == g && g == b {
-                    r
-                } else {
-                    0.2126 * r + 0.7152 * g + 0.0722 * b
-                }
-            })
-            .collect(),
-    )
-}
-
 fn intensity_array(
     path: &Path,
     n_frames: usize,
@@ -127,6 +361,31 @@ fn intensity_array(
         ));
     }
     Ok(array.data.chunks(n_vertices).map(<[f64]>::to_vec).collect())
+}
+
+/// Frame times from a `times.txt`, if there is one.
+fn read_times_file(path: &Path) -> Result<Option<Vec<f64>>, IoError> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(text) => text,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(IoError::file(path, e)),
+    };
+    let mut times = Vec::new();
+    for (number, line) in text.lines().enumerate() {
+        let content = line.split('#').next().unwrap_or_default();
+        for token in content
+            .split(|c: char| c.is_whitespace() || c == ',')
+            .filter(|t| !t.is_empty())
+        {
+            let time = token.parse().map_err(|_| IoError::Parse {
+                path: path.to_path_buf(),
+                line: number + 1,
+                message: format!("'{token}' is not a number"),
+            })?;
+            times.push(time);
+        }
+    }
+    Ok(Some(times))
 }
 
 /// Compares strings with digit runs ordered by value: `f2 < f10`.

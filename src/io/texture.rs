@@ -34,8 +34,7 @@ impl Texture {
             image::ImageError::IoError(e) => IoError::file(path, e),
             e => IoError::format(path, format!("cannot decode the image ({e})")),
         })?;
-        Self::from_image(&image)
-            .ok_or_else(|| IoError::format(path, "the image has no pixels"))
+        Self::from_image(&image).ok_or_else(|| IoError::format(path, "the image has no pixels"))
     }
 
     /// Grey values of a decoded image (channels scaled to `[0, 1]`, alpha ignored).

@@ -1,0 +1,146 @@
+//! Where a sequence comes from: what a path given on the command line names.
+//!
+//! | path | sequence |
+//! |---|---|
+//! | directory with `positions.npy` | NPY arrays: `positions.npy` (K, V, 3), `faces.npy` (F, 3), `intensity.npy` (K, V) |
+//! | directory of `.obj`, `.ply`, `.gltf` or `.glb` files | one frame per file, natural order (`frame_2` before `frame_10`) |
+//! | glob such as `run/frame_*.ply` | the matching files, natural order |
+//! | one `.gltf` or `.glb` file | a morph-target animation, one frame per keyframe |
+
+use super::{natural_order, IoError};
+use std::path::{Path, PathBuf};
+
+/// The format of per-frame mesh files.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameFormat {
+    Obj,
+    Ply,
+    Gltf,
+}
+
+impl FrameFormat {
+    fn of(path: &Path) -> Option<Self> {
+        let extension = path.extension()?.to_str()?.to_ascii_lowercase();
+        match extension.as_str() {
+            "obj" => Some(Self::Obj),
+            "ply" => Some(Self::Ply),
+            "gltf" | "glb" => Some(Self::Gltf),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Obj => "OBJ",
+            Self::Ply => "PLY",
+            Self::Gltf => "glTF",
+        }
+    }
+}
+
+/// A sequence's files, as found from the path the user gave.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SequenceSource {
+    /// One mesh file per frame, in frame order.
+    Frames {
+        format: FrameFormat,
+        files: Vec<PathBuf>,
+    },
+    /// One glTF/GLB file holding a morph-target animation.
+    GltfAnimation(PathBuf),
+    /// A directory with `positions.npy`, `faces.npy` and optionally `intensity.npy`.
+    Npy(PathBuf),
+}
+
+impl SequenceSource {
+    /// Finds the sequence that `path` names (see the module table).
+    pub fn detect(path: &Path) -> Result<Self, IoError> {
+        let text = path.to_string_lossy();
+        if text.contains(['*', '?', '[']) && !path.exists() {
+            return Self::frames(path, glob_files(&text, path)?);
+        }
+        let metadata = std::fs::metadata(path).map_err(|e| IoError::file(path, e))?;
+        if metadata.is_dir() {
+            if path.join("positions.npy").exists() {
+                return Ok(Self::Npy(path.to_path_buf()));
+            }
+            return Self::frames(path, directory_files(path)?);
+        }
+        match FrameFormat::of(path) {
+            Some(FrameFormat::Gltf) => Ok(Self::GltfAnimation(path.to_path_buf())),
+            Some(_) => Err(IoError::format(
+                path,
+                "one mesh file is one frame; give the directory of frames or a glob such as 'dir/frame_*.obj'",
+            )),
+            None => Err(IoError::format(path, "not a mesh sequence: expected a directory, a glob, or a .gltf/.glb animation")),
+        }
+    }
+
+    /// The files of all frames (the one file of an animation, the arrays of an NPY sequence).
+    pub fn files(&self) -> Vec<PathBuf> {
+        match self {
+            Self::Frames { files, .. } => files.clone(),
+            Self::GltfAnimation(file) => vec![file.clone()],
+            Self::Npy(dir) => vec![dir.join("positions.npy"), dir.join("faces.npy")],
+        }
+    }
+
+    /// Where a `times.txt` for this sequence would be.
+    pub fn directory(&self) -> PathBuf {
+        let first = match self {
+            Self::Npy(dir) => return dir.clone(),
+            Self::Frames { files, .. } => &files[0],
+            Self::GltfAnimation(file) => file,
+        };
+        first.parent().unwrap_or(Path::new(".")).to_path_buf()
+    }
+
+    /// A short description, e.g. "6 OBJ frames".
+    pub fn describe(&self) -> String {
+        match self {
+            Self::Frames { format, files } => format!("{} {} frames", files.len(), format.name()),
+            Self::GltfAnimation(_) => "glTF morph animation".into(),
+            Self::Npy(_) => "NPY arrays".into(),
+        }
+    }
+
+    /// Mesh files of one format, sorted naturally.
+    fn frames(path: &Path, mut files: Vec<PathBuf>) -> Result<Self, IoError> {
+        let formats: Vec<FrameFormat> = files.iter().filter_map(|f| FrameFormat::of(f)).collect();
+        let Some(&format) = formats.first() else {
+            return Err(IoError::format(
+                path,
+                "no mesh frames here (.obj, .ply, .gltf, .glb files, or positions.npy + faces.npy)",
+            ));
+        };
+        if let Some(other) = formats.iter().find(|&&f| f != format) {
+            return Err(IoError::format(
+                path,
+                format!(
+                    "mixes {} and {} files; keep one format per sequence",
+                    format.name(),
+                    other.name()
+                ),
+            ));
+        }
+        files.retain(|f| FrameFormat::of(f).is_some());
+        files.sort_by(|a, b| natural_order(&a.to_string_lossy(), &b.to_string_lossy()));
+        Ok(Self::Frames { format, files })
+    }
+}
+
+fn directory_files(dir: &Path) -> Result<Vec<PathBuf>, IoError> {
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(|e| IoError::file(dir, e))? {
+        files.push(entry.map_err(|e| IoError::file(dir, e))?.path());
+    }
+    Ok(files)
+}
+
+fn glob_files(pattern: &str, path: &Path) -> Result<Vec<PathBuf>, IoError> {
+    let matches = glob::glob(pattern)
+        .map_err(|e| IoError::format(path, format!("not a valid glob ({e})")))?;
+    matches
+        .map(|m| m.map_err(|e| IoError::file(e.path().to_path_buf(), e.into())))
+        .collect()
+}
