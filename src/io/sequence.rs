@@ -20,7 +20,7 @@ use super::{grey_value, read_npy, read_npy_indices, read_obj, texture_intensity}
 use super::{FrameMesh, IoError, RawSequence, TextureCache, Welding};
 use crate::flow::{FlowError, MeshSequence};
 use crate::geometry::GeometryError;
-use crate::mesh::Mesh;
+use crate::mesh::{ConnectivityError, Mesh};
 use crate::Error;
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -71,8 +71,13 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
     let source = SequenceSource::detect(path)?;
     check_options(&source, options, path)?;
     let raw = read_raw(&source, options)?;
+    if raw.positions.len() < 2 {
+        return Err(FlowError::TooFewFrames(raw.positions.len()).into());
+    }
     let files = &raw.sources;
     check_finite_positions(&raw.positions).map_err(|e| in_frame_file(e, files))?;
+    check_face_indices(&raw.faces, raw.positions[0].len())
+        .map_err(|e| Error::from(e).in_file(&files[0]))?;
     let welding = match options.weld {
         true => Welding::of_coincident(&raw.positions),
         false => Welding::identity(raw.positions[0].len()),
@@ -253,9 +258,9 @@ fn read_npy_sequence(dir: &Path) -> Result<RawSequence, Error> {
         )
         .into());
     };
-    let positions: Vec<Vec<Vector3<f64>>> = array
-        .data
-        .chunks_exact(3 * v as usize)
+    let coordinates = split_frames(&array.data, k as usize, 3 * v as usize);
+    let positions: Vec<Vec<Vector3<f64>>> = coordinates
+        .iter()
         .map(|frame| {
             frame
                 .chunks_exact(3)
@@ -298,6 +303,20 @@ fn in_frame_file(error: FlowError, files: &[PathBuf]) -> Error {
         }
         _ => error.into(),
     }
+}
+
+/// Welding renumbers vertices, so indices are checked against the file's count first.
+fn check_face_indices(faces: &[[u32; 3]], n_vertices: usize) -> Result<(), ConnectivityError> {
+    for (face, vertices) in faces.iter().enumerate() {
+        if let Some(&index) = vertices.iter().find(|&&v| v as usize >= n_vertices) {
+            return Err(ConnectivityError::IndexOutOfRange {
+                face,
+                index,
+                n_vertices,
+            });
+        }
+    }
+    Ok(())
 }
 
 fn check_finite_positions(frames: &[Vec<Vector3<f64>>]) -> Result<(), FlowError> {
@@ -360,7 +379,14 @@ fn intensity_array(
             format!("intensity array has shape {:?}, expected ({n_frames}, {n_vertices}) = (frames, vertices)", array.shape),
         ));
     }
-    Ok(array.data.chunks(n_vertices).map(<[f64]>::to_vec).collect())
+    Ok(split_frames(&array.data, n_frames, n_vertices))
+}
+
+/// `n_frames` rows of `row_length` values (which may be 0) from a C-order array.
+fn split_frames<T: Clone>(data: &[T], n_frames: usize, row_length: usize) -> Vec<Vec<T>> {
+    (0..n_frames)
+        .map(|k| data[k * row_length..(k + 1) * row_length].to_vec())
+        .collect()
 }
 
 /// Frame times from a `times.txt`, if there is one.
