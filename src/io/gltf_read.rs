@@ -1,9 +1,504 @@
-//! (in progress: replaced by the glTF reader)
-use super::{FrameMesh, IoError, RawSequence};
+//! Moving triangle meshes from glTF 2.0 files (`.gltf` JSON or `.glb` binary).
+//!
+//! A sequence is one mesh with morph targets whose weights an animation drives. At time `t`
+//! vertex `i` is
+//!
+//! ```text
+//! p_i(t) = M (b_i + Σ_j w_j(t) δ_ij),    M = M_root ⋯ M_parent M_node
+//! ```
+//!
+//! with `b` the base POSITION, `δ_j` the POSITION deltas of target `j` and `M` the world
+//! transform of the mesh's node. The weights `w(t)` come from the animation sampler of the
+//! node's `weights`, interpolated between keyframes `t_k ≤ t ≤ t_{k+1}` as glTF specifies:
+//! LINEAR `(1 − s) w_k + s w_{k+1}`, STEP `w_k`, CUBICSPLINE the cubic Hermite spline of
+//! Appendix C (values and tangents); before the first and after the last keyframe the end
+//! values hold.
+//!
+//! Grey values (see [`grey_value`]) come from `COLOR_0` (RGB, alpha ignored) plus its
+//! morph-target deltas, the same weighted sum; without `COLOR_0`, from the material's
+//! base-colour texture sampled bilinearly (see [`Texture`], always with repeat wrapping) at
+//! the texture coordinates it names (`TEXCOORD_n` plus deltas, `t` from the top as glTF
+//! has it). Colours and texels are taken as stored: `baseColorFactor`, sampler wrap modes and
+//! texture transforms are ignored.
+//!
+//! # What a file must hold
+//!
+//! Exactly one node with a mesh (not skinned); all of that mesh's primitives triangle lists.
+//! Several primitives are merged into one mesh: their vertices follow each other in primitive
+//! order and their triangles are renumbered accordingly; they then have grey values only if
+//! every primitive has a source for them. Vertices are returned as stored, one per glTF
+//! vertex: glTF splits vertices along texture and normal seams, so the caller welds
+//! coincident vertices. Indices may be `u8`, `u16` or `u32`, or absent (triangles
+//! `(0, 1, 2), (3, 4, 5), …`). For an animation, the first animation with a `weights` channel
+//! on the mesh node is used; it must not also move that node or its ancestors.
+
+mod animation;
+mod file;
+
+use super::{grey_value, FrameMesh, IoError, RawSequence, Texture};
+use animation::{resampled_times, WeightTrack};
+use file::GltfFile;
+use gltf::mesh::{Mode, Semantic};
+use gltf::Node;
+use nalgebra::{Matrix3, Matrix4, Quaternion, Unit, Vector3};
+use std::collections::HashMap;
 use std::path::Path;
-pub fn read_gltf_animation(path: &Path, _fps: Option<f64>) -> Result<RawSequence, IoError> {
-    Err(IoError::format(path, "glTF not yet supported"))
+use std::rc::Rc;
+
+/// Reads a morph-target animation: one frame per keyframe of the animation (`fps = None`),
+/// or frames at `t₀, t₀ + 1/fps, …` up to the last keyframe with interpolated weights. See
+/// the module documentation for what the file must contain. `times` are the frame times,
+/// `sources` the path once per frame.
+pub fn read_gltf_animation(path: &Path, fps: Option<f64>) -> Result<RawSequence, IoError> {
+    let file = GltfFile::open(path)?;
+    let node = mesh_node(&file)?;
+    let surface = Surface::read(&file, &node)?;
+    let track = WeightTrack::read(&file, &node, surface.target_count)?;
+    let times = match fps {
+        None => track.times.clone(),
+        Some(fps) => resampled_times(&track.times, fps).map_err(|m| file.error(m))?,
+    };
+    let mut positions = Vec::with_capacity(times.len());
+    let mut intensities = Vec::with_capacity(times.len());
+    for &t in &times {
+        let weights = track.at(t);
+        positions.push(surface.positions(&weights));
+        intensities.push(surface.intensity(&weights, &file)?);
+    }
+    Ok(RawSequence {
+        faces: surface.faces,
+        positions,
+        intensities: intensities.into_iter().collect(),
+        sources: vec![path.to_path_buf(); times.len()],
+        times: Some(times),
+    })
 }
+
+/// Reads one static mesh (for sequences stored one file per frame): the mesh node's
+/// geometry in world coordinates, at the default morph weights of the node or mesh (zero
+/// if neither gives any), with grey values as in [`read_gltf_animation`]. Animations are
+/// ignored.
 pub fn read_gltf_frame(path: &Path) -> Result<FrameMesh, IoError> {
-    Err(IoError::format(path, "glTF not yet supported"))
+    let file = GltfFile::open(path)?;
+    let node = mesh_node(&file)?;
+    let surface = Surface::read(&file, &node)?;
+    let weights = default_weights(&file, &node, surface.target_count)?;
+    Ok(FrameMesh {
+        positions: surface.positions(&weights),
+        intensity: surface.intensity(&weights, &file)?,
+        faces: surface.faces,
+    })
+}
+
+/// Advice for files without a morph-target animation.
+const NO_ANIMATION: &str = "no morph-target animation; for one file per frame use a directory";
+
+/// The one node carrying a mesh.
+fn mesh_node<'a>(file: &'a GltfFile) -> Result<Node<'a>, IoError> {
+    let nodes: Vec<Node> = file
+        .document
+        .nodes()
+        .filter(|n| n.mesh().is_some())
+        .collect();
+    match nodes.as_slice() {
+        [node] if node.skin().is_some() => Err(file.error(format!(
+            "{}: skinned meshes are not supported",
+            node_label(node)
+        ))),
+        [node] => Ok(node.clone()),
+        [] => Err(file.error("no mesh: no node of the file carries a mesh")),
+        _ => Err(file.error(format!(
+            "{} nodes carry meshes; only files with one (moving) mesh are supported",
+            nodes.len()
+        ))),
+    }
+}
+
+fn node_label(node: &Node) -> String {
+    match node.name() {
+        Some(name) => format!("node {} ({name:?})", node.index()),
+        None => format!("node {}", node.index()),
+    }
+}
+
+/// `node` and its ancestors, node first.
+fn ancestry(file: &GltfFile, node: &Node) -> Result<Vec<usize>, IoError> {
+    let mut parents = vec![None; file.document.nodes().len()];
+    for parent in file.document.nodes() {
+        for child in parent.children() {
+            if let Some(slot) = parents.get_mut(child.index()) {
+                *slot = Some(parent.index());
+            }
+        }
+    }
+    let mut chain = vec![node.index()];
+    while let Some(parent) = parents.get(chain[chain.len() - 1]).copied().flatten() {
+        if chain.contains(&parent) {
+            return Err(file.error(format!(
+                "the node hierarchy has a cycle through node {parent}"
+            )));
+        }
+        chain.push(parent);
+    }
+    Ok(chain)
+}
+
+/// The world transform of `node`: the product of its ancestors' local transforms and its own.
+fn world_transform(file: &GltfFile, node: &Node) -> Result<Matrix4<f64>, IoError> {
+    let nodes: Vec<Node> = file.document.nodes().collect();
+    let mut world = Matrix4::identity();
+    for index in ancestry(file, node)? {
+        let node = &nodes[index];
+        world = local_transform(node).ok_or_else(|| {
+            file.error(format!(
+                "{} has a zero rotation quaternion",
+                node_label(node)
+            ))
+        })? * world;
+    }
+    if !world.iter().all(|x| x.is_finite()) {
+        return Err(file.error(format!(
+            "the world transform of {} is not finite",
+            node_label(node)
+        )));
+    }
+    Ok(world)
+}
+
+/// A node's local transform in `f64` (translation · rotation · scale, or its matrix).
+fn local_transform(node: &Node) -> Option<Matrix4<f64>> {
+    match node.transform() {
+        gltf::scene::Transform::Matrix { matrix } => Some(Matrix4::from(matrix).cast()),
+        gltf::scene::Transform::Decomposed {
+            translation: [tx, ty, tz],
+            rotation: [x, y, z, w],
+            scale,
+        } => {
+            let rotation = Unit::try_new(Quaternion::new(w, x, y, z).cast::<f64>(), 0.0)?;
+            let linear = rotation.to_rotation_matrix().into_inner()
+                * Matrix3::from_diagonal(&Vector3::from(scale).cast());
+            let mut m = linear.to_homogeneous();
+            m.fixed_view_mut::<3, 1>(0, 3)
+                .copy_from(&Vector3::new(tx, ty, tz).cast());
+            Some(m)
+        }
+    }
+}
+
+/// The node's default morph weights (its own, else its mesh's, else zeros).
+fn default_weights(file: &GltfFile, node: &Node, target_count: usize) -> Result<Vec<f64>, IoError> {
+    let weights = node
+        .weights()
+        .or_else(|| node.mesh().and_then(|m| m.weights()));
+    match weights {
+        None => Ok(vec![0.0; target_count]),
+        Some(w) if w.len() == target_count => Ok(w.iter().map(|&x| f64::from(x)).collect()),
+        Some(w) => Err(file.error(format!(
+            "{}: {} default weights for {target_count} morph targets",
+            node_label(node),
+            w.len()
+        ))),
+    }
+}
+
+/// Per-vertex data with morph-target deltas: `base + Σ_j w_j delta_j`.
+struct Morphed<const N: usize> {
+    base: Vec<[f64; N]>,
+    /// Per target; `None` if the target leaves this attribute alone.
+    deltas: Vec<Option<Vec<[f64; N]>>>,
+}
+
+impl<const N: usize> Morphed<N> {
+    fn at(&self, weights: &[f64]) -> Vec<[f64; N]> {
+        let mut values = self.base.clone();
+        for (&w, delta) in weights.iter().zip(&self.deltas) {
+            // Skipping zero weights saves work and keeps keyframe poses bit-exact (adding 0·δ
+            // would turn a −0 into +0).
+            let Some(delta) = delta.as_ref().filter(|_| w != 0.0) else {
+                continue;
+            };
+            for (value, d) in values.iter_mut().zip(delta) {
+                for c in 0..N {
+                    value[c] += w * d[c];
+                }
+            }
+        }
+        values
+    }
+}
+
+/// Where a primitive's grey values come from.
+enum GreySource {
+    Colors(Morphed<3>),
+    Texture {
+        coords: Morphed<2>,
+        texture: Rc<Texture>,
+        label: String,
+    },
+}
+
+impl GreySource {
+    fn at(&self, weights: &[f64], file: &GltfFile) -> Result<Vec<f64>, IoError> {
+        match self {
+            GreySource::Colors(colors) => {
+                Ok(colors.at(weights).into_iter().map(grey_value).collect())
+            }
+            GreySource::Texture {
+                coords,
+                texture,
+                label,
+            } => coords
+                .at(weights)
+                .into_iter()
+                .enumerate()
+                .map(|(i, [s, t])| {
+                    texture.sample(s, t).ok_or_else(|| {
+                        file.error(format!(
+                            "{label}: texture coordinates of vertex {i} are not finite"
+                        ))
+                    })
+                })
+                .collect(),
+        }
+    }
+}
+
+/// One triangle primitive: morphing positions and perhaps a grey-value source.
+struct MorphPrimitive {
+    positions: Morphed<3>,
+    grey: Option<GreySource>,
+}
+
+/// The mesh of the mesh node, all primitives merged, in the node's world frame.
+struct Surface {
+    faces: Vec<[u32; 3]>,
+    primitives: Vec<MorphPrimitive>,
+    target_count: usize,
+    transform: Matrix4<f64>,
+}
+
+impl Surface {
+    fn read(file: &GltfFile, node: &Node) -> Result<Self, IoError> {
+        let mesh = node
+            .mesh()
+            .ok_or_else(|| file.error(format!("{} has no mesh", node_label(node))))?;
+        if mesh.primitives().len() == 0 {
+            return Err(file.error(format!("mesh {} has no primitives", mesh.index())));
+        }
+        let mut surface = Surface {
+            faces: Vec::new(),
+            primitives: Vec::new(),
+            target_count: 0,
+            transform: world_transform(file, node)?,
+        };
+        let mut textures = HashMap::new();
+        for primitive in mesh.primitives() {
+            let reader = PrimitiveReader {
+                file,
+                label: primitive_label(&mesh, &primitive),
+                mesh: mesh.index(),
+                primitive,
+            };
+            let (faces, read) = reader.read(&mut textures)?;
+            let target_count = read.positions.deltas.len();
+            // glTF requires all primitives of a mesh to have the same morph targets.
+            if !surface.primitives.is_empty() && target_count != surface.target_count {
+                return Err(file.error(format!(
+                    "{}: {target_count} morph targets, the first primitive has {}",
+                    reader.label, surface.target_count
+                )));
+            }
+            surface.target_count = target_count;
+            let first_vertex = surface.vertex_count();
+            if u32::try_from(first_vertex + read.positions.base.len()).is_err() {
+                return Err(file.error("more than 2³² vertices"));
+            }
+            let first_vertex = first_vertex as u32;
+            surface
+                .faces
+                .extend(faces.into_iter().map(|f| f.map(|i| i + first_vertex)));
+            surface.primitives.push(read);
+        }
+        Ok(surface)
+    }
+
+    fn vertex_count(&self) -> usize {
+        self.primitives.iter().map(|p| p.positions.base.len()).sum()
+    }
+
+    /// World positions of all vertices at the given morph weights.
+    fn positions(&self, weights: &[f64]) -> Vec<Vector3<f64>> {
+        let linear = self.transform.fixed_view::<3, 3>(0, 0);
+        let translation = self.transform.fixed_view::<3, 1>(0, 3);
+        self.primitives
+            .iter()
+            .flat_map(|p| p.positions.at(weights))
+            .map(|p| linear * Vector3::from(p) + translation)
+            .collect()
+    }
+
+    /// Grey values of all vertices, if every primitive has a source for them.
+    fn intensity(&self, weights: &[f64], file: &GltfFile) -> Result<Option<Vec<f64>>, IoError> {
+        let mut grey = Vec::with_capacity(self.vertex_count());
+        for primitive in &self.primitives {
+            match &primitive.grey {
+                Some(source) => grey.extend(source.at(weights, file)?),
+                None => return Ok(None),
+            }
+        }
+        Ok(Some(grey))
+    }
+}
+
+fn primitive_label(mesh: &gltf::Mesh, primitive: &gltf::Primitive) -> String {
+    let name = mesh.name().map(|n| format!(" ({n:?})")).unwrap_or_default();
+    format!(
+        "mesh {}{name}, primitive {}",
+        mesh.index(),
+        primitive.index()
+    )
+}
+
+/// Reads one primitive of mesh `mesh`.
+struct PrimitiveReader<'f, 'p> {
+    file: &'f GltfFile<'p>,
+    primitive: gltf::Primitive<'f>,
+    mesh: usize,
+    label: String,
+}
+
+impl PrimitiveReader<'_, '_> {
+    /// The primitive's triangles (local vertex numbers) and data. `textures` caches decoded
+    /// images by index.
+    fn read(
+        &self,
+        textures: &mut HashMap<usize, Rc<Texture>>,
+    ) -> Result<(Vec<[u32; 3]>, MorphPrimitive), IoError> {
+        if self.primitive.mode() != Mode::Triangles {
+            return Err(self.error(format!(
+                "{:?} primitive; only triangle lists are supported",
+                self.primitive.mode()
+            )));
+        }
+        let positions = self.attribute::<3>(&Semantic::Positions, "POSITION", &[3], None)?;
+        let positions = positions.ok_or_else(|| self.error("no POSITION attribute".to_string()))?;
+        let vertex_count = positions.base.len();
+        let faces = self.faces(vertex_count)?;
+        let grey = self.grey_source(vertex_count, textures)?;
+        Ok((faces, MorphPrimitive { positions, grey }))
+    }
+
+    fn error(&self, message: String) -> IoError {
+        self.file.error(format!("{}: {message}", self.label))
+    }
+
+    /// An attribute with its morph-target deltas; `None` if the primitive lacks it.
+    fn attribute<const N: usize>(
+        &self,
+        semantic: &Semantic,
+        name: &str,
+        widths: &[usize],
+        vertex_count: Option<usize>,
+    ) -> Result<Option<Morphed<N>>, IoError> {
+        let Some(accessor) = self.primitive.get(semantic) else {
+            return Ok(None);
+        };
+        let label = format!("{}, {name}", self.label);
+        let base = self
+            .file
+            .read_elements::<N>(&accessor, &label, widths, vertex_count)?;
+        let deltas = (0..self.primitive.morph_targets().len())
+            .map(|target| {
+                let accessor =
+                    self.file
+                        .target_accessor(&self.primitive, self.mesh, target, name)?;
+                let label = format!("{}, morph target {target}, {name}", self.label);
+                accessor
+                    .map(|a| {
+                        self.file
+                            .read_elements::<N>(&a, &label, widths, Some(base.len()))
+                    })
+                    .transpose()
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Some(Morphed { base, deltas }))
+    }
+
+    /// The triangles, from the indices or, without them, consecutive vertex triples.
+    fn faces(&self, vertex_count: usize) -> Result<Vec<[u32; 3]>, IoError> {
+        let Some(accessor) = self.primitive.indices() else {
+            if vertex_count % 3 != 0 {
+                return Err(self.error(format!(
+                    "{vertex_count} vertices without indices do not form triangles"
+                )));
+            }
+            return Ok((0..vertex_count as u32 / 3)
+                .map(|f| [3 * f, 3 * f + 1, 3 * f + 2])
+                .collect());
+        };
+        if !matches!(
+            accessor.data_type(),
+            gltf::accessor::DataType::U8
+                | gltf::accessor::DataType::U16
+                | gltf::accessor::DataType::U32
+        ) {
+            return Err(self.error(format!("indices of type {:?}", accessor.data_type())));
+        }
+        let label = format!("{}, indices", self.label);
+        let indices = self
+            .file
+            .read_elements::<1>(&accessor, &label, &[1], None)?;
+        if indices.len() % 3 != 0 {
+            return Err(self.error(format!("{} indices do not form triangles", indices.len())));
+        }
+        if let Some([i]) = indices.iter().find(|[i]| *i >= vertex_count as f64) {
+            return Err(self.error(format!("index {i} beyond the {vertex_count} vertices")));
+        }
+        // Exact: the values are unsigned integers below the vertex count.
+        Ok(indices
+            .chunks_exact(3)
+            .map(|t| [t[0][0] as u32, t[1][0] as u32, t[2][0] as u32])
+            .collect())
+    }
+
+    /// `COLOR_0` if present, else the base-colour texture at its texture coordinates.
+    fn grey_source(
+        &self,
+        vertex_count: usize,
+        textures: &mut HashMap<usize, Rc<Texture>>,
+    ) -> Result<Option<GreySource>, IoError> {
+        let count = Some(vertex_count);
+        if let Some(colors) =
+            self.attribute::<3>(&Semantic::Colors(0), "COLOR_0", &[3, 4], count)?
+        {
+            return Ok(Some(GreySource::Colors(colors)));
+        }
+        let material = self.primitive.material();
+        let Some(info) = material.pbr_metallic_roughness().base_color_texture() else {
+            return Ok(None);
+        };
+        let set = info.tex_coord();
+        let name = format!("TEXCOORD_{set}");
+        let coords = self
+            .attribute::<2>(&Semantic::TexCoords(set), &name, &[2], count)?
+            .ok_or_else(|| {
+                self.error(format!(
+                    "the base colour texture needs {name}, which is missing"
+                ))
+            })?;
+        let image = info.texture().source();
+        let texture = match textures.get(&image.index()) {
+            Some(texture) => Rc::clone(texture),
+            None => {
+                let texture = Rc::new(self.file.texture(image.clone())?);
+                textures.insert(image.index(), Rc::clone(&texture));
+                texture
+            }
+        };
+        Ok(Some(GreySource::Texture {
+            coords,
+            texture,
+            label: self.label.clone(),
+        }))
+    }
 }

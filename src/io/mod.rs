@@ -11,6 +11,7 @@
 mod atomic;
 mod flow_output;
 mod frame;
+mod glb;
 pub mod gltf_read;
 pub mod gltf_write;
 mod input;

@@ -94,14 +94,21 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
         })?,
     };
     check_finite_intensities(&intensities).map_err(|e| in_frame_file(e, files))?;
-    let times = match (&options.times, &raw.times) {
-        (Some(times), _) | (None, Some(times)) => Some(times.clone()),
-        (None, None) => read_times_file(&source.directory().join("times.txt"))?,
+    let times_file = source.directory().join("times.txt");
+    let (times, times_from_file) = match (&options.times, &raw.times) {
+        (Some(times), _) | (None, Some(times)) => (Some(times.clone()), false),
+        (None, None) => {
+            let times = read_times_file(&times_file)?;
+            let from_file = times.is_some();
+            (times, from_file)
+        }
     };
     let positions = raw.positions.iter().map(|p| welding.positions(p)).collect();
     let intensities = intensities.iter().map(|v| welding.values(v)).collect();
-    let sequence = MeshSequence::new(mesh, positions, intensities, times)
-        .map_err(|e| in_frame_file(e, files))?;
+    let sequence = MeshSequence::new(mesh, positions, intensities, times).map_err(|e| match e {
+        e if times_from_file && is_about_times(&e) => Error::from(e).in_file(&times_file),
+        e => in_frame_file(e, files),
+    })?;
     Ok(LoadedSequence {
         sequence,
         source,
@@ -291,6 +298,18 @@ fn read_npy_sequence(dir: &Path) -> Result<RawSequence, Error> {
         times: None,
         sources: vec![positions_file; k as usize],
     })
+}
+
+fn is_about_times(error: &FlowError) -> bool {
+    matches!(
+        error,
+        FlowError::NonIncreasingTimes { .. }
+            | FlowError::NonFiniteTime { .. }
+            | FlowError::CountMismatch {
+                what: "frame times",
+                ..
+            }
+    )
 }
 
 /// Attaches the file of the frame a sequence error names.

@@ -1,0 +1,360 @@
+//! Reading sequences in every format gives the same numbers, and what `meshflow solve` writes
+//! reads back: OBJ → solve → VTU (through vtkio), NPY and PLY input equal OBJ input to the
+//! last bit, textures are sampled where they should be, seams are welded.
+
+use meshflow::io::ply::{write_ply, PlyEncoding};
+use meshflow::io::{load_sequence, read_npy, read_obj, write_npy, write_obj, LoadOptions};
+use nalgebra::Vector3;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn shipped_sphere() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/rotating_sphere")
+}
+
+fn solve(input: &Path, out: &Path, extra: &[&str]) -> String {
+    let run = Command::new(env!("CARGO_BIN_EXE_meshflow"))
+        .args([
+            "solve",
+            input.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .args(["--gamma", "0.01"])
+        .args(extra)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    stdout
+}
+
+fn bits(values: &[f64]) -> Vec<u64> {
+    values.iter().map(|v| v.to_bits()).collect()
+}
+
+/// The shipped OBJ frames as NPY arrays and as binary PLY files.
+fn convert_shipped(npy_dir: &Path, ply_dir: &Path) {
+    std::fs::create_dir_all(npy_dir).unwrap();
+    std::fs::create_dir_all(ply_dir).unwrap();
+    let frames: Vec<_> = (0..6)
+        .map(|k| read_obj(&shipped_sphere().join(format!("frame_{k}.obj"))).unwrap())
+        .collect();
+    let (k, v) = (frames.len() as u64, frames[0].positions.len() as u64);
+    let positions: Vec<f64> = frames
+        .iter()
+        .flat_map(|f| f.positions.iter().flat_map(|p| [p.x, p.y, p.z]))
+        .collect();
+    let grey: Vec<f64> = frames
+        .iter()
+        .flat_map(|f| f.colors.as_ref().unwrap().iter().map(|c| c[0]))
+        .collect();
+    let faces: Vec<i32> = frames[0]
+        .faces
+        .iter()
+        .flatten()
+        .map(|&i| i as i32)
+        .collect();
+    write_npy(&npy_dir.join("positions.npy"), &[k, v, 3], &positions).unwrap();
+    write_npy(
+        &npy_dir.join("faces.npy"),
+        &[frames[0].faces.len() as u64, 3],
+        &faces,
+    )
+    .unwrap();
+    write_npy(&npy_dir.join("intensity.npy"), &[k, v], &grey).unwrap();
+    for (i, frame) in frames.iter().enumerate() {
+        let grey: Vec<f64> = frame
+            .colors
+            .as_ref()
+            .unwrap()
+            .iter()
+            .map(|c| c[0])
+            .collect();
+        write_ply(
+            &ply_dir.join(format!("frame_{i}.ply")),
+            &frame.positions,
+            &frame.faces,
+            None,
+            &[("quality", &grey)],
+            PlyEncoding::BinaryLittleEndian,
+        )
+        .unwrap();
+    }
+}
+
+#[test]
+fn npy_and_ply_input_equal_obj_input_to_the_last_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let (npy, ply) = (dir.path().join("npy"), dir.path().join("ply"));
+    convert_shipped(&npy, &ply);
+    let obj = load_sequence(&shipped_sphere(), &Default::default()).unwrap();
+    let from_npy = load_sequence(&npy, &Default::default()).unwrap();
+    let ply_options = LoadOptions {
+        intensity_attribute: Some("quality".into()),
+        ..Default::default()
+    };
+    let from_ply = load_sequence(&ply, &ply_options).unwrap();
+    for other in [&from_npy, &from_ply] {
+        let (a, b) = (&obj.sequence, &other.sequence);
+        assert_eq!(a.mesh().faces(), b.mesh().faces());
+        assert_eq!(a.times(), b.times());
+        for k in 0..a.n_frames() {
+            assert_eq!(a.positions(k), b.positions(k));
+            assert_eq!(bits(a.intensities(k)), bits(b.intensities(k)));
+        }
+    }
+    // And so do the flows the binary writes.
+    let outputs: Vec<Vec<u64>> = [
+        (shipped_sphere(), vec![]),
+        (npy, vec![]),
+        (ply, vec!["--intensity-attribute", "quality"]),
+    ]
+    .iter()
+    .enumerate()
+    .map(|(i, (input, extra))| {
+        let out = dir.path().join(format!("out{i}"));
+        solve(input, &out, extra);
+        bits(&read_npy(&out.join("flow.npy")).unwrap().data)
+    })
+    .collect();
+    assert_eq!(outputs[0], outputs[1]);
+    assert_eq!(outputs[0], outputs[2]);
+}
+
+#[test]
+fn solve_output_reads_back_through_vtkio() {
+    use vtkio::model::{Attribute, DataSet, IOBuffer, Piece};
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    solve(&shipped_sphere(), &out, &[]);
+    let sequence = load_sequence(&shipped_sphere(), &Default::default())
+        .unwrap()
+        .sequence;
+    let flow = read_npy(&out.join("flow.npy")).unwrap();
+    let intrinsic = read_npy(&out.join("flow_intrinsic.npy")).unwrap();
+    let v = sequence.mesh().n_vertices();
+    let pvd = std::fs::read_to_string(out.join("flow.pvd")).unwrap();
+    for s in 0..sequence.n_slabs() {
+        let name = format!("flow_{s:04}.vtu");
+        assert!(
+            pvd.contains(&format!("timestep=\"{}\" part=\"0\" file=\"{name}\"", s)),
+            "{pvd}"
+        );
+        let vtk = vtkio::Vtk::import(out.join(&name)).unwrap();
+        let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+            panic!("{name} is not an unstructured grid")
+        };
+        let Piece::Inline(piece) = &pieces[0] else {
+            panic!("{name}: piece not inline")
+        };
+        let IOBuffer::F64(points) = &piece.points else {
+            panic!("{name}: points not Float64")
+        };
+        let expected: Vec<f64> = sequence
+            .positions(s)
+            .unwrap()
+            .iter()
+            .flat_map(|p| [p.x, p.y, p.z])
+            .collect();
+        assert_eq!(bits(points), bits(&expected), "{name} points = frame {s}");
+        let array = |wanted: &str| -> Vec<f64> {
+            piece
+                .data
+                .point
+                .iter()
+                .find_map(|a| match a {
+                    Attribute::DataArray(d) if d.name == wanted => match &d.data {
+                        IOBuffer::F64(values) => Some(values.clone()),
+                        _ => None,
+                    },
+                    _ => None,
+                })
+                .unwrap_or_else(|| panic!("{name} has no Float64 array {wanted}"))
+        };
+        let slab_flow = &flow.data[s * v * 3..(s + 1) * v * 3];
+        assert_eq!(bits(&array("flow")), bits(slab_flow));
+        assert_eq!(
+            bits(&array("flow_intrinsic")),
+            bits(&intrinsic.data[s * v * 2..(s + 1) * v * 2])
+        );
+        let speeds: Vec<f64> = slab_flow
+            .chunks(3)
+            .map(|u| Vector3::new(u[0], u[1], u[2]).norm())
+            .collect();
+        assert_eq!(bits(&array("speed")), bits(&speeds));
+        assert_eq!(bits(&array("intensity")), bits(sequence.intensities(s)));
+    }
+}
+
+#[test]
+fn times_file_glob_and_existing_output_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("frames");
+    std::fs::create_dir(&frames).unwrap();
+    for k in [0, 1, 2, 10] {
+        let source = read_obj(&shipped_sphere().join(format!("frame_{}", k.min(3)) + ".obj"));
+        let source = source.unwrap();
+        let path = frames.join(format!("frame_{k}.obj"));
+        write_obj(
+            &path,
+            &source.positions,
+            &source.faces,
+            source.colors.as_deref(),
+        )
+        .unwrap();
+    }
+    std::fs::write(frames.join("times.txt"), "# seconds\n0, 0.5\n0.75 2.5\n").unwrap();
+    let from_dir = load_sequence(&frames, &Default::default()).unwrap();
+    assert_eq!(from_dir.sequence.times(), [0.0, 0.5, 0.75, 2.5]);
+    let names: Vec<String> = from_dir
+        .frame_files
+        .iter()
+        .map(|f| f.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        names,
+        ["frame_0.obj", "frame_1.obj", "frame_2.obj", "frame_10.obj"]
+    );
+
+    // The glob takes 3 of the 4 frames, so the directory's times.txt no longer fits.
+    let pattern = frames.join("frame_?.obj");
+    let error = load_sequence(&pattern, &Default::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("times.txt") && error.contains("expected 3 frame times, got 4"),
+        "{error}"
+    );
+    let options = LoadOptions {
+        times: Some(vec![0.0, 1.0, 2.0]),
+        ..Default::default()
+    };
+    let from_glob = load_sequence(&pattern, &options).unwrap();
+    assert_eq!(from_glob.sequence.n_frames(), 3);
+    assert_eq!(
+        from_glob.sequence.positions(2),
+        from_dir.sequence.positions(2)
+    );
+
+    // --times wins over times.txt; an existing output directory keeps its other files.
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    std::fs::write(out.join("flow.npy"), "stale").unwrap();
+    solve(&frames, &out, &["--times", "0,1,2,3", "--format", "npy"]);
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["times"], serde_json::json!([0.0, 1.0, 2.0, 3.0]));
+    assert_eq!(read_npy(&out.join("flow.npy")).unwrap().shape, [3, 642, 3]);
+    assert_eq!(
+        std::fs::read_to_string(out.join("notes.txt")).unwrap(),
+        "mine"
+    );
+    assert!(!out.join("flow_0000.vtu").exists() && !out.join("flow.glb").exists());
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(leftovers.len(), 2, "{leftovers:?}");
+}
+
+/// A unit square split into two triangles per cell of an `n × n` grid, stored the way
+/// single-index exporters do: every face has its own three vertices (all split), with texture
+/// coordinates equal to (x, y).
+fn split_textured_square(n: usize, shift: f64) -> (String, usize) {
+    let surface = meshflow::shapes::grid(n, n, 1.0, 1.0);
+    let mut text = String::from("mtllib square.mtl\nusemtl checker\n");
+    for (f, face) in surface.faces.iter().enumerate() {
+        for &v in face {
+            let p: Vector3<f64> = surface.positions[v as usize];
+            text += &format!("v {} {} {}\nvt {} {}\n", p.x, p.y, shift * p.x, p.x, p.y);
+        }
+        let b = 3 * f + 1;
+        text += &format!("f {b}/{b} {}/{} {}/{}\n", b + 1, b + 1, b + 2, b + 2);
+    }
+    (text, surface.positions.len())
+}
+
+#[test]
+fn textured_obj_frames_are_sampled_bilinearly_and_welded() {
+    let dir = tempfile::tempdir().unwrap();
+    // A 4×2 RGB texture; grey = Rec. 709 luma of each texel.
+    let texels: [[u8; 3]; 8] = [
+        [0, 0, 0],
+        [255, 255, 255],
+        [255, 0, 0],
+        [0, 255, 0],
+        [0, 0, 255],
+        [128, 128, 128],
+        [10, 200, 30],
+        [255, 255, 0],
+    ];
+    let mut image = image::RgbImage::new(4, 2);
+    for (i, t) in texels.iter().enumerate() {
+        image.put_pixel(i as u32 % 4, i as u32 / 4, image::Rgb(*t));
+    }
+    image.save(dir.path().join("checker.png")).unwrap();
+    std::fs::write(
+        dir.path().join("square.mtl"),
+        "newmtl checker\nKd 1 1 1\nmap_Kd -s 1 1 1 checker.png\n",
+    )
+    .unwrap();
+    let n = 4;
+    let mut n_vertices = 0;
+    for k in 0..2 {
+        let (text, v) = split_textured_square(n, 0.1 * k as f64);
+        n_vertices = v;
+        std::fs::write(dir.path().join(format!("frame_{k}.obj")), text).unwrap();
+    }
+    let loaded = load_sequence(dir.path(), &Default::default()).unwrap();
+    let sequence = &loaded.sequence;
+    assert_eq!(sequence.mesh().n_vertices(), n_vertices);
+    assert_eq!(loaded.welding.n_welded(), 3 * 2 * n * n - n_vertices);
+    assert!(
+        sequence.mesh().euler_characteristic() == 1,
+        "one disc, not loose triangles"
+    );
+
+    let grey = |t: [u8; 3]| {
+        let [r, g, b] = t.map(|c| c as f64 / 255.0);
+        if r == g && g == b {
+            r
+        } else {
+            0.2126 * r + 0.7152 * g + 0.0722 * b
+        }
+    };
+    // Bilinear sampling by hand at (u, 1 − v), texel centres at ((x + ½)/4, (y + ½)/2), repeat.
+    let sample = |u: f64, v: f64| {
+        let (x, y) = (u * 4.0 - 0.5, (1.0 - v) * 2.0 - 0.5);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let at = |i: f64, j: f64| {
+            let (i, j) = ((i as i64).rem_euclid(4), (j as i64).rem_euclid(2));
+            grey(texels[(j * 4 + i) as usize])
+        };
+        (at(x0, y0) * (1.0 - fx) + at(x0 + 1.0, y0) * fx) * (1.0 - fy)
+            + (at(x0, y0 + 1.0) * (1.0 - fx) + at(x0 + 1.0, y0 + 1.0) * fx) * fy
+    };
+    for k in 0..2 {
+        for (p, &value) in sequence
+            .positions(k)
+            .unwrap()
+            .iter()
+            .zip(sequence.intensities(k))
+        {
+            assert!((value - sample(p.x, p.y)).abs() < 1e-6, "at {p:?}: {value}");
+        }
+    }
+    // Unwelded, the split copies stay apart and every triangle is its own component.
+    let options = LoadOptions {
+        weld: false,
+        ..Default::default()
+    };
+    let split = load_sequence(dir.path(), &options).unwrap();
+    assert_eq!(split.sequence.mesh().n_vertices(), 3 * 2 * n * n);
+}
