@@ -358,3 +358,139 @@ fn textured_obj_frames_are_sampled_bilinearly_and_welded() {
     let split = load_sequence(dir.path(), &options).unwrap();
     assert_eq!(split.sequence.mesh().n_vertices(), 3 * 2 * n * n);
 }
+
+/// A rotating, textured sphere whose numbers are exact in float32 (positions on a 1/1024 grid,
+/// grey values on a 1/256 grid), so glTF storage loses nothing.
+fn dyadic_sphere_frames() -> (Vec<[u32; 3]>, Vec<Vec<Vector3<f64>>>, Vec<Vec<f64>>) {
+    let sphere = meshflow::shapes::icosphere(2);
+    let round = |x: f64, grid: f64| (x * grid).round() / grid;
+    let frames: Vec<Vec<Vector3<f64>>> = (0..4)
+        .map(|k| {
+            let rotation =
+                nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 0.05 * k as f64);
+            sphere
+                .positions
+                .iter()
+                .map(|p| (rotation * p).map(|c| round(c, 1024.0)))
+                .collect()
+        })
+        .collect();
+    let greys = frames
+        .iter()
+        .map(|f| {
+            f.iter()
+                .map(|p| round(0.5 + 0.4 * (5.0 * p.x).sin() * (3.0 * p.y).cos(), 256.0))
+                .collect()
+        })
+        .collect();
+    (sphere.faces, frames, greys)
+}
+
+#[test]
+fn gltf_animation_and_gltf_frames_give_the_numbers_of_the_obj_frames() {
+    use meshflow::io::gltf_write::{write_glb_animation, AnimationFrame};
+    let dir = tempfile::tempdir().unwrap();
+    let (faces, frames, greys) = dyadic_sphere_frames();
+    let times = [0.0, 0.25, 0.5, 1.0];
+    let colors: Vec<Vec<[f64; 3]>> = greys
+        .iter()
+        .map(|g| g.iter().map(|&v| [v; 3]).collect())
+        .collect();
+    let (obj_dir, glb_dir) = (dir.path().join("obj"), dir.path().join("glb"));
+    std::fs::create_dir_all(&obj_dir).unwrap();
+    std::fs::create_dir_all(&glb_dir).unwrap();
+    let animation: Vec<AnimationFrame> = (0..4)
+        .map(|k| AnimationFrame {
+            time: times[k],
+            positions: &frames[k],
+            colors: &colors[k],
+        })
+        .collect();
+    for (k, frame) in animation.iter().enumerate() {
+        write_obj(
+            &obj_dir.join(format!("f{k}.obj")),
+            &frames[k],
+            &faces,
+            Some(&colors[k]),
+        )
+        .unwrap();
+        write_glb_animation(
+            &glb_dir.join(format!("f{k}.glb")),
+            &faces,
+            std::slice::from_ref(frame),
+        )
+        .unwrap();
+    }
+    std::fs::write(obj_dir.join("times.txt"), "0 0.25 0.5 1\n").unwrap();
+    std::fs::write(glb_dir.join("times.txt"), "0 0.25 0.5 1\n").unwrap();
+    let animation_file = dir.path().join("sphere.glb");
+    write_glb_animation(&animation_file, &faces, &animation).unwrap();
+
+    let obj = load_sequence(&obj_dir, &Default::default()).unwrap();
+    for input in [&animation_file, &glb_dir] {
+        let gltf = load_sequence(input, &Default::default()).unwrap();
+        let (a, b) = (&obj.sequence, &gltf.sequence);
+        assert_eq!(a.mesh().faces(), b.mesh().faces());
+        assert_eq!(bits(a.times()), bits(b.times()), "{input:?}");
+        for k in 0..4 {
+            assert_eq!(a.positions(k), b.positions(k), "{input:?} frame {k}");
+            assert_eq!(
+                bits(a.intensities(k)),
+                bits(b.intensities(k)),
+                "{input:?} frame {k}"
+            );
+        }
+    }
+    let flows: Vec<Vec<u64>> = [&obj_dir, &animation_file]
+        .iter()
+        .enumerate()
+        .map(|(i, input)| {
+            let out = dir.path().join(format!("out{i}"));
+            solve(input, &out, &["--format", "npy"]);
+            bits(&read_npy(&out.join("flow.npy")).unwrap().data)
+        })
+        .collect();
+    assert_eq!(flows[0], flows[1]);
+}
+
+#[test]
+fn flow_glb_replays_the_frames_coloured_by_the_flow() {
+    use meshflow::io::gltf_read::read_gltf_animation;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    solve(&shipped_sphere(), &out, &["--format", "glb,npy"]);
+    let sequence = load_sequence(&shipped_sphere(), &Default::default())
+        .unwrap()
+        .sequence;
+    let replay = read_gltf_animation(&out.join("flow.glb"), None).unwrap();
+    assert_eq!(replay.times.as_deref(), Some(sequence.times()));
+    assert_eq!(replay.faces, sequence.mesh().faces());
+    for k in 0..sequence.n_frames() {
+        for (p, q) in replay.positions[k]
+            .iter()
+            .zip(sequence.positions(k).unwrap())
+        {
+            assert!(
+                (p - q).norm() <= 2e-7 * q.norm(),
+                "frame {k}: {p:?} vs {q:?}"
+            );
+        }
+    }
+    // The colours are the colour wheel of the intrinsic flow, scaled by its robust maximum.
+    use meshflow::render::color_wheel::{flow_colors, robust_max};
+    let intrinsic = read_npy(&out.join("flow_intrinsic.npy")).unwrap();
+    let vectors: Vec<[f64; 2]> = intrinsic.data.chunks(2).map(|u| [u[0], u[1]]).collect();
+    let speeds: Vec<f64> = vectors.iter().map(|u| u[0].hypot(u[1])).collect();
+    let colors = flow_colors(
+        &vectors[..sequence.mesh().n_vertices()],
+        robust_max(&speeds),
+    );
+    let grey = replay.intensities.unwrap();
+    for (g, c) in grey[0].iter().zip(&colors) {
+        assert!((g - meshflow::io::grey_value(*c)).abs() < 1e-6);
+    }
+    assert!(
+        colors.iter().any(|c| c != &[1.0; 3]),
+        "the flow is not all zero"
+    );
+}
