@@ -1,6 +1,8 @@
-//! Regenerates the small meshes shipped in `meshes/`:
+//! Regenerates the small meshes shipped in `meshes/` (OBJ meshes, the rotating-sphere sequence
+//! as OBJ frames and as a glTF animation):
 //! `cargo run --release --example sample_meshes`.
 
+use meshflow::io::gltf_write::{write_glb_animation, AnimationFrame};
 use meshflow::io::write_obj;
 use meshflow::shapes::{grid, icosphere, torus};
 use meshflow::synth::rotating_sphere;
@@ -41,5 +43,23 @@ fn main() -> Result<(), meshflow::Error> {
         )?;
     }
     println!("rotating_sphere/: {} frames", sequence.n_frames());
+
+    // The same sequence as one glTF morph animation (float32), grey values as COLOR_0.
+    let colors: Vec<Vec<[f64; 3]>> = (0..sequence.n_frames())
+        .map(|k| sequence.intensities(k).iter().map(|&g| [g; 3]).collect())
+        .collect();
+    let frames: Vec<AnimationFrame> = (0..sequence.n_frames())
+        .map(|k| AnimationFrame {
+            time: sequence.times()[k],
+            positions: sequence.positions(k).expect("embedded"),
+            colors: &colors[k],
+        })
+        .collect();
+    write_glb_animation(
+        &dir.join("rotating_sphere.glb"),
+        sequence.mesh().faces(),
+        &frames,
+    )?;
+    println!("rotating_sphere.glb: {} keyframes", frames.len());
     Ok(())
 }

@@ -6,7 +6,7 @@ use meshflow::fem;
 use meshflow::flow::{Boundary, FlowParams, FlowProblem, SolveEvent, SolverChoice, TimeCoupling};
 use meshflow::geometry::IntrinsicGeometry;
 use meshflow::io::{load_sequence, write_flow_outputs, LoadOptions, OutputFormat, StagedDir};
-use meshflow::io::{read_obj, write_matrix_market, write_npy, IoError};
+use meshflow::io::{read_mesh, write_matrix_market, write_npy, IoError};
 use meshflow::mesh::Mesh;
 use meshflow::Error;
 use std::path::{Path, PathBuf};
@@ -29,7 +29,7 @@ enum Command {
     /// Laplacian), mass_scalar.mtx (V×V P1 mass), stiffness.mtx (2V×2V connection Laplacian),
     /// mass.mtx (2V×2V vector mass) and frames.npy (V×2×3 vertex frames in R^3).
     Operators {
-        /// Triangle mesh (.obj)
+        /// Triangle mesh (.obj, .ply, .gltf, .glb)
         mesh: PathBuf,
         /// Output directory (created if missing)
         #[arg(long)]
@@ -110,7 +110,7 @@ fn main() -> ExitCode {
 }
 
 fn write_operators(mesh_path: &Path, out: &Path) -> Result<(), Error> {
-    let obj = read_obj(mesh_path)?;
+    let obj = read_mesh(mesh_path)?;
     let in_file = |e: Error| e.in_file(mesh_path);
     let mesh = Mesh::new(obj.positions.len(), obj.faces).map_err(|e| in_file(e.into()))?;
     let geometry =
@@ -175,7 +175,10 @@ fn solve(args: &SolveArgs) -> Result<(), Error> {
         fps: args.fps,
         weld: !args.no_weld,
     };
-    let loaded = load_sequence(&args.input, &options)?;
+    let reading = spinner(format!("reading {}", args.input.display()));
+    let loaded = load_sequence(&args.input, &options);
+    reading.finish_and_clear();
+    let loaded = loaded?;
     let sequence = &loaded.sequence;
     println!(
         "{}: {}, {} vertices, {} faces{}",
@@ -224,6 +227,14 @@ fn solve(args: &SolveArgs) -> Result<(), Error> {
         args.out.display()
     );
     Ok(())
+}
+
+/// A spinner with a message, for steps without a measure of progress; hidden when stderr is
+/// not a terminal.
+fn spinner(message: String) -> indicatif::ProgressBar {
+    let spinner = indicatif::ProgressBar::new_spinner().with_message(message);
+    spinner.enable_steady_tick(std::time::Duration::from_millis(200));
+    spinner
 }
 
 /// A bar that fills with the digits of residual reduction; hidden when stderr is not a terminal.

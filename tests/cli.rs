@@ -327,3 +327,26 @@ fn solve_reports_undetermined_flow_and_suggests_beta() {
         "0.001",
     ]);
 }
+
+#[test]
+fn solve_checks_the_output_location_before_reading_anything() {
+    // The input is broken too, but the unwritable output is what is reported: nothing is read
+    // or solved when the result could not be saved.
+    let dir = tempfile::tempdir().unwrap();
+    let blocker = dir.path().join("file");
+    std::fs::write(&blocker, "not a directory").unwrap();
+    let out = blocker.join("out");
+    let run = meshflow(&[
+        "solve",
+        "/nonexistent/frames",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("file/out") && stderr.lines().count() == 1,
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}

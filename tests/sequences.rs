@@ -361,7 +361,10 @@ fn textured_obj_frames_are_sampled_bilinearly_and_welded() {
 
 /// A rotating, textured sphere whose numbers are exact in float32 (positions on a 1/1024 grid,
 /// grey values on a 1/256 grid), so glTF storage loses nothing.
-fn dyadic_sphere_frames() -> (Vec<[u32; 3]>, Vec<Vec<Vector3<f64>>>, Vec<Vec<f64>>) {
+/// Faces, positions per frame, grey values per frame.
+type FrameArrays = (Vec<[u32; 3]>, Vec<Vec<Vector3<f64>>>, Vec<Vec<f64>>);
+
+fn dyadic_sphere_frames() -> FrameArrays {
     let sphere = meshflow::shapes::icosphere(2);
     let round = |x: f64, grid: f64| (x * grid).round() / grid;
     let frames: Vec<Vec<Vector3<f64>>> = (0..4)

@@ -19,7 +19,8 @@ pub enum FrameFormat {
 }
 
 impl FrameFormat {
-    fn of(path: &Path) -> Option<Self> {
+    /// The format of a file, from its extension.
+    pub fn of(path: &Path) -> Option<Self> {
         let extension = path.extension()?.to_str()?.to_ascii_lowercase();
         match extension.as_str() {
             "obj" => Some(Self::Obj),

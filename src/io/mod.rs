@@ -33,7 +33,7 @@ pub use mtl::{texture_intensity, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};
 pub use npy::{read_npy, read_npy_indices, write_npy, NpyArray};
 pub use obj::{read_obj, write_obj, ObjMesh};
-pub use sequence::{load_sequence, natural_order, LoadOptions, LoadedSequence};
+pub use sequence::{load_sequence, natural_order, read_mesh, LoadOptions, LoadedSequence};
 pub use texture::Texture;
 pub use weld::Welding;
 

@@ -129,7 +129,7 @@ fn open_npy<'a>(
         ));
     }
     let shape = file.shape();
-    let item = type_str.size_field() as u64;
+    let item = type_str.size_field();
     let needed = shape.iter().try_fold(item, |acc, &d| acc.checked_mul(d));
     let present = bytes.len().saturating_sub(data_offset(bytes)) as u64;
     if needed != Some(present) {

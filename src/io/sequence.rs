@@ -174,26 +174,43 @@ fn read_frames(
     for (k, (frame, file)) in frames.iter().zip(files).enumerate().skip(1) {
         check_same_connectivity(first, frame, k).map_err(|m| IoError::format(file, m))?;
     }
-    let intensities = match frames.iter().position(|f| f.intensity.is_none()) {
-        None => Some(frames.iter().map(|f| f.intensity.clone().unwrap_or_default()).collect()),
-        Some(_) if options.intensity.is_some() => None,
-        Some(0) if frames.iter().all(|f| f.intensity.is_none()) => None,
-        Some(k) => {
-            return Err(IoError::format(
-                &files[k],
-                "this frame has no grey values (vertex colours, texture or intensity property) but others do",
-            )
-            .into())
-        }
-    };
-    let faces = first.faces.clone();
+    let all_missing = frames.iter().all(|f| f.intensity.is_none());
+    let partly_missing = frames.iter().position(|f| f.intensity.is_none());
+    if let Some(k) = partly_missing.filter(|_| !all_missing && options.intensity.is_none()) {
+        return Err(IoError::format(
+            &files[k],
+            "this frame has no grey values (vertex colours, texture or intensity property) but others do",
+        )
+        .into());
+    }
+    let faces = frames[0].faces.clone();
+    let (positions, intensities): (Vec<_>, Vec<_>) = frames
+        .into_iter()
+        .map(|f| (f.positions, f.intensity))
+        .unzip();
     Ok(RawSequence {
         faces,
-        positions: frames.into_iter().map(|f| f.positions).collect(),
-        intensities,
+        positions,
+        intensities: intensities.into_iter().collect(),
         times: None,
         sources: files.to_vec(),
     })
+}
+
+/// Reads one mesh file (`.obj`, `.ply`, `.gltf`, `.glb`) with its grey values, if any.
+pub fn read_mesh(path: &Path) -> Result<FrameMesh, IoError> {
+    let format = FrameFormat::of(path).ok_or_else(|| {
+        IoError::format(
+            path,
+            "unknown mesh format (expected .obj, .ply, .gltf or .glb)",
+        )
+    })?;
+    read_frame(
+        format,
+        path,
+        &LoadOptions::default(),
+        &TextureCache::default(),
+    )
 }
 
 fn read_frame(

@@ -34,8 +34,8 @@ impl Welding {
         let mut others: HashMap<[u64; 3], Vec<u32>> = HashMap::new();
         let mut vertex_map = Vec::with_capacity(n);
         let mut representatives: Vec<u32> = Vec::with_capacity(n);
-        for i in 0..n {
-            let key = position_key(&frames[0][i]);
+        for (i, position) in frames.first().into_iter().flatten().enumerate() {
+            let key = position_key(position);
             let next = representatives.len() as u32;
             let candidates = match first.get(&key) {
                 None => {
