@@ -166,10 +166,12 @@ fn read_frames(
     options: &LoadOptions,
 ) -> Result<RawSequence, Error> {
     let textures = TextureCache::default();
-    let frames = files
+    // Collected in order, so the error reported is the first bad frame's, whatever the timing.
+    let frames: Vec<Result<FrameMesh, IoError>> = files
         .par_iter()
         .map(|file| read_frame(format, file, options, &textures))
-        .collect::<Result<Vec<_>, _>>()?;
+        .collect();
+    let frames = frames.into_iter().collect::<Result<Vec<_>, _>>()?;
     let first = &frames[0];
     for (k, (frame, file)) in frames.iter().zip(files).enumerate().skip(1) {
         check_same_connectivity(first, frame, k).map_err(|m| IoError::format(file, m))?;
@@ -263,10 +265,10 @@ fn ply_property(
         .ok_or_else(|| {
             IoError::format(
                 file,
-                format!(
-                    "no vertex property '{name}' (the file has: {})",
-                    names.join(", ")
-                ),
+                match names.is_empty() {
+                    true => format!("no vertex property '{name}' (the file has none besides positions and colours)"),
+                    false => format!("no vertex property '{name}' (the file has: {})", names.join(", ")),
+                },
             )
         })
 }
