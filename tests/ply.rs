@@ -615,5 +615,5 @@ fn writer_rejects_inconsistent_input() {
     assert!(write(None, &[("alpha", &full[..])], &sphere.faces).contains("reserved"));
     assert!(write(None, &[("q", &full[..]), ("q", &full[..])], &sphere.faces).contains("twice"));
     assert!(write(None, &[("a b", &full[..])], &sphere.faces).contains("without spaces"));
-    assert!(write(None, &[], &[[0, 1, 12]]).contains("face 0 [0, 1, 12]"));
+    assert!(write(None, &[], &[[0, 1, 12]]).contains("face 0 refers to vertex 12"));
 }

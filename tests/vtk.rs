@@ -241,7 +241,7 @@ fn vtu_rejects_mismatched_arrays_and_faces() {
         .unwrap_err()
         .to_string();
     assert!(
-        text.contains("face 0 [0, 1, 12] refers to a point that does not exist"),
+        text.contains("face 0 refers to vertex 12, but the mesh has 12 vertices"),
         "{text}"
     );
 }

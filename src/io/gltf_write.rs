@@ -146,16 +146,7 @@ fn check_connectivity(faces: &[[u32; 3]], vertex_count: usize) -> Result<(), Str
     if vertex_count == 0 || faces.is_empty() {
         return Err("the mesh has no vertices or no triangles".into());
     }
-    match faces
-        .iter()
-        .enumerate()
-        .find(|(_, face)| face.iter().any(|&i| i as usize >= vertex_count))
-    {
-        Some((f, face)) => Err(format!(
-            "face {f} {face:?} refers to a vertex beyond the {vertex_count} of frame 0"
-        )),
-        None => Ok(()),
-    }
+    crate::mesh::check_index_range(faces, vertex_count).map_err(|e| e.to_string())
 }
 
 /// Frame `k`'s positions as flat float32 (x, y, z per vertex).

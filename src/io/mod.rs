@@ -79,6 +79,18 @@ impl IoError {
         }
     }
 
+    /// An error at `line` of `path` (1-based), or about the whole file when `line` is 0.
+    pub(crate) fn at_line(path: &std::path::Path, (line, message): (usize, String)) -> Self {
+        match line {
+            0 => Self::format(path, message),
+            line => Self::Parse {
+                path: path.to_path_buf(),
+                line,
+                message,
+            },
+        }
+    }
+
     pub(crate) fn format(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
         Self::Format {
             path: path.into(),

@@ -118,10 +118,8 @@ fn read_mtl(path: &Path) -> Result<HashMap<String, PathBuf>, IoError> {
         if let Some(name) = line.strip_prefix("newmtl") {
             current = Some(name.trim().to_string());
         } else if let Some(arguments) = line.strip_prefix("map_Kd") {
-            let material = current.clone().ok_or_else(|| IoError::Parse {
-                path: path.to_path_buf(),
-                line: number + 1,
-                message: "map_Kd before any newmtl".into(),
+            let material = current.clone().ok_or_else(|| {
+                IoError::at_line(path, (number + 1, "map_Kd before any newmtl".into()))
             })?;
             maps.insert(material, base.join(map_file_name(arguments)));
         }

@@ -38,14 +38,7 @@ pub struct ObjMesh {
 pub fn read_obj(path: &Path) -> Result<ObjMesh, IoError> {
     let text = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
     let text = String::from_utf8_lossy(&text);
-    parse_obj(&text).map_err(|(line, message)| match line {
-        0 => IoError::format(path, message),
-        line => IoError::Parse {
-            path: path.to_path_buf(),
-            line,
-            message,
-        },
-    })
+    parse_obj(&text).map_err(|e| IoError::at_line(path, e))
 }
 
 /// Writes positions, triangles and optional per-vertex colours; numbers are printed in their

@@ -65,14 +65,7 @@ pub enum PlyEncoding {
 /// Reads a PLY file (see the module docs for what is read and what is skipped).
 pub fn read_ply(path: &Path) -> Result<PlyMesh, IoError> {
     let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
-    parse_ply(&bytes).map_err(|(line, message)| match line {
-        0 => IoError::format(path, message),
-        line => IoError::Parse {
-            path: path.to_path_buf(),
-            line,
-            message,
-        },
-    })
+    parse_ply(&bytes).map_err(|e| IoError::at_line(path, e))
 }
 
 /// Writes a triangle mesh with optional per-vertex colours and named per-vertex properties;
@@ -142,16 +135,7 @@ fn check_output(
     }
     // Indices are written as `int`.
     let limit = n.min(i32::MAX as usize + 1);
-    match faces
-        .iter()
-        .enumerate()
-        .find(|(_, face)| face.iter().any(|&v| v as usize >= limit))
-    {
-        Some((f, face)) => Err(format!(
-            "face {f} {face:?} refers to a vertex that does not exist ({n} vertices)"
-        )),
-        None => Ok(()),
-    }
+    crate::mesh::check_index_range(faces, limit).map_err(|e| e.to_string())
 }
 
 fn write_header(

@@ -20,7 +20,7 @@ use super::{grey_value, read_npy, read_npy_indices, read_obj, texture_intensity}
 use super::{FrameMesh, IoError, RawSequence, TextureCache, Welding};
 use crate::flow::{FlowError, MeshSequence};
 use crate::geometry::GeometryError;
-use crate::mesh::{ConnectivityError, Mesh};
+use crate::mesh::{check_index_range, Mesh};
 use crate::Error;
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -76,7 +76,8 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
     }
     let files = &raw.sources;
     check_finite_positions(&raw.positions).map_err(|e| in_frame_file(e, files))?;
-    check_face_indices(&raw.faces, raw.positions[0].len())
+    // Welding renumbers vertices, so indices are checked against the files' count first.
+    check_index_range(&raw.faces, raw.positions[0].len())
         .map_err(|e| Error::from(e).in_file(&files[0]))?;
     let welding = match options.weld {
         true => Welding::of_coincident(&raw.positions),
@@ -343,20 +344,6 @@ fn in_frame_file(error: FlowError, files: &[PathBuf]) -> Error {
     }
 }
 
-/// Welding renumbers vertices, so indices are checked against the file's count first.
-fn check_face_indices(faces: &[[u32; 3]], n_vertices: usize) -> Result<(), ConnectivityError> {
-    for (face, vertices) in faces.iter().enumerate() {
-        if let Some(&index) = vertices.iter().find(|&&v| v as usize >= n_vertices) {
-            return Err(ConnectivityError::IndexOutOfRange {
-                face,
-                index,
-                n_vertices,
-            });
-        }
-    }
-    Ok(())
-}
-
 fn check_finite_positions(frames: &[Vec<Vector3<f64>>]) -> Result<(), FlowError> {
     for (frame, positions) in frames.iter().enumerate() {
         if let Some(vertex) = positions
@@ -441,10 +428,8 @@ fn read_times_file(path: &Path) -> Result<Option<Vec<f64>>, IoError> {
             .split(|c: char| c.is_whitespace() || c == ',')
             .filter(|t| !t.is_empty())
         {
-            let time = token.parse().map_err(|_| IoError::Parse {
-                path: path.to_path_buf(),
-                line: number + 1,
-                message: format!("'{token}' is not a number"),
+            let time = token.parse().map_err(|_| {
+                IoError::at_line(path, (number + 1, format!("'{token}' is not a number")))
             })?;
             times.push(time);
         }

@@ -147,16 +147,7 @@ fn check_vtu_input(
             ));
         }
     }
-    match faces
-        .iter()
-        .enumerate()
-        .find(|(_, face)| face.iter().any(|&v| v as usize >= n_points))
-    {
-        Some((f, face)) => Err(format!(
-            "face {f} {face:?} refers to a point that does not exist ({n_points} points)"
-        )),
-        None => Ok(()),
-    }
+    crate::mesh::check_index_range(faces, n_points).map_err(|e| e.to_string())
 }
 
 fn le_bytes<const N: usize>(values: impl Iterator<Item = [u8; N]>) -> Vec<u8> {

@@ -17,7 +17,7 @@
 
 mod validate;
 
-pub use validate::ConnectivityError;
+pub use validate::{check_index_range, ConnectivityError};
 
 /// A corner of a face: the face and the local index (0, 1, 2) of the vertex in it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -53,15 +53,25 @@ pub(super) fn build(n_vertices: usize, faces: Vec<[u32; 3]>) -> Result<Mesh, Con
     })
 }
 
-fn check_face_indices(n_vertices: usize, faces: &[[u32; 3]]) -> Result<(), ConnectivityError> {
-    for (f, face) in faces.iter().enumerate() {
-        if let Some(&index) = face.iter().find(|&&v| v as usize >= n_vertices) {
+/// Checks that every face index names one of `n_vertices` vertices: the first check of
+/// [`Mesh::new`], and of anything that must index per-vertex arrays with faces before a mesh
+/// exists (file writers, welding).
+pub fn check_index_range(faces: &[[u32; 3]], n_vertices: usize) -> Result<(), ConnectivityError> {
+    for (face, vertices) in faces.iter().enumerate() {
+        if let Some(&index) = vertices.iter().find(|&&v| v as usize >= n_vertices) {
             return Err(ConnectivityError::IndexOutOfRange {
-                face: f,
+                face,
                 index,
                 n_vertices,
             });
         }
+    }
+    Ok(())
+}
+
+fn check_face_indices(n_vertices: usize, faces: &[[u32; 3]]) -> Result<(), ConnectivityError> {
+    check_index_range(faces, n_vertices)?;
+    for (f, face) in faces.iter().enumerate() {
         if face[0] == face[1] || face[0] == face[2] {
             return Err(ConnectivityError::RepeatedVertex {
                 face: f,
