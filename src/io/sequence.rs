@@ -70,51 +70,60 @@ pub struct LoadedSequence {
 pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequence, Error> {
     let source = SequenceSource::detect(path)?;
     check_options(&source, options, path)?;
-    let raw = read_raw(&source, options)?;
-    if raw.positions.len() < 2 {
-        return Err(FlowError::TooFewFrames(raw.positions.len()).into());
+    let RawSequence {
+        faces,
+        positions,
+        intensities,
+        times,
+        sources: files,
+    } = read_raw(&source, options)?;
+    if positions.len() < 2 {
+        return Err(FlowError::TooFewFrames(positions.len()).into());
     }
-    let files = &raw.sources;
-    check_finite_positions(&raw.positions).map_err(|e| in_frame_file(e, files))?;
+    let n_file_vertices = positions[0].len();
+    check_finite_positions(&positions).map_err(|e| in_frame_file(e, &files))?;
     // Welding renumbers vertices, so indices are checked against the files' count first.
-    check_index_range(&raw.faces, raw.positions[0].len())
-        .map_err(|e| Error::from(e).in_file(&files[0]))?;
+    check_index_range(&faces, n_file_vertices).map_err(|e| Error::from(e).in_file(&files[0]))?;
     let welding = match options.weld {
-        true => Welding::of_coincident(&raw.positions),
-        false => Welding::identity(raw.positions[0].len()),
+        true => Welding::of_coincident(&positions),
+        false => Welding::identity(n_file_vertices),
     };
-    let mesh = Mesh::new(welding.n_vertices(), welding.faces(&raw.faces))
+    let mesh = Mesh::new(welding.n_vertices(), welding.faces(faces))
         .map_err(|e| Error::from(e).in_file(&files[0]))?;
     let intensities = match &options.intensity {
-        Some(file) => intensity_array(file, raw.positions.len(), raw.positions[0].len())?,
-        None => raw.intensities.clone().ok_or_else(|| {
+        Some(file) => intensity_array(file, positions.len(), n_file_vertices)?,
+        None => intensities.ok_or_else(|| {
             IoError::format(
                 &files[0],
                 "no grey values (vertex colours, texture or intensity property); give --intensity FILE.npy",
             )
         })?,
     };
-    check_finite_intensities(&intensities).map_err(|e| in_frame_file(e, files))?;
+    check_finite_intensities(&intensities).map_err(|e| in_frame_file(e, &files))?;
     let times_file = source.directory().join("times.txt");
-    let (times, times_from_file) = match (&options.times, &raw.times) {
-        (Some(times), _) | (None, Some(times)) => (Some(times.clone()), false),
+    let (times, times_from_file) = match (&options.times, times) {
+        (Some(times), _) => (Some(times.clone()), false),
+        (None, Some(times)) => (Some(times), false),
         (None, None) => {
             let times = read_times_file(&times_file)?;
             let from_file = times.is_some();
             (times, from_file)
         }
     };
-    let positions = raw.positions.iter().map(|p| welding.positions(p)).collect();
-    let intensities = intensities.iter().map(|v| welding.values(v)).collect();
+    let positions = positions
+        .into_iter()
+        .map(|p| welding.positions(p))
+        .collect();
+    let intensities = intensities.into_iter().map(|v| welding.values(v)).collect();
     let sequence = MeshSequence::new(mesh, positions, intensities, times).map_err(|e| match e {
         e if times_from_file && is_about_times(&e) => Error::from(e).in_file(&times_file),
-        e => in_frame_file(e, files),
+        e => in_frame_file(e, &files),
     })?;
     Ok(LoadedSequence {
         sequence,
         source,
         welding,
-        frame_files: raw.sources,
+        frame_files: files,
     })
 }
 

@@ -86,8 +86,11 @@ impl Welding {
         self.representatives.len()
     }
 
-    /// Positions of the welded vertices.
-    pub fn positions(&self, positions: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+    /// Positions of the welded vertices (the input itself when nothing was welded).
+    pub fn positions(&self, positions: Vec<Vector3<f64>>) -> Vec<Vector3<f64>> {
+        if self.n_welded() == 0 {
+            return positions;
+        }
         self.representatives
             .iter()
             .map(|&r| positions[r as usize])
@@ -95,19 +98,25 @@ impl Welding {
     }
 
     /// Faces in welded vertex numbers.
-    pub fn faces(&self, faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
+    pub fn faces(&self, faces: Vec<[u32; 3]>) -> Vec<[u32; 3]> {
+        if self.n_welded() == 0 {
+            return faces;
+        }
         faces
-            .iter()
+            .into_iter()
             .map(|f| f.map(|v| self.vertex_map[v as usize]))
             .collect()
     }
 
     /// Per-vertex values on the welded vertices: the mean over each group (texture samples on
     /// the two sides of a seam may differ slightly).
-    pub fn values(&self, values: &[f64]) -> Vec<f64> {
+    pub fn values(&self, values: Vec<f64>) -> Vec<f64> {
+        if self.n_welded() == 0 {
+            return values;
+        }
         let mut sum = vec![0.0; self.n_vertices()];
         let mut count = vec![0u32; self.n_vertices()];
-        for (&w, &value) in self.vertex_map.iter().zip(values) {
+        for (&w, &value) in self.vertex_map.iter().zip(&values) {
             sum[w as usize] += value;
             count[w as usize] += 1;
         }
