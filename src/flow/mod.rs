@@ -45,6 +45,7 @@ mod uniqueness;
 pub use energy::EnergyTerms;
 pub use error::FlowError;
 pub use params::{Boundary, FlowParams, SolverChoice, TimeCoupling};
+pub(crate) use sequence::check_finite_intensities;
 pub use sequence::MeshSequence;
 pub use slab::Slab;
 pub use solve::{SolveEvent, SolverMethod};

@@ -121,6 +121,13 @@ fn check_intensities(
                 },
             });
         }
+    }
+    check_finite_intensities(intensities)
+}
+
+/// Checks that every grey value of every frame is finite.
+pub(crate) fn check_finite_intensities(intensities: &[Vec<f64>]) -> Result<(), FlowError> {
+    for (frame, values) in intensities.iter().enumerate() {
         if let Some(vertex) = values.iter().position(|v| !v.is_finite()) {
             return Err(FlowError::NonFiniteIntensity {
                 frame,

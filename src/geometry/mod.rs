@@ -69,6 +69,11 @@ pub fn check_positions(mesh: &Mesh, positions: &[Vector3<f64>]) -> Result<(), Ge
             got: positions.len(),
         });
     }
+    check_finite_positions(positions)
+}
+
+/// Checks that every position is finite (before any mesh exists, e.g. straight from a file).
+pub fn check_finite_positions(positions: &[Vector3<f64>]) -> Result<(), GeometryError> {
     match positions
         .iter()
         .position(|p| !p.iter().all(|x| x.is_finite()))

@@ -36,3 +36,8 @@ pub fn grey_value([r, g, b]: [f64; 3]) -> f64 {
         0.2126 * r + 0.7152 * g + 0.0722 * b
     }
 }
+
+/// [`grey_value`] of each colour.
+pub fn grey_values(colors: &[[f64; 3]]) -> Vec<f64> {
+    colors.iter().map(|&c| grey_value(c)).collect()
+}

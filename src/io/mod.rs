@@ -27,7 +27,7 @@ mod weld;
 
 pub use atomic::{write_atomically, StagedDir};
 pub use flow_output::{summary_json, write_flow_outputs, OutputFormat};
-pub use frame::{grey_value, FrameMesh, RawSequence};
+pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use input::{FrameFormat, SequenceSource};
 pub use mtl::{texture_intensity, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};

@@ -9,17 +9,16 @@
 //! vertices) when given, else from each format's own data: OBJ vertex colours or `map_Kd`
 //! texture, a PLY scalar property (`intensity_attribute`) or its colours, glTF `COLOR_0` or
 //! base-colour texture, `intensity.npy` next to NPY arrays. Colours become grey by
-//! [`grey_value`]. Frame times come from `--times`, else a glTF animation's keyframes, else a
+//! [`grey_values`]. Frame times come from `--times`, else a glTF animation's keyframes, else a
 //! `times.txt` next to the frames (numbers separated by white space or commas, `#` comments),
 //! else `0, 1, 2, …`.
 
 use super::gltf_read::{read_gltf_animation, read_gltf_frame};
 use super::input::{FrameFormat, SequenceSource};
 use super::ply::read_ply;
-use super::{grey_value, read_npy, read_npy_indices, read_obj, texture_intensity};
+use super::{grey_values, read_npy, read_npy_indices, read_obj, texture_intensity};
 use super::{FrameMesh, IoError, RawSequence, TextureCache, Welding};
-use crate::flow::{FlowError, MeshSequence};
-use crate::geometry::GeometryError;
+use crate::flow::{check_finite_intensities, FlowError, MeshSequence};
 use crate::mesh::{check_index_range, Mesh};
 use crate::Error;
 use nalgebra::Vector3;
@@ -235,7 +234,7 @@ fn read_frame(
         FrameFormat::Obj => {
             let obj = read_obj(file)?;
             let intensity = match &obj.colors {
-                Some(colors) => Some(colors.iter().map(|&c| grey_value(c)).collect()),
+                Some(colors) => Some(grey_values(colors)),
                 None => texture_intensity(&obj, file, textures)?,
             };
             Ok(FrameMesh {
@@ -248,9 +247,7 @@ fn read_frame(
             let ply = read_ply(file)?;
             let intensity = match &options.intensity_attribute {
                 Some(name) => Some(ply_property(ply.properties, name, file)?),
-                None => ply
-                    .colors
-                    .map(|c| c.iter().map(|&c| grey_value(c)).collect()),
+                None => ply.colors.as_deref().map(grey_values),
             };
             Ok(FrameMesh {
                 positions: ply.positions,
@@ -355,28 +352,8 @@ fn in_frame_file(error: FlowError, files: &[PathBuf]) -> Error {
 
 fn check_finite_positions(frames: &[Vec<Vector3<f64>>]) -> Result<(), FlowError> {
     for (frame, positions) in frames.iter().enumerate() {
-        if let Some(vertex) = positions
-            .iter()
-            .position(|p| !p.iter().all(|x| x.is_finite()))
-        {
-            let position = positions[vertex].into();
-            let source = GeometryError::NonFinitePosition { vertex, position };
-            return Err(FlowError::Frame { frame, source });
-        }
-    }
-    Ok(())
-}
-
-fn check_finite_intensities(frames: &[Vec<f64>]) -> Result<(), FlowError> {
-    for (frame, values) in frames.iter().enumerate() {
-        if let Some(vertex) = values.iter().position(|v| !v.is_finite()) {
-            let value = values[vertex];
-            return Err(FlowError::NonFiniteIntensity {
-                frame,
-                vertex,
-                value,
-            });
-        }
+        crate::geometry::check_finite_positions(positions)
+            .map_err(|source| FlowError::Frame { frame, source })?;
     }
     Ok(())
 }
