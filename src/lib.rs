@@ -39,6 +39,7 @@
 //! # Ok::<(), meshflow::Error>(())
 //! ```
 
+pub mod chart;
 pub mod connection;
 pub mod fem;
 pub mod flow;
@@ -62,6 +63,8 @@ pub enum Error {
     Io(#[from] io::IoError),
     #[error(transparent)]
     Flow(#[from] flow::FlowError),
+    #[error(transparent)]
+    Chart(#[from] chart::ChartError),
     /// An error in the contents of a file, with the file's name.
     #[error("{}: {source}", path.display())]
     InFile { path: PathBuf, source: Box<Error> },

@@ -36,7 +36,7 @@
 mod push_forward;
 mod time_transport;
 
-pub use push_forward::{push_forward, vertex_frames_in_r3};
+pub use push_forward::{push_forward, vertex_frames_for_face_maps, vertex_frames_in_r3};
 pub use time_transport::polar_rotation_angles;
 
 use crate::geometry::IntrinsicGeometry;

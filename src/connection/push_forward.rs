@@ -16,7 +16,7 @@
 use super::Connection;
 use crate::geometry::{check_positions, GeometryError, IntrinsicGeometry};
 use crate::mesh::Mesh;
-use nalgebra::{Matrix3x2, Vector2, Vector3};
+use nalgebra::{Matrix3x2, SMatrix, Vector2, Vector3};
 
 /// `P_i` for every vertex: columns are the R^3 images of the vertex frame's basis vectors.
 pub fn vertex_frames_in_r3(
@@ -26,17 +26,43 @@ pub fn vertex_frames_in_r3(
     positions: &[Vector3<f64>],
 ) -> Result<Vec<Matrix3x2<f64>>, GeometryError> {
     check_positions(mesh, positions)?;
-    let mut frames = vec![Matrix3x2::zeros(); mesh.n_vertices()];
-    for (f, face) in mesh.faces().iter().enumerate() {
+    let face_edges: Vec<Matrix3x2<f64>> = mesh
+        .faces()
+        .iter()
+        .map(|face| {
+            let [a, b, c] = face.map(|v| positions[v as usize]);
+            Matrix3x2::from_columns(&[b - a, c - a])
+        })
+        .collect();
+    Ok(vertex_frames_for_face_maps(
+        mesh,
+        geometry,
+        connection,
+        &face_edges,
+    ))
+}
+
+/// `P_i` for any piecewise-linear map of the faces into R^D, given by the images
+/// `face_edges[f] = [x_b − x_a, x_c − x_a]` (D×2) of each face's first two edges: an embedding
+/// (D = 3, [`vertex_frames_in_r3`]) or a chart into the parameter plane (D = 2), which need not
+/// be continuous across faces (a periodic parameter domain). `face_edges.len()` must equal the
+/// number of faces.
+pub fn vertex_frames_for_face_maps<const D: usize>(
+    mesh: &Mesh,
+    geometry: &IntrinsicGeometry,
+    connection: &Connection,
+    face_edges: &[SMatrix<f64, D, 2>],
+) -> Vec<SMatrix<f64, D, 2>> {
+    assert_eq!(face_edges.len(), mesh.n_faces(), "one edge matrix per face");
+    let mut frames = vec![SMatrix::<f64, D, 2>::zeros(); mesh.n_vertices()];
+    for (f, (face, edges)) in mesh.faces().iter().zip(face_edges).enumerate() {
         let triangle = geometry.triangle(f);
-        let [a, b, c] = face.map(|v| positions[v as usize]);
-        let embedded_edges = Matrix3x2::from_columns(&[b - a, c - a]);
         // The layout edge matrix is upper triangular with positive diagonal: always invertible.
         let layout_inverse = triangle
             .layout_edge_matrix()
             .try_inverse()
             .expect("layout of a validated triangle is invertible");
-        let face_map = embedded_edges * layout_inverse;
+        let face_map = edges * layout_inverse;
         for (local, &v) in face.iter().enumerate() {
             let weight = triangle.angles[local];
             frames[v as usize] += weight * face_map * connection.vertex_to_face(f, local);
@@ -45,7 +71,7 @@ pub fn vertex_frames_in_r3(
     for (frame, sum) in frames.iter_mut().zip(geometry.vertex_angle_sums()) {
         *frame /= *sum;
     }
-    Ok(frames)
+    frames
 }
 
 /// `U_i = P_i u_i` for every vertex, with `P_i` from [`vertex_frames_in_r3`].
