@@ -135,3 +135,67 @@ pub fn moving_blobs(x1: f64, x2: f64, t: f64) -> f64 {
             })
             .sum::<f64>()
 }
+
+/// A surface in the spirit of Bauer, Grasmair & Kirisits' Experiment II: the graph
+/// `x3 = h(t, x1, x2)` over the unit square, `(n + 1)²` vertices on the grid of
+/// [`shapes::grid`](crate::shapes::grid), frames `t = 0, 1, …, n_frames − 1`, with
+/// `h(t, x) = (0.5 + 0.25 t/T) exp(−|x − c|² / 0.05) + 0.04 sin(2π(x1 + x2) − 0.6 t)`,
+/// `c = (0.5, 0.5)`, `T = n_frames − 1`: a dome that rises while a small wave runs across it.
+/// The image is [`moving_cells`].
+pub fn graph_surface(n: usize, n_frames: usize) -> Result<MeshSequence, FlowError> {
+    let plane = crate::shapes::grid(n, n, 1.0, 1.0);
+    let mesh = plane.mesh().expect("a grid is a valid disc");
+    let t_end = (n_frames - 1).max(1) as f64;
+    let frames = (0..n_frames)
+        .map(|k| {
+            let t = k as f64;
+            plane
+                .positions
+                .iter()
+                .map(|p| Vector3::new(p.x, p.y, graph_height(t / t_end, t, p.x, p.y)))
+                .collect()
+        })
+        .collect();
+    let intensities = (0..n_frames)
+        .map(|k| {
+            plane
+                .positions
+                .iter()
+                .map(|p| moving_cells(p.x, p.y, k as f64))
+                .collect()
+        })
+        .collect();
+    MeshSequence::new(mesh, frames, intensities, None)
+}
+
+/// `h` of [`graph_surface`] at relative time `s = t/T` and frame time `t`.
+fn graph_height(s: f64, t: f64, x1: f64, x2: f64) -> f64 {
+    use std::f64::consts::TAU;
+    let r2 = (x1 - 0.5).powi(2) + (x2 - 0.5).powi(2);
+    (0.5 + 0.25 * s) * (-r2 / 0.05).exp() + 0.04 * (TAU * (x1 + x2) - 0.6 * t).sin()
+}
+
+/// Bright round cells (Gaussians of radius 0.035) crawling in straight lines over a dim,
+/// faintly textured background on the unit square; velocities in parameter units per frame,
+/// most of them outwards from the centre, one across it.
+pub fn moving_cells(x1: f64, x2: f64, t: f64) -> f64 {
+    let cells = [
+        (0.50, 0.50, 0.012, 0.004),
+        (0.30, 0.35, -0.008, -0.006),
+        (0.70, 0.30, 0.007, -0.008),
+        (0.65, 0.70, 0.006, 0.009),
+        (0.30, 0.68, -0.009, 0.005),
+        (0.20, 0.20, 0.010, 0.000),
+        (0.82, 0.50, 0.000, 0.010),
+        (0.45, 0.85, -0.010, -0.002),
+    ];
+    let background = 0.15 + 0.04 * (23.0 * x1).sin() * (19.0 * x2).cos();
+    background
+        + cells
+            .iter()
+            .map(|&(c1, c2, v1, v2)| {
+                let (d1, d2) = (x1 - c1 - v1 * t, x2 - c2 - v2 * t);
+                0.8 * (-(d1 * d1 + d2 * d2) / (2.0 * 0.035f64.powi(2))).exp()
+            })
+            .sum::<f64>()
+}
