@@ -1,9 +1,9 @@
 //! Regenerates the small meshes shipped in `meshes/` (OBJ meshes, the rotating-sphere sequence
-//! as OBJ frames and as a glTF animation):
+//! as OBJ frames with its true flow `ground_truth.npy`, and as a glTF animation):
 //! `cargo run --release --example sample_meshes`.
 
 use meshflow::io::gltf_write::{write_glb_animation, AnimationFrame};
-use meshflow::io::write_obj;
+use meshflow::io::{write_npy, write_obj};
 use meshflow::shapes::{grid, icosphere, torus};
 use meshflow::synth::rotating_sphere;
 use std::path::Path;
@@ -42,7 +42,23 @@ fn main() -> Result<(), meshflow::Error> {
             Some(&grey),
         )?;
     }
-    println!("rotating_sphere/: {} frames", sequence.n_frames());
+    // The true flow ω ẑ × x of every slab, (slabs, vertices, 3) float64, for `--ground-truth`.
+    let flow: Vec<f64> = truth
+        .flow
+        .iter()
+        .flatten()
+        .flat_map(|u| [u.x, u.y, u.z])
+        .collect();
+    let shape = [
+        truth.flow.len() as u64,
+        sequence.mesh().n_vertices() as u64,
+        3,
+    ];
+    write_npy(&sequence_dir.join("ground_truth.npy"), &shape, &flow)?;
+    println!(
+        "rotating_sphere/: {} frames, ground_truth.npy {shape:?}",
+        sequence.n_frames()
+    );
 
     // The same sequence as one glTF morph animation (float32), grey values as COLOR_0.
     let colors: Vec<Vec<[f64; 3]>> = (0..sequence.n_frames())

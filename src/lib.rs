@@ -18,7 +18,8 @@
 //!
 //! Data flows one way through the modules: [`mesh`] (connectivity) → [`geometry`] (intrinsic
 //! quantities) → [`connection`] (frames and transport) → [`fem`] (element matrices and
-//! assembly); [`io`] reads and writes files, [`shapes`] makes sample surfaces.
+//! assembly); [`io`] reads and writes files, [`shapes`] makes sample surfaces, [`synth`] sample
+//! sequences with known flow, and [`accuracy`] measures a computed flow against a known one.
 //!
 //! ```
 //! use meshflow::{connection::Connection, fem, geometry::IntrinsicGeometry, shapes};
@@ -39,6 +40,7 @@
 //! # Ok::<(), meshflow::Error>(())
 //! ```
 
+pub mod accuracy;
 pub mod chart;
 pub mod connection;
 pub mod fem;
@@ -63,6 +65,8 @@ pub enum Error {
     Io(#[from] io::IoError),
     #[error(transparent)]
     Flow(#[from] flow::FlowError),
+    #[error(transparent)]
+    Accuracy(#[from] accuracy::AccuracyError),
     #[error(transparent)]
     Chart(#[from] chart::ChartError),
     /// An error in the contents of a file, with the file's name.

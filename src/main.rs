@@ -1,14 +1,17 @@
 //! The `meshflow` command line. Every failure is one line on stderr and a non-zero exit code.
 
 use clap::{Parser, Subcommand};
+use meshflow::accuracy::{check_embedded, compare_result};
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::fem;
 use meshflow::flow::{Boundary, FlowParams, FlowProblem, SolveEvent, SolverChoice, TimeCoupling};
 use meshflow::geometry::IntrinsicGeometry;
 use meshflow::io::{load_sequence, write_flow_outputs, LoadOptions, OutputFormat, StagedDir};
+use meshflow::io::{read_ground_truth, GroundTruthReport, LoadedSequence};
 use meshflow::io::{read_mesh, write_matrix_market, write_npy, IoError};
 use meshflow::mesh::Mesh;
 use meshflow::Error;
+use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -41,7 +44,7 @@ enum Command {
     /// from vertex colours, textures, a PLY property or --intensity; times from --times,
     /// the glTF animation, a times.txt beside the frames, or 0,1,2,… Writes flow.npy (S×V×3),
     /// flow_intrinsic.npy (S×V×2), flow_SSSS.vtu + flow.pvd (ParaView), flow.glb and
-    /// summary.json.
+    /// summary.json; with --ground-truth also the errors against the known flow.
     Solve(SolveArgs),
 }
 
@@ -89,6 +92,11 @@ struct SolveArgs {
     /// vertices at texture seams)
     #[arg(long)]
     no_weld: bool,
+    /// Known flow to measure the result against: .npy (slabs, vertices in the files, 3), float64
+    /// or float32, R^3 vectors on frame s. Adds angular_error/endpoint_error to the .vtu files,
+    /// angular_error.npy, endpoint_error.npy and "ground_truth" in summary.json
+    #[arg(long, value_name = "FILE.npy")]
+    ground_truth: Option<PathBuf>,
     /// Output files: any of npy, vtu, glb (summary.json is always written)
     #[arg(long, value_delimiter = ',', default_value = "npy,vtu,glb")]
     format: Vec<OutputFormat>,
@@ -191,6 +199,11 @@ fn solve(args: &SolveArgs) -> Result<(), Error> {
             n => format!(" (welded {n} duplicate vertices)"),
         }
     );
+    let truth = args
+        .ground_truth
+        .as_deref()
+        .map(|file| read_truth(file, &loaded))
+        .transpose()?;
     let problem = FlowProblem::new(sequence, &params)?;
     let progress = solver_progress(params.tolerance);
     let result = problem.solve(&|event| match event {
@@ -210,7 +223,21 @@ fn solve(args: &SolveArgs) -> Result<(), Error> {
     });
     progress.finish_and_clear();
     let result = result?;
-    write_flow_outputs(&out, &loaded, &params, &result, &args.format)?;
+    let report = truth
+        .map(|(file, truth)| -> Result<_, Error> {
+            let errors = compare_result(sequence, &result, &truth)
+                .map_err(|e| Error::from(e).in_file(&file))?;
+            Ok(GroundTruthReport { file, errors })
+        })
+        .transpose()?;
+    write_flow_outputs(
+        &out,
+        &loaded,
+        &params,
+        &result,
+        &args.format,
+        report.as_ref(),
+    )?;
     out.commit()?;
     println!(
         "{}: {} frames x {} vertices -> {} slabs; {} solver, {} iterations, residual {:.1e}; energy {:.4e} (zero flow {:.4e}); {:.2} s -> {}",
@@ -226,7 +253,24 @@ fn solve(args: &SolveArgs) -> Result<(), Error> {
         result.timings.total,
         args.out.display()
     );
+    if let Some(report) = &report {
+        println!(
+            "ground truth: mean angular error {:.4}°, mean endpoint error {:.4e}",
+            report.errors.mean_angular_degrees, report.errors.mean_endpoint
+        );
+    }
     Ok(())
+}
+
+/// `truth[s][i]`: the known R^3 flow of slab `s` at mesh vertex `i`.
+type TrueFlow = Vec<Vec<Vector3<f64>>>;
+
+/// The `--ground-truth` flow on the welded vertices, read before the solve so that a bad file
+/// fails at once.
+fn read_truth(file: &Path, loaded: &LoadedSequence) -> Result<(PathBuf, TrueFlow), Error> {
+    check_embedded(&loaded.sequence).map_err(|e| Error::from(e).in_file(file))?;
+    let truth = read_ground_truth(file, &loaded.welding, loaded.sequence.n_slabs())?;
+    Ok((file.to_path_buf(), truth))
 }
 
 /// A spinner with a message, for steps without a measure of progress; hidden when stderr is

@@ -1,4 +1,5 @@
-//! Synthetic sequences with known flow, and the error measures that compare flows.
+//! Synthetic sequences, most with a known flow (measure computed flows against it with
+//! [`crate::accuracy`]).
 
 use crate::flow::{FlowError, MeshSequence};
 use crate::shapes::icosphere;
@@ -18,12 +19,44 @@ pub fn texture(p: &Vector3<f64>) -> f64 {
 }
 
 /// The unit icosphere of the given level at rest, with [`texture`] turning about the z-axis at
-/// `omega` radians per unit time; frames at `0, dt, 2 dt, …`. The true flow is `ω ẑ × x`.
+/// `omega` radians per unit time; frames at `0, dt, 2 dt, …`. The true flow is `u = ω ẑ × x`.
+///
+/// This is [`deforming_sphere`] with `strain = 0`.
 pub fn rotating_sphere(
     level: u32,
     n_frames: usize,
     dt: f64,
     omega: f64,
+) -> Result<GroundTruth, FlowError> {
+    deforming_sphere(level, n_frames, dt, omega, 0.0)
+}
+
+/// A sphere that stretches into an ellipsoid while a texture turns on it; frames at
+/// `t_k = k dt`.
+///
+/// Vertex `i` is the material point `p_i` of the unit icosphere, at `x_i(t) = D(t) p_i` with
+///
+/// ```text
+/// D(t) = diag(1 + εt, 1, 1 / (1 + εt))        (ε = strain)
+/// ```
+///
+/// (volume-preserving, not rigid and not isometric for `ε ≠ 0`). The image is [`texture`] on
+/// the rest sphere turned by `ωt` about the z-axis: `I(t, p) = texture(R_z(−ωt) p)`. A texture
+/// point sits at `p(t) = R_z(ωt) q`, moving on the rest sphere with velocity `ω ẑ × p`; on the
+/// surface it moves with the push-forward by the linear map `D(t)`, so the true flow on frame
+/// `s` is
+///
+/// ```text
+/// u_s(x_i) = D(t_s) (ω ẑ × p_i)
+/// ```
+///
+/// (tangent to the ellipsoid `D(t_s) S²`), and brightness constancy `∂_t I + dI(u) = 0` holds.
+pub fn deforming_sphere(
+    level: u32,
+    n_frames: usize,
+    dt: f64,
+    omega: f64,
+    strain: f64,
 ) -> Result<GroundTruth, FlowError> {
     let sphere = icosphere(level);
     let mesh = sphere.mesh().expect("icospheres are valid meshes");
@@ -40,34 +73,28 @@ pub fn rotating_sphere(
         })
         .collect();
     let axis = Vector3::new(0.0, 0.0, omega);
-    let truth: Vec<Vector3<f64>> = sphere.positions.iter().map(|p| axis.cross(p)).collect();
-    let sequence = MeshSequence::new(
-        mesh,
-        vec![sphere.positions; n_frames],
-        intensities,
-        Some(times),
-    )?;
-    Ok(GroundTruth {
-        sequence,
-        flow: vec![truth; n_frames - 1],
-    })
+    let deform = |t: f64, v: &Vector3<f64>| stretch(strain * t, v);
+    let frames = times
+        .iter()
+        .map(|&t| sphere.positions.iter().map(|p| deform(t, p)).collect())
+        .collect();
+    let flow = times[..n_frames.saturating_sub(1)]
+        .iter()
+        .map(|&t| {
+            sphere
+                .positions
+                .iter()
+                .map(|p| deform(t, &axis.cross(p)))
+                .collect()
+        })
+        .collect();
+    let sequence = MeshSequence::new(mesh, frames, intensities, Some(times))?;
+    Ok(GroundTruth { sequence, flow })
 }
 
-/// Angular error between two R^3 flow vectors, with a 1 appended as a time component (Barron
-/// et al. 1994; the measure of Bauer, Grasmair & Kirisits): `acos((u·v + 1) / √((|u|²+1)(|v|²+1)))`.
-pub fn angular_error(u: &Vector3<f64>, v: &Vector3<f64>) -> f64 {
-    let cosine = (u.dot(v) + 1.0) / ((u.norm_squared() + 1.0) * (v.norm_squared() + 1.0)).sqrt();
-    cosine.clamp(-1.0, 1.0).acos()
-}
-
-/// Endpoint error `|u − v|`.
-pub fn endpoint_error(u: &Vector3<f64>, v: &Vector3<f64>) -> f64 {
-    (u - v).norm()
-}
-
-/// `Σ w_i e_i / Σ w_i`.
-pub fn weighted_mean(values: &[f64], weights: &[f64]) -> f64 {
-    values.iter().zip(weights).map(|(v, w)| v * w).sum::<f64>() / weights.iter().sum::<f64>()
+/// `diag(1 + e, 1, 1 / (1 + e)) v`: exactly `v` for `e = 0`.
+fn stretch(e: f64, v: &Vector3<f64>) -> Vector3<f64> {
+    Vector3::new((1.0 + e) * v.x, v.y, v.z / (1.0 + e))
 }
 
 /// The moving surface of Bauer, Grasmair & Kirisits' Experiment I on an `n1 × n2` periodic

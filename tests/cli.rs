@@ -3,6 +3,7 @@
 
 mod common;
 
+use meshflow::accuracy::compare_result;
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::fem;
 use meshflow::geometry::IntrinsicGeometry;
@@ -349,4 +350,240 @@ fn solve_checks_the_output_location_before_reading_anything() {
         "{stderr}"
     );
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}
+
+/// Point array `name` of a `.vtu` file, read back through vtkio.
+fn vtu_point_array(path: &Path, name: &str) -> Vec<f64> {
+    use vtkio::model::{Attribute, DataSet, IOBuffer, Piece};
+    let vtk = vtkio::Vtk::import(path).unwrap();
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        panic!("{}: not an UnstructuredGrid", path.display());
+    };
+    let Piece::Inline(piece) = &pieces[0] else {
+        panic!("piece not inline");
+    };
+    piece
+        .data
+        .point
+        .iter()
+        .find_map(|attribute| match attribute {
+            Attribute::DataArray(array) if array.name == name => match &array.data {
+                IOBuffer::F64(values) => Some(values.clone()),
+                other => panic!("'{name}' is not Float64: {other:?}"),
+            },
+            _ => None,
+        })
+        .unwrap_or_else(|| panic!("{}: no point array '{name}'", path.display()))
+}
+
+fn summary(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
+}
+
+/// `|a − b| ≤ tolerance · max(|b|, 1e-300)` for every pair.
+fn assert_close(a: &[f64], b: &[f64], tolerance: f64, what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}");
+    for (k, (x, y)) in a.iter().zip(b).enumerate() {
+        assert!(
+            (x - y).abs() <= tolerance * y.abs().max(1e-300),
+            "{what}[{k}]: {x} vs {y}"
+        );
+    }
+}
+
+fn json_f64(value: &serde_json::Value) -> f64 {
+    value
+        .as_f64()
+        .unwrap_or_else(|| panic!("not a number: {value}"))
+}
+
+#[test]
+fn solve_with_ground_truth_writes_the_library_errors() {
+    let out = tempfile::tempdir().unwrap();
+    let input = shipped("rotating_sphere");
+    let truth_file = Path::new(&input).join("ground_truth.npy");
+    let run = meshflow_ok(&[
+        "solve",
+        &input,
+        "--out",
+        out.path().to_str().unwrap(),
+        "--gamma",
+        "0.01",
+        "--ground-truth",
+        truth_file.to_str().unwrap(),
+    ]);
+
+    // The shipped file is the synthetic sequence's true flow ω ẑ × x, bitwise.
+    let synthetic = meshflow::synth::rotating_sphere(3, 6, 1.0, 0.05).unwrap();
+    let shipped_truth = read_npy(&truth_file).unwrap();
+    assert_eq!(shipped_truth.shape, vec![5, 642, 3]);
+    let values: Vec<f64> = synthetic
+        .flow
+        .iter()
+        .flatten()
+        .flat_map(|u| [u.x, u.y, u.z])
+        .collect();
+    assert_eq!(shipped_truth.data, values);
+
+    // The library on the same files, compared with the synthetic truth.
+    let sequence = meshflow::io::load_sequence(Path::new(&input), &Default::default())
+        .unwrap()
+        .sequence;
+    let params = meshflow::flow::FlowParams {
+        gamma: 0.01,
+        ..Default::default()
+    };
+    let flow = meshflow::flow::compute_flow(&sequence, &params).unwrap();
+    let expected = compare_result(&sequence, &flow, &synthetic.flow).unwrap();
+    assert!(expected.mean_angular_degrees > 0.1, "{expected:?}");
+
+    let reported = &summary(out.path())["ground_truth"];
+    assert_eq!(reported["file"], truth_file.to_str().unwrap());
+    let overall = [
+        ("mean_angular_error_degrees", expected.mean_angular_degrees),
+        ("mean_endpoint_error", expected.mean_endpoint),
+        ("max_angular_error_degrees", expected.max_angular_degrees),
+        ("max_endpoint_error", expected.max_endpoint),
+    ];
+    for (key, value) in overall {
+        assert_close(&[json_f64(&reported[key])], &[value], 1e-12, key);
+    }
+    let slabs = reported["slabs"].as_array().unwrap();
+    assert_eq!(slabs.len(), 5);
+    for (slab, errors) in slabs.iter().zip(&expected.slabs) {
+        let pairs = [
+            ("mean_angular_error_degrees", errors.mean_angular_degrees),
+            ("mean_endpoint_error", errors.mean_endpoint),
+            ("duration", errors.duration),
+            ("area", errors.area),
+        ];
+        for (key, value) in pairs {
+            assert_close(&[json_f64(&slab[key])], &[value], 1e-12, key);
+        }
+    }
+
+    for (name, per_vertex) in [
+        ("angular_error", &expected.angular_degrees),
+        ("endpoint_error", &expected.endpoint),
+    ] {
+        let array = read_npy(&out.path().join(format!("{name}.npy"))).unwrap();
+        assert_eq!(array.shape, vec![5, 642], "{name}");
+        assert_close(&array.data, &per_vertex.concat(), 1e-9, name);
+        let vtu = vtu_point_array(&out.path().join("flow_0003.vtu"), name);
+        assert_close(&vtu, &per_vertex[3], 1e-9, name);
+    }
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    let line = format!(
+        "ground truth: mean angular error {:.4}°, mean endpoint error {:.4e}",
+        expected.mean_angular_degrees, expected.mean_endpoint
+    );
+    assert!(stdout.contains(&line), "{line:?} not in {stdout}");
+}
+
+/// The shipped sample with a copy of vertex `copied` inserted as the files' vertex 0 and used
+/// by one face in place of the original: welding numbers the mesh vertices differently from
+/// the files.
+fn sample_with_duplicate(copied: usize) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    for k in 0..6 {
+        let name = format!("frame_{k}.obj");
+        let obj = read_obj(&Path::new(&shipped("rotating_sphere")).join(&name)).unwrap();
+        let mut positions = vec![obj.positions[copied]];
+        positions.extend(&obj.positions);
+        let mut colors = obj.colors.unwrap();
+        colors.insert(0, colors[copied]);
+        let mut faces: Vec<[u32; 3]> = obj.faces.iter().map(|f| f.map(|v| v + 1)).collect();
+        let user = obj
+            .faces
+            .iter()
+            .position(|f| f.contains(&(copied as u32)))
+            .unwrap();
+        faces[user] = faces[user].map(|v| if v == copied as u32 + 1 { 0 } else { v });
+        meshflow::io::write_obj(&dir.path().join(&name), &positions, &faces, Some(&colors))
+            .unwrap();
+    }
+    dir
+}
+
+#[test]
+fn ground_truth_is_mapped_through_the_welding() {
+    let copied = 5;
+    let input = sample_with_duplicate(copied);
+    // The shipped truth in the files' numbering: file vertex 0 is vertex `copied` again.
+    let truth = read_npy(
+        Path::new(&shipped("rotating_sphere"))
+            .join("ground_truth.npy")
+            .as_path(),
+    )
+    .unwrap();
+    let rows: Vec<&[f64]> = truth.data.chunks(3).collect();
+    let with_copy: Vec<f64> = rows
+        .chunks(642)
+        .flat_map(|slab| {
+            std::iter::once(slab[copied])
+                .chain(slab.iter().copied())
+                .flatten()
+                .copied()
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let truth_file = input.path().join("truth.npy");
+    meshflow::io::write_npy(&truth_file, &[5, 643, 3], &with_copy).unwrap();
+
+    let solve = |input: &str, truth: &str| {
+        let out = tempfile::tempdir().unwrap();
+        meshflow_ok(&[
+            "solve",
+            input,
+            "--out",
+            out.path().to_str().unwrap(),
+            "--gamma",
+            "0.01",
+            "--ground-truth",
+            truth,
+        ]);
+        out
+    };
+    let welded = solve(input.path().to_str().unwrap(), truth_file.to_str().unwrap());
+    let plain_truth = format!("{}/ground_truth.npy", shipped("rotating_sphere"));
+    let plain = solve(&shipped("rotating_sphere"), &plain_truth);
+
+    // Mesh vertex 0 is the copied vertex; 1..=copied are file vertices 1..=copied (originals
+    // 0..copied); the rest keep their original numbers.
+    let (welded_summary, plain_summary) = (summary(welded.path()), summary(plain.path()));
+    assert_eq!(welded_summary["welded_vertices"], 1);
+    for key in ["mean_angular_error_degrees", "mean_endpoint_error"] {
+        let (a, b) = (
+            json_f64(&welded_summary["ground_truth"][key]),
+            json_f64(&plain_summary["ground_truth"][key]),
+        );
+        assert_close(&[a], &[b], 1e-9, key);
+    }
+    let original = |w: usize| match w {
+        0 => copied,
+        w if w <= copied => w - 1,
+        w => w,
+    };
+    let welded_errors = read_npy(&welded.path().join("angular_error.npy")).unwrap();
+    let plain_errors = read_npy(&plain.path().join("angular_error.npy")).unwrap();
+    assert_eq!(welded_errors.shape, vec![5, 642]);
+    let permuted: Vec<f64> = (0..5)
+        .flat_map(|s| (0..642).map(move |w| (s, w)))
+        .map(|(s, w)| plain_errors.data[s * 642 + original(w)])
+        .collect();
+    assert_close(&welded_errors.data, &permuted, 1e-6, "angular_error");
+
+    // The two copies disagree: refused, naming both file vertices.
+    let mut broken = with_copy.clone();
+    broken[3 * (copied + 1)] += 1e-3;
+    meshflow::io::write_npy(&truth_file, &[5, 643, 3], &broken).unwrap();
+    let stderr = failing_solve(
+        input.path(),
+        &["--ground-truth", truth_file.to_str().unwrap()],
+    );
+    assert!(
+        stderr.contains("truth.npy")
+            && stderr.contains(&format!("file vertices 0 and {}", copied + 1)),
+        "{stderr}"
+    );
 }

@@ -165,3 +165,68 @@ fn failed_atomic_write_leaves_nothing_behind() {
         "no temporary file is left"
     );
 }
+
+#[test]
+fn ground_truth_is_float32_or_float64_and_lands_on_welded_vertices() {
+    use meshflow::io::{read_ground_truth, Welding};
+    let dir = tempfile::tempdir().unwrap();
+    // File vertex 3 is a copy of 0 in both frames: welded map [0, 1, 2, 0].
+    let points = vec![
+        Vector3::zeros(),
+        Vector3::x(),
+        Vector3::y(),
+        Vector3::zeros(),
+    ];
+    let welding = Welding::of_coincident(&[points.clone(), points]);
+    assert_eq!(welding.vertex_map, vec![0, 1, 2, 0]);
+    // (slabs 2, file vertices 4, 3); row 3 repeats row 0 in each slab.
+    let row = |s: usize, i: usize| {
+        let i = if i == 3 { 0 } else { i };
+        [0.1, 0.2, 0.3].map(|c| c * (1 + i + 10 * s) as f64)
+    };
+    let rows: Vec<f64> = (0..2)
+        .flat_map(|s| (0..4).flat_map(move |i| row(s, i)))
+        .collect();
+
+    let single: Vec<f32> = rows.iter().map(|&v| v as f32).collect();
+    let path = dir.path().join("truth32.npy");
+    write_npy(&path, &[2, 4, 3], &single).unwrap();
+    let truth = read_ground_truth(&path, &welding, 2).unwrap();
+    assert_eq!(truth.len(), 2);
+    for (s, slab) in truth.iter().enumerate() {
+        let expected: Vec<Vector3<f64>> = (0..3)
+            .map(|w| Vector3::from(row(s, w).map(|c| f64::from(c as f32))))
+            .collect();
+        assert_eq!(slab, &expected, "slab {s}");
+    }
+    // float32 data fails read_npy (float64 only), as before.
+    assert!(read_npy(&path)
+        .unwrap_err()
+        .to_string()
+        .contains("expected float64"));
+
+    // Copies may differ by round-off (1e-12 of the slab's largest speed), not by 1e-8.
+    let path = dir.path().join("truth64.npy");
+    let largest = Vector3::from(row(1, 2)).norm();
+    for (offset, accepted) in [(1e-12 * largest, true), (1e-8 * largest, false)] {
+        let mut shifted = rows.clone();
+        shifted[3 * (4 + 3)] += offset; // slab 1, file vertex 3, x
+        write_npy(&path, &[2, 4, 3], &shifted).unwrap();
+        let result = read_ground_truth(&path, &welding, 2);
+        assert_eq!(result.is_ok(), accepted, "{offset}: {result:?}");
+        if let Err(error) = result {
+            let message = error.to_string();
+            assert!(
+                message.contains("truth64.npy")
+                    && message.contains("slab 1: file vertices 0 and 3"),
+                "{message}"
+            );
+        }
+    }
+    // Three slabs expected: the shape is named.
+    write_npy(&path, &[2, 4, 3], &rows).unwrap();
+    let message = read_ground_truth(&path, &welding, 3)
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("expected (3, 4, 3)"), "{message}");
+}

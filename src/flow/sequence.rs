@@ -93,6 +93,23 @@ impl MeshSequence {
         &self.edge_lengths[k]
     }
 
+    /// The geometry of slab `s = [t_s, t_{s+1}]`: every edge length is the mean of its lengths
+    /// in frames `s` and `s + 1` (`docs/discretization.md` §3).
+    pub fn slab_geometry(&self, s: usize) -> Result<IntrinsicGeometry, FlowError> {
+        let mean = self.edge_lengths[s]
+            .iter()
+            .zip(&self.edge_lengths[s + 1])
+            .map(|(a, b)| 0.5 * (a + b))
+            .collect();
+        IntrinsicGeometry::new(&self.mesh, mean)
+            .map_err(|source| FlowError::Slab { slab: s, source })
+    }
+
+    /// `Δt_s = t_{s+1} − t_s`.
+    pub fn slab_duration(&self, s: usize) -> f64 {
+        self.times[s + 1] - self.times[s]
+    }
+
     pub fn intensities(&self, k: usize) -> &[f64] {
         &self.intensities[k]
     }

@@ -28,16 +28,9 @@ pub struct FaceElements {
 
 impl Slab {
     fn new(sequence: &MeshSequence, s: usize) -> Result<Self, FlowError> {
-        let mean: Vec<f64> = sequence
-            .edge_lengths(s)
-            .iter()
-            .zip(sequence.edge_lengths(s + 1))
-            .map(|(a, b)| 0.5 * (a + b))
-            .collect();
-        let geometry = IntrinsicGeometry::new(sequence.mesh(), mean)
-            .map_err(|source| FlowError::Slab { slab: s, source })?;
+        let geometry = sequence.slab_geometry(s)?;
         let connection = Connection::new(sequence.mesh(), &geometry);
-        let dt = sequence.times()[s + 1] - sequence.times()[s];
+        let dt = sequence.slab_duration(s);
         let (before, after) = (sequence.intensities(s), sequence.intensities(s + 1));
         Ok(Self {
             geometry,

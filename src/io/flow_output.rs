@@ -5,20 +5,22 @@
 //! | `flow.npy` | (S, V, 3) float64: R^3 flow vectors of slab `s` at the vertices of frame `s` |
 //! | `flow_intrinsic.npy` | (S, V, 2) float64: components in the vertex frames |
 //! | `vertex_map.npy` | (V_file,) int64: mesh vertex of each file vertex, when vertices were welded |
-//! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` with point data `flow`, `flow_intrinsic`, `speed`, `intensity`; the `.pvd` plays the slabs at their start times |
+//! | `angular_error.npy`, `endpoint_error.npy` | (S, V) float64, with a ground truth: per-vertex AE (degrees) and EPE ([`crate::accuracy`]) |
+//! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` with point data `flow`, `flow_intrinsic`, `speed`, `intensity` (and `angular_error`, `endpoint_error` with a ground truth); the `.pvd` plays the slabs at their start times |
 //! | `flow.glb` | the frames as a morph-target animation, coloured by the flow (Middlebury colour wheel of the intrinsic vectors, scaled by a robust maximum speed) |
-//! | `summary.json` | energy and its terms, residual, iterations, solver, sizes, parameters, input, timings |
+//! | `summary.json` | energy and its terms, residual, iterations, solver, sizes, parameters, input, timings; with a ground truth, `ground_truth`: its file, the space-time mean AE and EPE, the largest AE and EPE, and per slab the same |
 //!
 //! Slab `s` spans `[t_s, t_{s+1}]`; `S = K − 1` slabs for `K` frames.
 
 use super::gltf_write::{write_glb_animation, AnimationFrame};
 use super::vtk::{write_pvd, write_vtu, PointArray};
 use super::{write_atomically, write_npy, IoError, LoadedSequence, StagedDir};
+use crate::accuracy::FlowErrors;
 use crate::flow::{FlowParams, FlowResult, MeshSequence};
 use crate::render::color_wheel::{flow_colors, robust_max};
 use nalgebra::Vector3;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 /// The file groups [`write_flow_outputs`] can write; `summary.json` is always written.
@@ -49,15 +51,26 @@ impl FromStr for OutputFormat {
     }
 }
 
-/// Writes the outputs of `result` for `loaded` into `out` (see the module table).
+/// The computed flow measured against a known one, written with the outputs.
+#[derive(Clone, Debug)]
+pub struct GroundTruthReport {
+    /// Where the true flow came from.
+    pub file: PathBuf,
+    pub errors: FlowErrors,
+}
+
+/// Writes the outputs of `result` for `loaded` into `out` (see the module table), with the
+/// errors against a ground truth when there is one.
 pub fn write_flow_outputs(
     out: &StagedDir,
     loaded: &LoadedSequence,
     params: &FlowParams,
     result: &FlowResult,
     formats: &[OutputFormat],
+    ground_truth: Option<&GroundTruthReport>,
 ) -> Result<(), IoError> {
-    write_all(out.path(), loaded, params, result, formats).map_err(|e| out.in_target(e))
+    write_all(out.path(), loaded, params, result, formats, ground_truth)
+        .map_err(|e| out.in_target(e))
 }
 
 fn write_all(
@@ -66,20 +79,25 @@ fn write_all(
     params: &FlowParams,
     result: &FlowResult,
     formats: &[OutputFormat],
+    ground_truth: Option<&GroundTruthReport>,
 ) -> Result<(), IoError> {
     let sequence = &loaded.sequence;
+    let errors = ground_truth.map(|g| &g.errors);
     if formats.contains(&OutputFormat::Npy) {
         write_flow_npy(dir, loaded, result)?;
+        if let Some(errors) = errors {
+            write_error_npy(dir, errors)?;
+        }
     }
     if let Some(vectors) = &result.vectors {
         if formats.contains(&OutputFormat::Vtu) {
-            write_flow_vtk(dir, sequence, result, vectors)?;
+            write_flow_vtk(dir, sequence, result, vectors, errors)?;
         }
         if formats.contains(&OutputFormat::Glb) {
             write_flow_glb(&dir.join("flow.glb"), sequence, result)?;
         }
     }
-    let summary = summary_json(loaded, params, result);
+    let summary = summary_json(loaded, params, result, ground_truth);
     write_atomically(&dir.join("summary.json"), |w| {
         serde_json::to_writer_pretty(&mut *w, &summary).map_err(std::io::Error::other)?;
         writeln!(w)
@@ -113,6 +131,21 @@ fn write_flow_npy(dir: &Path, loaded: &LoadedSequence, result: &FlowResult) -> R
     Ok(())
 }
 
+/// `angular_error.npy` and `endpoint_error.npy`, (S, V).
+fn write_error_npy(dir: &Path, errors: &FlowErrors) -> Result<(), IoError> {
+    for (name, values) in [
+        ("angular_error.npy", &errors.angular_degrees),
+        ("endpoint_error.npy", &errors.endpoint),
+    ] {
+        let shape = [
+            values.len() as u64,
+            values.first().map_or(0, Vec::len) as u64,
+        ];
+        write_npy(&dir.join(name), &shape, &values.concat())?;
+    }
+    Ok(())
+}
+
 fn flatten3<'a>(vectors: impl Iterator<Item = &'a Vector3<f64>>) -> Vec<f64> {
     vectors.flat_map(|u| [u.x, u.y, u.z]).collect()
 }
@@ -123,6 +156,7 @@ fn write_flow_vtk(
     sequence: &MeshSequence,
     result: &FlowResult,
     vectors: &[Vec<Vector3<f64>>],
+    errors: Option<&FlowErrors>,
 ) -> Result<(), IoError> {
     let faces = sequence.mesh().faces();
     let mut datasets = Vec::with_capacity(vectors.len());
@@ -133,7 +167,7 @@ fn write_flow_vtk(
         let flow = flatten3(slab_vectors.iter());
         let flow_intrinsic: Vec<f64> = intrinsic.iter().flat_map(|u| [u.x, u.y]).collect();
         let speed: Vec<f64> = slab_vectors.iter().map(|u| u.norm()).collect();
-        let point_data = [
+        let mut point_data = vec![
             PointArray {
                 name: "flow",
                 components: 3,
@@ -155,6 +189,20 @@ fn write_flow_vtk(
                 values: sequence.intensities(s),
             },
         ];
+        if let Some(errors) = errors {
+            point_data.extend([
+                PointArray {
+                    name: "angular_error",
+                    components: 1,
+                    values: &errors.angular_degrees[s],
+                },
+                PointArray {
+                    name: "endpoint_error",
+                    components: 1,
+                    values: &errors.endpoint[s],
+                },
+            ]);
+        }
         let name = format!("flow_{s:04}.vtu");
         write_vtu(&dir.join(&name), positions, faces, &point_data)?;
         datasets.push((sequence.times()[s], name));
@@ -196,6 +244,7 @@ pub fn summary_json(
     loaded: &LoadedSequence,
     params: &FlowParams,
     result: &FlowResult,
+    ground_truth: Option<&GroundTruthReport>,
 ) -> serde_json::Value {
     let sequence = &loaded.sequence;
     let speeds: Vec<f64> = match &result.vectors {
@@ -213,7 +262,7 @@ pub fn summary_json(
         .iter()
         .map(|f| f.to_string_lossy().into_owned())
         .collect();
-    serde_json::json!({
+    let mut summary = serde_json::json!({
         "input": loaded.source.describe(),
         "input_files": files,
         "welded_vertices": loaded.welding.n_welded(),
@@ -232,6 +281,37 @@ pub fn summary_json(
         "max_speed": speeds.iter().cloned().fold(0.0, f64::max),
         "params": params_json(params),
         "seconds": result.timings,
+    });
+    if let Some(ground_truth) = ground_truth {
+        summary["ground_truth"] = ground_truth_json(ground_truth);
+    }
+    summary
+}
+
+/// The means (space-time, area-weighted) and maxima of the errors, overall and per slab.
+fn ground_truth_json(ground_truth: &GroundTruthReport) -> serde_json::Value {
+    let errors = &ground_truth.errors;
+    let slabs: Vec<serde_json::Value> = errors
+        .slabs
+        .iter()
+        .map(|slab| {
+            serde_json::json!({
+                "duration": slab.duration,
+                "area": slab.area,
+                "mean_angular_error_degrees": slab.mean_angular_degrees,
+                "mean_endpoint_error": slab.mean_endpoint,
+                "max_angular_error_degrees": slab.max_angular_degrees,
+                "max_endpoint_error": slab.max_endpoint,
+            })
+        })
+        .collect();
+    serde_json::json!({
+        "file": ground_truth.file.to_string_lossy(),
+        "mean_angular_error_degrees": errors.mean_angular_degrees,
+        "mean_endpoint_error": errors.mean_endpoint,
+        "max_angular_error_degrees": errors.max_angular_degrees,
+        "max_endpoint_error": errors.max_endpoint,
+        "slabs": slabs,
     })
 }
 

@@ -1,7 +1,8 @@
 //! Reading and writing files.
 //!
 //! In: mesh sequences as OBJ, PLY or glTF frames, one glTF morph animation, or NPY arrays
-//! ([`load_sequence`]); OBJ meshes for single-mesh commands. Out: the flow as NPY, ParaView
+//! ([`load_sequence`]); a known flow to compare with ([`read_ground_truth`]); OBJ meshes for
+//! single-mesh commands. Out: the flow (and its errors against a known one) as NPY, ParaView
 //! VTU/PVD and glTF ([`write_flow_outputs`]), operators as MatrixMarket.
 //!
 //! Every writer goes through [`write_atomically`]: the bytes land in a temporary file next to the
@@ -12,6 +13,7 @@ mod atomic;
 mod flow_output;
 mod frame;
 mod glb;
+mod ground_truth;
 pub mod gltf_read;
 pub mod gltf_write;
 mod input;
@@ -26,12 +28,13 @@ pub mod vtk;
 mod weld;
 
 pub use atomic::{write_atomically, StagedDir};
-pub use flow_output::{summary_json, write_flow_outputs, OutputFormat};
+pub use flow_output::{summary_json, write_flow_outputs, GroundTruthReport, OutputFormat};
 pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use input::{FrameFormat, SequenceSource};
 pub use mtl::{texture_intensity, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};
-pub use npy::{read_npy, read_npy_indices, write_npy, NpyArray};
+pub use ground_truth::read_ground_truth;
+pub use npy::{read_npy, read_npy_float, read_npy_indices, write_npy, NpyArray};
 pub use obj::{read_obj, write_obj, ObjMesh};
 pub use sequence::{load_sequence, natural_order, read_mesh, LoadOptions, LoadedSequence};
 pub use texture::Texture;

@@ -1,4 +1,4 @@
-//! NumPy `.npy` arrays through npyz: float64 data, integer index arrays.
+//! NumPy `.npy` arrays through npyz: float64 (or float32) data, integer index arrays.
 
 use super::{write_atomically, IoError};
 use npyz::WriterBuilder;
@@ -42,17 +42,33 @@ pub fn write_npy<T: npyz::AutoSerialize + Copy>(
 /// Reads a float64 `.npy` file in C order (either byte order), checking that the header's shape
 /// matches the data actually present before allocating for it.
 pub fn read_npy(path: &Path) -> Result<NpyArray, IoError> {
+    read_floats(path, &[8], "float64")
+}
+
+/// Reads a float32 or float64 `.npy` file like [`read_npy`]; float32 values are widened to
+/// f64 exactly.
+pub fn read_npy_float(path: &Path) -> Result<NpyArray, IoError> {
+    read_floats(path, &[4, 8], "float32 or float64")
+}
+
+/// A float `.npy` whose item size (bytes) is one of `sizes`, described as `expected`.
+fn read_floats(path: &Path, sizes: &[u64], expected: &str) -> Result<NpyArray, IoError> {
     let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
     let file = open_npy(
         path,
         &bytes,
-        |t| t.type_char() == npyz::TypeChar::Float && t.size_field() == 8,
-        "float64",
+        |t| t.type_char() == npyz::TypeChar::Float && sizes.contains(&t.size_field()),
+        expected,
     )?;
     let shape = file.shape().to_vec();
-    let data = file
-        .into_vec::<f64>()
-        .map_err(|e| IoError::format(path, format!("truncated or corrupt data ({e})")))?;
+    let single = matches!(file.dtype(), npyz::DType::Plain(t) if t.size_field() == 4);
+    let data = match single {
+        true => file
+            .into_vec::<f32>()
+            .map(|values| values.into_iter().map(f64::from).collect()),
+        false => file.into_vec::<f64>(),
+    }
+    .map_err(|e| IoError::format(path, format!("truncated or corrupt data ({e})")))?;
     Ok(NpyArray { shape, data })
 }
 
