@@ -84,20 +84,25 @@ fn sample() -> Sample {
     }
 }
 
+impl Sample {
+    fn point_arrays(&self) -> Vec<PointArray<'_>> {
+        vec![
+            PointArray {
+                name: "flow",
+                components: 3,
+                values: &self.flow,
+            },
+            PointArray {
+                name: "intensity",
+                components: 1,
+                values: &self.intensity,
+            },
+        ]
+    }
+}
+
 fn write_sample(path: &Path, s: &Sample) {
-    let point_data = [
-        PointArray {
-            name: "flow",
-            components: 3,
-            values: &s.flow,
-        },
-        PointArray {
-            name: "intensity",
-            components: 1,
-            values: &s.intensity,
-        },
-    ];
-    write_vtu(path, &s.positions, &s.faces, &point_data).unwrap();
+    write_vtu(path, &s.positions, &s.faces, &s.point_arrays()).unwrap();
 }
 
 #[test]
@@ -150,27 +155,14 @@ fn vtu_reads_back_bit_exact_through_vtkio() {
     let path = dir.path().join("sphere.vtu");
     let s = sample();
     write_sample(&path, &s);
-    let vtk = vtkio::Vtk::import(&path).unwrap();
-    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
-        panic!("not an UnstructuredGrid: {:?}", vtk.data);
-    };
-    assert_eq!(pieces.len(), 1);
-    let Piece::Inline(piece) = &pieces[0] else {
-        panic!("piece not inline");
-    };
+    let piece = vtkio_piece(&path);
     let IOBuffer::F64(points) = &piece.points else {
         panic!("points are not Float64: {:?}", piece.points);
     };
     let expected: Vec<f64> = s.positions.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
     assert_eq!(bits(points), bits(&expected));
 
-    let VertexNumbers::XML {
-        connectivity,
-        offsets,
-    } = &piece.cells.cell_verts
-    else {
-        panic!("cells not in XML form");
-    };
+    let (connectivity, offsets) = xml_cells(&piece);
     let expected: Vec<u64> = s.faces.iter().flatten().map(|&v| v.into()).collect();
     assert_eq!(connectivity, &expected);
     let expected: Vec<u64> = (1..=s.faces.len() as u64).map(|k| 3 * k).collect();
@@ -324,28 +316,19 @@ fn vtu_round_trip_is_bit_exact() {
     let tensor: Vec<f64> = (0..9 * s.positions.len())
         .map(|k| 1.0 / (k as f64 - 100.5))
         .collect();
-    let point_data = [
-        PointArray {
-            name: "flow",
-            components: 3,
-            values: &s.flow,
-        },
+    let mut point_data = s.point_arrays();
+    point_data.extend([
         PointArray {
             name: "flow_intrinsic",
             components: 2,
             values: &tangent,
         },
         PointArray {
-            name: "intensity",
-            components: 1,
-            values: &s.intensity,
-        },
-        PointArray {
             name: "tensor & <more>",
             components: 9,
             values: &tensor,
         },
-    ];
+    ]);
     write_vtu(&path, &s.positions, &s.faces, &point_data).unwrap();
     let mesh = read_vtu(&path).unwrap();
     assert_eq!(point_bits(&mesh.points), point_bits(&s.positions));
@@ -421,15 +404,21 @@ fn io_buffer_f64(buffer: &IOBuffer) -> Vec<f64> {
     }
 }
 
-/// The single inline piece vtkio reads from `path`, its numbers converted to f64.
-fn vtkio_mesh(path: &Path) -> VtuMesh {
+/// The single inline piece of the UnstructuredGrid vtkio reads from `path`.
+fn vtkio_piece(path: &Path) -> UnstructuredGridPiece {
     let vtk = Vtk::import(path).unwrap();
-    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
-        panic!("not an UnstructuredGrid");
+    let DataSet::UnstructuredGrid { mut pieces, .. } = vtk.data else {
+        panic!("not an UnstructuredGrid: {:?}", vtk.data);
     };
-    let Piece::Inline(piece) = &pieces[0] else {
+    assert_eq!(pieces.len(), 1);
+    let Some(Piece::Inline(piece)) = pieces.pop() else {
         panic!("piece not inline");
     };
+    *piece
+}
+
+/// Connectivity and offsets of a piece's cells.
+fn xml_cells(piece: &UnstructuredGridPiece) -> (&Vec<u64>, &Vec<u64>) {
     let VertexNumbers::XML {
         connectivity,
         offsets,
@@ -437,6 +426,13 @@ fn vtkio_mesh(path: &Path) -> VtuMesh {
     else {
         panic!("cells not in XML form");
     };
+    (connectivity, offsets)
+}
+
+/// The piece vtkio reads from `path`, its numbers converted to f64.
+fn vtkio_mesh(path: &Path) -> VtuMesh {
+    let piece = vtkio_piece(path);
+    let (connectivity, offsets) = xml_cells(&piece);
     assert_eq!(offsets.len(), connectivity.len() / 3);
     let point_data = piece
         .data
