@@ -3,39 +3,13 @@
 
 mod common;
 
+use common::{meshflow, meshflow_ok, shipped};
 use meshflow::accuracy::compare_result;
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::fem;
 use meshflow::geometry::IntrinsicGeometry;
 use meshflow::io::{read_matrix_market, read_npy, read_obj};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn meshflow(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_meshflow"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-/// Runs the binary and asserts that it succeeded.
-fn meshflow_ok(args: &[&str]) -> Output {
-    let run = meshflow(args);
-    assert!(
-        run.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    run
-}
-
-fn shipped(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("meshes")
-        .join(name)
-        .to_string_lossy()
-        .into_owned()
-}
 
 #[test]
 fn operators_command_writes_the_library_operators() {

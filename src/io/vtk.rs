@@ -22,6 +22,37 @@
 //!
 //! `.pvd`: `<VTKFile type="Collection">` listing `<DataSet timestep="t" part="0" file="…"/>`, times
 //! in Rust's shortest round-trip form.
+//!
+//! # Reading
+//!
+//! [`read_vtu`] reads this layout back bit for bit, and the same structure as other writers
+//! (VTK, vtkio, meshio) produce it uncompressed:
+//!
+//! - `<VTKFile type="UnstructuredGrid">` with `byte_order` LittleEndian (default) or BigEndian
+//!   and `header_type` UInt32 (default, as in version 0.1 files) or UInt64; one `<Piece>`.
+//! - Arrays `format="binary"` (the header may also be base64-encoded on its own, then the
+//!   data; whitespace inside the base64 is ignored) or `format="ascii"`, of types Int8 … Int64,
+//!   UInt8 … UInt64, Float32, Float64. Points and point data become f64; connectivity, offsets
+//!   and types must have an integer type. ASCII numbers are parsed as their declared type.
+//! - Cells: triangles only, i.e. every type 5 and offsets 3, 6, 9, … (the end of each cell, as
+//!   above); connectivity entries must name points of the piece.
+//! - `<PointData>`: every `DataArray`, named, `NumberOfPoints` tuples each; `<CellData>` and
+//!   `<FieldData>` are ignored.
+//!
+//! Compressed files (a `compressor` attribute) and appended data (`format="appended"`,
+//! `<AppendedData>`) are refused with an error: meshflow reads the files it writes. Every size
+//! is checked against the data present before anything is allocated for it (a byte-count header
+//! against the decoded bytes, the bytes against `NumberOfPoints` × components), so malformed
+//! files give an [`IoError`] naming the file, line, array and cell, never a panic.
+//!
+//! [`read_pvd`] returns each `<DataSet>`'s `timestep` and `file`, the file resolved against the
+//! `.pvd`'s directory, in order of time.
+
+mod data_array;
+mod read;
+mod tree;
+
+pub use read::{read_pvd, read_vtu, NamedArray, VtuMesh};
 
 use super::{write_atomically, IoError};
 use base64::engine::general_purpose::STANDARD;

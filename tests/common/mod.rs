@@ -1,5 +1,6 @@
 //! Helpers shared by the integration tests: dense views of sparse operators and eigen solvers
-//! that are independent of the code under test (nalgebra dense, faer sparse Cholesky).
+//! that are independent of the code under test (nalgebra dense, faer sparse Cholesky), and
+//! running the `meshflow` binary on the shipped meshes.
 #![allow(dead_code)]
 
 use faer::linalg::solvers::Solve;
@@ -8,6 +9,36 @@ use faer::{Mat, Side};
 use meshflow::fem::SparseMatrix;
 use meshflow::shapes::{grid, Surface};
 use nalgebra::{DMatrix, Rotation3, Vector3};
+use std::path::Path;
+use std::process::{Command, Output};
+
+/// Runs the `meshflow` binary with `args`.
+pub fn meshflow(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_meshflow"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// Runs the binary and asserts that it succeeded.
+pub fn meshflow_ok(args: &[&str]) -> Output {
+    let run = meshflow(args);
+    assert!(
+        run.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    run
+}
+
+/// The path of a file or directory under `meshes/`.
+pub fn shipped(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("meshes")
+        .join(name)
+        .to_string_lossy()
+        .into_owned()
+}
 
 pub fn dense(a: &SparseMatrix) -> DMatrix<f64> {
     let mut out = DMatrix::zeros(a.nrows(), a.ncols());
