@@ -62,6 +62,8 @@ pub enum Error {
     Io(#[from] io::IoError),
     #[error(transparent)]
     Flow(#[from] flow::FlowError),
+    #[error(transparent)]
+    Render(#[from] render::RenderError),
     /// An error in the contents of a file, with the file's name.
     #[error("{}: {source}", path.display())]
     InFile { path: PathBuf, source: Box<Error> },
