@@ -69,6 +69,8 @@ pub enum Error {
     Accuracy(#[from] accuracy::AccuracyError),
     #[error(transparent)]
     Chart(#[from] chart::ChartError),
+    #[error(transparent)]
+    Render(#[from] render::RenderError),
     /// An error in the contents of a file, with the file's name.
     #[error("{}: {source}", path.display())]
     InFile { path: PathBuf, source: Box<Error> },

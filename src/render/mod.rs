@@ -1,3 +1,71 @@
-//! Pictures of flows: colour coding of tangent vectors.
+//! Pictures of surfaces and flows, drawn headless into PNG images.
+//!
+//! # The math
+//!
+//! *Projection* ([`camera`]): a pinhole camera with frame right `r`, down `d`, forward `f`
+//! maps a point with camera coordinates `(x, y, z)` to pixel `(W/2 + F x/z, H/2 + F y/z)`,
+//! `F = (H/2)/tan(φ/2)` for the vertical field of view `φ`; `z` is the depth.
+//!
+//! *Visibility* ([`raster`]): a z-buffer rasterizer. Every triangle is scanned over the samples
+//! its projection covers (exact integer edge functions, top-left fill rule), and a sample keeps
+//! the nearest surface. O(samples + triangles), exact per-sample depth, no acceleration
+//! structure to build per frame of a deforming mesh, which is why it is used rather than ray
+//! casting.
+//!
+//! *Interpolation*: with screen barycentric coordinates `λ_i` and vertex depths `w_i`, vertex
+//! attributes (colours, normals) are interpolated perspective-correctly,
+//! `attr = Σ λ_i a_i / w_i / Σ λ_i / w_i`, the same as interpolating over the triangle in R³.
+//!
+//! *Shading* ([`shading`]): Lambert with a light fixed to the camera,
+//! `colour · (ambient + diffuse · |n · l|)`, two-sided, with area-weighted vertex normals.
+//!
+//! *Antialiasing*: everything, surface and overlays alike, is drawn at `s × s` samples per
+//! pixel (`s = 3` by default) and box-filtered down.
+//!
+//! # Conventions
+//!
+//! - Pixel `(i, j)` has its centre at `(i + ½, j + ½)`; x grows to the right, **y downward**.
+//! - [`Camera::screen_components`] of a tangent vector `v` is `(v · right, v · down)`, exactly
+//!   the Middlebury `(u, v)` of [`color_wheel`]: on a flow picture red moves right on the
+//!   screen, yellow-orange down, cyan-blue left, violet up, and the legend disc's rim is the
+//!   flow scale.
+//! - Colours are RGB in `[0, 1]`, written without gamma; the background is white;
+//!   non-finite values are drawn black.
+//!
+//! # Example
+//!
+//! ```
+//! use meshflow::render::{flow_picture, Camera, PictureStyle, Surface, View};
+//! use nalgebra::Vector3;
+//!
+//! let sphere = meshflow::shapes::icosphere(3);
+//! // Turning about +z: u = ẑ × x.
+//! let flow: Vec<Vector3<f64>> = sphere.positions.iter().map(|p| Vector3::z().cross(p)).collect();
+//! let camera = Camera::framing(&sphere.positions, View::default(), 320, 240);
+//! let surface = Surface::from(&sphere);
+//! let style = PictureStyle { label: Some("t = 0".into()), ..PictureStyle::default() };
+//! let image = flow_picture(&camera, surface, &flow, 1.0, &style)?;
+//! assert_eq!(image.dimensions(), (320, 240));
+//! // meshflow::render::write_png(std::path::Path::new("flow.png"), &image)?;
+//! # Ok::<(), meshflow::Error>(())
+//! ```
 
+pub mod camera;
 pub mod color_wheel;
+pub mod colormap;
+mod error;
+pub mod figure;
+pub mod glyphs;
+pub mod legend;
+pub mod raster;
+pub mod shading;
+pub mod text;
+
+pub use camera::{Camera, View};
+pub use error::RenderError;
+pub use figure::{
+    arrow_picture, chart_picture, flow_picture, grey_picture, scalar_picture, write_png,
+    PictureStyle, Surface,
+};
+pub use raster::Canvas;
+pub use shading::Lighting;

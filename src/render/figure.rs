@@ -1,0 +1,277 @@
+//! Whole pictures of a surface and data on it, as the CLI and the examples draw them.
+//!
+//! Each picture draws the surface with one colour per vertex (interpolated perspective-
+//! correctly and Lambert-shaded, see [`super::raster`]), adds its key, the optional label line
+//! in the top-left, and downsamples:
+//!
+//! | picture | vertex colour | key |
+//! |---|---|---|
+//! | [`grey_picture`] | `grey(I_i)` over the range | – |
+//! | [`flow_picture`] | `flow_color(screen_components(u_i) / scale)` | colour wheel, rim = `scale` |
+//! | [`arrow_picture`] | `grey(I_i)`, plus arrows of `u_i` | reference arrow of length `scale` |
+//! | [`scalar_picture`] | `viridis(v_i)` over the range | colour bar with min and max |
+//!
+//! Arrays must have one entry per vertex, faces must name existing vertices, scales must be
+//! positive and ranges finite with `min ≤ max`, or a [`RenderError`] says which is wrong.
+//! Non-finite values are drawn black, non-finite positions leave out their faces.
+//! [`chart_picture`] shows per-vertex colours of a parameter grid flat, without a camera.
+
+use super::camera::{Camera, MAX_IMAGE_SIDE};
+use super::color_wheel::flow_color;
+use super::colormap::{grey, viridis};
+use super::error::{check_count, check_positive};
+use super::glyphs::{draw_arrows, reference_arrow_length, ArrowStyle};
+use super::legend::{draw_arrow_key, draw_colour_bar, draw_title, draw_wheel_legend};
+use super::raster::{Canvas, DEFAULT_SUPERSAMPLE};
+use super::shading::Lighting;
+use super::RenderError;
+use crate::io::{write_atomically, IoError};
+use image::codecs::png::PngEncoder;
+use image::RgbImage;
+use nalgebra::Vector3;
+use std::io::Write;
+use std::path::Path;
+
+/// A surface to draw: positions and counter-clockwise (or any) triangles indexing them.
+#[derive(Clone, Copy, Debug)]
+pub struct Surface<'a> {
+    pub positions: &'a [Vector3<f64>],
+    pub faces: &'a [[u32; 3]],
+}
+
+impl<'a> From<&'a crate::shapes::Surface> for Surface<'a> {
+    fn from(surface: &'a crate::shapes::Surface) -> Self {
+        Self {
+            positions: &surface.positions,
+            faces: &surface.faces,
+        }
+    }
+}
+
+/// How pictures are drawn.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PictureStyle {
+    /// Samples per pixel along each axis (antialiasing), 1 to 8 (lowered for huge pictures,
+    /// see [`Canvas::new`]).
+    pub supersample: u32,
+    pub lighting: Lighting,
+    /// Distance between arrows in output pixels.
+    pub arrow_spacing: f64,
+    /// A line written in the top-left corner, e.g. `slab 3  t = 0.30`.
+    pub label: Option<String>,
+}
+
+impl Default for PictureStyle {
+    /// Supersample 3, the default light, arrows 28 pixels apart, no label.
+    fn default() -> Self {
+        Self {
+            supersample: DEFAULT_SUPERSAMPLE,
+            lighting: Lighting::default(),
+            arrow_spacing: ArrowStyle::default().spacing,
+            label: None,
+        }
+    }
+}
+
+impl PictureStyle {
+    fn arrows(&self) -> ArrowStyle {
+        ArrowStyle {
+            spacing: self.arrow_spacing,
+            ..ArrowStyle::default()
+        }
+    }
+}
+
+/// The surface shaded in grey: `intensity` (one per vertex) mapped over `range` = (black,
+/// white).
+pub fn grey_picture(
+    camera: &Camera,
+    surface: Surface,
+    intensity: &[f64],
+    range: (f64, f64),
+    style: &PictureStyle,
+) -> Result<RgbImage, RenderError> {
+    let canvas = grey_surface(camera, surface, intensity, range, style)?;
+    Ok(finish(canvas, style))
+}
+
+/// The flow coloured by the Middlebury wheel in screen directions: vertex `i` gets
+/// `flow_color(screen_components(u_i) / scale)`, so red moves right on the screen; with the
+/// wheel legend (rim = `scale`) in the bottom-right corner.
+pub fn flow_picture(
+    camera: &Camera,
+    surface: Surface,
+    flow: &[Vector3<f64>],
+    scale: f64,
+    style: &PictureStyle,
+) -> Result<RgbImage, RenderError> {
+    check_count("flow vectors", surface.positions.len(), flow.len())?;
+    check_positive("flow scale", scale)?;
+    let colours: Vec<[f64; 3]> = flow
+        .iter()
+        .map(|u| {
+            let [x, y] = camera.screen_components(u);
+            flow_color(x / scale, y / scale)
+        })
+        .collect();
+    let mut canvas = shaded_surface(camera, surface, &colours, style)?;
+    draw_wheel_legend(&mut canvas, scale);
+    Ok(finish(canvas, style))
+}
+
+/// The grey surface (as [`grey_picture`]) with arrows of the flow on visible vertices about
+/// `style.arrow_spacing` pixels apart; a vector of length `scale` is `0.9 · spacing` pixels
+/// long at the target's depth, as the reference arrow in the bottom-right corner shows.
+pub fn arrow_picture(
+    camera: &Camera,
+    surface: Surface,
+    intensity: &[f64],
+    range: (f64, f64),
+    flow: &[Vector3<f64>],
+    scale: f64,
+    style: &PictureStyle,
+) -> Result<RgbImage, RenderError> {
+    let arrows = style.arrows();
+    check_count("flow vectors", surface.positions.len(), flow.len())?;
+    check_positive("flow scale", scale)?;
+    check_positive("arrow spacing", arrows.spacing)?;
+    let mut canvas = grey_surface(camera, surface, intensity, range, style)?;
+    draw_arrows(
+        &mut canvas,
+        camera,
+        surface.positions,
+        surface.faces,
+        flow,
+        scale,
+        &arrows,
+    )?;
+    draw_arrow_key(&mut canvas, scale, reference_arrow_length(&arrows), &arrows);
+    Ok(finish(canvas, style))
+}
+
+/// The surface coloured by `values` (one per vertex, e.g. angular errors in degrees) with
+/// viridis over `range`, and a colour bar labelled with the range's ends. Shading darkens the
+/// colours away from the light; [`Lighting::unlit`] keeps them exactly as on the bar.
+pub fn scalar_picture(
+    camera: &Camera,
+    surface: Surface,
+    values: &[f64],
+    range: (f64, f64),
+    style: &PictureStyle,
+) -> Result<RgbImage, RenderError> {
+    let mut canvas = mapped_surface(camera, surface, ("values", values), range, viridis, style)?;
+    draw_colour_bar(&mut canvas, range, |v| viridis(v, range.0, range.1));
+    Ok(finish(canvas, style))
+}
+
+/// A parameter grid shown flat: vertex `r · cols + c` is the `pixel_size × pixel_size` block
+/// at row `r` (row 0 at the top) and column `c`. Non-finite colours are black.
+pub fn chart_picture(
+    rows: usize,
+    cols: usize,
+    colors: &[[f64; 3]],
+    pixel_size: u32,
+) -> Result<RgbImage, RenderError> {
+    let side = |cells: usize| {
+        (cells as u64)
+            .checked_mul(pixel_size as u64)
+            .filter(|&pixels| (1..=MAX_IMAGE_SIDE as u64).contains(&pixels))
+            .ok_or_else(|| RenderError::Size {
+                reason: format!(
+                    "a {rows} × {cols} chart with {pixel_size}-pixel blocks must be between 1 and {MAX_IMAGE_SIDE} pixels a side"
+                ),
+            })
+    };
+    let (width, height) = (side(cols)?, side(rows)?);
+    check_count("chart colours", rows * cols, colors.len())?;
+    let block = pixel_size as usize;
+    Ok(RgbImage::from_fn(width as u32, height as u32, |x, y| {
+        let colour = colors[(y as usize / block) * cols + x as usize / block];
+        image::Rgb(if colour.iter().all(|c| c.is_finite()) {
+            colour.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8)
+        } else {
+            [0; 3]
+        })
+    }))
+}
+
+/// Writes `image` as a PNG file: encoded in memory, then written atomically.
+pub fn write_png(path: &Path, image: &RgbImage) -> Result<(), IoError> {
+    let mut bytes = Vec::new();
+    image
+        .write_with_encoder(PngEncoder::new(&mut bytes))
+        .map_err(|e| IoError::format(path, format!("PNG encoding failed: {e}")))?;
+    write_atomically(path, |writer| writer.write_all(&bytes))
+}
+
+/// A finite range with `min ≤ max`.
+fn check_range((min, max): (f64, f64)) -> Result<(), RenderError> {
+    if min.is_finite() && max.is_finite() && min <= max {
+        Ok(())
+    } else {
+        Err(RenderError::Range { min, max })
+    }
+}
+
+/// The canvas with the surface drawn in grey values.
+fn grey_surface(
+    camera: &Camera,
+    surface: Surface,
+    intensity: &[f64],
+    range: (f64, f64),
+    style: &PictureStyle,
+) -> Result<Canvas, RenderError> {
+    mapped_surface(
+        camera,
+        surface,
+        ("grey values", intensity),
+        range,
+        grey,
+        style,
+    )
+}
+
+/// The canvas with the surface drawn in the colours `colormap(value, min, max)` of the named
+/// per-vertex values.
+fn mapped_surface(
+    camera: &Camera,
+    surface: Surface,
+    (what, values): (&'static str, &[f64]),
+    range: (f64, f64),
+    colormap: fn(f64, f64, f64) -> [f64; 3],
+    style: &PictureStyle,
+) -> Result<Canvas, RenderError> {
+    check_range(range)?;
+    check_count(what, surface.positions.len(), values.len())?;
+    let colours: Vec<[f64; 3]> = values
+        .iter()
+        .map(|&v| colormap(v, range.0, range.1))
+        .collect();
+    shaded_surface(camera, surface, &colours, style)
+}
+
+/// A canvas of the camera's size with the surface drawn in the vertex colours.
+fn shaded_surface(
+    camera: &Camera,
+    surface: Surface,
+    colours: &[[f64; 3]],
+    style: &PictureStyle,
+) -> Result<Canvas, RenderError> {
+    let mut canvas = Canvas::for_camera(camera, style.supersample);
+    canvas.draw_mesh(
+        camera,
+        surface.positions,
+        surface.faces,
+        colours,
+        &style.lighting,
+    )?;
+    Ok(canvas)
+}
+
+/// Writes the label line, if any, and downsamples.
+fn finish(mut canvas: Canvas, style: &PictureStyle) -> RgbImage {
+    if let Some(label) = &style.label {
+        draw_title(&mut canvas, label);
+    }
+    canvas.finish()
+}

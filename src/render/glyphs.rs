@@ -1,0 +1,210 @@
+//! Arrow glyphs for tangent vector fields, on a subsample of the vertices chosen evenly on the
+//! screen.
+//!
+//! # Which vertices
+//!
+//! A vertex takes part when it projects into the picture, *faces the camera* — its unit
+//! area-weighted normal `n` has `|n · e| ≥ 0.15` with `e` the unit vector to the eye (either
+//! side, as surfaces are drawn two-sided; grazing vertices would give arrows squashed into the
+//! silhouette) — and is *visible*: its depth is at most `1.01 ×` the nearest depth drawn within
+//! one sample of its position, so vertices hidden behind other parts of the surface (e.g. on
+//! the far side of a sphere) get no arrow. The picture is cut into square cells of `spacing`
+//! pixels and each cell keeps the taking-part vertex nearest to its centre (the lower index on
+//! ties): arrows come about `spacing` apart wherever the surface is seen, independent of how
+//! finely it is meshed.
+//!
+//! # Arrows
+//!
+//! The arrow of vertex `p` with vector `u` runs from the projection of `p` to the projection of
+//! `p + k u`, one factor
+//!
+//! ```text
+//! k = 0.9 · spacing / (scale · F / z_target)
+//! ```
+//!
+//! for all vertices (`F / z_target` pixels per unit length at the target's depth), so a vector
+//! of length `scale` parallel to the picture at the target's depth is `0.9 · spacing` pixels
+//! long, lengths are proportional to `|u|`, and arrows are foreshortened like the surface they
+//! lie on. Arrows shorter than half a pixel are skipped. Each is a shaft of `width` pixels and
+//! a filled head (length `min(0.35 L, 4 · width)`, half as wide as long plus the shaft), drawn
+//! into the supersampled canvas after the surface, so the downsampling antialiases it.
+
+use super::camera::Camera;
+use super::error::{check_count, check_positive};
+use super::raster::Canvas;
+use super::shading::vertex_normals;
+use super::RenderError;
+use crate::mesh::check_index_range;
+use nalgebra::Vector3;
+
+/// Arrow length, as a fraction of the spacing, of a vector of length `scale`.
+const ARROW_FILL: f64 = 0.9;
+
+/// Smallest `|n · e|` of a vertex that gets an arrow.
+const MIN_FACING: f64 = 0.15;
+
+/// Relative depth tolerance of the visibility test.
+const DEPTH_TOLERANCE: f64 = 0.01;
+
+/// Arrows shorter than this (output pixels) are not drawn.
+const MIN_ARROW_PIXELS: f64 = 0.5;
+
+/// Spacing, width and colour of arrows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ArrowStyle {
+    /// Side of the screen cells that get one arrow each, output pixels.
+    pub spacing: f64,
+    /// Shaft width, output pixels.
+    pub width: f64,
+    pub colour: [f64; 3],
+}
+
+impl Default for ArrowStyle {
+    /// 28-pixel cells, 1.5-pixel shafts, near-black.
+    fn default() -> Self {
+        Self {
+            spacing: 28.0,
+            width: 1.5,
+            colour: [0.05, 0.05, 0.08],
+        }
+    }
+}
+
+/// Length in output pixels of the arrow of a vector of length `scale` parallel to the picture
+/// at the target's depth: `0.9 · spacing`.
+pub fn reference_arrow_length(style: &ArrowStyle) -> f64 {
+    ARROW_FILL * style.spacing
+}
+
+/// Draws the arrows of `flow` (one vector per position) over the surface already drawn on
+/// `canvas` with the same camera, and returns how many were drawn. `scale` (positive) is the
+/// vector length drawn `0.9 · spacing` pixels long. Non-finite vectors and positions are
+/// skipped.
+pub fn draw_arrows(
+    canvas: &mut Canvas,
+    camera: &Camera,
+    positions: &[Vector3<f64>],
+    faces: &[[u32; 3]],
+    flow: &[Vector3<f64>],
+    scale: f64,
+    style: &ArrowStyle,
+) -> Result<usize, RenderError> {
+    check_count("flow vectors", positions.len(), flow.len())?;
+    check_index_range(faces, positions.len())?;
+    check_positive("flow scale", scale)?;
+    check_positive("arrow spacing", style.spacing)?;
+    let k = reference_arrow_length(style) / (scale * camera.pixels_per_unit(camera.target_depth()));
+    let chosen = glyph_vertices(canvas, camera, positions, faces, style.spacing);
+    let mut drawn = 0;
+    for vertex in chosen {
+        let (p, u) = (&positions[vertex], &flow[vertex]);
+        let ends = camera.project(p).zip(camera.project(&(p + k * u)));
+        if let Some(([x0, y0, _], [x1, y1, _])) = ends {
+            drawn += usize::from(draw_arrow(
+                canvas,
+                [x0, y0],
+                [x1, y1],
+                style.width,
+                style.colour,
+            ));
+        }
+    }
+    Ok(drawn)
+}
+
+/// The vertices that get arrows, by screen cell in row-major order; see the module
+/// documentation. `faces` must index `positions`.
+pub fn glyph_vertices(
+    canvas: &Canvas,
+    camera: &Camera,
+    positions: &[Vector3<f64>],
+    faces: &[[u32; 3]],
+    spacing: f64,
+) -> Vec<usize> {
+    let normals = vertex_normals(positions, faces);
+    let columns = (canvas.width() as f64 / spacing).ceil() as usize;
+    let rows = (canvas.height() as f64 / spacing).ceil() as usize;
+    // Per cell: (squared distance to the cell centre, vertex).
+    let mut best: Vec<Option<(f64, usize)>> = vec![None; columns * rows];
+    for (vertex, p) in positions.iter().enumerate() {
+        let Some([x, y, depth]) = camera.project(p) else {
+            continue;
+        };
+        let on_canvas =
+            x >= 0.0 && y >= 0.0 && x < canvas.width() as f64 && y < canvas.height() as f64;
+        if !on_canvas || !faces_camera(&normals[vertex], &(camera.eye() - p)) {
+            continue;
+        }
+        if depth > canvas.nearest_depth([x, y], 1) * (1.0 + DEPTH_TOLERANCE) {
+            continue;
+        }
+        let (cx, cy) = ((x / spacing) as usize, (y / spacing) as usize);
+        let centre = [(cx as f64 + 0.5) * spacing, (cy as f64 + 0.5) * spacing];
+        let distance = (x - centre[0]).powi(2) + (y - centre[1]).powi(2);
+        let cell = &mut best[cy * columns + cx];
+        if cell.is_none_or(|(nearest, _)| distance < nearest) {
+            *cell = Some((distance, vertex));
+        }
+    }
+    best.into_iter()
+        .flatten()
+        .map(|(_, vertex)| vertex)
+        .collect()
+}
+
+/// `|n̂ · ê| ≥ MIN_FACING` for the normal `n` and the vector `to_eye` from the vertex to the eye.
+fn faces_camera(normal: &Vector3<f64>, to_eye: &Vector3<f64>) -> bool {
+    match (normal.try_normalize(0.0), to_eye.try_normalize(0.0)) {
+        (Some(n), Some(e)) => n.dot(&e).abs() >= MIN_FACING,
+        _ => false,
+    }
+}
+
+/// Draws an arrow from `from` to `to` (output pixels) with a shaft `width` pixels wide and a
+/// filled head; returns `false` (drawing nothing) when it is shorter than half a pixel or not
+/// finite.
+pub fn draw_arrow(
+    canvas: &mut Canvas,
+    from: [f64; 2],
+    to: [f64; 2],
+    width: f64,
+    colour: [f64; 3],
+) -> bool {
+    let delta = [to[0] - from[0], to[1] - from[1]];
+    let length = delta[0].hypot(delta[1]);
+    if !(length >= MIN_ARROW_PIXELS && length.is_finite()) {
+        return false;
+    }
+    let along = [delta[0] / length, delta[1] / length];
+    let across = [-along[1], along[0]];
+    let at = |base: [f64; 2], forward: f64, side: f64| {
+        [
+            base[0] + forward * along[0] + side * across[0],
+            base[1] + forward * along[1] + side * across[1],
+        ]
+    };
+    let head_length = (0.35 * length).min(4.0 * width);
+    let head_half_width = 0.5 * head_length + 0.5 * width;
+    // The shaft reaches halfway into the head, so the two overlap instead of leaving a seam.
+    let shaft_end = length - 0.5 * head_length;
+    let half = 0.5 * width;
+    canvas.fill_convex(
+        &[
+            at(from, 0.0, -half),
+            at(from, shaft_end, -half),
+            at(from, shaft_end, half),
+            at(from, 0.0, half),
+        ],
+        colour,
+    );
+    let base = length - head_length;
+    canvas.fill_convex(
+        &[
+            to,
+            at(from, base, head_half_width),
+            at(from, base, -head_half_width),
+        ],
+        colour,
+    );
+    true
+}
