@@ -97,12 +97,19 @@ fn stretch(e: f64, v: &Vector3<f64>) -> Vector3<f64> {
     Vector3::new((1.0 + e) * v.x, v.y, v.z / (1.0 + e))
 }
 
+/// Grey-value scale of [`paper_torus`]'s image.
+const GREY_SCALE: f64 = 20.0;
+
 /// The moving surface of Bauer, Grasmair & Kirisits' Experiment I on an `n1 × n2` periodic
 /// parameter grid, frames `t = 0, 1, …, n_frames − 1` (`T = n_frames − 1`): a ring torus whose
 /// major circle stretches into an ellipse while its tube grows ripples,
 /// `f(t, x1, x2) = ((R + t/T + r cos x2) cos x1, (R + r cos x2) sin x1, r sin x2)`, `R = 2`,
-/// `r = 1 + t/(5T) sin 8x1`. The image (in place of the paper's taxi video) is a textured
-/// background with bright blobs moving in different directions in the parameter domain.
+/// `r = 1 + t/(5T) sin 8x1`. The image (in place of the paper's taxi video) is
+/// `20 ·` [`moving_blobs`]: a textured background with bright blobs moving in different
+/// directions in the parameter domain. The weights of the energy are relative to the grey
+/// values' scale; the factor 20 balances data and smoothness at the paper's `α = γ = 1` (with
+/// values in `[0, 1]` the smoothness smears each car's motion over the whole torus, with 8-bit
+/// values the flow breaks up into normal flow around the cars' edges).
 pub fn paper_torus(n1: usize, n2: usize, n_frames: usize) -> Result<MeshSequence, FlowError> {
     use std::f64::consts::TAU;
     let surface = crate::shapes::torus(2.0, 1.0, n1, n2);
@@ -133,7 +140,7 @@ pub fn paper_torus(n1: usize, n2: usize, n_frames: usize) -> Result<MeshSequence
         .map(|k| {
             parameters
                 .iter()
-                .map(|&(x1, x2)| moving_blobs(x1, x2, k as f64))
+                .map(|&(x1, x2)| GREY_SCALE * moving_blobs(x1, x2, k as f64))
                 .collect()
         })
         .collect();

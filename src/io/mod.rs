@@ -62,7 +62,8 @@ pub enum IoError {
 }
 
 impl IoError {
-    pub(crate) fn file(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+    /// An operating-system error about `path`.
+    pub fn file(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Self::File {
             path: path.into(),
             source,

@@ -57,15 +57,22 @@ pub struct ArrowStyle {
     /// Shaft width, output pixels.
     pub width: f64,
     pub colour: [f64; 3],
+    /// Colour of an outline drawn under every arrow, [`HALO_WIDTH`] pixels wider, so arrows
+    /// read on dark and bright surfaces alike; `None`: no outline.
+    pub halo: Option<[f64; 3]>,
 }
 
+/// Extra width of the halo around arrows, output pixels.
+pub const HALO_WIDTH: f64 = 2.0;
+
 impl Default for ArrowStyle {
-    /// 28-pixel cells, 1.5-pixel shafts, near-black.
+    /// 28-pixel cells, 1.5-pixel near-black shafts with a white halo.
     fn default() -> Self {
         Self {
             spacing: 28.0,
             width: 1.5,
             colour: [0.05, 0.05, 0.08],
+            halo: Some([1.0; 3]),
         }
     }
 }
@@ -94,22 +101,25 @@ pub fn draw_arrows(
     check_positive("flow scale", scale)?;
     check_positive("arrow spacing", style.spacing)?;
     let k = reference_arrow_length(style) / (scale * camera.pixels_per_unit(camera.target_depth()));
-    let chosen = glyph_vertices(canvas, camera, positions, faces, style.spacing);
-    let mut drawn = 0;
-    for vertex in chosen {
-        let (p, u) = (&positions[vertex], &flow[vertex]);
-        let ends = camera.project(p).zip(camera.project(&(p + k * u)));
-        if let Some(([x0, y0, _], [x1, y1, _])) = ends {
-            drawn += usize::from(draw_arrow(
-                canvas,
-                [x0, y0],
-                [x1, y1],
-                style.width,
-                style.colour,
-            ));
+    let segments: Vec<[[f64; 2]; 2]> =
+        glyph_vertices(canvas, camera, positions, faces, style.spacing)
+            .into_iter()
+            .filter_map(|vertex| {
+                let (p, u) = (&positions[vertex], &flow[vertex]);
+                let ends = camera.project(p).zip(camera.project(&(p + k * u)));
+                ends.map(|([x0, y0, _], [x1, y1, _])| [[x0, y0], [x1, y1]])
+            })
+            .collect();
+    // All halos first, so that no halo covers a neighbouring arrow.
+    if let Some(halo) = style.halo {
+        for &[from, to] in &segments {
+            draw_arrow(canvas, from, to, style.width + HALO_WIDTH, halo);
         }
     }
-    Ok(drawn)
+    Ok(segments
+        .iter()
+        .filter(|&&[from, to]| draw_arrow(canvas, from, to, style.width, style.colour))
+        .count())
 }
 
 /// The vertices that get arrows, by screen cell in row-major order; see the module

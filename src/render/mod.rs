@@ -59,6 +59,7 @@ pub mod glyphs;
 pub mod legend;
 pub mod raster;
 pub mod shading;
+pub mod slabs;
 pub mod text;
 
 pub use camera::{Camera, View};
@@ -69,3 +70,4 @@ pub use figure::{
 };
 pub use raster::Canvas;
 pub use shading::Lighting;
+pub use slabs::{write_slab_pictures, FigureOptions, SlabView};

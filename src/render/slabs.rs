@@ -1,0 +1,194 @@
+//! Pictures of a whole flow: every slab drawn from one camera with one flow scale, so that the
+//! pictures of a sequence can be compared (and played as an animation).
+//!
+//! For slabs `s` with the surface of frame `s`, its grey values `I_s` and the slab's flow `u_s`
+//! in R^3, the camera frames the bounding box of all drawn frames from the chosen [`View`]; the
+//! flow scale is the robust maximum ([`robust_max`], the 99th percentile) of `|u_s(i)|` over all
+//! slabs and vertices unless given; grey values span the finite range of all drawn frames;
+//! angular errors span `[0, robust maximum]`. Per slab it writes
+//!
+//! | file | picture |
+//! |---|---|
+//! | `grey_SSSS.png` | [`grey_picture`]: the image on the surface |
+//! | `flow_SSSS.png` | [`flow_picture`]: Middlebury colours of the flow's screen directions, with the wheel legend |
+//! | `arrows_SSSS.png` | [`arrow_picture`]: arrows on an even subsample of visible vertices |
+//! | `angular_error_SSSS.png` | [`scalar_picture`] of the angular error (degrees), when known |
+
+use super::color_wheel::robust_max;
+use super::colormap::finite_range;
+use super::{
+    arrow_picture, flow_picture, grey_picture, scalar_picture, write_png, Camera, PictureStyle,
+    Surface, View,
+};
+use crate::Error;
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// One slab as drawn: the surface of frame `slab` and the slab's flow.
+#[derive(Clone, Copy, Debug)]
+pub struct SlabView<'a> {
+    pub slab: usize,
+    /// `t_s`, shown in the label.
+    pub time: f64,
+    pub positions: &'a [Vector3<f64>],
+    pub intensity: &'a [f64],
+    pub flow: &'a [Vector3<f64>],
+    /// Angular error against a ground truth, degrees, one per vertex.
+    pub angular_error: Option<&'a [f64]>,
+}
+
+/// Size, view and style of the pictures of [`write_slab_pictures`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct FigureOptions {
+    pub width: u32,
+    pub height: u32,
+    pub view: View,
+    /// Flow speed at the colour wheel's rim and of the reference arrow; `None`: the robust
+    /// maximum of all drawn speeds.
+    pub flow_scale: Option<f64>,
+    pub style: PictureStyle,
+}
+
+impl Default for FigureOptions {
+    /// 960 × 720 pixels, the default view and style, automatic scale.
+    fn default() -> Self {
+        Self {
+            width: 960,
+            height: 720,
+            view: View::default(),
+            flow_scale: None,
+            style: PictureStyle::default(),
+        }
+    }
+}
+
+/// What all slabs share: camera, flow scale and value ranges.
+struct Shared {
+    camera: Camera,
+    scale: f64,
+    grey_range: (f64, f64),
+    error_range: (f64, f64),
+}
+
+impl Shared {
+    fn new(slabs: &[SlabView], options: &FigureOptions) -> Self {
+        let points: Vec<Vector3<f64>> = slabs
+            .iter()
+            .flat_map(|v| v.positions.iter().copied())
+            .filter(|p| p.iter().all(|c| c.is_finite()))
+            .collect();
+        let camera = Camera::framing(&points, options.view, options.width, options.height);
+        let speeds: Vec<f64> = slabs
+            .iter()
+            .flat_map(|v| v.flow.iter().map(|u| u.norm()))
+            .collect();
+        let intensities: Vec<f64> = slabs
+            .iter()
+            .flat_map(|v| v.intensity.iter().copied())
+            .collect();
+        let errors: Vec<f64> = slabs
+            .iter()
+            .flat_map(|v| v.angular_error.unwrap_or(&[]).iter().copied())
+            .collect();
+        Self {
+            camera,
+            scale: options.flow_scale.unwrap_or_else(|| robust_max(&speeds)),
+            grey_range: widened(finite_range(&intensities).unwrap_or((0.0, 1.0))),
+            error_range: (0.0, robust_max(&errors)),
+        }
+    }
+}
+
+/// A range of positive width: a constant image is drawn mid-grey.
+fn widened((min, max): (f64, f64)) -> (f64, f64) {
+    if max > min {
+        (min, max)
+    } else {
+        (min - 0.5, max + 0.5)
+    }
+}
+
+/// Draws every slab of `slabs` (see the module documentation) into `dir`, slabs in parallel;
+/// `progress` is called once per finished slab. Returns the files written, slab by slab.
+pub fn write_slab_pictures(
+    dir: &Path,
+    faces: &[[u32; 3]],
+    slabs: &[SlabView],
+    options: &FigureOptions,
+    progress: &(dyn Fn() + Sync),
+) -> Result<Vec<PathBuf>, Error> {
+    if slabs.is_empty() {
+        return Ok(Vec::new());
+    }
+    let shared = Shared::new(slabs, options);
+    let written: Vec<Result<Vec<PathBuf>, Error>> = slabs
+        .par_iter()
+        .map(|view| {
+            let files = write_one_slab(dir, faces, view, &shared, &options.style);
+            progress();
+            files
+        })
+        .collect();
+    // Sequentially, so that the first failing slab is the one reported.
+    let written: Vec<Vec<PathBuf>> = written.into_iter().collect::<Result<_, _>>()?;
+    Ok(written.into_iter().flatten().collect())
+}
+
+fn write_one_slab(
+    dir: &Path,
+    faces: &[[u32; 3]],
+    view: &SlabView,
+    shared: &Shared,
+    style: &PictureStyle,
+) -> Result<Vec<PathBuf>, Error> {
+    let style = PictureStyle {
+        label: Some(format!("slab {}  t = {}", view.slab, view.time)),
+        ..style.clone()
+    };
+    let surface = Surface {
+        positions: view.positions,
+        faces,
+    };
+    let camera = &shared.camera;
+    let mut pictures = vec![
+        (
+            "grey",
+            grey_picture(camera, surface, view.intensity, shared.grey_range, &style)?,
+        ),
+        (
+            "flow",
+            flow_picture(camera, surface, view.flow, shared.scale, &style)?,
+        ),
+        (
+            "arrows",
+            arrow_picture(
+                camera,
+                surface,
+                view.intensity,
+                shared.grey_range,
+                view.flow,
+                shared.scale,
+                &style,
+            )?,
+        ),
+    ];
+    if let Some(errors) = view.angular_error {
+        let style = PictureStyle {
+            label: Some(format!("angular error (°), slab {}", view.slab)),
+            ..style.clone()
+        };
+        pictures.push((
+            "angular_error",
+            scalar_picture(camera, surface, errors, shared.error_range, &style)?,
+        ));
+    }
+    pictures
+        .into_iter()
+        .map(|(name, image)| {
+            let path = dir.join(format!("{name}_{:04}.png", view.slab));
+            write_png(&path, &image)?;
+            Ok(path)
+        })
+        .collect()
+}
