@@ -95,7 +95,8 @@ impl IoError {
         }
     }
 
-    pub(crate) fn format(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+    /// A problem with the contents of `path` (not tied to a line).
+    pub fn format(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
         Self::Format {
             path: path.into(),
             message: message.into(),

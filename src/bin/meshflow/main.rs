@@ -1,0 +1,163 @@
+//! The `meshflow` command line. Every failure is one line on stderr and a non-zero exit code.
+
+mod operators;
+mod pictures;
+mod progress;
+mod solve;
+
+use clap::{Parser, Subcommand};
+use meshflow::flow::{Boundary, FlowParams, SolverChoice, TimeCoupling};
+use meshflow::io::OutputFormat;
+use pictures::PictureArgs;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "meshflow",
+    version,
+    about = "Optical flow on moving surfaces (intrinsic P1 tangent-field FEM)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Write the finite-element operators of a mesh for SciPy/MATLAB: cotan.mtx (V×V cotan
+    /// Laplacian), mass_scalar.mtx (V×V P1 mass), stiffness.mtx (2V×2V connection Laplacian),
+    /// mass.mtx (2V×2V vector mass) and frames.npy (V×2×3 vertex frames in R^3).
+    Operators {
+        /// Triangle mesh (.obj, .ply, .gltf, .glb)
+        mesh: PathBuf,
+        /// Output directory (created if missing)
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Compute the optical flow of a mesh sequence. INPUT is a directory of .obj/.ply/.gltf/.glb
+    /// frames (natural order, same faces), a glob ('dir/frame_*.ply'), one .gltf/.glb morph
+    /// animation, or a directory with positions.npy, faces.npy, intensity.npy. Grey values come
+    /// from vertex colours, textures, a PLY property or --intensity; times from --times,
+    /// the glTF animation, a times.txt beside the frames, or 0,1,2,… Writes flow.npy (S×V×3),
+    /// flow_intrinsic.npy (S×V×2), flow_SSSS.vtu + flow.pvd (ParaView), flow.glb and
+    /// summary.json; with --ground-truth also the errors against the known flow; with --png the
+    /// pictures of `meshflow render`.
+    Solve(SolveArgs),
+    /// Draw PNG pictures of every slab of a `solve` output directory (read from flow.pvd and its
+    /// flow_SSSS.vtu files): grey_SSSS.png (the image on the surface), flow_SSSS.png (flow
+    /// directions on the screen, Middlebury colour wheel, with its legend), arrows_SSSS.png and,
+    /// when the output has a ground truth, angular_error_SSSS.png. One camera and one flow scale
+    /// for all slabs.
+    Render {
+        /// Output directory of `meshflow solve`
+        dir: PathBuf,
+        /// Where to write the pictures (default: DIR)
+        #[arg(long)]
+        out: Option<PathBuf>,
+        #[command(flatten)]
+        pictures: PictureArgs,
+    },
+}
+
+#[derive(clap::Args)]
+struct SolveArgs {
+    /// Frames directory, glob, .gltf/.glb animation, or NPY directory
+    input: PathBuf,
+    /// Output directory (created if missing)
+    #[arg(long)]
+    out: PathBuf,
+    /// Time regularity scale, a speed (inf: frame-by-frame flow)
+    #[arg(long, default_value_t = FlowParams::default().alpha, allow_negative_numbers = true)]
+    alpha: f64,
+    /// Weight of |u|² (speed penalty)
+    #[arg(long, default_value_t = FlowParams::default().beta, allow_negative_numbers = true)]
+    beta: f64,
+    /// Weight of the spatial smoothness |∇u|²
+    #[arg(long, default_value_t = FlowParams::default().gamma, allow_negative_numbers = true)]
+    gamma: f64,
+    /// neumann or dirichlet (u = 0 on the boundary)
+    #[arg(long, default_value = "neumann")]
+    boundary: Boundary,
+    /// lumped or consistent discretization of the time term
+    #[arg(long, default_value = "lumped")]
+    time_coupling: TimeCoupling,
+    /// auto, direct, pcg-slab-gauss-seidel or pcg-jacobi
+    #[arg(long, default_value = "auto")]
+    solver: SolverChoice,
+    /// Relative residual at which the iterative solver stops
+    #[arg(long, default_value_t = FlowParams::default().tolerance, allow_negative_numbers = true)]
+    tolerance: f64,
+    /// Grey values as a float64 .npy of shape (frames, vertices) instead of vertex colours
+    #[arg(long)]
+    intensity: Option<PathBuf>,
+    /// PLY vertex property holding the grey values (instead of the colours)
+    #[arg(long)]
+    intensity_attribute: Option<String>,
+    /// Frame times t0,t1,… (default: from the files or times.txt, else 0,1,2,…)
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    times: Option<Vec<f64>>,
+    /// Resample a glTF animation at N frames per unit of time (default: its keyframes)
+    #[arg(long, value_name = "N")]
+    fps: Option<f64>,
+    /// Keep vertices that coincide in every frame apart (default: weld them, as exporters split
+    /// vertices at texture seams)
+    #[arg(long)]
+    no_weld: bool,
+    /// Known flow to measure the result against: .npy (slabs, vertices in the files, 3), float64
+    /// or float32, R^3 vectors on frame s. Adds angular_error/endpoint_error to the .vtu files,
+    /// angular_error.npy, endpoint_error.npy and "ground_truth" in summary.json
+    #[arg(long, value_name = "FILE.npy")]
+    ground_truth: Option<PathBuf>,
+    /// Output files: any of npy, vtu, glb (summary.json is always written)
+    #[arg(long, value_delimiter = ',', default_value = "npy,vtu,glb")]
+    format: Vec<OutputFormat>,
+    /// Also draw the pictures of `meshflow render` for every slab
+    #[arg(long)]
+    png: bool,
+    #[command(flatten)]
+    pictures: PictureArgs,
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(error) => return usage_error(error),
+    };
+    let result = match cli.command {
+        Command::Operators { mesh, out } => operators::write_operators(&mesh, &out),
+        Command::Solve(args) => solve::solve(&args),
+        Command::Render { dir, out, pictures } => {
+            pictures::render_output(&dir, out.as_deref().unwrap_or(&dir), &pictures)
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("meshflow: error: {error}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// `--help` and `--version` print as usual; a usage error becomes one line, exit code 2.
+fn usage_error(error: clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(
+        error.kind(),
+        ErrorKind::DisplayHelp
+            | ErrorKind::DisplayVersion
+            | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    ) {
+        error.exit();
+    }
+    let text = error.render().to_string();
+    let message: Vec<&str> = text
+        .lines()
+        .take_while(|line| !line.starts_with("Usage:"))
+        .map(str::trim)
+        .filter(|line| !line.is_empty() && !line.starts_with("For more information"))
+        .collect();
+    eprintln!("meshflow: {} (see meshflow --help)", message.join(" "));
+    ExitCode::from(2)
+}
