@@ -479,12 +479,23 @@ fn flow_glb_replays_the_frames_coloured_by_the_flow() {
             );
         }
     }
-    // The colours are the colour wheel of the intrinsic flow, scaled by its robust maximum.
-    use meshflow::render::color_wheel::{flow_colors, robust_max};
-    let intrinsic = read_npy(&out.join("flow_intrinsic.npy")).unwrap();
-    let vectors: Vec<[f64; 2]> = intrinsic.data.chunks(2).map(|u| [u[0], u[1]]).collect();
-    let speeds: Vec<f64> = vectors.iter().map(|u| u[0].hypot(u[1])).collect();
-    let colors = flow_colors(
+    // The colours are those of flow_SSSS.png: the colour wheel of the screen directions seen
+    // from the default view of all frames, scaled by the robust maximum R^3 speed.
+    use meshflow::render::color_wheel::robust_max;
+    use meshflow::render::{screen_flow_colors, Camera, View};
+    let flow = read_npy(&out.join("flow.npy")).unwrap();
+    let vectors: Vec<nalgebra::Vector3<f64>> = flow
+        .data
+        .chunks(3)
+        .map(|u| nalgebra::Vector3::new(u[0], u[1], u[2]))
+        .collect();
+    let speeds: Vec<f64> = vectors.iter().map(|u| u.norm()).collect();
+    let all_positions: Vec<_> = (0..sequence.n_frames())
+        .flat_map(|k| sequence.positions(k).unwrap().to_vec())
+        .collect();
+    let camera = Camera::framing(&all_positions, View::default(), 960, 720);
+    let colors = screen_flow_colors(
+        &camera,
         &vectors[..sequence.mesh().n_vertices()],
         robust_max(&speeds),
     );

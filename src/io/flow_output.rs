@@ -7,7 +7,7 @@
 //! | `vertex_map.npy` | (V_file,) int64: mesh vertex of each file vertex, when vertices were welded |
 //! | `angular_error.npy`, `endpoint_error.npy` | (S, V) float64, with a ground truth: per-vertex AE (degrees) and EPE ([`crate::accuracy`]) |
 //! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` with point data `flow`, `flow_intrinsic`, `speed`, `intensity` (and `angular_error`, `endpoint_error` with a ground truth); the `.pvd` plays the slabs at their start times |
-//! | `flow.glb` | the frames as a morph-target animation, coloured by the flow (Middlebury colour wheel of the intrinsic vectors, scaled by a robust maximum speed) |
+//! | `flow.glb` | the frames as a morph-target animation, coloured by the flow as `flow_SSSS.png` shows it (Middlebury colour of the direction seen from the default view, scaled by a robust maximum speed) |
 //! | `summary.json` | energy and its terms, residual, iterations, solver, sizes, parameters, input, timings; with a ground truth, `ground_truth`: its file, the space-time mean AE and EPE, the largest AE and EPE, and per slab the same |
 //!
 //! Slab `s` spans `[t_s, t_{s+1}]`; `S = K − 1` slabs for `K` frames.
@@ -17,7 +17,8 @@ use super::vtk::{write_pvd, write_vtu, PointArray};
 use super::{write_atomically, write_npy, IoError, LoadedSequence, StagedDir};
 use crate::accuracy::FlowErrors;
 use crate::flow::{FlowParams, FlowResult, MeshSequence};
-use crate::render::color_wheel::{flow_colors, robust_max};
+use crate::render::color_wheel::robust_max;
+use crate::render::{screen_flow_colors, Camera, View};
 use nalgebra::Vector3;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -210,25 +211,32 @@ fn write_flow_vtk(
     write_pvd(&dir.join("flow.pvd"), &datasets)
 }
 
-/// All frames as a morph animation; frame `k` is coloured by slab `min(k, S − 1)`.
+/// All frames as a morph animation; frame `k` is coloured by slab `min(k, S − 1)` with the
+/// colours of `flow_SSSS.png` ([`screen_flow_colors`] seen from the default [`View`], scaled by
+/// the robust maximum speed): a surface has no global tangent frame, so a view is what makes
+/// hues comparable between vertices.
 fn write_flow_glb(
     path: &Path,
     sequence: &MeshSequence,
     result: &FlowResult,
 ) -> Result<(), IoError> {
-    let vectors: Vec<Vec<[f64; 2]>> = result
-        .intrinsic
-        .iter()
-        .map(|slab| slab.iter().map(|u| [u.x, u.y]).collect())
+    let vectors = result.vectors.as_ref().expect("embedded sequence");
+    let all_positions: Vec<Vector3<f64>> = (0..sequence.n_frames())
+        .flat_map(|k| {
+            sequence
+                .positions(k)
+                .expect("embedded sequence")
+                .iter()
+                .copied()
+        })
         .collect();
-    let speeds: Vec<f64> = result
-        .intrinsic
-        .iter()
-        .flatten()
-        .map(|u| u.norm())
-        .collect();
+    let camera = Camera::framing(&all_positions, View::default(), 960, 720);
+    let speeds: Vec<f64> = vectors.iter().flatten().map(|u| u.norm()).collect();
     let scale = robust_max(&speeds);
-    let colors: Vec<Vec<[f64; 3]>> = vectors.iter().map(|v| flow_colors(v, scale)).collect();
+    let colors: Vec<Vec<[f64; 3]>> = vectors
+        .iter()
+        .map(|v| screen_flow_colors(&camera, v, scale))
+        .collect();
     let frames: Vec<AnimationFrame> = (0..sequence.n_frames())
         .map(|k| AnimationFrame {
             time: sequence.times()[k],

@@ -107,16 +107,21 @@ pub fn flow_picture(
 ) -> Result<RgbImage, RenderError> {
     check_count("flow vectors", surface.positions.len(), flow.len())?;
     check_positive("flow scale", scale)?;
-    let colours: Vec<[f64; 3]> = flow
-        .iter()
+    let colours = screen_flow_colors(camera, flow, scale);
+    let mut canvas = shaded_surface(camera, surface, &colours, style)?;
+    draw_wheel_legend(&mut canvas, scale);
+    Ok(finish(canvas, style))
+}
+
+/// `flow_color(screen_components(u_i) / scale)` for every vector: the Middlebury colour of
+/// the direction in which `camera` sees each vector move (red = right on the screen).
+pub fn screen_flow_colors(camera: &Camera, flow: &[Vector3<f64>], scale: f64) -> Vec<[f64; 3]> {
+    flow.iter()
         .map(|u| {
             let [x, y] = camera.screen_components(u);
             flow_color(x / scale, y / scale)
         })
-        .collect();
-    let mut canvas = shaded_surface(camera, surface, &colours, style)?;
-    draw_wheel_legend(&mut canvas, scale);
-    Ok(finish(canvas, style))
+        .collect()
 }
 
 /// The grey surface (as [`grey_picture`]) with arrows of the flow on visible vertices about

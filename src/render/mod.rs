@@ -65,7 +65,8 @@ pub mod text;
 pub use camera::{Camera, View};
 pub use error::RenderError;
 pub use figure::{
-    arrow_picture, chart_picture, flow_picture, grey_picture, scalar_picture, write_png,
+    arrow_picture, chart_picture, flow_picture, grey_picture, scalar_picture, screen_flow_colors,
+    write_png,
     PictureStyle, Surface,
 };
 pub use raster::Canvas;
