@@ -1,5 +1,5 @@
 //! Pictures of a turning sphere (grey values, flow colours, arrows, speed) and a parameter
-//! chart, written to a directory (default `/tmp/render_demo`), and the time to draw a
+//! chart, written to a directory (default `out/render_demo`), and the time to draw a
 //! 100k-triangle torus at 800×600. `cargo run --release --example render_demo [DIR]`
 use meshflow::render::colormap::finite_range;
 use meshflow::render::{
@@ -13,7 +13,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 fn main() -> Result<(), meshflow::Error> {
-    let directory = PathBuf::from(std::env::args().nth(1).unwrap_or("/tmp/render_demo".into()));
+    let directory = PathBuf::from(std::env::args().nth(1).unwrap_or("out/render_demo".into()));
     std::fs::create_dir_all(&directory).map_err(|e| meshflow::io::IoError::File {
         path: directory.clone(),
         source: e,

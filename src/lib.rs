@@ -18,8 +18,10 @@
 //!
 //! Data flows one way through the modules: [`mesh`] (connectivity) → [`geometry`] (intrinsic
 //! quantities) → [`connection`] (frames and transport) → [`fem`] (element matrices and
-//! assembly); [`io`] reads and writes files, [`shapes`] makes sample surfaces, [`synth`] sample
-//! sequences with known flow, and [`accuracy`] measures a computed flow against a known one.
+//! assembly) → [`flow`] (the space-time energy and its minimizer); [`chart`] reads flows in a
+//! parameter domain, [`io`] reads and writes files, [`render`] draws PNG pictures, [`shapes`]
+//! makes sample surfaces, [`synth`] sample sequences with known flow, and [`accuracy`] measures
+//! a computed flow against a known one. The user guide is `docs/guide.md`.
 //!
 //! ```
 //! use meshflow::{connection::Connection, fem, geometry::IntrinsicGeometry, shapes};
