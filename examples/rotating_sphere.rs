@@ -10,11 +10,10 @@
 //! `cargo run --release --example rotating_sphere`
 use meshflow::accuracy::{compare_result, FlowErrors};
 use meshflow::flow::{compute_flow, FlowParams, FlowResult};
-use meshflow::io::vtk::{write_pvd, write_vtu, PointArray};
-use meshflow::io::IoError;
+use meshflow::io::vtk::NamedArray;
+use meshflow::io::{write_slab_vtus, IoError};
 use meshflow::render::{write_slab_pictures, FigureOptions, SlabView};
 use meshflow::synth::{deforming_sphere, GroundTruth};
-use nalgebra::Vector3;
 use std::path::Path;
 
 /// Frames, time step, angular velocity (rad per unit time).
@@ -83,31 +82,15 @@ fn write_outputs(
     std::fs::create_dir_all(out).map_err(|e| IoError::file(out, e))?;
     let sequence = &truth.sequence;
     let vectors = flow.vectors.as_ref().expect("the spheres are embedded");
-    let flatten = |v: &[Vector3<f64>]| v.iter().flat_map(|v| [v.x, v.y, v.z]).collect::<Vec<_>>();
-    let mut datasets = Vec::new();
-    for s in 0..sequence.n_slabs() {
-        let file = format!("sphere_{s:04}.vtu");
-        let (computed, known) = (flatten(&vectors[s]), flatten(&truth.flow[s]));
-        let array = |name, components, values| PointArray {
-            name,
-            components,
-            values,
-        };
-        write_vtu(
-            &out.join(&file),
-            sequence.positions(s).expect("embedded"),
-            sequence.mesh().faces(),
-            &[
-                array("flow", 3, &computed),
-                array("true_flow", 3, &known),
-                array("angular_error", 1, &errors.angular_degrees[s]),
-                array("endpoint_error", 1, &errors.endpoint[s]),
-                array("intensity", 1, sequence.intensities(s)),
-            ],
-        )?;
-        datasets.push((sequence.times()[s], file));
-    }
-    write_pvd(&out.join("sphere.pvd"), &datasets)?;
+    write_slab_vtus(out, "sphere", sequence, |s| {
+        vec![
+            NamedArray::vectors("flow", &vectors[s]),
+            NamedArray::vectors("true_flow", &truth.flow[s]),
+            NamedArray::scalars("angular_error", &errors.angular_degrees[s]),
+            NamedArray::scalars("endpoint_error", &errors.endpoint[s]),
+            NamedArray::scalars("intensity", sequence.intensities(s)),
+        ]
+    })?;
     let views: Vec<SlabView> = (0..sequence.n_slabs())
         .map(|s| SlabView {
             slab: s,

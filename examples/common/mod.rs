@@ -5,7 +5,8 @@
 use meshflow::accuracy::angular_error;
 use meshflow::chart::Chart;
 use meshflow::flow::{FlowParams, FlowProblem, FlowResult, MeshSequence, SolveEvent};
-use meshflow::io::vtk::{write_pvd, write_vtu, PointArray};
+use meshflow::io::vtk::NamedArray;
+use meshflow::io::write_slab_vtus;
 use meshflow::render::color_wheel::{flow_color, robust_max};
 use meshflow::render::colormap::viridis;
 use meshflow::render::{chart_picture, write_png};
@@ -123,33 +124,16 @@ impl Comparison {
             .vectors
             .as_ref()
             .expect("the first model is embedded");
-        let flatten2 = |w: &[Vector2<f64>]| w.iter().flat_map(|w| [w.x, w.y]).collect::<Vec<_>>();
-        let array_names = self.names.map(|n| format!("flow_grid_{n}"));
-        let mut datasets = Vec::new();
-        for s in 0..sequence.n_slabs() {
-            let file = format!("{name}_{s:04}.vtu");
-            let r3: Vec<f64> = vectors[s].iter().flat_map(|v| [v.x, v.y, v.z]).collect();
-            let chart_flows = self.flows.each_ref().map(|f| flatten2(&f.pixels[s]));
-            let array = |name, components, values| PointArray {
-                name,
-                components,
-                values,
-            };
-            write_vtu(
-                &out.join(&file),
-                sequence.positions(s).expect("embedded"),
-                sequence.mesh().faces(),
-                &[
-                    array("flow", 3, &r3),
-                    array(&array_names[0], 2, &chart_flows[0]),
-                    array(&array_names[1], 2, &chart_flows[1]),
-                    array("angular_difference", 1, &self.difference[s]),
-                    array("intensity", 1, sequence.intensities(s)),
-                ],
-            )?;
-            datasets.push((sequence.times()[s], file));
-        }
-        write_pvd(&out.join(format!("{name}.pvd")), &datasets)?;
+        write_slab_vtus(out, name, sequence, |s| {
+            let [first, second] = self.names.map(|n| format!("flow_grid_{n}"));
+            vec![
+                NamedArray::vectors("flow", &vectors[s]),
+                NamedArray::vectors2(&first, &self.flows[0].pixels[s]),
+                NamedArray::vectors2(&second, &self.flows[1].pixels[s]),
+                NamedArray::scalars("angular_difference", &self.difference[s]),
+                NamedArray::scalars("intensity", sequence.intensities(s)),
+            ]
+        })?;
         Ok(())
     }
 
@@ -196,7 +180,7 @@ impl Comparison {
             let picture = chart_picture(
                 grid.rows,
                 grid.cols,
-                &grid.to_rows(&colours),
+                &grid.rows_of(&colours),
                 grid.pixel_size,
             )?;
             write_png(&out.join(format!("{name}_{s:04}.png")), &picture)?;
@@ -216,7 +200,7 @@ pub struct ChartGrid {
 }
 
 impl ChartGrid {
-    fn to_rows<T: Copy>(&self, values: &[T]) -> Vec<T> {
+    fn rows_of<T: Copy>(self, values: &[T]) -> Vec<T> {
         if !self.column_major {
             return values.to_vec();
         }

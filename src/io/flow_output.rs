@@ -13,7 +13,7 @@
 //! Slab `s` spans `[t_s, t_{s+1}]`; `S = K − 1` slabs for `K` frames.
 
 use super::gltf_write::{write_glb_animation, AnimationFrame};
-use super::vtk::{write_pvd, write_vtu, PointArray};
+use super::vtk::{write_pvd, write_vtu, NamedArray, PointArray};
 use super::{write_atomically, write_npy, IoError, LoadedSequence, StagedDir};
 use crate::accuracy::FlowErrors;
 use crate::flow::{FlowParams, FlowResult, MeshSequence};
@@ -159,56 +159,53 @@ fn write_flow_vtk(
     vectors: &[Vec<Vector3<f64>>],
     errors: Option<&FlowErrors>,
 ) -> Result<(), IoError> {
-    let faces = sequence.mesh().faces();
-    let mut datasets = Vec::with_capacity(vectors.len());
-    for (s, (slab_vectors, intrinsic)) in vectors.iter().zip(&result.intrinsic).enumerate() {
-        let positions = sequence
-            .positions(s)
-            .expect("vectors exist for embedded sequences");
-        let flow = flatten3(slab_vectors.iter());
-        let flow_intrinsic: Vec<f64> = intrinsic.iter().flat_map(|u| [u.x, u.y]).collect();
-        let speed: Vec<f64> = slab_vectors.iter().map(|u| u.norm()).collect();
-        let mut point_data = vec![
-            PointArray {
-                name: "flow",
-                components: 3,
-                values: &flow,
-            },
-            PointArray {
-                name: "flow_intrinsic",
-                components: 2,
-                values: &flow_intrinsic,
-            },
-            PointArray {
-                name: "speed",
-                components: 1,
-                values: &speed,
-            },
-            PointArray {
-                name: "intensity",
-                components: 1,
-                values: sequence.intensities(s),
-            },
+    write_slab_vtus(dir, "flow", sequence, |s| {
+        let speed: Vec<f64> = vectors[s].iter().map(|u| u.norm()).collect();
+        let mut arrays = vec![
+            NamedArray::vectors("flow", &vectors[s]),
+            NamedArray::vectors2("flow_intrinsic", &result.intrinsic[s]),
+            NamedArray::scalars("speed", &speed),
+            NamedArray::scalars("intensity", sequence.intensities(s)),
         ];
         if let Some(errors) = errors {
-            point_data.extend([
-                PointArray {
-                    name: "angular_error",
-                    components: 1,
-                    values: &errors.angular_degrees[s],
-                },
-                PointArray {
-                    name: "endpoint_error",
-                    components: 1,
-                    values: &errors.endpoint[s],
-                },
+            arrays.extend([
+                NamedArray::scalars("angular_error", &errors.angular_degrees[s]),
+                NamedArray::scalars("endpoint_error", &errors.endpoint[s]),
             ]);
         }
-        let name = format!("flow_{s:04}.vtu");
-        write_vtu(&dir.join(&name), positions, faces, &point_data)?;
-        datasets.push((sequence.times()[s], name));
+        arrays
+    })
+}
+
+/// A sequence's slabs for ParaView: `NAME_SSSS.vtu` with the positions of frame `s`, the mesh's
+/// triangles and the point arrays `arrays(s)`, for every slab `s`, and `NAME.pvd` playing them
+/// at the slab start times. The sequence must be embedded.
+pub fn write_slab_vtus(
+    dir: &Path,
+    name: &str,
+    sequence: &MeshSequence,
+    mut arrays: impl FnMut(usize) -> Vec<NamedArray>,
+) -> Result<(), IoError> {
+    let mut datasets = Vec::with_capacity(sequence.n_slabs());
+    for s in 0..sequence.n_slabs() {
+        let file = format!("{name}_{s:04}.vtu");
+        let positions = sequence.positions(s).ok_or_else(|| {
+            IoError::format(
+                dir.join(&file),
+                "an intrinsic sequence has no positions to write",
+            )
+        })?;
+        let arrays = arrays(s);
+        let point_data: Vec<PointArray> = arrays.iter().map(NamedArray::as_point_array).collect();
+        write_vtu(
+            &dir.join(&file),
+            positions,
+            sequence.mesh().faces(),
+            &point_data,
+        )?;
+        datasets.push((sequence.times()[s], file));
     }
-    write_pvd(&dir.join("flow.pvd"), &datasets)
+    write_pvd(&dir.join(format!("{name}.pvd")), &datasets)
 }
 
 /// All frames as a morph animation; frame `k` is coloured by slab `min(k, S − 1)` with the

@@ -28,7 +28,9 @@ pub mod vtk;
 mod weld;
 
 pub use atomic::{write_atomically, StagedDir};
-pub use flow_output::{summary_json, write_flow_outputs, GroundTruthReport, OutputFormat};
+pub use flow_output::{
+    summary_json, write_flow_outputs, write_slab_vtus, GroundTruthReport, OutputFormat,
+};
 pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use ground_truth::read_ground_truth;
 pub use input::{FrameFormat, SequenceSource};

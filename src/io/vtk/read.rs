@@ -5,7 +5,7 @@ use super::data_array::{DataArray, Encoding};
 use super::tree::{parse_document, Element, LineError};
 use super::{PointArray, VTK_TRIANGLE};
 use crate::io::IoError;
-use nalgebra::Vector3;
+use nalgebra::{Vector2, Vector3};
 use std::path::{Path, PathBuf};
 
 /// A triangle mesh with its point arrays, as read from a `.vtu` file.
@@ -18,7 +18,8 @@ pub struct VtuMesh {
     pub point_data: Vec<NamedArray>,
 }
 
-/// A point array read from a file: `values[i * components + c]` is component `c` at point `i`.
+/// A point array that owns its values, read from a file or built to write one:
+/// `values[i * components + c]` is component `c` at point `i`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NamedArray {
     pub name: String,
@@ -34,6 +35,33 @@ impl VtuMesh {
 }
 
 impl NamedArray {
+    /// One value per point.
+    pub fn scalars(name: &str, values: &[f64]) -> Self {
+        Self {
+            name: name.to_string(),
+            components: 1,
+            values: values.to_vec(),
+        }
+    }
+
+    /// One R^3 vector per point.
+    pub fn vectors(name: &str, vectors: &[Vector3<f64>]) -> Self {
+        Self {
+            name: name.to_string(),
+            components: 3,
+            values: vectors.iter().flat_map(|v| [v.x, v.y, v.z]).collect(),
+        }
+    }
+
+    /// One 2-vector per point.
+    pub fn vectors2(name: &str, vectors: &[Vector2<f64>]) -> Self {
+        Self {
+            name: name.to_string(),
+            components: 2,
+            values: vectors.iter().flat_map(|v| [v.x, v.y]).collect(),
+        }
+    }
+
     /// The array in the writer's form, e.g. to write it again with [`super::write_vtu`].
     pub fn as_point_array(&self) -> PointArray<'_> {
         PointArray {
