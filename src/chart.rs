@@ -15,7 +15,7 @@
 //!   the parameter velocity `w_i = P^φ_i u_i`, with `P^φ_i` the corner-angle-weighted mean of
 //!   `Φ_T E2_T⁻¹ R_{T,i}` over the faces at `i` — the push-forward of `docs/discretization.md` §7
 //!   with the chart in place of the embedding
-//!   ([`vertex_frames_for_face_maps`](crate::connection::vertex_frames_for_face_maps)). For an
+//!   ([`vertex_frames_for_face_maps`]). For an
 //!   image grid, `w` is in pixels per unit time, directly comparable with classical optical flow.
 //! * **The chart's own flat metric**, edge lengths `|φ_j − φ_i|`: the "naive" model that forgets
 //!   the surface and computes flow in the parameter plane (the flat torus of Bauer, Grasmair &
