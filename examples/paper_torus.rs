@@ -19,7 +19,7 @@ mod common;
 use common::{solve_in_chart, ChartGrid, Comparison};
 use meshflow::chart::Chart;
 use meshflow::flow::{FlowParams, MeshSequence};
-use meshflow::render::{write_slab_pictures, FigureOptions, SlabView, View};
+use meshflow::render::View;
 use meshflow::synth::paper_torus;
 use std::path::Path;
 use std::time::Instant;
@@ -54,42 +54,17 @@ fn main() -> Result<(), meshflow::Error> {
     let solved = start.elapsed().as_secs_f64();
     comparison.print_table();
 
-    comparison.write_vtus(out, "torus", &surface)?;
     let grid = ChartGrid {
         rows: n2,
         cols: n1,
         column_major: true,
         pixel_size: 3,
     };
-    let options = FigureOptions {
-        view: View {
-            azimuth_degrees: -70.0,
-            elevation_degrees: 40.0,
-        },
-        ..FigureOptions::default()
+    let view = View {
+        azimuth_degrees: -70.0,
+        elevation_degrees: 40.0,
     };
-    let slabs = surface.n_slabs();
-    let chosen = [0, slabs / 2, slabs - 1];
-    let vectors = comparison.flows[0]
-        .result
-        .vectors
-        .as_ref()
-        .expect("embedded");
-    let views: Vec<SlabView> = chosen
-        .iter()
-        .map(|&s| SlabView {
-            slab: s,
-            time: surface.times()[s],
-            positions: surface.positions(s).expect("embedded"),
-            intensity: surface.intensities(s),
-            flow: &vectors[s],
-            angular_error: None,
-        })
-        .collect();
-    write_slab_pictures(out, surface.mesh().faces(), &views, &options, &|| {})?;
-    for s in chosen {
-        comparison.write_chart_pictures(out, &surface, s, grid)?;
-    }
+    comparison.write_outputs(out, "torus", &surface, grid, view)?;
     let total = start.elapsed().as_secs_f64();
 
     println!();

@@ -12,7 +12,7 @@ use meshflow::accuracy::{compare_result, FlowErrors};
 use meshflow::flow::{compute_flow, FlowParams, FlowResult};
 use meshflow::io::vtk::NamedArray;
 use meshflow::io::{write_slab_vtus, IoError};
-use meshflow::render::{write_slab_pictures, FigureOptions, SlabView};
+use meshflow::render::{sequence_views, write_slab_pictures, FigureOptions};
 use meshflow::synth::{deforming_sphere, GroundTruth};
 use std::path::Path;
 
@@ -91,16 +91,12 @@ fn write_outputs(
             NamedArray::scalars("intensity", sequence.intensities(s)),
         ]
     })?;
-    let views: Vec<SlabView> = (0..sequence.n_slabs())
-        .map(|s| SlabView {
-            slab: s,
-            time: sequence.times()[s],
-            positions: sequence.positions(s).expect("embedded"),
-            intensity: sequence.intensities(s),
-            flow: &vectors[s],
-            angular_error: Some(&errors.angular_degrees[s]),
-        })
-        .collect();
+    let views = sequence_views(
+        sequence,
+        vectors,
+        Some(&errors.angular_degrees),
+        0..sequence.n_slabs(),
+    )?;
     write_slab_pictures(
         out,
         sequence.mesh().faces(),

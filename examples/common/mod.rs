@@ -1,6 +1,6 @@
 //! Shared by the `paper_torus` and `graph_surface` examples: solving a sequence and reading
 //! its flow in a parameter domain, comparing two such flows, writing the comparison as VTU,
-//! parameter-domain PNGs and a table.
+//! 3D and parameter-domain PNGs and a table.
 
 use meshflow::accuracy::angular_error;
 use meshflow::chart::Chart;
@@ -9,7 +9,9 @@ use meshflow::io::vtk::NamedArray;
 use meshflow::io::write_slab_vtus;
 use meshflow::render::color_wheel::{flow_color, robust_max};
 use meshflow::render::colormap::viridis;
-use meshflow::render::{chart_picture, write_png};
+use meshflow::render::{
+    chart_picture, sequence_views, write_png, write_slab_pictures, FigureOptions, View,
+};
 use nalgebra::{Vector2, Vector3};
 use std::path::Path;
 
@@ -113,7 +115,7 @@ impl Comparison {
 
     /// One VTU per slab on frame `s` of `sequence` (embedded): the R^3 flow of the first model,
     /// both chart flows, their difference and the image; plus `NAME.pvd`.
-    pub fn write_vtus(
+    fn write_vtus(
         &self,
         out: &Path,
         name: &str,
@@ -137,10 +139,41 @@ impl Comparison {
         Ok(())
     }
 
+    /// Everything the examples write: the VTU series `NAME_SSSS.vtu` + `NAME.pvd`, and for the
+    /// first, middle and last slab the 3D pictures of the first model's flow seen from `view`
+    /// and the parameter-domain pictures.
+    pub fn write_outputs(
+        &self,
+        out: &Path,
+        name: &str,
+        sequence: &MeshSequence,
+        grid: ChartGrid,
+        view: View,
+    ) -> Result<(), meshflow::Error> {
+        self.write_vtus(out, name, sequence)?;
+        let slabs = sequence.n_slabs();
+        let chosen = [0, slabs / 2, slabs - 1];
+        let vectors = self.flows[0]
+            .result
+            .vectors
+            .as_ref()
+            .expect("the first model is embedded");
+        let views = sequence_views(sequence, vectors, None, chosen)?;
+        let options = FigureOptions {
+            view,
+            ..FigureOptions::default()
+        };
+        write_slab_pictures(out, sequence.mesh().faces(), &views, &options, &|| {})?;
+        for s in chosen {
+            self.write_chart_pictures(out, sequence, s, grid)?;
+        }
+        Ok(())
+    }
+
     /// Parameter-domain pictures of slab `s`: the image, both flows (Middlebury colours with
     /// x1 to the right and x2 downwards) and the angular difference (viridis, 0 to its
     /// maximum), one `grid.pixel_size²` block per vertex.
-    pub fn write_chart_pictures(
+    fn write_chart_pictures(
         &self,
         out: &Path,
         sequence: &MeshSequence,

@@ -32,6 +32,8 @@ pub enum RenderError {
     Range { min: f64, max: f64 },
     #[error("image size: {reason}")]
     Size { reason: String },
+    #[error("an intrinsic sequence (edge lengths, no positions) cannot be drawn")]
+    Intrinsic,
 }
 
 /// Checks that a per-vertex array has one entry per vertex.

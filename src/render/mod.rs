@@ -70,4 +70,4 @@ pub use figure::{
 };
 pub use raster::Canvas;
 pub use shading::Lighting;
-pub use slabs::{write_slab_pictures, FigureOptions, SlabView};
+pub use slabs::{sequence_views, write_slab_pictures, FigureOptions, SlabView};

@@ -16,10 +16,12 @@
 
 use super::color_wheel::robust_max;
 use super::colormap::finite_range;
+use super::RenderError;
 use super::{
     arrow_picture, flow_picture, grey_picture, scalar_picture, write_png, Camera, PictureStyle,
     Surface, View,
 };
+use crate::flow::MeshSequence;
 use crate::Error;
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -36,6 +38,30 @@ pub struct SlabView<'a> {
     pub flow: &'a [Vector3<f64>],
     /// Angular error against a ground truth, degrees, one per vertex.
     pub angular_error: Option<&'a [f64]>,
+}
+
+/// The views of slabs `slabs` of an embedded `sequence` with its R^3 flow `vectors[s]` (as in
+/// [`FlowResult::vectors`](crate::flow::FlowResult)) and, when known, angular errors
+/// `angular_errors[s]`.
+pub fn sequence_views<'a>(
+    sequence: &'a MeshSequence,
+    vectors: &'a [Vec<Vector3<f64>>],
+    angular_errors: Option<&'a [Vec<f64>]>,
+    slabs: impl IntoIterator<Item = usize>,
+) -> Result<Vec<SlabView<'a>>, RenderError> {
+    slabs
+        .into_iter()
+        .map(|s| {
+            Ok(SlabView {
+                slab: s,
+                time: sequence.times()[s],
+                positions: sequence.positions(s).ok_or(RenderError::Intrinsic)?,
+                intensity: sequence.intensities(s),
+                flow: &vectors[s],
+                angular_error: angular_errors.map(|errors| errors[s].as_slice()),
+            })
+        })
+        .collect()
 }
 
 /// Size, view and style of the pictures of [`write_slab_pictures`].

@@ -7,7 +7,7 @@ use meshflow::accuracy::{check_embedded, compare_result};
 use meshflow::flow::{FlowParams, FlowProblem, FlowResult, SolveEvent};
 use meshflow::io::{load_sequence, write_flow_outputs, LoadOptions, StagedDir};
 use meshflow::io::{read_ground_truth, GroundTruthReport, LoadedSequence};
-use meshflow::render::SlabView;
+use meshflow::render::sequence_views;
 use meshflow::Error;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
@@ -149,16 +149,8 @@ fn draw_pictures(
         .vectors
         .as_ref()
         .expect("sequences read from files are embedded");
-    let views: Vec<SlabView> = (0..sequence.n_slabs())
-        .map(|s| SlabView {
-            slab: s,
-            time: sequence.times()[s],
-            positions: sequence.positions(s).expect("embedded"),
-            intensity: sequence.intensities(s),
-            flow: &vectors[s],
-            angular_error: report.map(|r| r.errors.angular_degrees[s].as_slice()),
-        })
-        .collect();
+    let errors = report.map(|r| r.errors.angular_degrees.as_slice());
+    let views = sequence_views(sequence, vectors, errors, 0..sequence.n_slabs())?;
     pictures::draw(dir, sequence.mesh().faces(), &views, args)?;
     Ok(())
 }
