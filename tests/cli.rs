@@ -155,6 +155,23 @@ fn sample_copy() -> tempfile::TempDir {
     dir
 }
 
+/// The library's flow of a file input with smoothness `gamma` (other parameters default),
+/// independently of the binary.
+fn library_flow(
+    input: &str,
+    gamma: f64,
+) -> (meshflow::flow::MeshSequence, meshflow::flow::FlowResult) {
+    let sequence = meshflow::io::load_sequence(Path::new(input), &Default::default())
+        .unwrap()
+        .sequence;
+    let params = meshflow::flow::FlowParams {
+        gamma,
+        ..Default::default()
+    };
+    let flow = meshflow::flow::compute_flow(&sequence, &params).unwrap();
+    (sequence, flow)
+}
+
 #[test]
 fn solve_command_writes_the_library_flow() {
     let out = tempfile::tempdir().unwrap();
@@ -174,14 +191,7 @@ fn solve_command_writes_the_library_flow() {
         ([5, 642, 3].as_slice(), [5, 642, 2].as_slice())
     );
 
-    let sequence = meshflow::io::load_sequence(Path::new(&input), &Default::default())
-        .unwrap()
-        .sequence;
-    let params = meshflow::flow::FlowParams {
-        gamma: 0.01,
-        ..Default::default()
-    };
-    let expected = meshflow::flow::compute_flow(&sequence, &params).unwrap();
+    let (_, expected) = library_flow(&input, 0.01);
     let values: Vec<f64> = expected
         .vectors
         .unwrap()
@@ -400,14 +410,7 @@ fn solve_with_ground_truth_writes_the_library_errors() {
     assert_eq!(shipped_truth.data, values);
 
     // The library on the same files, compared with the synthetic truth.
-    let sequence = meshflow::io::load_sequence(Path::new(&input), &Default::default())
-        .unwrap()
-        .sequence;
-    let params = meshflow::flow::FlowParams {
-        gamma: 0.01,
-        ..Default::default()
-    };
-    let flow = meshflow::flow::compute_flow(&sequence, &params).unwrap();
+    let (sequence, flow) = library_flow(&input, 0.01);
     let expected = compare_result(&sequence, &flow, &synthetic.flow).unwrap();
     assert!(expected.mean_angular_degrees > 0.1, "{expected:?}");
 
