@@ -25,6 +25,7 @@ pub mod ply;
 mod sequence;
 mod texture;
 pub mod vtk;
+mod warning;
 mod weld;
 
 pub use atomic::{write_atomically, StagedDir};
@@ -40,6 +41,7 @@ pub use npy::{read_npy, read_npy_float, read_npy_indices, write_npy, NpyArray};
 pub use obj::{read_obj, write_obj, ObjMesh};
 pub use sequence::{load_sequence, natural_order, read_mesh, LoadOptions, LoadedSequence};
 pub use texture::Texture;
+pub use warning::LoadWarning;
 pub use weld::Welding;
 
 use std::path::PathBuf;

@@ -17,7 +17,7 @@ use super::gltf_read::{read_gltf_animation, read_gltf_frame};
 use super::input::{FrameFormat, SequenceSource};
 use super::ply::read_ply;
 use super::{grey_values, read_npy, read_npy_indices, read_obj, texture_intensity};
-use super::{FrameMesh, IoError, RawSequence, TextureCache, Welding};
+use super::{FrameMesh, IoError, LoadWarning, RawSequence, TextureCache, Welding};
 use crate::flow::{check_finite_intensities, FlowError, MeshSequence};
 use crate::mesh::{check_index_range, Mesh};
 use crate::Error;
@@ -62,6 +62,8 @@ pub struct LoadedSequence {
     pub welding: Welding,
     /// The file each frame came from.
     pub frame_files: Vec<PathBuf>,
+    /// What the loader noticed and worked around (see [`LoadWarning`]).
+    pub warnings: Vec<LoadWarning>,
 }
 
 /// Reads the sequence that `path` names (a directory, a glob, a glTF animation; see
@@ -123,6 +125,7 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
         source,
         welding,
         frame_files: files,
+        warnings: Vec::new(),
     })
 }
 

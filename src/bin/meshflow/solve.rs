@@ -37,6 +37,9 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
     let loaded = load_sequence(&args.input, &options);
     reading.finish_and_clear();
     let loaded = loaded?;
+    for warning in &loaded.warnings {
+        eprintln!("meshflow: warning: {warning}");
+    }
     let sequence = &loaded.sequence;
     println!(
         "{}: {}, {} vertices, {} faces{}",
