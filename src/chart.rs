@@ -13,17 +13,18 @@
 //!
 //! * **Pull-back of a flow.** A vertex vector `u_i` (components in vertex `i`'s frame) becomes
 //!   the parameter velocity `w_i = P^φ_i u_i`, with `P^φ_i` the corner-angle-weighted mean of
-//!   `Φ_T E2_T⁻¹ R_{T,i}` over the faces at `i` — the push-forward of `docs/discretization.md` §7
-//!   with the chart in place of the embedding
-//!   ([`vertex_frames_for_face_maps`]). For an
-//!   image grid, `w` is in pixels per unit time, directly comparable with classical optical flow.
+//!   `Φ_T E2_T⁻¹ R_{T,i}` over the faces at `i`: the mean of the chart's differentials, which
+//!   *should* carry the chart's stretch (unlike the orthonormal frames of the R^3 output,
+//!   `docs/discretization.md` §8). For an image grid, `w` is in pixels per unit time, directly
+//!   comparable with classical optical flow.
 //! * **The chart's own flat metric**, edge lengths `|φ_j − φ_i|`: the "naive" model that forgets
 //!   the surface and computes flow in the parameter plane (the flat torus of Bauer, Grasmair &
 //!   Kirisits' comparison, Figs. 3–6), via
 //!   [`MeshSequence::from_edge_lengths`](crate::flow::MeshSequence::from_edge_lengths).
 
-use crate::connection::vertex_frames_for_face_maps;
+use crate::connection::Connection;
 use crate::flow::Slab;
+use crate::geometry::IntrinsicGeometry;
 use crate::mesh::Mesh;
 use nalgebra::{Matrix2, Vector2};
 use thiserror::Error;
@@ -154,12 +155,7 @@ impl Chart {
                         found: u.len(),
                     });
                 }
-                let frames = vertex_frames_for_face_maps(
-                    mesh,
-                    &slab.geometry,
-                    &slab.connection,
-                    &face_edges,
-                );
+                let frames = chart_frames(mesh, &slab.geometry, &slab.connection, &face_edges);
                 Ok(frames.iter().zip(u).map(|(p, u)| p * u).collect())
             })
             .collect()
@@ -175,4 +171,32 @@ impl Chart {
             })
         }
     }
+}
+
+/// `P^φ_i` for every vertex: the corner-angle-weighted mean of `Φ_T E2_T⁻¹ R_{T,i}` over the
+/// faces at `i` (see the module docs), for the chart's face edge images `face_edges[f] = Φ_T`.
+fn chart_frames(
+    mesh: &Mesh,
+    geometry: &IntrinsicGeometry,
+    connection: &Connection,
+    face_edges: &[Matrix2<f64>],
+) -> Vec<Matrix2<f64>> {
+    let mut frames = vec![Matrix2::zeros(); mesh.n_vertices()];
+    for (f, (face, edges)) in mesh.faces().iter().zip(face_edges).enumerate() {
+        let triangle = geometry.triangle(f);
+        // The layout edge matrix is upper triangular with positive diagonal: always invertible.
+        let layout_inverse = triangle
+            .layout_edge_matrix()
+            .try_inverse()
+            .expect("layout of a validated triangle is invertible");
+        let face_map = edges * layout_inverse;
+        for (local, &v) in face.iter().enumerate() {
+            let weight = triangle.angles[local];
+            frames[v as usize] += weight * face_map * connection.vertex_to_face(f, local);
+        }
+    }
+    for (frame, sum) in frames.iter_mut().zip(geometry.vertex_angle_sums()) {
+        *frame /= *sum;
+    }
+    frames
 }

@@ -4,7 +4,7 @@
 use meshflow::chart::{Chart, ChartError};
 use meshflow::flow::{FlowParams, FlowProblem, MeshSequence};
 use meshflow::shapes::{grid, torus};
-use nalgebra::{Vector2, Vector3};
+use nalgebra::{Rotation3, Vector2, Vector3};
 use std::f64::consts::TAU;
 
 /// A smooth periodic pattern on an `n1 × n2` grid translated by `shift` grid units.
@@ -68,16 +68,23 @@ fn flat_torus_recovers_a_translation_in_pixels_per_frame_to_second_order() {
 #[test]
 fn chart_of_a_flat_embedding_pulls_back_to_its_xy_components() {
     // A grid of unit squares in the plane: chart and embedding agree, so the pull-back equals
-    // the R^3 push-forward's x and y components to round-off.
+    // the R^3 push-forward's x and y components to round-off. The second frame folds the grid
+    // by 70° along the line of edges x = 6: the slab geometry stays that of the flat grid.
     let (nx, ny) = (12, 9);
     let surface = grid(nx, ny, nx as f64, ny as f64);
     let mesh = surface.mesh().unwrap();
     let chart = Chart::grid(nx, ny);
+    let hinge = Vector3::new(6.0, 0.0, 0.0);
+    let fold = Rotation3::from_axis_angle(&Vector3::y_axis(), -70f64.to_radians());
     let moved: Vec<Vector3<f64>> = surface
         .positions
         .iter()
-        .map(|p| p + Vector3::new(0.0, 0.0, 0.3 * (p.x * 0.4).sin() * (p.y * 0.5).cos()))
+        .map(|&p| match p.x > 6.0 + 1e-9 {
+            true => hinge + fold * (p - hinge),
+            false => p,
+        })
         .collect();
+    assert!(moved.iter().any(|p| p.z > 3.0), "the fold leaves the plane");
     let intensity = |positions: &[Vector3<f64>], t: f64| -> Vec<f64> {
         positions
             .iter()

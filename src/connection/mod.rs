@@ -11,7 +11,10 @@
 //! ϑ_i(i→j) = s_i · (sum of the corner angles from the reference edge to i→j)
 //! ```
 //!
-//! The reference edge is the first edge of the first corner of [`Mesh::vertex_fan`].
+//! The reference edge is the first edge of the first corner of [`Mesh::vertex_fan`]: at a
+//! boundary vertex the boundary edge the fan starts from, at an interior vertex the first edge
+//! of its corner in the lowest-numbered face. It is fixed because the intrinsic components
+//! (`flow_intrinsic.npy`) and the frames (`frames.npy`) depend on it; nothing else does.
 //!
 //! # Vertex → face transport
 //!
@@ -36,7 +39,7 @@
 mod push_forward;
 mod time_transport;
 
-pub use push_forward::{push_forward, vertex_frames_for_face_maps, vertex_frames_in_r3};
+pub use push_forward::{push_forward, vertex_frames_in_r3, vertex_normals};
 pub use time_transport::polar_rotation_angles;
 
 use crate::geometry::IntrinsicGeometry;
@@ -97,6 +100,30 @@ impl Connection {
     /// `ϑ_i(h)`: the polar angle of halfedge `h` in the frame of its tail vertex.
     pub fn halfedge_angle(&self, h: usize) -> f64 {
         self.halfedge_angles[h]
+    }
+
+    /// Every outgoing edge `i→j` of vertex `i` as `(j, ϑ_i(i→j))`, counter-clockwise from the
+    /// reference edge: the first edge of each corner of the fan and, at a boundary vertex, the
+    /// second edge of the last corner (polar angle `ϑ + s_i θ` of that corner).
+    pub fn outgoing_edges<'a>(
+        &'a self,
+        mesh: &'a Mesh,
+        geometry: &'a IntrinsicGeometry,
+        i: usize,
+    ) -> impl Iterator<Item = (u32, f64)> + 'a {
+        let fan = mesh.vertex_fan(i);
+        let first_edges = fan.iter().map(|corner| {
+            let h = corner.first_halfedge();
+            (mesh.halfedge_vertices(h)[1], self.halfedge_angles[h])
+        });
+        let closing_edge = mesh.is_boundary_vertex(i).then(|| {
+            let last = fan[fan.len() - 1];
+            let theta = geometry.triangle(last.face as usize).angles[last.local as usize];
+            let head = mesh.halfedge_vertices(last.incoming_halfedge())[0];
+            let angle = self.halfedge_angles[last.first_halfedge()] + self.vertex_scales[i] * theta;
+            (head, angle)
+        });
+        first_edges.chain(closing_edge)
     }
 
     /// `r_{T,i}` for face `face` and local corner `local`.

@@ -12,7 +12,8 @@
 //!   *second edge* `i→k` (the opposite direction of halfedge `3f + (c + 2) % 3`).
 //! - Around a vertex the corners are ordered counter-clockwise: the corner after `(i, j, k)` is the
 //!   face containing halfedge `i→k`. A boundary vertex's fan runs from the corner whose first edge
-//!   is a boundary edge to the corner whose second edge is one.
+//!   is a boundary edge to the corner whose second edge is one; an interior vertex's fan starts
+//!   at its corner in the lowest-numbered face.
 //! - Undirected edge `e` joins `edges[e][0] < edges[e][1]`.
 
 mod validate;

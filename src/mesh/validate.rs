@@ -156,8 +156,9 @@ fn build_fans(
     if let Some(vertex) = (0..n_vertices).find(|&i| offsets[i] == offsets[i + 1]) {
         return Err(ConnectivityError::IsolatedVertex { vertex });
     }
-    // Corners grouped by vertex, in face order: the first one is an arbitrary but deterministic
-    // start for interior fans.
+    // Corners grouped by vertex, in face order: the first one, in the lowest-numbered face, is
+    // where an interior fan starts (docs/discretization.md fixes it: the reference edge of the
+    // vertex frame depends on it).
     let mut unordered = vec![Corner { face: 0, local: 0 }; offsets[n_vertices]];
     let mut fill = offsets.clone();
     for (f, face) in faces.iter().enumerate() {
