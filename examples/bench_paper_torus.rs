@@ -20,17 +20,11 @@ fn main() -> Result<(), meshflow::Error> {
         .map_or(Ok(Default::default()), |s| s.parse())
         .expect("a solver name");
     let params = FlowParams {
-        alpha: 1.0,
-        beta: 0.0,
-        gamma: 1.0,
         solver,
-        ..FlowParams::default()
+        ..FlowParams::paper(1.0, 0.0, 1.0)
     };
     println!(
-        "paper torus {n1}×{n2}, {frames} frames, α = {}, β = {}, γ = {}, {} threads",
-        params.alpha,
-        params.beta,
-        params.gamma,
+        "paper torus {n1}×{n2}, {frames} frames, α = 1, β = 0, γ = 1, {} threads",
         rayon::current_num_threads()
     );
 

@@ -29,11 +29,8 @@ fn main() -> Result<(), meshflow::Error> {
     let out = Path::new("out/graph_surface");
     std::fs::create_dir_all(out).map_err(|e| meshflow::io::IoError::file(out, e))?;
     let params = FlowParams {
-        alpha: 10.0,
-        beta: 0.0,
-        gamma: 1e-3,
         boundary: Boundary::Dirichlet,
-        ..FlowParams::default()
+        ..FlowParams::paper(10.0, 0.0, 1e-3)
     };
     println!(
         "graph surface: {} × {} grid, {frames} frames, α = 10, β = 0, γ = 0.001, Dirichlet",

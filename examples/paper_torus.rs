@@ -28,12 +28,7 @@ fn main() -> Result<(), meshflow::Error> {
     let (n1, n2, frames) = grid_size_from_args();
     let out = Path::new("out/paper_torus");
     std::fs::create_dir_all(out).map_err(|e| meshflow::io::IoError::file(out, e))?;
-    let params = FlowParams {
-        alpha: 1.0,
-        beta: 0.0,
-        gamma: 1.0,
-        ..FlowParams::default()
-    };
+    let params = FlowParams::paper(1.0, 0.0, 1.0);
     println!(
         "paper torus: {n1} × {n2} grid, {frames} frames, α = γ = 1, β = 0, {} threads",
         rayon::current_num_threads()

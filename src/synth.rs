@@ -18,6 +18,23 @@ pub fn texture(p: &Vector3<f64>) -> f64 {
         + 0.1 * (2.5 * p.y + 3.0 * p.z).cos()
 }
 
+/// Sparse features on a dark background (range about [0.1, 0.9]): twelve round bright blobs
+/// (Gaussians of radius 0.12) spread evenly over the unit sphere (a Fibonacci lattice), like
+/// cells on an embryo's surface. Most of the sphere carries no gradient.
+pub fn blobs(p: &Vector3<f64>) -> f64 {
+    const N: usize = 12;
+    let golden_angle = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let blob = |j: usize| {
+        let z = 1.0 - 2.0 * (j as f64 + 0.5) / N as f64;
+        let (sin, cos) = (golden_angle * j as f64).sin_cos();
+        let r = (1.0 - z * z).sqrt();
+        Vector3::new(r * cos, r * sin, z)
+    };
+    0.1 + (0..N)
+        .map(|j| 0.8 * (-(p - blob(j)).norm_squared() / (2.0 * 0.12f64.powi(2))).exp())
+        .sum::<f64>()
+}
+
 /// The unit icosphere of the given level at rest, with [`texture`] turning about the z-axis at
 /// `omega` radians per unit time; frames at `0, dt, 2 dt, …`. The true flow is `u = ω ẑ × x`.
 ///
@@ -29,6 +46,17 @@ pub fn rotating_sphere(
     omega: f64,
 ) -> Result<GroundTruth, FlowError> {
     deforming_sphere(level, n_frames, dt, omega, 0.0)
+}
+
+/// [`rotating_sphere`] with another image on the sphere, e.g. [`blobs`].
+pub fn rotating_sphere_with(
+    image: impl Fn(&Vector3<f64>) -> f64,
+    level: u32,
+    n_frames: usize,
+    dt: f64,
+    omega: f64,
+) -> Result<GroundTruth, FlowError> {
+    textured_deforming_sphere(image, level, n_frames, dt, omega, 0.0)
 }
 
 /// A sphere that stretches into an ellipsoid while a texture turns on it; frames at
@@ -58,6 +86,17 @@ pub fn deforming_sphere(
     omega: f64,
     strain: f64,
 ) -> Result<GroundTruth, FlowError> {
+    textured_deforming_sphere(texture, level, n_frames, dt, omega, strain)
+}
+
+fn textured_deforming_sphere(
+    image: impl Fn(&Vector3<f64>) -> f64,
+    level: u32,
+    n_frames: usize,
+    dt: f64,
+    omega: f64,
+    strain: f64,
+) -> Result<GroundTruth, FlowError> {
     let sphere = icosphere(level);
     let mesh = sphere.mesh().expect("icospheres are valid meshes");
     let times: Vec<f64> = (0..n_frames).map(|k| k as f64 * dt).collect();
@@ -68,7 +107,7 @@ pub fn deforming_sphere(
             sphere
                 .positions
                 .iter()
-                .map(|p| texture(&(back * p)))
+                .map(|p| image(&(back * p)))
                 .collect()
         })
         .collect();

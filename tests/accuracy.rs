@@ -1,11 +1,11 @@
-//! Error measures against a known flow, and the synthetic sequences that have one: AE and EPE by
-//! hand, exact zeros and symmetry, area and duration weighting, typed errors; the flow converges
-//! to the truth under refinement; the deforming sphere's true flow satisfies brightness
-//! constancy.
+//! Error measures against a known flow, and the synthetic sequences that have one: AE, EPE,
+//! direction error, relative EPE and speed ratio by hand, exact zeros and symmetry, area and
+//! duration weighting, the zero flow's scores, typed errors; the flow converges to the truth
+//! under refinement; the deforming sphere's true flow satisfies brightness constancy.
 
 use meshflow::accuracy::{angular_error, compare_flows, compare_result, endpoint_error};
-use meshflow::accuracy::{AccuracyError, FlowErrors};
-use meshflow::flow::{compute_flow, FlowParams, MeshSequence};
+use meshflow::accuracy::{direction_error_degrees, AccuracyError, FlowErrors};
+use meshflow::flow::{compute_flow, FlowParams, MeshSequence, Weight};
 use meshflow::mesh::Mesh;
 use meshflow::synth::{deforming_sphere, rotating_sphere, texture, GroundTruth};
 use nalgebra::{Rotation3, Vector3};
@@ -28,6 +28,11 @@ fn hand_computed_pairs() {
     // A tiny difference is resolved (acos of a cosine rounded to 1 would give 0 or 1.5e-8).
     let tiny = Vector3::new(1e-9, 0.0, 0.0);
     assert!((angular_error(&tiny, &zero) / 1e-9 - 1.0).abs() < 1e-9);
+    // Directions: the angle between the vectors themselves; a zero vector has none (90°).
+    assert!((direction_error_degrees(&x, &y) - 90.0).abs() < 1e-12);
+    assert!((direction_error_degrees(&(3.0 * x), &(x + y)) - 45.0).abs() < 1e-12);
+    assert_eq!(direction_error_degrees(&(2.0 * x), &x), 0.0);
+    assert_eq!(direction_error_degrees(&zero, &x), 90.0);
 }
 
 #[test]
@@ -56,11 +61,7 @@ fn angular_error_is_the_acos_formula() {
 }
 
 fn solved(truth: &GroundTruth, gamma: f64) -> Flow {
-    let params = FlowParams {
-        gamma,
-        ..FlowParams::default()
-    };
-    compute_flow(&truth.sequence, &params)
+    compute_flow(&truth.sequence, &FlowParams::paper(1.0, 0.0, gamma))
         .unwrap()
         .vectors
         .unwrap()
@@ -69,6 +70,7 @@ fn solved(truth: &GroundTruth, gamma: f64) -> Flow {
 fn all_values(errors: &FlowErrors) -> Vec<f64> {
     let mut values: Vec<f64> = errors.angular_degrees.concat();
     values.extend(errors.endpoint.concat());
+    values.extend(errors.direction_degrees.concat());
     values.extend(errors.slabs.iter().flat_map(|s| {
         [
             s.mean_angular_degrees,
@@ -80,6 +82,8 @@ fn all_values(errors: &FlowErrors) -> Vec<f64> {
     values.extend([
         errors.mean_angular_degrees,
         errors.mean_endpoint,
+        errors.mean_direction_degrees,
+        errors.relative_endpoint,
         errors.max_angular_degrees,
         errors.max_endpoint,
     ]);
@@ -92,11 +96,24 @@ fn a_flow_against_itself_has_exactly_zero_error_and_errors_are_symmetric() {
     let computed = solved(&truth, 1e-2);
     for flow in [&computed, &truth.flow] {
         let errors = compare_flows(&truth.sequence, flow, flow).unwrap();
-        assert!(all_values(&errors).iter().all(|&e| e == 0.0));
+        // Zero, or NaN for the direction where the truth does not move (near the poles).
+        assert!(all_values(&errors).iter().all(|&e| e == 0.0 || e.is_nan()));
+        assert_eq!(errors.median_speed_ratio, 1.0);
     }
     let forward = compare_flows(&truth.sequence, &computed, &truth.flow).unwrap();
     let backward = compare_flows(&truth.sequence, &truth.flow, &computed).unwrap();
-    assert_eq!(all_values(&forward), all_values(&backward));
+    // AE, EPE and their maxima are symmetric; direction, relative EPE and ratio are not.
+    let symmetric = |e: &FlowErrors| {
+        let mut values = e.angular_degrees.concat();
+        values.extend(e.endpoint.concat());
+        values.extend([
+            e.mean_angular_degrees,
+            e.mean_endpoint,
+            e.max_angular_degrees,
+        ]);
+        values
+    };
+    assert_eq!(symmetric(&forward), symmetric(&backward));
     assert!(
         forward.mean_angular_degrees > 1.0,
         "{}",
@@ -151,7 +168,14 @@ fn means_are_weighted_by_vertex_area_and_slab_duration() {
     );
     // The plain mean over vertices would be 3/8, the plain mean of slab means 5/12.
     assert!(!close(errors.mean_endpoint, 3.0 / 8.0) && !close(errors.mean_endpoint, 5.0 / 12.0));
-    let (ae0, ae1) = (45.0, 2f64.atan().to_degrees());
+    // AE on displacements in mean edge lengths: ℓ_0 = (4 + √2)/5 for the unit square and its
+    // diagonal, ℓ_1 = 1.5 ℓ_0; |u| Δt / ℓ is 1/ℓ_0 in slab 0 and 2·2/ℓ_1 in slab 1.
+    let l0 = (4.0 + 2f64.sqrt()) / 5.0;
+    assert!(close(slabs[0].edge_length, l0) && close(slabs[1].edge_length, 1.5 * l0));
+    let (ae0, ae1) = (
+        (1.0 / l0).atan().to_degrees(),
+        (4.0 / (1.5 * l0)).atan().to_degrees(),
+    );
     assert!(close(slabs[0].mean_angular_degrees, ae0 / 6.0));
     assert!(close(slabs[1].mean_angular_degrees, ae1 / 3.0));
     assert!(close(
@@ -162,6 +186,50 @@ fn means_are_weighted_by_vertex_area_and_slab_duration() {
     assert!(close(slabs[0].max_angular_degrees, ae0) && slabs[0].max_endpoint == 1.0);
     assert_eq!(errors.endpoint[0], vec![0.0, 1.0, 0.0, 0.0]);
     assert_eq!(errors.endpoint[1], vec![2.0, 0.0, 0.0, 0.0]);
+    // The truth is zero: it moves nowhere, and nothing is relative to it.
+    assert!(errors.direction_degrees.concat().iter().all(|e| e.is_nan()));
+    assert!(errors.mean_direction_degrees.is_nan() && errors.relative_endpoint.is_nan());
+    assert_eq!(errors.moving_fraction, 0.0);
+}
+
+#[test]
+fn direction_relative_endpoint_and_speed_ratio_by_hand() {
+    // Square sequence (weights Δt a: slab 0 [1/3, 1/6, 1/3, 1/6], slab 1 [1.5, 0.75, 1.5,
+    // 0.75]); the truth moves along x at unit speed, except vertex 3 in slab 0, at 0.05: below
+    // 10 % of the slab's largest speed, so not moving.
+    let sequence = square_sequence();
+    let x = Vector3::x();
+    let mut truth: Flow = vec![vec![x; 4]; 2];
+    truth[0][3] = 0.05 * x;
+    let computed: Flow = vec![
+        vec![x, x, Vector3::new(0.0, 2.0, 0.0), Vector3::zeros()],
+        vec![1.5 * x; 4],
+    ];
+    let errors = compare_flows(&sequence, &computed, &truth).unwrap();
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-12 * b.abs().max(1.0);
+    assert_eq!(errors.direction_degrees[0][..3], [0.0, 0.0, 90.0]);
+    assert!(errors.direction_degrees[0][3].is_nan());
+    assert_eq!(errors.direction_degrees[1], vec![0.0; 4]);
+    // Moving weight 1/3 + 1/6 + 1/3 + 4.5 of 5.5; only vertex 2 of slab 0 errs, by 90°.
+    let moving = 5.0 / 6.0 + 4.5;
+    assert!(close(errors.moving_fraction, moving / 5.5));
+    assert!(close(errors.mean_direction_degrees, (90.0 / 3.0) / moving));
+    // ∫∫|u − v| / ∫∫|v|: √5 at vertex 2 and 0.05 at vertex 3 of slab 0, 0.5 everywhere in slab 1.
+    let numerator = 5f64.sqrt() / 3.0 + 0.05 / 6.0 + 0.5 * 4.5;
+    let denominator = 5.0 / 6.0 + 0.05 / 6.0 + 4.5;
+    assert!(close(errors.relative_endpoint, numerator / denominator));
+    // Ratios 1 (weight 1/2), 2 (1/3), 1.5 (4.5): the weighted median is 1.5.
+    assert_eq!(errors.median_speed_ratio, 1.5);
+    assert!(close(
+        errors.slabs[0].mean_direction_degrees,
+        30.0 / (5.0 / 6.0)
+    ));
+
+    let zero = FlowErrors::zero_flow(&sequence, &truth).unwrap();
+    assert!(close(zero.mean_direction_degrees, 90.0));
+    assert!(close(zero.relative_endpoint, 1.0));
+    assert_eq!(zero.median_speed_ratio, 0.0);
+    assert!(zero.mean_angular_degrees > errors.mean_angular_degrees);
 }
 
 #[test]
@@ -217,7 +285,7 @@ fn mismatched_or_non_finite_flows_and_intrinsic_sequences_are_typed_errors() {
     let flow = compute_flow(
         &intrinsic,
         &FlowParams {
-            beta: 1e-3,
+            beta: Weight::Value(1e-3),
             ..FlowParams::default()
         },
     )
@@ -228,48 +296,44 @@ fn mismatched_or_non_finite_flows_and_intrinsic_sequences_are_typed_errors() {
     );
 }
 
-/// Mean AE (degrees) at icosphere levels 2, 3, 4, γ = 1e-3, three frames 0.1 apart, ω = 0.5.
-fn angular_errors_under_refinement(strain: f64) -> Vec<f64> {
+/// Relative EPE and mean direction error at icosphere levels 2, 3, 4, γ = 1e-3, three
+/// frames 0.1 apart, ω = 0.5. (The AE, on displacements in mean edge lengths, is not a
+/// convergence measure: refining shrinks the edge lengths, so the same velocity error weighs
+/// more.)
+fn errors_under_refinement(strain: f64) -> Vec<(f64, f64)> {
     (2..=4)
         .map(|level| {
             let truth = deforming_sphere(level, 3, 0.1, 0.5, strain).unwrap();
-            let flow = compute_flow(
-                &truth.sequence,
-                &FlowParams {
-                    gamma: 1e-3,
-                    ..FlowParams::default()
-                },
-            )
-            .unwrap();
-            compare_result(&truth.sequence, &flow, &truth.flow)
-                .unwrap()
-                .mean_angular_degrees
+            let params = FlowParams::paper(1.0, 0.0, 1e-3);
+            let flow = compute_flow(&truth.sequence, &params).unwrap();
+            let errors = compare_result(&truth.sequence, &flow, &truth.flow).unwrap();
+            (errors.relative_endpoint, errors.mean_direction_degrees)
         })
         .collect()
 }
 
+fn assert_converges(errors: &[(f64, f64)], finest_relative_endpoint: f64) {
+    for pair in errors.windows(2) {
+        let ((e0, d0), (e1, d1)) = (pair[0], pair[1]);
+        assert!(e0 > 1.5 * e1 && d0 > 1.5 * d1, "{errors:?}");
+    }
+    assert!(errors[2].0 < finest_relative_endpoint, "{errors:?}");
+}
+
 #[test]
 fn rotating_sphere_error_falls_under_refinement() {
-    let errors = angular_errors_under_refinement(0.0);
-    println!("rotating sphere, mean AE (degrees), levels 2-4: {errors:.4?}");
-    // Measured: 10.419°, 5.999°, 3.778° (ratios 1.74, 1.59).
-    assert!(
-        errors[0] > 1.5 * errors[1] && errors[1] > 1.5 * errors[2],
-        "{errors:?}"
-    );
-    assert!(errors[2] < 4.0, "{errors:?}");
+    let errors = errors_under_refinement(0.0);
+    println!("rotating sphere, (relative EPE, direction error°), levels 2-4: {errors:.4?}");
+    // Measured: (0.507, 14.2°), (0.299, 7.0°), (0.192, 4.2°).
+    assert_converges(&errors, 0.2);
 }
 
 #[test]
 fn deforming_sphere_error_falls_under_refinement() {
-    let errors = angular_errors_under_refinement(0.5);
-    println!("deforming sphere, mean AE (degrees), levels 2-4: {errors:.4?}");
-    // Measured: 10.555°, 6.202°, 4.028° (ratios 1.70, 1.54).
-    assert!(
-        errors[0] > 1.4 * errors[1] && errors[1] > 1.4 * errors[2],
-        "{errors:?}"
-    );
-    assert!(errors[2] < 4.5 && errors[2] < 0.5 * errors[0], "{errors:?}");
+    let errors = errors_under_refinement(0.5);
+    println!("deforming sphere, (relative EPE, direction error°), levels 2-4: {errors:.4?}");
+    // Measured: (0.504, 14.1°), (0.299, 7.2°), (0.194, 4.4°).
+    assert_converges(&errors, 0.2);
 }
 
 /// `D(t)⁻¹ x` for `D(t) = diag(1 + εt, 1, 1/(1 + εt))`, written out here independently of synth.

@@ -36,10 +36,7 @@ fn flat_torus_translation_error(n1: usize, n2: usize, velocity: Vector2<f64>) ->
     )
     .unwrap();
     // γ large enough to fill in the aperture problem: a constant field costs no smoothness.
-    let params = FlowParams {
-        gamma: 1.0,
-        ..FlowParams::default()
-    };
+    let params = FlowParams::paper(1.0, 0.0, 1.0);
     let problem = FlowProblem::new(&sequence, &params).unwrap();
     let flow = problem.solve(&|_| {}).unwrap();
     let pulled = chart

@@ -4,7 +4,7 @@
 mod common;
 
 use common::{meshflow, meshflow_ok, shipped};
-use meshflow::accuracy::compare_result;
+use meshflow::accuracy::{compare_result, FlowErrors};
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::fem;
 use meshflow::geometry::IntrinsicGeometry;
@@ -165,7 +165,7 @@ fn library_flow(
         .unwrap()
         .sequence;
     let params = meshflow::flow::FlowParams {
-        gamma,
+        gamma: meshflow::flow::Weight::Value(gamma),
         ..Default::default()
     };
     let flow = meshflow::flow::compute_flow(&sequence, &params).unwrap();
@@ -194,6 +194,7 @@ fn solve_command_writes_the_library_flow() {
     let (_, expected) = library_flow(&input, 0.01);
     let values: Vec<f64> = expected
         .vectors
+        .as_ref()
         .unwrap()
         .iter()
         .flatten()
@@ -211,7 +212,16 @@ fn solve_command_writes_the_library_flow() {
             .unwrap();
     assert_eq!(summary["slabs"], 5);
     assert_eq!(summary["vertices"], 642);
-    assert_eq!(summary["params"]["gamma"], 0.01);
+    // As given, as used (the default time scale resolved with the data's scales), and the scales.
+    assert_eq!(summary["params"]["gamma"]["value"], 0.01);
+    assert_eq!(summary["params"]["alpha"]["relative"], 1.0);
+    assert_eq!(summary["weights"]["gamma"], 0.01);
+    let weights = expected.weights;
+    assert_eq!(json_f64(&summary["weights"]["alpha"]), weights.alpha);
+    assert_eq!(
+        json_f64(&summary["scales"]["gradient"]),
+        expected.scales.gradient
+    );
     assert!(summary["relative_residual"].as_f64().unwrap() < 1e-8);
     assert!(summary["energy"].as_f64().unwrap() < summary["energy_at_zero"].as_f64().unwrap());
     for term in ["data", "speed", "spatial", "temporal"] {
@@ -365,9 +375,14 @@ fn summary(dir: &Path) -> serde_json::Value {
 }
 
 /// `|a − b| ≤ tolerance · max(|b|, 1e-300)` for every pair.
+/// Relative closeness, entry by entry; NaN (an undefined measure) matches only NaN.
 fn assert_close(a: &[f64], b: &[f64], tolerance: f64, what: &str) {
     assert_eq!(a.len(), b.len(), "{what}");
     for (k, (x, y)) in a.iter().zip(b).enumerate() {
+        if x.is_nan() || y.is_nan() {
+            assert!(x.is_nan() && y.is_nan(), "{what}[{k}]: {x} vs {y}");
+            continue;
+        }
         assert!(
             (x - y).abs() <= tolerance * y.abs().max(1e-300),
             "{what}[{k}]: {x} vs {y}"
@@ -416,15 +431,29 @@ fn solve_with_ground_truth_writes_the_library_errors() {
 
     let reported = &summary(out.path())["ground_truth"];
     assert_eq!(reported["file"], truth_file.to_str().unwrap());
-    let overall = [
-        ("mean_angular_error_degrees", expected.mean_angular_degrees),
-        ("mean_endpoint_error", expected.mean_endpoint),
-        ("max_angular_error_degrees", expected.max_angular_degrees),
-        ("max_endpoint_error", expected.max_endpoint),
-    ];
-    for (key, value) in overall {
-        assert_close(&[json_f64(&reported[key])], &[value], 1e-12, key);
+    let zero = FlowErrors::zero_flow(&sequence, &synthetic.flow).unwrap();
+    for (json, errors) in [(reported, &expected), (&reported["zero_flow"], &zero)] {
+        let overall = [
+            ("mean_angular_error_degrees", errors.mean_angular_degrees),
+            (
+                "mean_direction_error_degrees",
+                errors.mean_direction_degrees,
+            ),
+            ("relative_endpoint_error", errors.relative_endpoint),
+            ("median_speed_ratio", errors.median_speed_ratio),
+            ("moving_fraction", errors.moving_fraction),
+            ("mean_endpoint_error", errors.mean_endpoint),
+            ("max_angular_error_degrees", errors.max_angular_degrees),
+            ("max_endpoint_error", errors.max_endpoint),
+        ];
+        for (key, value) in overall {
+            assert_close(&[json_f64(&json[key])], &[value], 1e-12, key);
+        }
     }
+    assert_eq!(
+        json_f64(&reported["zero_flow"]["relative_endpoint_error"]),
+        1.0
+    );
     let slabs = reported["slabs"].as_array().unwrap();
     assert_eq!(slabs.len(), 5);
     for (slab, errors) in slabs.iter().zip(&expected.slabs) {
@@ -442,6 +471,7 @@ fn solve_with_ground_truth_writes_the_library_errors() {
     for (name, per_vertex) in [
         ("angular_error", &expected.angular_degrees),
         ("endpoint_error", &expected.endpoint),
+        ("direction_error", &expected.direction_degrees),
     ] {
         let array = read_npy(&out.path().join(format!("{name}.npy"))).unwrap();
         assert_eq!(array.shape, vec![5, 642], "{name}");
@@ -450,11 +480,19 @@ fn solve_with_ground_truth_writes_the_library_errors() {
         assert_close(&vtu, &per_vertex[3], 1e-9, name);
     }
     let stdout = String::from_utf8_lossy(&run.stdout);
-    let line = format!(
-        "ground truth: mean angular error {:.4}°, mean endpoint error {:.4e}",
-        expected.mean_angular_degrees, expected.mean_endpoint
-    );
-    assert!(stdout.contains(&line), "{line:?} not in {stdout}");
+    for line in [
+        format!(
+            "ground truth: flow: angular error {:.2}°",
+            expected.mean_angular_degrees
+        ),
+        format!(
+            "relative endpoint error {:.1} %",
+            100.0 * expected.relative_endpoint
+        ),
+        format!("zero flow: angular error {:.2}°", zero.mean_angular_degrees),
+    ] {
+        assert!(stdout.contains(&line), "{line:?} not in {stdout}");
+    }
 }
 
 /// The shipped sample with a copy of vertex `copied` inserted as the files' vertex 0 and used

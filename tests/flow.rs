@@ -5,7 +5,7 @@ mod common;
 
 use meshflow::flow::{
     compute_flow, Boundary, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence,
-    SolverChoice, SolverMethod, TimeCoupling,
+    SolverChoice, SolverMethod, TimeCoupling, Weight,
 };
 use meshflow::geometry::GeometryError;
 use meshflow::shapes::{grid, icosphere, Surface};
@@ -73,8 +73,7 @@ fn solution_minimizes_the_energy() {
     for coupling in [TimeCoupling::Lumped, TimeCoupling::Consistent] {
         let params = FlowParams {
             time_coupling: coupling,
-            alpha: 0.5,
-            ..FlowParams::default()
+            ..FlowParams::paper(0.5, 0.0, 0.1)
         };
         let problem = FlowProblem::new(&sequence, &params).unwrap();
         let flow = problem.solve(&|_| {}).unwrap();
@@ -153,10 +152,7 @@ fn rigid_motions_of_each_frame_change_nothing_intrinsic() {
         Some(sequence.times().to_vec()),
     )
     .unwrap();
-    let params = FlowParams {
-        gamma: 0.01,
-        ..FlowParams::default()
-    };
+    let params = FlowParams::paper(1.0, 0.0, 0.01);
     let (a, b) = (
         compute_flow(sequence, &params).unwrap(),
         compute_flow(&moved, &params).unwrap(),
@@ -226,9 +222,8 @@ fn iterative_and_direct_solvers_agree() {
     let solve = |solver, alpha| {
         let params = FlowParams {
             solver,
-            alpha,
             tolerance: 1e-11,
-            ..FlowParams::default()
+            ..FlowParams::paper(alpha, 0.0, 0.1)
         };
         compute_flow(&truth.sequence, &params).unwrap()
     };
@@ -291,7 +286,7 @@ fn undetermined_flow_is_an_error_that_suggests_beta() {
         let err = compute_flow(
             &stripes(3),
             &FlowParams {
-                alpha,
+                alpha: Weight::Value(alpha),
                 ..FlowParams::default()
             },
         )
@@ -303,7 +298,7 @@ fn undetermined_flow_is_an_error_that_suggests_beta() {
     assert!(compute_flow(
         &stripes(3),
         &FlowParams {
-            beta: 1e-3,
+            beta: Weight::Value(1e-3),
             ..FlowParams::default()
         }
     )
@@ -328,12 +323,18 @@ fn undetermined_flow_is_an_error_that_suggests_beta() {
 fn invalid_parameters_are_named() {
     let sequence = stripes(2);
     type Spoil = fn(&mut FlowParams);
-    let cases: [(Spoil, &str); 6] = [
-        (|p| p.alpha = 0.0, "alpha"),
-        (|p| p.alpha = f64::NAN, "alpha"),
-        (|p| p.beta = -1.0, "beta"),
-        (|p| p.gamma = 0.0, "gamma"),
-        (|p| p.gamma = f64::INFINITY, "gamma"),
+    // Values carry the paper's names, relative scales the command line's.
+    let cases: [(Spoil, &str); 11] = [
+        (|p| p.alpha = Weight::Value(0.0), "alpha"),
+        (|p| p.alpha = Weight::Value(f64::NAN), "alpha"),
+        (|p| p.alpha = Weight::Relative(-1.0), "time-scale"),
+        (|p| p.alpha = Weight::Relative(f64::INFINITY), "time-scale"),
+        (|p| p.beta = Weight::Value(-1.0), "beta"),
+        (|p| p.beta = Weight::Relative(f64::NAN), "speed-penalty"),
+        (|p| p.gamma = Weight::Value(0.0), "gamma"),
+        (|p| p.gamma = Weight::Value(f64::INFINITY), "gamma"),
+        (|p| p.gamma = Weight::Relative(0.0), "spread"),
+        (|p| p.gamma = Weight::Relative(-0.5), "spread"),
         (|p| p.tolerance = 0.0, "tolerance"),
     ];
     for (spoil, name) in cases {
@@ -424,4 +425,70 @@ fn invalid_sequences_name_frame_and_element() {
         "{err:?}"
     );
     assert!(err.to_string().starts_with("frame 1: vertex 3"), "{err}");
+}
+
+/// The sequence with grey values times `grey` and times times `time`.
+fn rescaled(sequence: &MeshSequence, grey: f64, time: f64) -> MeshSequence {
+    let k = sequence.n_frames();
+    MeshSequence::new(
+        sequence.mesh().clone(),
+        (0..k)
+            .map(|i| sequence.positions(i).unwrap().to_vec())
+            .collect(),
+        (0..k)
+            .map(|i| sequence.intensities(i).iter().map(|v| grey * v).collect())
+            .collect(),
+        Some(sequence.times().iter().map(|t| time * t).collect()),
+    )
+    .unwrap()
+}
+
+#[test]
+fn default_weights_do_not_depend_on_units() {
+    // Grey values in [0, 255] instead of [0, 1], frames at 30 per second instead of one per
+    // unit time: the default (relative) weights give the same flow per frame; the paper's
+    // fixed weights do not.
+    let truth = rotating_sphere(2, 4, 1.0, 0.05).unwrap();
+    let base = &truth.sequence;
+    for params in [FlowParams::default(), FlowParams::paper(1.0, 0.0, 0.1)] {
+        let reference = compute_flow(base, &params).unwrap();
+        let scale = flat_u(&reference)
+            .iter()
+            .fold(0.0f64, |m, x| m.max(x.abs()));
+        let mut largest_change: f64 = 0.0;
+        for (grey, time) in [(255.0, 1.0), (1.0, 1.0 / 30.0), (255.0, 1.0 / 30.0)] {
+            let flow = compute_flow(&rescaled(base, grey, time), &params).unwrap();
+            // Velocities per unit time: per frame, they are `time` times smaller.
+            for (a, b) in flat_u(&flow).iter().zip(flat_u(&reference)) {
+                largest_change = largest_change.max((a * time - b).abs());
+            }
+            let expected = reference.weights.gamma * grey * grey;
+            if params == FlowParams::default() {
+                assert!((flow.weights.gamma / expected - 1.0).abs() < 1e-12);
+            }
+        }
+        match params == FlowParams::default() {
+            true => assert!(largest_change < 1e-9 * scale, "{largest_change:e}"),
+            false => assert!(largest_change > 0.1 * scale, "{largest_change:e}"),
+        }
+    }
+}
+
+#[test]
+fn relative_weights_need_an_image_gradient() {
+    let sphere = icosphere(1);
+    let flat_image = vec![vec![0.5; sphere.positions.len()]; 2];
+    let sequence = MeshSequence::new(
+        sphere.mesh().unwrap(),
+        vec![sphere.positions.clone(); 2],
+        flat_image,
+        None,
+    )
+    .unwrap();
+    let err = compute_flow(&sequence, &FlowParams::default()).unwrap_err();
+    assert_eq!(err, FlowError::NoImageGradient);
+    assert!(err.to_string().contains("do not vary"), "{err}");
+    // The paper's fixed weights need no scale: the flow is zero.
+    let flow = compute_flow(&sequence, &FlowParams::paper(1.0, 0.0, 0.1)).unwrap();
+    assert!(flat_u(&flow).iter().all(|&x| x == 0.0));
 }

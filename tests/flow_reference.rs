@@ -1,15 +1,17 @@
 //! On a static flat mesh the connection is trivial, and the flow must equal an independent
 //! componentwise P1 Horn–Schunck / Weickert–Schnörr solution written here with global x/y
 //! components, hat-function gradients and dense linear algebra. Covers lumped and consistent
-//! time coupling, Neumann and Dirichlet boundaries, non-uniform frame times and α = ∞.
+//! time coupling, Neumann and Dirichlet boundaries, non-uniform frame times and α = ∞, and
+//! relative weights resolved with the data's scales computed here independently.
 
 mod common;
 
 use meshflow::flow::{
-    compute_flow, Boundary, FlowParams, MeshSequence, SolverChoice, TimeCoupling,
+    compute_flow, Boundary, FlowParams, MeshSequence, SolverChoice, TimeCoupling, Weight,
 };
 use meshflow::shapes::Surface;
 use nalgebra::{DMatrix, DVector, Matrix2, Vector2, Vector3};
+use std::collections::BTreeSet;
 
 fn image(p: &Vector3<f64>, t: f64) -> f64 {
     (3.0 * p.x + 0.8 * t).sin() * (2.0 * p.y - 0.5 * t).cos() + 0.5 * p.x * p.y + 0.1 * t * p.x
@@ -45,9 +47,7 @@ fn reference_flow(case: &Case) -> Vec<Vec<Vector2<f64>>> {
     let index = |s: usize, i: u32, k: usize| s * 2 * v + 2 * i as usize + k;
     let mut h = DMatrix::zeros(2 * v * n_slabs, 2 * v * n_slabs);
     let mut rhs = DVector::zeros(2 * v * n_slabs);
-    let FlowParams {
-        alpha, beta, gamma, ..
-    } = case.params;
+    let (alpha, beta, gamma) = reference_weights(case);
     let dt: Vec<f64> = case.times.windows(2).map(|w| w[1] - w[0]).collect();
     for face in &case.surface.faces {
         let p = face.map(|i| case.surface.positions[i as usize]);
@@ -123,6 +123,52 @@ fn reference_flow(case: &Case) -> Vec<Vec<Vector2<f64>>> {
         .collect()
 }
 
+/// `(α, β, γ)` as numbers: values as given; relative weights from `S² = ∫∫|∇I|⁴ / ∫∫|∇I|²`
+/// (P1 gradients of the mid-slab image), the mean edge length `h̄` and the mean frame spacing.
+fn reference_weights(case: &Case) -> (f64, f64, f64) {
+    let (mut second, mut fourth) = (0.0, 0.0);
+    for window in case.times.windows(2) {
+        let (t0, t1) = (window[0], window[1]);
+        for face in &case.surface.faces {
+            let p = face.map(|i| case.surface.positions[i as usize]);
+            let (grads, area) = hat_gradients(p);
+            let g: Vector2<f64> = (0..3)
+                .map(|a| grads[a] * 0.5 * (image(&p[a], t0) + image(&p[a], t1)))
+                .sum();
+            second += (t1 - t0) * area * g.norm_squared();
+            fourth += (t1 - t0) * area * g.norm_squared().powi(2);
+        }
+    }
+    let s = (fourth / second).sqrt();
+    let edges: BTreeSet<(u32, u32)> = case
+        .surface
+        .faces
+        .iter()
+        .flat_map(|f| (0..3).map(|c| (f[c].min(f[(c + 1) % 3]), f[c].max(f[(c + 1) % 3]))))
+        .collect();
+    let x = &case.surface.positions;
+    let h = edges
+        .iter()
+        .map(|&(i, j)| (x[j as usize] - x[i as usize]).norm())
+        .sum::<f64>()
+        / edges.len() as f64;
+    let frame_spacing =
+        (case.times[case.times.len() - 1] - case.times[0]) / (case.times.len() - 1) as f64;
+    let gamma = match case.params.gamma {
+        Weight::Value(g) => g,
+        Weight::Relative(spread) => (spread * h * s).powi(2),
+    };
+    let alpha = match case.params.alpha {
+        Weight::Value(a) => a,
+        Weight::Relative(n) => gamma.sqrt() / (s * n * frame_spacing),
+    };
+    let beta = match case.params.beta {
+        Weight::Value(b) => b,
+        Weight::Relative(b) => b * s * s,
+    };
+    (alpha, beta, gamma)
+}
+
 fn assert_matches_reference(case: Case) {
     let frames = case.times.len();
     let intensities = case
@@ -163,10 +209,7 @@ fn lumped_neumann_uniform_times() {
     assert_matches_reference(Case {
         surface: flat_patch(),
         times: vec![0.0, 1.0, 2.0, 3.0],
-        params: FlowParams {
-            gamma: 0.05,
-            ..FlowParams::default()
-        },
+        params: FlowParams::paper(1.0, 0.0, 0.05),
     });
 }
 
@@ -176,11 +219,9 @@ fn consistent_dirichlet_non_uniform_times() {
         surface: flat_patch(),
         times: vec![0.0, 0.5, 1.7, 2.0],
         params: FlowParams {
-            alpha: 0.7,
-            gamma: 0.2,
             boundary: Boundary::Dirichlet,
             time_coupling: TimeCoupling::Consistent,
-            ..FlowParams::default()
+            ..FlowParams::paper(0.7, 0.0, 0.2)
         },
     });
 }
@@ -191,12 +232,10 @@ fn lumped_dirichlet_with_beta_and_iterative_solver() {
         surface: flat_patch(),
         times: vec![0.0, 0.3, 0.6, 1.4, 1.5],
         params: FlowParams {
-            alpha: 2.0,
-            beta: 0.3,
             boundary: Boundary::Dirichlet,
             solver: SolverChoice::PcgSlabGaussSeidel,
             tolerance: 1e-12,
-            ..FlowParams::default()
+            ..FlowParams::paper(2.0, 0.3, 0.1)
         },
     });
 }
@@ -206,9 +245,19 @@ fn frame_by_frame_flow_without_time_coupling() {
     assert_matches_reference(Case {
         surface: flat_patch(),
         times: vec![0.0, 1.0, 2.5],
+        params: FlowParams::paper(f64::INFINITY, 0.01, 0.1),
+    });
+}
+
+#[test]
+fn relative_weights_resolve_with_the_data_scales() {
+    // The defaults (spread 0.5 edge lengths, time scale 1 frame) and a relative speed penalty,
+    // with non-uniform frame times so that the mean frame spacing matters.
+    assert_matches_reference(Case {
+        surface: flat_patch(),
+        times: vec![0.0, 0.4, 1.5, 2.1],
         params: FlowParams {
-            alpha: f64::INFINITY,
-            beta: 0.01,
+            beta: Weight::Relative(0.02),
             ..FlowParams::default()
         },
     });

@@ -214,10 +214,7 @@ fn the_r3_flow_does_not_depend_on_the_reference_edges() {
         Some(original.times().to_vec()),
     )
     .unwrap();
-    let params = FlowParams {
-        gamma: 1e-3,
-        ..FlowParams::default()
-    };
+    let params = FlowParams::paper(1.0, 0.0, 1e-3);
     let (a, b) = (
         compute_flow(original, &params).unwrap(),
         compute_flow(&reordered, &params).unwrap(),

@@ -2,7 +2,7 @@
 //! (independently of the assembled global system, which it therefore checks).
 
 use super::slab::{Slab, TimeLink};
-use super::FlowParams;
+use super::{FlowParams, Weights};
 use crate::mesh::Mesh;
 use nalgebra::Vector6;
 use rayon::prelude::*;
@@ -32,6 +32,7 @@ pub fn energy_terms(
     slabs: &[Slab],
     links: &[TimeLink],
     params: &FlowParams,
+    weights: &Weights,
     u: &[f64],
 ) -> EnergyTerms {
     let n = 2 * mesh.n_vertices();
@@ -50,8 +51,8 @@ pub fn energy_terms(
                     * (x.dot(&(e.data.quadratic * x))
                         + 2.0 * e.data.linear.dot(&x)
                         + e.data.constant);
-                terms.speed += slab.dt * params.beta * x.dot(&(e.mass * x));
-                terms.spatial += slab.dt * params.gamma * x.dot(&(e.stiffness * x));
+                terms.speed += slab.dt * weights.beta * x.dot(&(e.mass * x));
+                terms.spatial += slab.dt * weights.gamma * x.dot(&(e.stiffness * x));
             }
             terms
         })

@@ -45,6 +45,8 @@ pub enum FlowError {
         value: f64,
         requirement: &'static str,
     },
+    #[error("the grey values do not vary over the surface in any frame, so no flow can be measured; relative weights (--spread, --time-scale, --speed-penalty) need an image gradient")]
+    NoImageGradient,
     #[error("the energy has no unique minimizer ({reason}); set beta > 0 (e.g. --beta 1e-3) to penalize the undetermined field")]
     Singular { reason: String },
     #[error("the sparse Cholesky factorization of {what} failed ({detail}); the system is not numerically positive definite: try beta > 0")]

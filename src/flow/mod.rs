@@ -36,6 +36,7 @@
 mod energy;
 mod error;
 mod params;
+mod scales;
 mod sequence;
 mod slab;
 mod solve;
@@ -44,7 +45,9 @@ mod uniqueness;
 
 pub use energy::EnergyTerms;
 pub use error::FlowError;
-pub use params::{Boundary, FlowParams, SolverChoice, TimeCoupling};
+pub use params::{Boundary, FlowParams, SolverChoice, TimeCoupling, Weight, Weights};
+pub use params::{DEFAULT_SPREAD, DEFAULT_TIME_SCALE};
+pub use scales::DataScales;
 pub(crate) use sequence::check_finite_intensities;
 pub use sequence::MeshSequence;
 pub use slab::Slab;
@@ -80,6 +83,10 @@ pub struct FlowResult {
     pub energy_terms: EnergyTerms,
     /// `E(0)`: the data term of the zero flow.
     pub energy_at_zero: f64,
+    /// `α`, `β`, `γ` as used, in the data's units (relative weights resolved).
+    pub weights: Weights,
+    /// The data's scales that resolved them.
+    pub scales: DataScales,
     pub relative_residual: f64,
     pub iterations: usize,
     pub method: SolverMethod,
@@ -92,6 +99,8 @@ pub struct FlowResult {
 pub struct FlowProblem<'a> {
     sequence: &'a MeshSequence,
     params: FlowParams,
+    weights: Weights,
+    scales: DataScales,
     slabs: Vec<Slab>,
     links: Vec<TimeLink>,
     system: SpaceTimeSystem,
@@ -99,25 +108,30 @@ pub struct FlowProblem<'a> {
 }
 
 impl<'a> FlowProblem<'a> {
-    /// Validates the parameters, builds the slabs and the space-time system, and checks that
-    /// the minimizer is unique.
+    /// Validates the parameters, builds the slabs, resolves the weights with the data's scales,
+    /// assembles the space-time system, and checks that the minimizer is unique.
     pub fn new(sequence: &'a MeshSequence, params: &FlowParams) -> Result<Self, FlowError> {
         params.validate()?;
         let start = Instant::now();
         let slabs = slab::build_slabs(sequence)?;
-        let links: Vec<TimeLink> = if params.is_coupled() {
+        let scales = DataScales::measure(sequence.mesh(), &slabs);
+        let weights = params.weights(&scales)?;
+        let links: Vec<TimeLink> = if weights.is_coupled() {
             slabs
                 .windows(2)
-                .map(|w| TimeLink::new(&w[0], &w[1], params))
+                .map(|w| TimeLink::new(&w[0], &w[1], &weights))
                 .collect()
         } else {
             Vec::new()
         };
-        uniqueness::check_unique_minimizer(sequence.mesh(), &slabs, &links, params)?;
-        let system = SpaceTimeSystem::assemble(sequence.mesh(), &slabs, &links, params);
+        let mesh = sequence.mesh();
+        uniqueness::check_unique_minimizer(mesh, &slabs, &links, params, &weights)?;
+        let system = SpaceTimeSystem::assemble(mesh, &slabs, &links, params, &weights);
         Ok(Self {
             sequence,
             params: params.clone(),
+            weights,
+            scales,
             slabs,
             links,
             system,
@@ -133,6 +147,16 @@ impl<'a> FlowProblem<'a> {
         &self.slabs
     }
 
+    /// `α`, `β`, `γ` in the data's units, relative weights resolved.
+    pub fn weights(&self) -> &Weights {
+        &self.weights
+    }
+
+    /// The data's scales that resolved the relative weights.
+    pub fn scales(&self) -> &DataScales {
+        &self.scales
+    }
+
     /// The energy terms at `u` (slab-major, `2V` values per slab), evaluated face by face.
     pub fn energy_terms(&self, u: &[f64]) -> EnergyTerms {
         energy::energy_terms(
@@ -140,6 +164,7 @@ impl<'a> FlowProblem<'a> {
             &self.slabs,
             &self.links,
             &self.params,
+            &self.weights,
             u,
         )
     }
@@ -160,6 +185,8 @@ impl<'a> FlowProblem<'a> {
             energy: energy_terms.total(),
             energy_terms,
             energy_at_zero: self.system.constant(),
+            weights: self.weights,
+            scales: self.scales,
             relative_residual: solution.relative_residual,
             iterations: solution.iterations,
             method: solution.method,

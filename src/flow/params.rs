@@ -1,23 +1,43 @@
 //! Model and solver parameters.
 //!
-//! # Units and scaling
+//! # Units, and weights that have none
 //!
 //! The energy `∫∫ (∂_t I + dI(u))² + β|u|² + γ|∇u|² + (γ/α²)|∇_t u|² dA dt` is not scale
 //! invariant. With intensity unit `[I]`, length `[L]` and time `[T]` (u is a velocity, `L/T`):
 //!
-//! - `γ` has units `[I]²`: scaling all intensities by `c` needs `γ → c² γ` and `β → c² β` for
-//!   the same flow;
-//! - `β` has units `[I]²/[L]²`: it penalizes speed; scaling lengths by `λ` needs `β → β/λ²`;
-//! - `α` is a speed `[L]/[T]`: it compares spatial to temporal variation of the flow, scaling
-//!   lengths by `λ` needs `α → λ α`, and time by `κ` needs `α → α/κ`.
+//! - `γ` has units `[I]²`: scaling all intensities by `c` needs `γ → c² γ` for the same flow;
+//! - `β` has units `[I]²/[L]²`: scaling intensities by `c` needs `β → c² β`, lengths by `λ`
+//!   needs `β → β/λ²`;
+//! - `α` is a speed `[L]/[T]`: scaling lengths by `λ` needs `α → λ α`, time by `κ` needs
+//!   `α → α/κ`.
 //!
-//! The defaults (`α = 1`, `β = 0`, `γ = 0.1`) suit intensities in `[0, 1]` on surfaces of unit
-//! size sampled at unit time steps: the smoothness weight `γ = 0.1` is a tenth of a squared
-//! full-range contrast, so flow is driven by edges of contrast ≳ 0.3 and filled in smoothly
-//! elsewhere (Horn–Schunck's α² in the same units); `α = 1` lets the flow change by about its
-//! own size per unit time, and `β = 0` adds no bias towards zero speed.
+//! So no fixed number suits both grey values in `[0, 1]` and in `[0, 255]`, a unit sphere and a
+//! scan in millimetres, frames at unit steps and at 1/30 s. Each weight is therefore a
+//! [`Weight`]: the paper's value as given ([`Weight::Value`]), or a unit-free scale
+//! ([`Weight::Relative`]) that [`FlowParams::weights`] turns into a value with the data's own
+//! scales ([`DataScales`]: the image's gradient scale `S`, the mean edge length `h̄` and the
+//! mean frame spacing `Δt̄`):
+//!
+//! ```text
+//! γ = (λ h̄ S)²              λ: the spread, in mean edge lengths
+//! α = √γ / (S n Δt̄)         n: the time scale, in frames (n = 0: α = ∞, frame by frame)
+//! β = b S²                  b: the speed penalty, relative
+//! ```
+//!
+//! Each reads as a balance against the data term `S² |u|²`: the flow changing by its own size
+//! over `λ` edge lengths costs as much smoothness as a data mismatch of that size, and likewise
+//! over `n` frames. The relative weights give the same flow (in mesh edge lengths per frame)
+//! whatever the units of grey values, lengths and times.
+//!
+//! The defaults, `λ = 0.5`, `n = 1`, `β = 0`, were chosen on textures turning on spheres
+//! (`examples/default_parameters.rs`): a dense texture and sparse blobs, at 642 and 2562
+//! vertices, all have their best spread between 0.4 and 0.6 edge lengths in these units. The
+//! gradient scale `S² = ∫|∇I|⁴ / ∫|∇I|²` is the root mean square gradient *where the gradient
+//! energy is*, which is what makes one spread fit dense textures and sparse features alike
+//! (the plain root mean square is diluted by empty background and gave best spreads 2.5 times
+//! apart).
 
-use super::FlowError;
+use super::{DataScales, FlowError};
 
 /// Boundary condition in space (time always has natural conditions).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -57,16 +77,78 @@ pub enum SolverChoice {
     PcgJacobi,
 }
 
+/// One of the weights `α`, `β`, `γ`: the value itself in the data's units (the paper's), or a
+/// unit-free scale from which [`FlowParams::weights`] derives the value (see the module docs
+/// for what each field's relative scale means).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Weight {
+    /// The weight itself, in the units of the data.
+    Value(f64),
+    /// A unit-free scale: the spread (γ), the time scale in frames (α), the relative speed
+    /// penalty (β).
+    Relative(f64),
+}
+
+impl serde::Serialize for Weight {
+    /// `{"value": x}` or `{"relative": x}`; an infinite value as the string `"inf"`.
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let (key, x) = match *self {
+            Weight::Value(x) => ("value", x),
+            Weight::Relative(x) => ("relative", x),
+        };
+        let mut map = serializer.serialize_map(Some(1))?;
+        match x.is_finite() {
+            true => map.serialize_entry(key, &x)?,
+            false => map.serialize_entry(key, "inf")?,
+        }
+        map.end()
+    }
+}
+
+/// The weights `α`, `β`, `γ` of the energy as numbers, in the data's units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Weights {
+    /// `f64::INFINITY` decouples the slabs.
+    pub alpha: f64,
+    pub beta: f64,
+    pub gamma: f64,
+}
+
+impl Weights {
+    /// Whether the slabs are coupled in time.
+    pub fn is_coupled(&self) -> bool {
+        self.alpha.is_finite()
+    }
+}
+
+impl serde::Serialize for Weights {
+    /// `alpha` infinite is written as the string `"inf"` (JSON has no infinity).
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut out = serializer.serialize_struct("Weights", 3)?;
+        match self.alpha.is_finite() {
+            true => out.serialize_field("alpha", &self.alpha)?,
+            false => out.serialize_field("alpha", "inf")?,
+        }
+        out.serialize_field("beta", &self.beta)?;
+        out.serialize_field("gamma", &self.gamma)?;
+        out.end()
+    }
+}
+
 /// Parameters of the energy (`α`, `β`, `γ`, boundary, coupling) and of the solver.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct FlowParams {
-    /// Ratio of temporal to spatial smoothness scale, a speed. `f64::INFINITY` decouples the
-    /// slabs (frame-by-frame flow).
-    pub alpha: f64,
-    /// Weight of `|u|²` (≥ 0). Zero is allowed when the data and geometry determine `u`.
-    pub beta: f64,
-    /// Weight of the spatial smoothness `|∇u|²` (> 0).
-    pub gamma: f64,
+    /// Time regularity. `Value`: the paper's `α`, a speed (`f64::INFINITY`: frame by frame).
+    /// `Relative(n)`: the time scale in frames, `α = √γ / (S n Δt̄)` (`n = 0`: frame by frame).
+    pub alpha: Weight,
+    /// Speed penalty `|u|²`. `Value`: the paper's `β ≥ 0`. `Relative(b)`: `β = b S²`. Zero is
+    /// allowed when the data and geometry determine `u`.
+    pub beta: Weight,
+    /// Spatial smoothness `|∇u|²`. `Value`: the paper's `γ > 0`. `Relative(λ)`: the spread in
+    /// mean edge lengths, `γ = (λ h̄ S)²`.
+    pub gamma: Weight,
     pub boundary: Boundary,
     pub time_coupling: TimeCoupling,
     pub solver: SolverChoice,
@@ -79,12 +161,18 @@ pub struct FlowParams {
     pub factor_memory_limit: usize,
 }
 
+/// The default spread `λ`, in mean edge lengths.
+pub const DEFAULT_SPREAD: f64 = 0.5;
+/// The default time scale `n`, in frames.
+pub const DEFAULT_TIME_SCALE: f64 = 1.0;
+
 impl Default for FlowParams {
+    /// Unit-free weights: spread 0.5 edge lengths, time scale 1 frame, no speed penalty.
     fn default() -> Self {
         Self {
-            alpha: 1.0,
-            beta: 0.0,
-            gamma: 0.1,
+            alpha: Weight::Relative(DEFAULT_TIME_SCALE),
+            beta: Weight::Value(0.0),
+            gamma: Weight::Relative(DEFAULT_SPREAD),
             boundary: Boundary::Neumann,
             time_coupling: TimeCoupling::Lumped,
             solver: SolverChoice::Auto,
@@ -97,36 +185,52 @@ impl Default for FlowParams {
 }
 
 impl FlowParams {
+    /// The paper's weights as given (in the data's units), other settings at their defaults.
+    pub fn paper(alpha: f64, beta: f64, gamma: f64) -> Self {
+        Self {
+            alpha: Weight::Value(alpha),
+            beta: Weight::Value(beta),
+            gamma: Weight::Value(gamma),
+            ..Self::default()
+        }
+    }
+
     /// Checks every parameter; the error names the first invalid one.
     pub fn validate(&self) -> Result<(), FlowError> {
-        let check = |name, value: f64, ok: bool, requirement| {
-            if ok {
-                Ok(())
-            } else {
-                Err(FlowError::InvalidParameter {
-                    name,
-                    value,
-                    requirement,
-                })
+        use Weight::{Relative, Value};
+        let (alpha_ok, alpha_requirement) = match self.alpha {
+            Value(a) => (a > 0.0, "positive (or infinite for frame-by-frame flow)"),
+            Relative(n) => (
+                n >= 0.0 && n.is_finite(),
+                "a time scale in frames, finite and ≥ 0 (0: frame by frame)",
+            ),
+        };
+        let (beta_ok, gamma_ok) = match (self.beta, self.gamma) {
+            (Value(b) | Relative(b), Value(g) | Relative(g)) => {
+                (b >= 0.0 && b.is_finite(), g > 0.0 && g.is_finite())
             }
         };
+        let gamma_requirement = match self.gamma {
+            Value(_) => "finite and > 0",
+            Relative(_) => "a spread in edge lengths, finite and > 0",
+        };
         check(
-            "alpha",
-            self.alpha,
-            self.alpha > 0.0,
-            "positive (or infinite for frame-by-frame flow)",
+            weight_name("alpha", self.alpha),
+            number(self.alpha),
+            alpha_ok,
+            alpha_requirement,
         )?;
         check(
-            "beta",
-            self.beta,
-            self.beta >= 0.0 && self.beta.is_finite(),
+            weight_name("beta", self.beta),
+            number(self.beta),
+            beta_ok,
             "finite and ≥ 0",
         )?;
         check(
-            "gamma",
-            self.gamma,
-            self.gamma > 0.0 && self.gamma.is_finite(),
-            "finite and > 0",
+            weight_name("gamma", self.gamma),
+            number(self.gamma),
+            gamma_ok,
+            gamma_requirement,
         )?;
         check(
             "tolerance",
@@ -142,9 +246,71 @@ impl FlowParams {
         )
     }
 
-    /// Whether the slabs are coupled in time.
-    pub fn is_coupled(&self) -> bool {
-        self.alpha.is_finite()
+    /// The weights as numbers for data with the given scales (relative weights resolved as in
+    /// the module docs). Errors: invalid parameters; a relative weight for an image whose
+    /// gradient scale is zero.
+    pub fn weights(&self, scales: &DataScales) -> Result<Weights, FlowError> {
+        self.validate()?;
+        let needs_gradient = matches!(self.gamma, Weight::Relative(_))
+            || matches!(self.alpha, Weight::Relative(n) if n > 0.0)
+            || matches!(self.beta, Weight::Relative(b) if b > 0.0);
+        if needs_gradient && !(scales.gradient > 0.0 && scales.gradient.is_finite()) {
+            return Err(FlowError::NoImageGradient);
+        }
+        let s = scales.gradient;
+        let gamma = match self.gamma {
+            Weight::Value(g) => g,
+            Weight::Relative(spread) => (spread * scales.edge_length * s).powi(2),
+        };
+        let alpha = match self.alpha {
+            Weight::Value(a) => a,
+            Weight::Relative(0.0) => f64::INFINITY,
+            Weight::Relative(n) => gamma.sqrt() / (s * n * scales.frame_spacing),
+        };
+        let beta = match self.beta {
+            Weight::Value(b) => b,
+            Weight::Relative(b) => b * s * s,
+        };
+        check(
+            "gamma",
+            gamma,
+            gamma > 0.0 && gamma.is_finite(),
+            "finite and > 0 once derived from the data's scales",
+        )?;
+        Ok(Weights { alpha, beta, gamma })
+    }
+}
+
+/// The name of a weight as the command line spells it: the paper's name for a value, the
+/// relative name (`spread`, `time-scale`, `speed-penalty`) for a relative scale.
+fn weight_name(paper: &'static str, weight: Weight) -> &'static str {
+    match (paper, weight) {
+        (_, Weight::Value(_)) => paper,
+        ("alpha", _) => "time-scale",
+        ("beta", _) => "speed-penalty",
+        _ => "spread",
+    }
+}
+
+fn number(weight: Weight) -> f64 {
+    match weight {
+        Weight::Value(x) | Weight::Relative(x) => x,
+    }
+}
+
+fn check(
+    name: &'static str,
+    value: f64,
+    ok: bool,
+    requirement: &'static str,
+) -> Result<(), FlowError> {
+    match ok {
+        true => Ok(()),
+        false => Err(FlowError::InvalidParameter {
+            name,
+            value,
+            requirement,
+        }),
     }
 }
 

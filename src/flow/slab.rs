@@ -1,7 +1,7 @@
 //! Slabs: the time interval between two frames, with its mean geometry and image rates
 //! (`docs/discretization.md` §3).
 
-use super::{FlowError, FlowParams, MeshSequence, TimeCoupling};
+use super::{FlowError, MeshSequence, TimeCoupling, Weights};
 use crate::connection::{polar_rotation_angles, rotation, Connection};
 use crate::fem::element::{self, DataElement};
 use crate::geometry::IntrinsicGeometry;
@@ -95,11 +95,11 @@ pub struct LinkElements {
 }
 
 impl TimeLink {
-    pub fn new(before: &Slab, after: &Slab, params: &FlowParams) -> Self {
+    pub fn new(before: &Slab, after: &Slab, weights: &Weights) -> Self {
         let h = 0.5 * (before.dt + after.dt);
         let polar_angles = polar_rotation_angles(&before.geometry, &after.geometry);
         Self {
-            weight: params.gamma / (params.alpha * params.alpha * h),
+            weight: weights.gamma / (weights.alpha * weights.alpha * h),
             polar_rotations: polar_angles.iter().map(|&q| rotation(q)).collect(),
             polar_angles,
         }

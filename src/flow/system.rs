@@ -10,7 +10,7 @@
 //! The energy is `E(u) = uᵀAu − 2bᵀu + c`.
 
 use super::slab::{Slab, TimeLink};
-use super::{Boundary, FlowParams};
+use super::{Boundary, FlowParams, TimeCoupling, Weights};
 use crate::fem::{SparseMatrix, SparseMatrixRef, VertexPattern};
 use crate::mesh::Mesh;
 use nalgebra::{Matrix2, Matrix6};
@@ -37,8 +37,15 @@ pub struct SpaceTimeSystem {
 
 impl SpaceTimeSystem {
     /// Assembles the system of `slabs` (with `links[s]` between slab `s` and `s + 1`; no links
-    /// for frame-by-frame flow). Slabs are assembled in parallel.
-    pub fn assemble(mesh: &Mesh, slabs: &[Slab], links: &[TimeLink], params: &FlowParams) -> Self {
+    /// for frame-by-frame flow) with the weights `weights`. Slabs are assembled in parallel.
+    pub fn assemble(
+        mesh: &Mesh,
+        slabs: &[Slab],
+        links: &[TimeLink],
+        params: &FlowParams,
+        weights: &Weights,
+    ) -> Self {
+        let coupling = params.time_coupling;
         let pattern = VertexPattern::new(mesh, 2);
         let n_slabs = slabs.len();
         let diagonal: Vec<(Vec<f64>, Vec<f64>, f64)> = (0..n_slabs)
@@ -47,12 +54,22 @@ impl SpaceTimeSystem {
                 let coupled = !links.is_empty();
                 let link_before = (coupled && s > 0).then(|| (&links[s - 1], &slabs[s - 1]));
                 let link_after = (coupled && s + 1 < n_slabs).then(|| (&links[s], &slabs[s + 1]));
-                assemble_slab(mesh, &pattern, &slabs[s], link_before, link_after, params)
+                let links = (link_before, link_after);
+                assemble_slab(mesh, &pattern, &slabs[s], links, weights, coupling)
             })
             .collect();
         let links = (0..links.len())
             .into_par_iter()
-            .map(|s| assemble_link(mesh, &pattern, &links[s], &slabs[s], &slabs[s + 1], params))
+            .map(|s| {
+                assemble_link(
+                    mesh,
+                    &pattern,
+                    &links[s],
+                    &slabs[s],
+                    &slabs[s + 1],
+                    coupling,
+                )
+            })
             .collect();
         let constant = diagonal.iter().map(|d| d.2).sum();
         let (blocks, rhs): (Vec<_>, Vec<_>) = diagonal.into_iter().map(|(a, b, _)| (a, b)).unzip();
@@ -241,14 +258,17 @@ impl SpaceTimeSystem {
     }
 }
 
+/// A slab's link to its neighbour in time and that neighbour, if there is one.
+type Neighbour<'a> = Option<(&'a TimeLink, &'a Slab)>;
+
 /// Assembles diagonal block, right-hand side and energy constant of one slab.
 fn assemble_slab(
     mesh: &Mesh,
     pattern: &VertexPattern,
     slab: &Slab,
-    link_before: Option<(&TimeLink, &Slab)>,
-    link_after: Option<(&TimeLink, &Slab)>,
-    params: &FlowParams,
+    (link_before, link_after): (Neighbour, Neighbour),
+    weights: &Weights,
+    coupling: TimeCoupling,
 ) -> (Vec<f64>, Vec<f64>, f64) {
     let mut values = vec![0.0; pattern.nnz()];
     let mut rhs = vec![0.0; pattern.dimension()];
@@ -256,12 +276,12 @@ fn assemble_slab(
     for (f, face) in mesh.faces().iter().enumerate() {
         let e = slab.face_elements(face, f);
         let mut a: Matrix6<f64> =
-            (e.data.quadratic + e.mass * params.beta + e.stiffness * params.gamma) * slab.dt;
+            (e.data.quadratic + e.mass * weights.beta + e.stiffness * weights.gamma) * slab.dt;
         if let Some((link, previous)) = link_before {
-            a += link.diagonal_element(previous, slab, slab, f, params.time_coupling);
+            a += link.diagonal_element(previous, slab, slab, f, coupling);
         }
         if let Some((link, next)) = link_after {
-            a += link.diagonal_element(slab, next, slab, f, params.time_coupling);
+            a += link.diagonal_element(slab, next, slab, f, coupling);
         }
         pattern.add_element(f, &a, &mut values);
         for (corner, &v) in face.iter().enumerate() {
@@ -280,11 +300,11 @@ fn assemble_link(
     link: &TimeLink,
     before: &Slab,
     after: &Slab,
-    params: &FlowParams,
+    coupling: TimeCoupling,
 ) -> LinkMatrix {
-    let cross = |f| link.cross_element(before, after, f, params.time_coupling);
-    match params.time_coupling {
-        super::TimeCoupling::Lumped => {
+    let cross = |f| link.cross_element(before, after, f, coupling);
+    match coupling {
+        TimeCoupling::Lumped => {
             let mut blocks = vec![Matrix2::zeros(); mesh.n_vertices()];
             for (f, face) in mesh.faces().iter().enumerate() {
                 let x = cross(f);
@@ -294,7 +314,7 @@ fn assemble_link(
             }
             LinkMatrix::Lumped(blocks)
         }
-        super::TimeCoupling::Consistent => {
+        TimeCoupling::Consistent => {
             LinkMatrix::Consistent(pattern.assemble_values(mesh.n_faces(), cross))
         }
     }

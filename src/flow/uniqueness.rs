@@ -11,7 +11,7 @@
 //! `h_T = Rot(−θ_T) G_T` is singular. Dirichlet boundaries pin such fields to zero.
 
 use super::slab::{Slab, TimeLink};
-use super::{Boundary, FlowError, FlowParams};
+use super::{Boundary, FlowError, FlowParams, Weights};
 use crate::connection::{rotation, wrap_angle};
 use crate::fem::element::face_gradient;
 use crate::mesh::Mesh;
@@ -29,8 +29,9 @@ pub fn check_unique_minimizer(
     slabs: &[Slab],
     links: &[TimeLink],
     params: &FlowParams,
+    weights: &Weights,
 ) -> Result<(), FlowError> {
-    if params.beta > 0.0 {
+    if weights.beta > 0.0 {
         return Ok(());
     }
     for component in components(mesh) {
@@ -43,7 +44,7 @@ pub fn check_unique_minimizer(
             .iter()
             .map(|slab| parallel_face_angles(mesh, slab, component[0]))
             .collect();
-        if !params.is_coupled() {
+        if !weights.is_coupled() {
             for (s, face_angles) in angles.iter().enumerate() {
                 if let Some(theta) = face_angles {
                     if is_singular(&data_matrix(mesh, &slabs[s], theta, &component)) {

@@ -5,10 +5,10 @@
 //! | `flow.npy` | (S, V, 3) float64: R^3 flow vectors of slab `s` at the vertices of frame `s` |
 //! | `flow_intrinsic.npy` | (S, V, 2) float64: components in the vertex frames |
 //! | `vertex_map.npy` | (V_file,) int64: mesh vertex of each file vertex, when vertices were welded |
-//! | `angular_error.npy`, `endpoint_error.npy` | (S, V) float64, with a ground truth: per-vertex AE (degrees) and EPE ([`crate::accuracy`]) |
-//! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` with point data `flow`, `flow_intrinsic`, `speed`, `intensity` (and `angular_error`, `endpoint_error` with a ground truth); the `.pvd` plays the slabs at their start times |
+//! | `angular_error.npy`, `endpoint_error.npy`, `direction_error.npy` | (S, V) float64, with a ground truth: per-vertex AE (degrees, on displacements in mean edge lengths), EPE (velocity units) and direction error (degrees, NaN where the truth does not move) ([`crate::accuracy`]) |
+//! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` with point data `flow`, `flow_intrinsic`, `speed`, `intensity` (and `angular_error`, `endpoint_error`, `direction_error` with a ground truth); the `.pvd` plays the slabs at their start times |
 //! | `flow.glb` | the frames as a morph-target animation, coloured by the flow as `flow_SSSS.png` shows it (Middlebury colour of the direction seen from the default view, scaled by a robust maximum speed) |
-//! | `summary.json` | energy and its terms, residual, iterations, solver, sizes, parameters, input, timings; with a ground truth, `ground_truth`: its file, the space-time mean AE and EPE, the largest AE and EPE, and per slab the same |
+//! | `summary.json` | energy and its terms, residual, iterations, solver, sizes, input, timings; the parameters as given (`params`, each weight `{"value": x}` or `{"relative": x}`), the weights used (`weights`: α, β, γ in the data's units) and the data's scales that resolved them (`scales`); with a ground truth, `ground_truth`: its file, the space-time means (AE, direction error, relative EPE, speed ratio, EPE) and maxima, per slab the same, and `zero_flow`, the zero flow's scores |
 //!
 //! Slab `s` spans `[t_s, t_{s+1}]`; `S = K − 1` slabs for `K` frames.
 
@@ -58,6 +58,8 @@ pub struct GroundTruthReport {
     /// Where the true flow came from.
     pub file: PathBuf,
     pub errors: FlowErrors,
+    /// The zero flow's scores against the same truth: the baseline.
+    pub zero_flow: FlowErrors,
 }
 
 /// Writes the outputs of `result` for `loaded` into `out` (see the module table), with the
@@ -132,11 +134,12 @@ fn write_flow_npy(dir: &Path, loaded: &LoadedSequence, result: &FlowResult) -> R
     Ok(())
 }
 
-/// `angular_error.npy` and `endpoint_error.npy`, (S, V).
+/// `angular_error.npy`, `endpoint_error.npy` and `direction_error.npy`, (S, V).
 fn write_error_npy(dir: &Path, errors: &FlowErrors) -> Result<(), IoError> {
     for (name, values) in [
         ("angular_error.npy", &errors.angular_degrees),
         ("endpoint_error.npy", &errors.endpoint),
+        ("direction_error.npy", &errors.direction_degrees),
     ] {
         let shape = [
             values.len() as u64,
@@ -171,6 +174,7 @@ fn write_flow_vtk(
             arrays.extend([
                 NamedArray::scalars("angular_error", &errors.angular_degrees[s]),
                 NamedArray::scalars("endpoint_error", &errors.endpoint[s]),
+                NamedArray::scalars("direction_error", &errors.direction_degrees[s]),
             ]);
         }
         arrays
@@ -284,7 +288,9 @@ pub fn summary_json(
         "faces": sequence.mesh().n_faces(),
         "times": sequence.times(),
         "max_speed": speeds.iter().cloned().fold(0.0, f64::max),
-        "params": params_json(params),
+        "params": params,
+        "weights": result.weights,
+        "scales": result.scales,
         "seconds": result.timings,
     });
     if let Some(ground_truth) = ground_truth {
@@ -293,7 +299,8 @@ pub fn summary_json(
     summary
 }
 
-/// The means (space-time, area-weighted) and maxima of the errors, overall and per slab.
+/// The scores of the computed flow and of the zero flow, overall and per slab
+/// ([`crate::accuracy`] defines them).
 fn ground_truth_json(ground_truth: &GroundTruthReport) -> serde_json::Value {
     let errors = &ground_truth.errors;
     let slabs: Vec<serde_json::Value> = errors
@@ -303,28 +310,40 @@ fn ground_truth_json(ground_truth: &GroundTruthReport) -> serde_json::Value {
             serde_json::json!({
                 "duration": slab.duration,
                 "area": slab.area,
+                "edge_length": slab.edge_length,
                 "mean_angular_error_degrees": slab.mean_angular_degrees,
+                "mean_direction_error_degrees": finite_or_null(slab.mean_direction_degrees),
+                "relative_endpoint_error": finite_or_null(slab.relative_endpoint),
                 "mean_endpoint_error": slab.mean_endpoint,
                 "max_angular_error_degrees": slab.max_angular_degrees,
                 "max_endpoint_error": slab.max_endpoint,
             })
         })
         .collect();
+    let mut json = error_summary_json(errors);
+    json["file"] = ground_truth.file.to_string_lossy().into();
+    json["slabs"] = slabs.into();
+    json["zero_flow"] = error_summary_json(&ground_truth.zero_flow);
+    json
+}
+
+/// The space-time summaries of one comparison; undefined ones (nothing moves) as `null`.
+fn error_summary_json(errors: &FlowErrors) -> serde_json::Value {
     serde_json::json!({
-        "file": ground_truth.file.to_string_lossy(),
         "mean_angular_error_degrees": errors.mean_angular_degrees,
+        "mean_direction_error_degrees": finite_or_null(errors.mean_direction_degrees),
+        "relative_endpoint_error": finite_or_null(errors.relative_endpoint),
+        "median_speed_ratio": finite_or_null(errors.median_speed_ratio),
+        "moving_fraction": errors.moving_fraction,
         "mean_endpoint_error": errors.mean_endpoint,
         "max_angular_error_degrees": errors.max_angular_degrees,
         "max_endpoint_error": errors.max_endpoint,
-        "slabs": slabs,
     })
 }
 
-/// Parameters with `alpha = ∞` written as the string "inf" (JSON has no infinity).
-fn params_json(params: &FlowParams) -> serde_json::Value {
-    let mut value = serde_json::to_value(params).expect("parameters serialize");
-    if !params.alpha.is_finite() {
-        value["alpha"] = serde_json::Value::from("inf");
+fn finite_or_null(x: f64) -> serde_json::Value {
+    match x.is_finite() {
+        true => x.into(),
+        false => serde_json::Value::Null,
     }
-    value
 }

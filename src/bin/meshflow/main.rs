@@ -43,7 +43,7 @@ enum Command {
     /// flow_intrinsic.npy (S×V×2), flow_SSSS.vtu + flow.pvd (ParaView), flow.glb and
     /// summary.json; with --ground-truth also the errors against the known flow; with --png the
     /// pictures of `meshflow render`.
-    Solve(SolveArgs),
+    Solve(Box<SolveArgs>),
     /// Draw PNG pictures of every slab of a `solve` output directory (read from flow.pvd and its
     /// flow_SSSS.vtu files): grey_SSSS.png (the image on the surface), flow_SSSS.png (flow
     /// directions on the screen, Middlebury colour wheel, with its legend), arrows_SSSS.png and,
@@ -67,15 +67,44 @@ struct SolveArgs {
     /// Output directory (created if missing)
     #[arg(long)]
     out: PathBuf,
-    /// Time regularity scale, a speed (inf: frame-by-frame flow)
-    #[arg(long, default_value_t = FlowParams::default().alpha, allow_negative_numbers = true)]
-    alpha: f64,
-    /// Weight of |u|² (speed penalty)
-    #[arg(long, default_value_t = FlowParams::default().beta, allow_negative_numbers = true)]
-    beta: f64,
-    /// Weight of the spatial smoothness |∇u|²
-    #[arg(long, default_value_t = FlowParams::default().gamma, allow_negative_numbers = true)]
-    gamma: f64,
+    /// Spatial smoothing scale in mean edge lengths, unit-free: sets γ = (SPREAD·h̄·S)² from
+    /// the mean edge length h̄ and the image's gradient scale S [default: 0.5]
+    #[arg(
+        long,
+        value_name = "EDGES",
+        allow_negative_numbers = true,
+        conflicts_with = "gamma"
+    )]
+    spread: Option<f64>,
+    /// Temporal smoothing scale in frames, unit-free: sets α = √γ / (S·FRAMES·Δt̄); 0 for
+    /// frame-by-frame flow [default: 1]
+    #[arg(
+        long,
+        value_name = "FRAMES",
+        allow_negative_numbers = true,
+        conflicts_with = "alpha"
+    )]
+    time_scale: Option<f64>,
+    /// Relative penalty on the speed, unit-free: sets β = B·S² [default: 0]
+    #[arg(
+        long,
+        value_name = "B",
+        allow_negative_numbers = true,
+        conflicts_with = "beta"
+    )]
+    speed_penalty: Option<f64>,
+    /// The paper's α as a number (a speed in the data's units; inf: frame-by-frame flow),
+    /// instead of --time-scale
+    #[arg(long, allow_negative_numbers = true)]
+    alpha: Option<f64>,
+    /// The paper's β as a number (weight of |u|², in the data's units), instead of
+    /// --speed-penalty
+    #[arg(long, allow_negative_numbers = true)]
+    beta: Option<f64>,
+    /// The paper's γ as a number (weight of |∇u|², in grey-value units squared), instead of
+    /// --spread
+    #[arg(long, allow_negative_numbers = true)]
+    gamma: Option<f64>,
     /// neumann or dirichlet (u = 0 on the boundary)
     #[arg(long, default_value = "neumann")]
     boundary: Boundary,

@@ -3,8 +3,9 @@
 use crate::pictures;
 use crate::progress::{solver_progress, spinner};
 use crate::SolveArgs;
+use meshflow::accuracy::FlowErrors;
 use meshflow::accuracy::{check_embedded, compare_result};
-use meshflow::flow::{FlowParams, FlowProblem, FlowResult, SolveEvent};
+use meshflow::flow::{FlowParams, FlowProblem, FlowResult, SolveEvent, Weight, Weights};
 use meshflow::io::{load_sequence, write_flow_outputs, LoadOptions, StagedDir};
 use meshflow::io::{read_ground_truth, GroundTruthReport, LoadedSequence};
 use meshflow::render::sequence_views;
@@ -13,10 +14,17 @@ use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
 pub fn solve(args: &SolveArgs) -> Result<(), Error> {
+    let defaults = FlowParams::default();
+    let weight = |value: Option<f64>, relative: Option<f64>, default: Weight| {
+        value
+            .map(Weight::Value)
+            .or(relative.map(Weight::Relative))
+            .unwrap_or(default)
+    };
     let params = FlowParams {
-        alpha: args.alpha,
-        beta: args.beta,
-        gamma: args.gamma,
+        alpha: weight(args.alpha, args.time_scale, defaults.alpha),
+        beta: weight(args.beta, args.speed_penalty, defaults.beta),
+        gamma: weight(args.gamma, args.spread, defaults.gamma),
         boundary: args.boundary,
         time_coupling: args.time_coupling,
         solver: args.solver,
@@ -78,9 +86,14 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
     let result = result?;
     let report = truth
         .map(|(file, truth)| -> Result<_, Error> {
-            let errors = compare_result(sequence, &result, &truth)
-                .map_err(|e| Error::from(e).in_file(&file))?;
-            Ok(GroundTruthReport { file, errors })
+            let in_file = |e: meshflow::accuracy::AccuracyError| Error::from(e).in_file(&file);
+            let errors = compare_result(sequence, &result, &truth).map_err(in_file)?;
+            let zero_flow = FlowErrors::zero_flow(sequence, &truth).map_err(in_file)?;
+            Ok(GroundTruthReport {
+                file,
+                errors,
+                zero_flow,
+            })
         })
         .transpose()?;
     write_flow_outputs(
@@ -119,10 +132,12 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         result.timings.total,
         args.out.display()
     );
+    println!("{}", describe_weights(&result.weights, &params));
     if let Some(report) = &report {
+        println!("{}", describe_errors("ground truth: flow", &report.errors));
         println!(
-            "ground truth: mean angular error {:.4}°, mean endpoint error {:.4e}",
-            report.errors.mean_angular_degrees, report.errors.mean_endpoint
+            "{}",
+            describe_errors("         zero flow", &report.zero_flow)
         );
     }
     Ok(())
@@ -156,4 +171,33 @@ fn draw_pictures(
     let views = sequence_views(sequence, vectors, errors, 0..sequence.n_slabs())?;
     pictures::draw(dir, sequence.mesh().faces(), &views, args)?;
     Ok(())
+}
+
+/// One line with the weights used, and the unit-free scales they came from.
+fn describe_weights(weights: &Weights, params: &FlowParams) -> String {
+    let origin = |weight: Weight, relative: &str| match weight {
+        Weight::Value(_) => String::new(),
+        Weight::Relative(x) => format!(" ({relative} {x})"),
+    };
+    format!(
+        "weights: γ = {:.4e}{}, α = {:.4e}{}, β = {:.4e}{}",
+        weights.gamma,
+        origin(params.gamma, "spread"),
+        weights.alpha,
+        origin(params.alpha, "time scale"),
+        weights.beta,
+        origin(params.beta, "speed penalty"),
+    )
+}
+
+/// One line of scores against a ground truth (see `meshflow::accuracy`).
+fn describe_errors(label: &str, errors: &FlowErrors) -> String {
+    format!(
+        "{label}: angular error {:.2}° (displacements in mean edge lengths), direction error {:.2}° where it moves ({:.0} % of the surface), relative endpoint error {:.1} %, median speed ratio {:.2}",
+        errors.mean_angular_degrees,
+        errors.mean_direction_degrees,
+        100.0 * errors.moving_fraction,
+        100.0 * errors.relative_endpoint,
+        errors.median_speed_ratio,
+    )
 }

@@ -1,0 +1,75 @@
+//! The data's own scales: what turns the unit-free weights of [`FlowParams`] into numbers.
+//!
+//! ```text
+//! S²  = Σ_s Δt_s Σ_T A_T |∇I_T|⁴ / Σ_s Δt_s Σ_T A_T |∇I_T|²     (∇I_T: P1 gradient of I_mid on T)
+//! h̄   = mean over slabs of the mean edge length of the slab geometry
+//! Δt̄  = (t_{K−1} − t_0) / (K − 1)
+//! ```
+//!
+//! `S` is the root mean square of `|∇I|` weighted by the gradient energy `|∇I|² dA dt`: the
+//! typical gradient of the image's features, unaffected by how much empty background surrounds
+//! them (see [`crate::flow::FlowParams`] for why that matters). An image whose mid-slab grey
+//! values are all equal, to `1e-12` of their magnitude, in every slab has `S = 0` (its P1
+//! gradient is round-off).
+
+//!
+//! [`FlowParams`]: super::FlowParams
+
+use super::Slab;
+use crate::fem::element::face_gradient;
+use crate::mesh::Mesh;
+
+/// Grey values closer than this, relative to their magnitude, count as equal.
+const EQUAL_GREY: f64 = 1e-12;
+
+/// The data's own scales (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct DataScales {
+    /// `S`, grey values per unit length; 0 for an image without spatial variation.
+    pub gradient: f64,
+    /// `h̄`: the mean edge length of the slab geometries.
+    pub edge_length: f64,
+    /// `Δt̄`: the mean frame spacing.
+    pub frame_spacing: f64,
+}
+
+impl DataScales {
+    /// The scales of the slabs of a sequence of `mesh`.
+    pub fn measure(mesh: &Mesh, slabs: &[Slab]) -> Self {
+        let (mut second, mut fourth) = (0.0, 0.0);
+        for slab in slabs {
+            for (face, triangle) in mesh.faces().iter().zip(slab.geometry.triangles()) {
+                let values = face.map(|v| slab.intensity_mid[v as usize]);
+                let squared = face_gradient(triangle, values).norm_squared();
+                second += slab.dt * triangle.area * squared;
+                fourth += slab.dt * triangle.area * squared * squared;
+            }
+        }
+        let edge_length = slabs
+            .iter()
+            .map(|slab| {
+                let lengths = slab.geometry.edge_lengths();
+                lengths.iter().sum::<f64>() / lengths.len() as f64
+            })
+            .sum::<f64>()
+            / slabs.len() as f64;
+        Self {
+            gradient: match slabs.iter().all(|slab| is_constant(&slab.intensity_mid)) {
+                true => 0.0,
+                false => (fourth / second).sqrt(),
+            },
+            edge_length,
+            frame_spacing: slabs.iter().map(|slab| slab.dt).sum::<f64>() / slabs.len() as f64,
+        }
+    }
+}
+
+/// Whether all `values` agree to [`EQUAL_GREY`] of their largest magnitude.
+fn is_constant(values: &[f64]) -> bool {
+    let (low, high) = values
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+            (l.min(v), h.max(v))
+        });
+    high - low <= EQUAL_GREY * low.abs().max(high.abs())
+}
