@@ -312,6 +312,11 @@ impl FromStr for SlabSelection {
                     }
                 },
             };
+            if let (SlabIndex::Number(a), SlabIndex::Number(b)) = (first, end) {
+                if a > b {
+                    return Err(error(format!("{item:?} runs backwards")));
+                }
+            }
             items.push((item.to_string(), first, end));
         }
         Ok(Self {
