@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{meshflow, meshflow_ok, shipped};
+use common::{listing, meshflow, meshflow_ok, shipped};
 use meshflow::accuracy::compare_result;
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::fem;
@@ -563,16 +563,6 @@ fn ground_truth_is_mapped_through_the_welding() {
             && stderr.contains(&format!("file vertices 0 and {}", copied + 1)),
         "{stderr}"
     );
-}
-
-/// The names in `dir`, sorted.
-fn listing(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
 }
 
 #[test]

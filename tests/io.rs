@@ -2,6 +2,7 @@
 
 mod common;
 
+use common::listing;
 use meshflow::connection::Connection;
 use meshflow::fem::connection_laplacian;
 use meshflow::geometry::IntrinsicGeometry;
@@ -229,16 +230,6 @@ fn ground_truth_is_float32_or_float64_and_lands_on_welded_vertices() {
         .unwrap_err()
         .to_string();
     assert!(message.contains("expected (3, 4, 3)"), "{message}");
-}
-
-/// The names in `dir`, sorted.
-fn listing(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
 }
 
 /// Stages `files` (name, contents) for `target` with `overwrite`, recording `command`, and

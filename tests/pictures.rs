@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{meshflow, meshflow_ok, shipped};
+use common::{listing, meshflow, meshflow_ok, shipped};
 use std::path::Path;
 
 const SLABS: usize = 5;
@@ -139,16 +139,6 @@ fn render_errors_name_the_file() {
         assert_eq!(stderr.lines().count(), 1, "{stderr}");
         assert!(stderr.contains(expected), "{stderr}");
     }
-}
-
-/// The names in `dir`, sorted.
-fn listing(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
 }
 
 /// The picture names of `slabs` (with the angular error).

@@ -13,8 +13,9 @@ fn shipped_sphere() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/rotating_sphere")
 }
 
-fn solve(input: &Path, out: &Path, extra: &[&str]) -> String {
-    let run = Command::new(env!("CARGO_BIN_EXE_meshflow"))
+/// Runs `meshflow solve INPUT --out OUT --gamma 0.01` with `extra` arguments.
+fn run_solve(input: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_meshflow"))
         .args([
             "solve",
             input.to_str().unwrap(),
@@ -24,7 +25,12 @@ fn solve(input: &Path, out: &Path, extra: &[&str]) -> String {
         .args(["--gamma", "0.01"])
         .args(extra)
         .output()
-        .unwrap();
+        .unwrap()
+}
+
+/// [`run_solve`], which must succeed; its standard output.
+fn solve(input: &Path, out: &Path, extra: &[&str]) -> String {
+    let run = run_solve(input, out, extra);
     let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
     assert!(
         run.status.success(),
@@ -248,15 +254,7 @@ fn times_file_glob_and_existing_output_directory() {
     std::fs::create_dir(&out).unwrap();
     std::fs::write(out.join("notes.txt"), "mine").unwrap();
     std::fs::write(out.join("flow.npy"), "stale").unwrap();
-    let refused = Command::new(env!("CARGO_BIN_EXE_meshflow"))
-        .args([
-            "solve",
-            frames.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let refused = run_solve(&frames, &out, &[]);
     let stderr = String::from_utf8_lossy(&refused.stderr);
     assert!(
         refused.status.code() == Some(1) && stderr.contains("flow.npy, notes.txt"),
@@ -602,12 +600,7 @@ fn an_image_that_moves_with_the_surface_is_reported() {
     let (_, found) = warnings("still", false, 0.0);
     assert_eq!(found, vec![]);
     // The CLI prints it as a warning line.
-    let run = Command::new(env!("CARGO_BIN_EXE_meshflow"))
-        .args(["solve", glued.to_str().unwrap(), "--out"])
-        .arg(root.path().join("out"))
-        .args(["--format", "npy", "--beta", "0.001"])
-        .output()
-        .unwrap();
+    let run = run_solve(&glued, &root.path().join("out"), &["--format", "npy"]);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(run.status.success(), "{stderr}");
     assert_eq!(

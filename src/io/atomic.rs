@@ -357,7 +357,7 @@ impl StagedDir {
     fn merge(&self, earlier: Vec<String>) -> Result<(), IoError> {
         let fail = |e| IoError::file(&self.target, e);
         for name in earlier.iter().filter(|n| !self.kept.contains(n)) {
-            let path = self.resolved.join(&name);
+            let path = self.resolved.join(name);
             if path.is_file() {
                 std::fs::remove_file(&path)
                     .map_err(|e| IoError::file(self.target.join(name), e))?;

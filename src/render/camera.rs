@@ -253,11 +253,7 @@ impl FromStr for View {
 /// A pinhole (perspective) camera and the size of its picture; see the module documentation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
-    eye: Vector3<f64>,
-    target: Vector3<f64>,
-    right: Vector3<f64>,
-    down: Vector3<f64>,
-    forward: Vector3<f64>,
+    frame: Frame,
     fov_y_degrees: f64,
     focal: f64,
     near: f64,
@@ -332,22 +328,11 @@ impl Camera {
     }
 
     fn new(frame: Frame, fov_y_degrees: f64, width: u32, height: u32) -> Self {
-        let Frame {
-            eye,
-            target,
-            right,
-            down,
-            forward,
-        } = frame;
         Self {
-            eye,
-            target,
-            right,
-            down,
-            forward,
+            near: NEAR_FRACTION * (frame.target - frame.eye).norm(),
+            frame,
             fov_y_degrees,
             focal: height as f64 / 2.0 / (fov_y_degrees / 2.0).to_radians().tan(),
-            near: NEAR_FRACTION * (target - eye).norm(),
             width,
             height,
         }
@@ -356,15 +341,15 @@ impl Camera {
     /// Pixel x (right), pixel y (down) and depth of `p`; `None` when `p` is not in front of the
     /// near plane (or not finite). Points outside the picture are projected too.
     pub fn project(&self, p: &Vector3<f64>) -> Option<[f64; 3]> {
-        let q = p - self.eye;
-        let depth = q.dot(&self.forward);
+        let q = p - self.frame.eye;
+        let depth = q.dot(&self.frame.forward);
         if !(depth > self.near && depth.is_finite()) {
             return None;
         }
         let scale = self.focal / depth;
         Some([
-            self.width as f64 / 2.0 + scale * q.dot(&self.right),
-            self.height as f64 / 2.0 + scale * q.dot(&self.down),
+            self.width as f64 / 2.0 + scale * q.dot(&self.frame.right),
+            self.height as f64 / 2.0 + scale * q.dot(&self.frame.down),
             depth,
         ])
     }
@@ -372,12 +357,12 @@ impl Camera {
     /// `(v·right, v·down)`: the tangent vector `v` as the camera sees its direction, in the
     /// Middlebury `(u, v)` convention (x right, y down); see the module documentation.
     pub fn screen_components(&self, v: &Vector3<f64>) -> [f64; 2] {
-        [v.dot(&self.right), v.dot(&self.down)]
+        [v.dot(&self.frame.right), v.dot(&self.frame.down)]
     }
 
     /// The world vector with camera coordinates `(x, y, z)` = (right, down, forward).
     pub fn camera_to_world(&self, [x, y, z]: [f64; 3]) -> Vector3<f64> {
-        x * self.right + y * self.down + z * self.forward
+        x * self.frame.right + y * self.frame.down + z * self.frame.forward
     }
 
     /// Pixels per world length unit for a segment parallel to the picture at `depth`: `F / z`.
@@ -387,30 +372,30 @@ impl Camera {
 
     /// Distance from the eye to the target along the view axis.
     pub fn target_depth(&self) -> f64 {
-        (self.target - self.eye).norm()
+        (self.frame.target - self.frame.eye).norm()
     }
 
     pub fn eye(&self) -> Vector3<f64> {
-        self.eye
+        self.frame.eye
     }
 
     pub fn target(&self) -> Vector3<f64> {
-        self.target
+        self.frame.target
     }
 
     /// Unit vector pointing right in the picture.
     pub fn right(&self) -> Vector3<f64> {
-        self.right
+        self.frame.right
     }
 
     /// Unit vector pointing down in the picture.
     pub fn down(&self) -> Vector3<f64> {
-        self.down
+        self.frame.down
     }
 
     /// Unit vector along the view axis, from the eye into the scene.
     pub fn forward(&self) -> Vector3<f64> {
-        self.forward
+        self.frame.forward
     }
 
     pub fn fov_y_degrees(&self) -> f64 {
@@ -432,6 +417,7 @@ impl Camera {
 }
 
 /// A camera's position and orthonormal axes.
+#[derive(Clone, Debug, PartialEq)]
 struct Frame {
     eye: Vector3<f64>,
     target: Vector3<f64>,
