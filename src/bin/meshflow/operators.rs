@@ -12,7 +12,9 @@ use std::path::Path;
 pub fn write_operators(mesh_path: &Path, out: &Path, overwrite: Overwrite) -> Result<(), Error> {
     let mut staged = StagedDir::create(out, overwrite)?;
     staged.record_command(crate::command_line());
-    let obj = read_mesh(mesh_path)?;
+    let obj = during(format!("reading {}", mesh_path.display()), || {
+        read_mesh(mesh_path)
+    })?;
     let in_file = |e: Error| e.in_file(mesh_path);
     let mesh = Mesh::new(obj.positions.len(), obj.faces).map_err(|e| in_file(e.into()))?;
     let geometry =
