@@ -7,7 +7,8 @@
 //!
 //! Every writer goes through [`write_atomically`]: the bytes land in a temporary file next to the
 //! target, which is renamed over it only when complete, so a failed run never leaves a
-//! half-written output behind.
+//! half-written output behind. Output directories are staged whole ([`StagedDir`]): each holds
+//! exactly one run, marked by its manifest [`RUN_MANIFEST`].
 
 mod atomic;
 mod flow_output;

@@ -13,6 +13,9 @@
 //! | `flow_SSSS.png` | [`flow_picture`]: Middlebury colours of the flow's screen directions, with the wheel legend |
 //! | `arrows_SSSS.png` | [`arrow_picture`]: arrows on an even subsample of visible vertices |
 //! | `angular_error_SSSS.png` | [`scalar_picture`] of the angular error (degrees), when known |
+//!
+//! labelled `slab s  t = t_s` (times with six significant digits, [`format_number`]).
+//! [`SlabSelection`] reads which slabs to draw from a list such as `0,5,10-20,last`.
 
 use super::color_wheel::robust_max;
 use super::colormap::finite_range;
