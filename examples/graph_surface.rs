@@ -57,10 +57,7 @@ fn main() -> Result<(), meshflow::Error> {
         column_major: false,
         pixel_size: 4,
     };
-    let view = View {
-        azimuth_degrees: -60.0,
-        elevation_degrees: 45.0,
-    };
+    let view = View::new(-60.0, 45.0);
     comparison.write_outputs(out, "graph", &surface, grid, view)?;
     let total = start.elapsed().as_secs_f64();
     println!();

@@ -55,10 +55,7 @@ fn main() -> Result<(), meshflow::Error> {
         column_major: true,
         pixel_size: 3,
     };
-    let view = View {
-        azimuth_degrees: -70.0,
-        elevation_degrees: 40.0,
-    };
+    let view = View::new(-70.0, 40.0);
     comparison.write_outputs(out, "torus", &surface, grid, view)?;
     let total = start.elapsed().as_secs_f64();
 

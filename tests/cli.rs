@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{meshflow, meshflow_ok, shipped};
+use common::{listing, meshflow, meshflow_ok, shipped};
 use meshflow::accuracy::{compare_result, FlowErrors};
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::fem;
@@ -599,6 +599,193 @@ fn ground_truth_is_mapped_through_the_welding() {
     assert!(
         stderr.contains("truth.npy")
             && stderr.contains(&format!("file vertices 0 and {}", copied + 1)),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn solve_reruns_replace_the_earlier_output_as_a_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let out_arg = out.to_str().unwrap();
+    let input = shipped("rotating_sphere");
+    let truth = shipped("rotating_sphere/ground_truth.npy");
+    meshflow_ok(&["solve", &input, "--out", out_arg, "--ground-truth", &truth]);
+    let first = [
+        "angular_error.npy",
+        "direction_error.npy",
+        "endpoint_error.npy",
+        "flow.glb",
+        "flow.npy",
+        "flow.pvd",
+        "flow_0000.vtu",
+        "flow_0001.vtu",
+        "flow_0002.vtu",
+        "flow_0003.vtu",
+        "flow_0004.vtu",
+        "flow_intrinsic.npy",
+        "meshflow_run.json",
+        "summary.json",
+    ];
+    assert_eq!(listing(&out), first);
+    // Three frames, NPY only: nothing of the five-slab run is left.
+    let three = format!("{input}/frame_[0-2].obj");
+    meshflow_ok(&["solve", &three, "--out", out_arg, "--format", "npy"]);
+    let second = [
+        "flow.npy",
+        "flow_intrinsic.npy",
+        "meshflow_run.json",
+        "summary.json",
+    ];
+    assert_eq!(listing(&out), second);
+    assert_eq!(read_npy(&out.join("flow.npy")).unwrap().shape, [2, 642, 3]);
+    let manifest = meshflow::io::RunManifest::read(&out).unwrap();
+    assert_eq!(
+        manifest.commands,
+        [["meshflow", "solve", &three, "--out", out_arg, "--format", "npy"]]
+    );
+
+    // A run that fails after staging (a ground truth for five slabs) leaves it untouched.
+    let before = std::fs::read(out.join("flow.npy")).unwrap();
+    let run = meshflow(&["solve", &three, "--out", out_arg, "--ground-truth", &truth]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert_eq!(listing(&out), second);
+    assert_eq!(std::fs::read(out.join("flow.npy")).unwrap(), before);
+    assert_eq!(listing(dir.path()), ["run"], "no staging directory is left");
+
+    // A directory meshflow did not write: refused before the input is even looked at.
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    let run = meshflow(&["solve", "/nonexistent/frames", "--out", out_arg]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1));
+    assert_eq!(
+        stderr.trim(),
+        format!(
+            "meshflow: error: {out_arg}: holds files that meshflow did not write (notes.txt); \
+             choose another output directory, empty it, or add --force to write into it (its \
+             other files stay)"
+        )
+    );
+    meshflow_ok(&[
+        "solve", &input, "--out", out_arg, "--force", "--format", "npy",
+    ]);
+    assert_eq!(
+        listing(&out),
+        [
+            "flow.npy",
+            "flow_intrinsic.npy",
+            "meshflow_run.json",
+            "notes.txt",
+            "summary.json"
+        ]
+    );
+}
+
+#[test]
+fn operators_replace_their_own_output_and_refuse_others() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ops");
+    let out_arg = out.to_str().unwrap();
+    std::fs::create_dir(&out).unwrap();
+    std::fs::write(out.join("stale.mtx"), "old").unwrap();
+    let run = meshflow(&["operators", "/nonexistent/mesh.obj", "--out", out_arg]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        run.status.code() == Some(1) && stderr.contains("not a meshflow output (stale.mtx)"),
+        "{stderr}"
+    );
+    let written = [
+        "cotan.mtx",
+        "frames.npy",
+        "mass.mtx",
+        "mass_scalar.mtx",
+        "meshflow_run.json",
+        "stiffness.mtx",
+    ];
+    std::fs::remove_file(out.join("stale.mtx")).unwrap();
+    meshflow_ok(&["operators", &shipped("patch.obj"), "--out", out_arg]);
+    assert_eq!(listing(&out), written);
+    let patch = read_npy(&out.join("frames.npy")).unwrap().shape;
+    meshflow_ok(&["operators", &shipped("torus.obj"), "--out", out_arg]);
+    assert_eq!(listing(&out), written);
+    let torus = read_npy(&out.join("frames.npy")).unwrap().shape;
+    assert_eq!((patch, torus), (vec![117, 2, 3], vec![512, 2, 3]));
+}
+
+#[test]
+fn unquoted_globs_get_a_hint() {
+    let input = shipped("rotating_sphere");
+    let frames: Vec<String> = (0..3).map(|k| format!("{input}/frame_{k}.obj")).collect();
+    let run = meshflow(&["solve", &frames[0], &frames[1], &frames[2], "--out", "o"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2));
+    assert_eq!(
+        stderr.trim(),
+        format!(
+            "meshflow: error: unexpected argument '{}' found; it looks like the shell \
+             expanded a glob into many files: quote it ('{input}/*.obj') or give the \
+             directory ({input}) (see meshflow --help)",
+            frames[1]
+        )
+    );
+    // Other stray arguments get no hint.
+    let run = meshflow(&["solve", &input, "extra.txt", "--out", "o"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(
+        stderr.trim(),
+        "meshflow: error: unexpected argument 'extra.txt' found (see meshflow --help)"
+    );
+}
+
+#[test]
+fn animations_are_chosen_on_the_command_line() {
+    use meshflow::io::gltf_write::{write_glb_animation, AnimationFrame};
+    let dir = tempfile::tempdir().unwrap();
+    let sphere = meshflow::shapes::icosphere(1);
+    let colours: Vec<[f64; 3]> = sphere.positions.iter().map(|p| [p.x.abs(); 3]).collect();
+    let frames: Vec<AnimationFrame> = [0.0, 1.0]
+        .iter()
+        .map(|&time| AnimationFrame {
+            time,
+            positions: &sphere.positions,
+            colors: &colours,
+        })
+        .collect();
+    let file = dir.path().join("one.glb");
+    write_glb_animation(&file, &sphere.faces, &frames).unwrap();
+    let out = dir.path().join("out");
+    let solve = |animation: &str| {
+        meshflow(&[
+            "solve",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--animation",
+            animation,
+            "--beta",
+            "1",
+        ])
+    };
+    assert!(solve("0").status.success());
+    let run = solve("walk");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1));
+    assert!(
+        stderr.contains("one.glb: no animation \"walk\": the file has 0: (unnamed)"),
+        "{stderr}"
+    );
+    let run = meshflow(&[
+        "solve",
+        &shipped("rotating_sphere"),
+        "--out",
+        out.to_str().unwrap(),
+        "--animation",
+        "0",
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("--animation applies to a glTF animation"),
         "{stderr}"
     );
 }

@@ -4,7 +4,7 @@
 use base64::Engine;
 use meshflow::io::gltf_read::{read_gltf_animation, read_gltf_frame};
 use meshflow::io::gltf_write::{write_glb_animation, AnimationFrame};
-use meshflow::io::IoError;
+use meshflow::io::{IoError, LoadOptions};
 use nalgebra::Vector3;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -74,6 +74,14 @@ impl Animation {
 
 const TIMES: [f64; 4] = [0.0, 0.5, 1.25, 2.0];
 
+/// Options that resample an animation at `fps` frames per unit of time.
+fn at_fps(fps: f64) -> LoadOptions {
+    LoadOptions {
+        fps: Some(fps),
+        ..LoadOptions::default()
+    }
+}
+
 fn written(dir: &Path, animation: &Animation) -> PathBuf {
     let path = dir.join("moving.glb");
     animation.write(&path).unwrap();
@@ -85,7 +93,7 @@ fn written_animation_reads_back_bit_identically() {
     let dir = tempfile::tempdir().unwrap();
     let animation = Animation::grid(&TIMES);
     let path = written(dir.path(), &animation);
-    let sequence = read_gltf_animation(&path, None).unwrap();
+    let sequence = read_gltf_animation(&path, &LoadOptions::default()).unwrap();
     assert_eq!(sequence.faces, animation.faces);
     assert_eq!(sequence.positions, animation.positions);
     assert_eq!(sequence.intensities.unwrap(), animation.greys);
@@ -137,7 +145,7 @@ fn lerp(a: &Vector3<f64>, b: &Vector3<f64>, s: f64) -> Vector3<f64> {
 fn resampling_interpolates_the_frames_linearly() {
     let dir = tempfile::tempdir().unwrap();
     let animation = Animation::grid(&TIMES);
-    let sequence = read_gltf_animation(&written(dir.path(), &animation), Some(4.0)).unwrap();
+    let sequence = read_gltf_animation(&written(dir.path(), &animation), &at_fps(4.0)).unwrap();
     let times = sequence.times.unwrap();
     assert_eq!(times, (0..=8).map(|i| i as f64 / 4.0).collect::<Vec<_>>());
     let intensities = sequence.intensities.unwrap();
@@ -170,7 +178,9 @@ fn a_single_frame_is_a_static_mesh_without_animation() {
     let frame = read_gltf_frame(&path).unwrap();
     assert_eq!(frame.positions, animation.positions[0]);
     assert_eq!(frame.faces, animation.faces);
-    let error = read_gltf_animation(&path, None).unwrap_err().to_string();
+    let error = read_gltf_animation(&path, &LoadOptions::default())
+        .unwrap_err()
+        .to_string();
     assert!(error.contains("moving.glb"), "{error}");
     assert!(error.contains("no morph-target animation"), "{error}");
 }
@@ -398,7 +408,7 @@ fn node_transforms_of_the_node_and_its_parents_are_applied() {
     assert_close(&frame.positions, &base);
     assert_eq!(frame.faces, vec![[0, 1, 2]]);
     assert!(frame.intensity.is_none());
-    let sequence = read_gltf_animation(&path, None).unwrap();
+    let sequence = read_gltf_animation(&path, &LoadOptions::default()).unwrap();
     assert_eq!(sequence.times.unwrap(), [0.0, 1.0]);
     assert_close(&sequence.positions[0], &base);
     // The lift (0, 0, 1) is scaled by 4 in z.
@@ -426,7 +436,7 @@ fn step_and_cubic_spline_weights_follow_the_gltf_formulas() {
     for (interpolation, outputs, weight) in cases {
         let (gltf, document) = lifted_triangle(interpolation, outputs);
         let path = gltf.write(dir.path(), "lifted.gltf", document);
-        let sequence = read_gltf_animation(&path, Some(4.0)).unwrap();
+        let sequence = read_gltf_animation(&path, &at_fps(4.0)).unwrap();
         for (t, positions) in sequence.times.unwrap().iter().zip(&sequence.positions) {
             let lift = positions[0].z;
             assert!(
@@ -605,7 +615,7 @@ fn textured_meshes_sample_the_base_colour_texture_bilinearly() {
     let frame = read_gltf_frame(&path).unwrap();
     assert_eq!(frame.faces, vec![[0, 1, 2], [3, 4, 5]]);
     assert_all_close(&frame.intensity.unwrap(), &base);
-    let intensities = read_gltf_animation(&path, None)
+    let intensities = read_gltf_animation(&path, &LoadOptions::default())
         .unwrap()
         .intensities
         .unwrap();
@@ -616,7 +626,9 @@ fn textured_meshes_sample_the_base_colour_texture_bilinearly() {
 /// The error message of reading `path` both ways, which must agree.
 fn read_error(path: &Path) -> String {
     let frame = read_gltf_frame(path).unwrap_err().to_string();
-    let animation = read_gltf_animation(path, None).unwrap_err().to_string();
+    let animation = read_gltf_animation(path, &LoadOptions::default())
+        .unwrap_err()
+        .to_string();
     assert_eq!(frame, animation);
     frame
 }
@@ -712,7 +724,7 @@ fn unsupported_or_inconsistent_meshes_give_clear_errors() {
         assert!(error.contains(&*name) && error.contains(message), "{error}");
     }
     let static_mesh = patched_triangle(d, "static.gltf", |_, _| {});
-    let error = read_gltf_animation(&static_mesh, None)
+    let error = read_gltf_animation(&static_mesh, &LoadOptions::default())
         .unwrap_err()
         .to_string();
     assert!(
@@ -730,9 +742,142 @@ fn bad_frame_rates_are_rejected() {
     let dir = tempfile::tempdir().unwrap();
     let path = written(dir.path(), &Animation::grid(&TIMES));
     for fps in [0.0, -2.0, f64::NAN] {
-        let error = read_gltf_animation(&path, Some(fps))
+        let error = read_gltf_animation(&path, &at_fps(fps))
             .unwrap_err()
             .to_string();
         assert!(error.contains("frame rate must be positive"), "{error}");
     }
+}
+
+/// [`lifted_triangle`] with grey colours that never change and four animations: 0 "Idle" moves
+/// another node, 1 "Lift" drives target 0 (vertex 0 up in z) over keyframes 0, 1, 2 "Slide"
+/// drives target 1 (vertex 1 along x) over 0, 2, 3, and 3 (unnamed) drives target 0 over 5, 6.
+fn clips_triangle(dir: &Path) -> PathBuf {
+    let mut gltf = HandMade::default();
+    let position = gltf.floats("VEC3", &TRIANGLE);
+    let grey = gltf.floats("VEC3", &[0.25, 0.25, 0.25, 0.5, 0.5, 0.5, 1.0, 1.0, 1.0]);
+    let lift = gltf.floats("VEC3", &[0., 0., 1., 0., 0., 0., 0., 0., 0.]);
+    let slide = gltf.floats("VEC3", &[0., 0., 0., 1., 0., 0., 0., 0., 0.]);
+    let indices = gltf.indices(&[0, 1, 2], 2);
+    let mut sampler = |times: &[f32], kind: &str, values: &[f32]| json!({ "input": gltf.floats("SCALAR", times), "output": gltf.floats(kind, values) });
+    let idle = sampler(&[0.0, 1.0], "VEC3", &[0., 0., 0., 1., 1., 1.]);
+    let lifting = sampler(&[0.0, 1.0], "SCALAR", &[0., 0., 1., 0.]);
+    let sliding = sampler(&[0.0, 2.0, 3.0], "SCALAR", &[0., 0., 0., 1., 0., 2.]);
+    let late = sampler(&[5.0, 6.0], "SCALAR", &[0.5, 0., 0., 0.]);
+    let animation = |name: Option<&str>, sampler: Value, node: usize, path: &str| {
+        let mut animation = json!({
+            "samplers": [sampler],
+            "channels": [{ "sampler": 0, "target": { "node": node, "path": path } }],
+        });
+        if let Some(name) = name {
+            animation["name"] = json!(name);
+        }
+        animation
+    };
+    let document = json!({
+        "nodes": [{ "mesh": 0 }, { "name": "lamp" }],
+        "meshes": [{ "primitives": [{
+            "attributes": { "POSITION": position, "COLOR_0": grey }, "indices": indices,
+            "targets": [{ "POSITION": lift }, { "POSITION": slide }],
+        }] }],
+        "animations": [
+            animation(Some("Idle"), idle, 1, "translation"),
+            animation(Some("Lift"), lifting, 0, "weights"),
+            animation(Some("Slide"), sliding, 0, "weights"),
+            animation(None, late, 0, "weights"),
+        ],
+    });
+    gltf.write(dir, "clips.gltf", document)
+}
+
+fn choosing(animation: &str) -> LoadOptions {
+    LoadOptions {
+        animation: Some(animation.to_string()),
+        ..LoadOptions::default()
+    }
+}
+
+#[test]
+fn animations_are_chosen_by_name_or_index_else_the_first_that_moves_the_mesh() {
+    use meshflow::io::gltf_read::AnimationClip;
+    use meshflow::io::LoadWarning;
+    let dir = tempfile::tempdir().unwrap();
+    let path = clips_triangle(dir.path());
+    let clip = |index: usize, name: Option<&str>, moves_mesh: bool| AnimationClip {
+        index,
+        name: name.map(str::to_string),
+        moves_mesh,
+    };
+    let clips = vec![
+        clip(0, Some("Idle"), false),
+        clip(1, Some("Lift"), true),
+        clip(2, Some("Slide"), true),
+        clip(3, None, true),
+    ];
+
+    // None chosen: "Lift", with a warning that lists the four.
+    let lifted = read_gltf_animation(&path, &LoadOptions::default()).unwrap();
+    assert_eq!(lifted.times.as_deref(), Some([0.0, 1.0].as_slice()));
+    assert_close(
+        &lifted.positions[1],
+        &[[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+    );
+    let warning = LoadWarning::SeveralAnimations {
+        file: path.clone(),
+        clips: clips.clone(),
+        chosen: clips[1].clone(),
+    };
+    assert_eq!(lifted.warnings, vec![warning.clone()]);
+    assert_eq!(
+        warning.to_string(),
+        format!(
+            "{}: 4 animations (0: \"Idle\" (no morph weights), 1: \"Lift\", 2: \"Slide\", \
+             3: (unnamed)); read 1: \"Lift\", the first that moves the mesh; choose one with \
+             --animation NAME|INDEX",
+            path.display()
+        )
+    );
+
+    // By name, and by index (the unnamed one): no warning.
+    let slid = read_gltf_animation(&path, &choosing("Slide")).unwrap();
+    assert_eq!(slid.times.as_deref(), Some([0.0, 2.0, 3.0].as_slice()));
+    assert_close(
+        &slid.positions[2],
+        &[[0.0, 0.0, 0.0], [3.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+    );
+    assert!(slid.warnings.is_empty());
+    let late = read_gltf_animation(&path, &choosing("3")).unwrap();
+    assert_eq!(late.times.as_deref(), Some([5.0, 6.0].as_slice()));
+    assert_close(
+        &late.positions[0],
+        &[[0.0, 0.0, 0.5], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+    );
+
+    let listing = "0: \"Idle\" (no morph weights), 1: \"Lift\", 2: \"Slide\", 3: (unnamed)";
+    for (choice, message) in [
+        (
+            "Jump",
+            format!("no animation \"Jump\": the file has {listing}"),
+        ),
+        ("4", format!("no animation \"4\": the file has {listing}")),
+        (
+            "Idle",
+            format!(
+                "animation 0: \"Idle\" (no morph weights) does not animate the morph weights \
+                 of the mesh: the file has {listing}"
+            ),
+        ),
+    ] {
+        let error = read_gltf_animation(&path, &choosing(choice))
+            .unwrap_err()
+            .to_string();
+        assert_eq!(error, format!("{}: {message}", path.display()));
+    }
+    // One animation: nothing to warn about.
+    let (gltf, document) = lifted_triangle("LINEAR", &[0.0, 1.0]);
+    let single = gltf.write(dir.path(), "single.gltf", document);
+    assert!(read_gltf_animation(&single, &LoadOptions::default())
+        .unwrap()
+        .warnings
+        .is_empty());
 }

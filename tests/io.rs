@@ -2,12 +2,13 @@
 
 mod common;
 
+use common::listing;
 use meshflow::connection::Connection;
 use meshflow::fem::connection_laplacian;
 use meshflow::geometry::IntrinsicGeometry;
 use meshflow::io::{
     read_matrix_market, read_npy, read_obj, write_atomically, write_matrix_market, write_npy,
-    write_obj, IoError,
+    write_obj, IoError, Overwrite, RunManifest, StagedDir, RUN_MANIFEST,
 };
 use meshflow::shapes::icosphere;
 use nalgebra::Vector3;
@@ -229,4 +230,161 @@ fn ground_truth_is_float32_or_float64_and_lands_on_welded_vertices() {
         .unwrap_err()
         .to_string();
     assert!(message.contains("expected (3, 4, 3)"), "{message}");
+}
+
+/// Stages `files` (name, contents) for `target` with `overwrite`, recording `command`, and
+/// commits.
+fn staged_run(
+    target: &Path,
+    overwrite: Overwrite,
+    command: &str,
+    files: &[(&str, &str)],
+) -> Result<(), IoError> {
+    let mut staged = StagedDir::create(target, overwrite)?;
+    staged.record_command(["meshflow", command]);
+    for (name, contents) in files {
+        std::fs::write(staged.path().join(name), contents).unwrap();
+    }
+    staged.commit()
+}
+
+#[test]
+fn an_output_directory_holds_exactly_one_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let first = [
+        ("flow.npy", "1"),
+        ("flow_0000.vtu", "1"),
+        ("flow_0001.vtu", "1"),
+    ];
+    staged_run(&out, Overwrite::EarlierRun, "first", &first).unwrap();
+    assert_eq!(
+        listing(&out),
+        ["flow.npy", "flow_0000.vtu", "flow_0001.vtu", RUN_MANIFEST]
+    );
+    // The rerun replaces the whole directory: the stale slab files are gone.
+    staged_run(&out, Overwrite::EarlierRun, "second", &[("flow.npy", "2")]).unwrap();
+    assert_eq!(listing(&out), ["flow.npy", RUN_MANIFEST]);
+    assert_eq!(std::fs::read_to_string(out.join("flow.npy")).unwrap(), "2");
+    let manifest = RunManifest::read(&out).unwrap();
+    assert_eq!(manifest.files, ["flow.npy"]);
+    assert_eq!(manifest.commands, [["meshflow", "second"]]);
+    assert_eq!(listing(dir.path()), ["out"], "no staging or backup left");
+
+    // An empty directory is fine.
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    staged_run(&empty, Overwrite::EarlierRun, "x", &[("a.npy", "a")]).unwrap();
+    assert_eq!(listing(&empty), ["a.npy", RUN_MANIFEST]);
+
+    // A failed run (dropped before its commit) leaves the earlier output as it was.
+    let mut failed = StagedDir::new(&out).unwrap();
+    failed.record_command(["meshflow", "failed"]);
+    std::fs::write(failed.path().join("flow.npy"), "half").unwrap();
+    drop(failed);
+    assert_eq!(listing(&out), ["flow.npy", RUN_MANIFEST]);
+    assert_eq!(std::fs::read_to_string(out.join("flow.npy")).unwrap(), "2");
+    assert_eq!(listing(dir.path()), ["empty", "out"]);
+}
+
+#[test]
+fn directories_meshflow_did_not_write_are_refused_unless_forced() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("mine");
+    std::fs::create_dir(&out).unwrap();
+    for name in ["notes.txt", "a", "b", "c"] {
+        std::fs::write(out.join(name), "mine").unwrap();
+    }
+    let error = StagedDir::new(&out).unwrap_err().to_string();
+    assert_eq!(
+        error,
+        format!(
+            "{}: is not empty and not a meshflow output (a, b, c, 1 more); choose another \
+             output directory, empty it, or add --force to write into it (its other files stay)",
+            out.display()
+        )
+    );
+    assert_eq!(
+        listing(dir.path()),
+        ["mine"],
+        "refused before staging anything"
+    );
+
+    // Forced: the new files join the others.
+    staged_run(&out, Overwrite::Force, "forced", &[("flow.npy", "1")]).unwrap();
+    assert_eq!(
+        listing(&out),
+        ["a", "b", "c", "flow.npy", RUN_MANIFEST, "notes.txt"]
+    );
+    // Still not wholly meshflow's: refused again; forced again, the earlier run's files go.
+    let error = StagedDir::new(&out).unwrap_err().to_string();
+    assert!(error.contains("holds files that meshflow did not write (a, b, c, 1 more)"));
+    staged_run(&out, Overwrite::Force, "again", &[("other.npy", "2")]).unwrap();
+    assert_eq!(
+        listing(&out),
+        ["a", "b", "c", RUN_MANIFEST, "notes.txt", "other.npy"]
+    );
+    assert_eq!(RunManifest::read(&out).unwrap().files, ["other.npy"]);
+    assert_eq!(std::fs::read_to_string(out.join("a")).unwrap(), "mine");
+
+    // A file of the manifest's name that is no manifest does not make a run.
+    let fake = dir.path().join("fake");
+    std::fs::create_dir(&fake).unwrap();
+    std::fs::write(fake.join(RUN_MANIFEST), "{}").unwrap();
+    let error = StagedDir::new(&fake).unwrap_err().to_string();
+    assert!(
+        error.contains(&format!("not a meshflow output ({RUN_MANIFEST})")),
+        "{error}"
+    );
+    // Nor is a file a directory.
+    std::fs::write(dir.path().join("file"), "x").unwrap();
+    let error = StagedDir::new(&dir.path().join("file")).unwrap_err();
+    assert!(error.to_string().contains("is a file"), "{error}");
+}
+
+#[test]
+fn an_update_keeps_the_chosen_files_of_the_earlier_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let solved = [
+        ("flow.npy", "flow"),
+        ("grey_0000.png", "old"),
+        ("grey_0001.png", "old"),
+    ];
+    staged_run(&out, Overwrite::EarlierRun, "solve", &solved).unwrap();
+    let mut update =
+        StagedDir::update(&out, Overwrite::EarlierRun, |name| !name.ends_with(".png")).unwrap();
+    update.record_command(["meshflow", "render"]);
+    std::fs::write(update.path().join("grey_0001.png"), "new").unwrap();
+    update.commit().unwrap();
+    assert_eq!(listing(&out), ["flow.npy", "grey_0001.png", RUN_MANIFEST]);
+    assert_eq!(
+        std::fs::read_to_string(out.join("flow.npy")).unwrap(),
+        "flow"
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("grey_0001.png")).unwrap(),
+        "new"
+    );
+    let manifest = RunManifest::read(&out).unwrap();
+    assert_eq!(manifest.files, ["flow.npy", "grey_0001.png"]);
+    assert_eq!(
+        manifest.commands,
+        [["meshflow", "solve"], ["meshflow", "render"]]
+    );
+    assert_eq!(listing(dir.path()), ["run"]);
+}
+
+#[cfg(unix)]
+#[test]
+fn an_output_behind_a_symbolic_link_is_replaced_where_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let real = dir.path().join("real");
+    let link = dir.path().join("link");
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    std::fs::create_dir(&real).unwrap();
+    staged_run(&link, Overwrite::EarlierRun, "first", &[("a.npy", "1")]).unwrap();
+    staged_run(&link, Overwrite::EarlierRun, "second", &[("b.npy", "2")]).unwrap();
+    assert!(link.is_symlink());
+    assert_eq!(listing(&real), ["b.npy", RUN_MANIFEST]);
 }

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{meshflow, meshflow_ok, shipped};
+use common::{listing, meshflow, meshflow_ok, shipped};
 use std::path::Path;
 
 const SLABS: usize = 5;
@@ -139,4 +139,220 @@ fn render_errors_name_the_file() {
         assert_eq!(stderr.lines().count(), 1, "{stderr}");
         assert!(stderr.contains(expected), "{stderr}");
     }
+}
+
+/// The picture names of `slabs` (with the angular error).
+fn pictures_of(slabs: &[usize]) -> Vec<String> {
+    ["grey", "flow", "arrows", "angular_error"]
+        .iter()
+        .flat_map(|kind| slabs.iter().map(move |s| format!("{kind}_{s:04}.png")))
+        .collect()
+}
+
+#[test]
+fn render_into_the_run_replaces_only_its_pictures() {
+    let out = tempfile::tempdir().unwrap();
+    let dir = out.path().join("run");
+    let run = dir.to_str().unwrap();
+    solve_with_pictures(&dir, &["--size", "64x48", "--slabs", "0,2-3"]);
+    let data: Vec<String> = listing(&dir)
+        .into_iter()
+        .filter(|n| !n.ends_with(".png"))
+        .collect();
+    let with = |slabs: &[usize]| {
+        let mut names = data.clone();
+        names.extend(pictures_of(slabs));
+        names.sort();
+        names
+    };
+    assert_eq!(listing(&dir), with(&[0, 2, 3]));
+    let flow = std::fs::read(dir.join("flow.npy")).unwrap();
+
+    let drawn = meshflow_ok(&["render", run, "--size", "64x48", "--slabs", "1,last"]);
+    assert!(String::from_utf8_lossy(&drawn.stdout).contains("2 of 5 slabs -> 8 pictures"));
+    assert_eq!(listing(&dir), with(&[1, 4]));
+    assert_eq!(std::fs::read(dir.join("flow.npy")).unwrap(), flow);
+    let manifest = meshflow::io::RunManifest::read(&dir).unwrap();
+    assert_eq!(manifest.commands.len(), 2);
+    assert_eq!(manifest.commands[1][..2], ["meshflow", "render"]);
+    assert_eq!(listing(out.path()), ["run"]);
+
+    // Elsewhere: an output of its own, replaced by the next render there.
+    let other = out.path().join("other");
+    let elsewhere = [
+        "render",
+        run,
+        "--size",
+        "64x48",
+        "--out",
+        other.to_str().unwrap(),
+    ];
+    meshflow_ok(&[&elsewhere[..], &["--slabs", "0"]].concat());
+    meshflow_ok(&[&elsewhere[..], &["--slabs", "2"]].concat());
+    let mut expected = pictures_of(&[2]);
+    expected.push("meshflow_run.json".into());
+    expected.sort();
+    assert_eq!(listing(&other), expected);
+    assert_eq!(listing(&dir), with(&[1, 4]));
+}
+
+#[test]
+fn slab_lists_are_parsed_and_checked_against_the_slab_count() {
+    use meshflow::render::SlabSelection;
+    let chosen = |text: &str, n: usize| text.parse::<SlabSelection>().unwrap().resolve(n);
+    assert_eq!(
+        chosen("0,5,10-12,last", 20).unwrap(),
+        [0, 5, 10, 11, 12, 19]
+    );
+    assert_eq!(chosen(" 3 , 1-2 ,2", 5).unwrap(), [1, 2, 3]);
+    assert_eq!(chosen("last-last", 5).unwrap(), [4]);
+    assert_eq!(chosen("2-last", 5).unwrap(), [2, 3, 4]);
+    assert_eq!(chosen("all", 3).unwrap(), [0, 1, 2]);
+    assert_eq!(SlabSelection::all().resolve(2).unwrap(), [0, 1]);
+    for (text, n, message) in [
+        (
+            "0,7",
+            5,
+            r#"slab list "0,7": "7" names slab 7, but there are 5 slabs (0-4)"#,
+        ),
+        (
+            "2-9",
+            5,
+            r#"slab list "2-9": "2-9" names slab 9, but there are 5 slabs (0-4)"#,
+        ),
+        (
+            "6-last",
+            5,
+            r#"slab list "6-last": "6-last" runs backwards (slab 6 to 4)"#,
+        ),
+        ("0", 0, r#"slab list "0": there are no slabs"#),
+    ] {
+        assert_eq!(chosen(text, n).unwrap_err().to_string(), message);
+    }
+    for (text, message) in [
+        ("1,,2", r#"slab list "1,,2": an item is empty"#),
+        ("3-1", r#"slab list "3-1": "3-1" runs backwards"#),
+        (
+            "-1",
+            r#"slab list "-1": "-1" is not a slab number, a range FIRST-LAST, 'last' or 'all'"#,
+        ),
+        (
+            "first",
+            r#"slab list "first": "first" is not a slab number"#,
+        ),
+    ] {
+        let error = text.parse::<SlabSelection>().unwrap_err().to_string();
+        assert!(error.starts_with(message), "{error}");
+    }
+
+    // On the command line: syntax errors are usage errors, slabs beyond the last are found
+    // before the solve; --slabs needs --png.
+    let out = tempfile::tempdir().unwrap();
+    let target = out.path().join("run");
+    let input = shipped("rotating_sphere");
+    let solve = |slabs: &str, png: bool| {
+        let mut args = vec!["solve", &input, "--out", target.to_str().unwrap()];
+        args.extend(["--slabs", slabs]);
+        if png {
+            args.push("--png");
+        }
+        meshflow(&args)
+    };
+    for (slabs, png, code, message) in [
+        (
+            "0,9",
+            true,
+            1,
+            r#"slab list "0,9": "9" names slab 9, but there are 5 slabs (0-4)"#,
+        ),
+        ("x", true, 2, r#"invalid value 'x' for '--slabs <LIST>'"#),
+        (
+            "0",
+            false,
+            2,
+            "--slabs chooses the pictures of --png; add --png",
+        ),
+    ] {
+        let run = solve(slabs, png);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(code), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(stderr.contains(message), "{stderr}");
+        assert!(!target.exists());
+    }
+}
+
+/// Rows and columns spanned by the drawn surface: pixels that are not background white,
+/// leaving out the label in the top-left corner (rows < 20 and columns < 120).
+fn extent(image: &image::RgbImage) -> (u32, u32) {
+    let drawn: Vec<(u32, u32)> = image
+        .enumerate_pixels()
+        .filter(|(x, y, p)| p.0 != [255; 3] && !(*y < 20 && *x < 120))
+        .map(|(x, y, _)| (x, y))
+        .collect();
+    let span = |coordinate: fn(&(u32, u32)) -> u32| {
+        let values = drawn.iter().map(coordinate);
+        values.clone().max().unwrap() - values.min().unwrap() + 1
+    };
+    (span(|p| p.0), span(|p| p.1))
+}
+
+#[test]
+fn gltf_input_is_drawn_upright() {
+    use meshflow::io::gltf_write::{write_glb_animation, AnimationFrame};
+    // A cigar along +y (the glTF up axis) rising slowly, with stripes turning about it.
+    let sphere = meshflow::shapes::icosphere(3);
+    let positions: Vec<Vec<nalgebra::Vector3<f64>>> = (0..3)
+        .map(|k| {
+            let lift = nalgebra::Vector3::new(0.0, 0.02 * k as f64, 0.0);
+            sphere
+                .positions
+                .iter()
+                .map(|p| p.component_mul(&nalgebra::Vector3::new(0.3, 1.5, 0.3)) + lift)
+                .collect()
+        })
+        .collect();
+    let colours: Vec<Vec<[f64; 3]>> = (0..3)
+        .map(|k| {
+            sphere
+                .positions
+                .iter()
+                .map(|p| [0.5 + 0.4 * (4.0 * p.z.atan2(p.x) + 0.1 * k as f64).sin(); 3])
+                .collect()
+        })
+        .collect();
+    let frames: Vec<AnimationFrame> = (0..3)
+        .map(|k| AnimationFrame {
+            time: k as f64,
+            positions: &positions[k],
+            colors: &colours[k],
+        })
+        .collect();
+    let out = tempfile::tempdir().unwrap();
+    let file = out.path().join("cigar.glb");
+    write_glb_animation(&file, &sphere.faces, &frames).unwrap();
+    let run = out.path().join("run");
+    let size = ["--size", "300x300", "--slabs", "0"];
+    let args = [
+        "solve",
+        file.to_str().unwrap(),
+        "--out",
+        run.to_str().unwrap(),
+        "--png",
+    ];
+    meshflow_ok(&[&args[..], &size, &["--beta", "0.01"]].concat());
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["view"]["up"], "y");
+    let upright = picture(&run.join("grey_0000.png"));
+    let (width, height) = extent(&upright);
+    assert!(height > 3 * width, "{width} x {height}: not upright");
+
+    // render uses the solve's view: the same pixels; --up z lays it down.
+    let render = ["render", run.to_str().unwrap()];
+    meshflow_ok(&[&render[..], &size].concat());
+    assert!(picture(&run.join("grey_0000.png")) == upright);
+    meshflow_ok(&[&render[..], &size, &["--up", "z"]].concat());
+    let (width, height) = extent(&picture(&run.join("grey_0000.png")));
+    assert!(height < width, "{width} x {height}: not lying");
 }

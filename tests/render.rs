@@ -7,10 +7,10 @@ use meshflow::render::color_wheel::flow_color;
 use meshflow::render::colormap::{finite_range, grey, viridis};
 use meshflow::render::glyphs::{draw_arrows, glyph_vertices, ArrowStyle};
 use meshflow::render::legend::wheel_disc;
-use meshflow::render::text::format_value;
+use meshflow::render::text::{format_number, format_value};
 use meshflow::render::{
     arrow_picture, chart_picture, flow_picture, grey_picture, scalar_picture, write_png, Camera,
-    Canvas, Lighting, PictureStyle, RenderError, Surface, View,
+    Canvas, Lighting, PictureStyle, RenderError, Surface, UpAxis, View,
 };
 use meshflow::shapes::{grid, icosphere};
 use nalgebra::Vector3;
@@ -177,15 +177,7 @@ fn off_centre_sphere_lands_where_projected() {
 fn framing_fits_the_bounding_sphere_in_the_smaller_extent() {
     let (positions, faces) = sphere_at(Vector3::new(3.0, -2.0, 1.0));
     let (width, height) = (200, 100);
-    let camera = Camera::framing(
-        &positions,
-        View {
-            azimuth_degrees: 20.0,
-            elevation_degrees: 10.0,
-        },
-        width,
-        height,
-    );
+    let camera = Camera::framing(&positions, View::new(20.0, 10.0), width, height);
     let [x, y, _] = camera.project(&Vector3::new(3.0, -2.0, 1.0)).unwrap();
     assert!((x - 100.0).abs() < 1e-9 && (y - 50.0).abs() < 1e-9);
     let image = uniform_grey(&camera, &positions, &faces, 0.5, &unlit());
@@ -711,13 +703,7 @@ fn camera_conventions() {
         "behind the eye"
     );
     // Views: azimuth from +x towards +y, elevation towards +z.
-    let direction = |a, e| {
-        View {
-            azimuth_degrees: a,
-            elevation_degrees: e,
-        }
-        .direction()
-    };
+    let direction = |a, e| View::new(a, e).direction();
     assert!((direction(0.0, 0.0) - Vector3::x()).norm() < 1e-15);
     assert!((direction(90.0, 0.0) - Vector3::y()).norm() < 1e-15);
     assert!((direction(33.0, 90.0) - Vector3::z()).norm() < 1e-15);
@@ -725,19 +711,13 @@ fn camera_conventions() {
         View::default(),
         View {
             azimuth_degrees: -60.0,
-            elevation_degrees: 30.0
+            elevation_degrees: 30.0,
+            roll_degrees: 0.0,
+            up: UpAxis::Z,
         }
     );
     // Straight down: up falls back to +y, so +x is right and +y is up on the screen.
-    let top = Camera::framing(
-        &[Vector3::zeros()],
-        View {
-            azimuth_degrees: 0.0,
-            elevation_degrees: 90.0,
-        },
-        50,
-        50,
-    );
+    let top = Camera::framing(&[Vector3::zeros()], View::new(0.0, 90.0), 50, 50);
     assert_eq!(
         top.screen_components(&Vector3::x()).map(f64::round),
         [1.0, 0.0]
@@ -751,14 +731,15 @@ fn camera_conventions() {
 #[test]
 fn views_parse_from_text() {
     assert_eq!(" -60 , 30 ".parse::<View>().unwrap(), View::default());
+    assert_eq!("10,-5.5".parse::<View>().unwrap(), View::new(10.0, -5.5));
     assert_eq!(
-        "10,-5.5".parse::<View>().unwrap(),
+        "10, 20, -90".parse::<View>().unwrap(),
         View {
-            azimuth_degrees: 10.0,
-            elevation_degrees: -5.5
+            roll_degrees: -90.0,
+            ..View::new(10.0, 20.0)
         }
     );
-    for bad in ["", "10", "1,2,3", "a,2", "1,nan", "inf,0"] {
+    for bad in ["", "10", "1,2,3,4", "a,2", "1,nan", "inf,0", "1,2,x"] {
         let error = bad.parse::<View>().unwrap_err();
         assert!(
             matches!(error, RenderError::View { .. }),
@@ -766,6 +747,108 @@ fn views_parse_from_text() {
         );
         assert!(error.to_string().contains("AZIMUTH,ELEVATION"));
     }
+}
+
+#[test]
+fn up_axes_are_the_rotated_standard_frame() {
+    use nalgebra::Rotation3;
+    for up in UpAxis::ALL {
+        let [h1, h2, u] = up.frame();
+        assert_eq!(up.name().parse::<UpAxis>().unwrap(), up);
+        assert_eq!(u, up.vector());
+        // The smallest rotation taking +z to the up axis (a half turn about +x for −z) maps
+        // (x, y, z) onto the frame.
+        let rotation = match up {
+            UpAxis::NegZ => Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+            _ => Rotation3::rotation_between(&Vector3::z(), &u).unwrap(),
+        };
+        for (axis, expected) in [(Vector3::x(), h1), (Vector3::y(), h2), (Vector3::z(), u)] {
+            assert!(
+                (rotation * axis - expected).norm() < 1e-15,
+                "{up}: {axis} -> {expected}"
+            );
+        }
+        assert_eq!(h1.cross(&h2), u, "{up}: right-handed");
+    }
+    assert_eq!("+Y".parse::<UpAxis>().unwrap(), UpAxis::Y);
+    assert_eq!(" -x".parse::<UpAxis>().unwrap(), UpAxis::NegX);
+    for bad in ["", "w", "--y", "xy"] {
+        let error = bad.parse::<UpAxis>().unwrap_err().to_string();
+        assert!(error.contains("x, y, z, -x, -y, -z"), "{bad:?}: {error}");
+    }
+}
+
+#[test]
+fn y_up_views_show_y_up_on_the_screen() {
+    let points = [Vector3::new(-1.0, -2.0, -0.5), Vector3::new(1.0, 2.0, 0.5)];
+    let default_y_up = View::default().with_up(UpAxis::Y);
+    let (c, s) = (30f64.to_radians().cos(), 0.5);
+    // Azimuth −60° from +x towards −z, elevation 30° towards +y.
+    let expected = Vector3::new(c * 0.5, s, c * 60f64.to_radians().sin());
+    assert!((default_y_up.direction() - expected).norm() < 1e-15);
+    let camera = Camera::framing(&points, default_y_up, 96, 72);
+    let close =
+        |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12;
+    // +y points straight up on the screen (y grows downward), +x right and a little down,
+    // +z (towards the eye) left and down.
+    assert!(close(camera.screen_components(&Vector3::y()), [0.0, -c]));
+    assert!(close(camera.screen_components(&Vector3::x()), [c, 0.25]));
+    assert!(close(
+        camera.screen_components(&Vector3::z()),
+        [-0.5, 0.5 * c]
+    ));
+    // The same angles about +z see a z-up model exactly as they see its y-up export
+    // (x, y, z) ↦ (x, z, −y).
+    let z_up = Camera::framing(&points, View::default(), 96, 72);
+    let export = |v: Vector3<f64>| Vector3::new(v.x, v.z, -v.y);
+    for v in [
+        Vector3::x(),
+        Vector3::y(),
+        Vector3::z(),
+        Vector3::new(0.3, -0.7, 0.2),
+    ] {
+        assert!(close(
+            z_up.screen_components(&v),
+            camera.screen_components(&export(v))
+        ));
+    }
+    // Looking straight down −y from above: h₂ = −z is up on the screen, +x right.
+    let top = Camera::framing(&points, View::new(10.0, 90.0).with_up(UpAxis::Y), 50, 50);
+    assert!(close(top.screen_components(&Vector3::z()), [0.0, 1.0]));
+    assert!(close(top.screen_components(&Vector3::x()), [1.0, 0.0]));
+}
+
+#[test]
+fn roll_turns_the_picture_counter_clockwise() {
+    let points = [Vector3::zeros(), Vector3::new(1.0, 1.0, 1.0)];
+    let plain = Camera::framing(&points, View::default(), 80, 60);
+    let unrolled = View {
+        roll_degrees: 0.0,
+        ..View::default()
+    };
+    assert_eq!(Camera::framing(&points, unrolled, 80, 60), plain);
+    let rolled = |degrees: f64| {
+        let view = View {
+            roll_degrees: degrees,
+            ..View::default()
+        };
+        Camera::framing(&points, view, 80, 60)
+    };
+    let up = plain.screen_components(&Vector3::z());
+    assert!(up[0].abs() < 1e-15 && up[1] < 0.0, "{up:?}");
+    // At 90° the up axis points left, at −90° right; the eye does not move.
+    let left = rolled(90.0).screen_components(&Vector3::z());
+    assert!(
+        (left[0] - up[1]).abs() < 1e-12 && left[1].abs() < 1e-12,
+        "{left:?}"
+    );
+    let right = rolled(-90.0).screen_components(&Vector3::z());
+    assert!(
+        (right[0] + up[1]).abs() < 1e-12 && right[1].abs() < 1e-12,
+        "{right:?}"
+    );
+    assert_eq!(rolled(90.0).eye(), plain.eye());
+    assert!((rolled(90.0).forward() - plain.forward()).norm() < 1e-15);
 }
 
 #[test]
@@ -932,6 +1015,22 @@ fn colormaps_and_labels() {
     assert_eq!(format_value(12.345), "12.3");
     assert_eq!(format_value(4.56e-5), "4.56e-5");
     assert_eq!(format_value(0.0), "0");
+    for (x, text) in [
+        (3.33333158493042, "3.33333"),
+        (3.0, "3"),
+        (-2.5, "-2.5"),
+        (0.05, "0.05"),
+        (9.9999996, "10"),
+        (123456.7, "123457"),
+        (2.0f32 as f64 / 3.0, "0.666667"),
+        (0.00012345678, "0.000123457"),
+        (1.5e-7, "1.5e-7"),
+        (1234567890.0, "1.23457e9"),
+        (-0.0, "0"),
+        (f64::INFINITY, "inf"),
+    ] {
+        assert_eq!(format_number(x), text, "{x}");
+    }
 }
 
 #[test]

@@ -4,6 +4,7 @@
 
 use meshflow::io::ply::{write_ply, PlyEncoding};
 use meshflow::io::{load_sequence, read_npy, read_obj, write_npy, write_obj, LoadOptions};
+use meshflow::render::UpAxis;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -12,8 +13,9 @@ fn shipped_sphere() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/rotating_sphere")
 }
 
-fn solve(input: &Path, out: &Path, extra: &[&str]) -> String {
-    let run = Command::new(env!("CARGO_BIN_EXE_meshflow"))
+/// Runs `meshflow solve INPUT --out OUT --gamma 0.01` with `extra` arguments.
+fn run_solve(input: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_meshflow"))
         .args([
             "solve",
             input.to_str().unwrap(),
@@ -23,7 +25,12 @@ fn solve(input: &Path, out: &Path, extra: &[&str]) -> String {
         .args(["--gamma", "0.01"])
         .args(extra)
         .output()
-        .unwrap();
+        .unwrap()
+}
+
+/// [`run_solve`], which must succeed; its standard output.
+fn solve(input: &Path, out: &Path, extra: &[&str]) -> String {
+    let run = run_solve(input, out, extra);
     let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
     assert!(
         run.status.success(),
@@ -241,12 +248,27 @@ fn times_file_glob_and_existing_output_directory() {
         from_dir.sequence.positions(2)
     );
 
-    // --times wins over times.txt; an existing output directory keeps its other files.
+    // --times wins over times.txt; an existing output directory that meshflow did not write
+    // is refused, and with --force it keeps its other files.
     let out = dir.path().join("out");
     std::fs::create_dir(&out).unwrap();
     std::fs::write(out.join("notes.txt"), "mine").unwrap();
     std::fs::write(out.join("flow.npy"), "stale").unwrap();
-    solve(&frames, &out, &["--times", "0,1,2,3", "--format", "npy"]);
+    let refused = run_solve(&frames, &out, &[]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        refused.status.code() == Some(1) && stderr.contains("flow.npy, notes.txt"),
+        "{stderr}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("flow.npy")).unwrap(),
+        "stale"
+    );
+    solve(
+        &frames,
+        &out,
+        &["--times", "0,1,2,3", "--format", "npy", "--force"],
+    );
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["times"], serde_json::json!([0.0, 1.0, 2.0, 3.0]));
@@ -458,14 +480,26 @@ fn gltf_animation_and_gltf_frames_give_the_numbers_of_the_obj_frames() {
 
 #[test]
 fn flow_glb_replays_the_frames_coloured_by_the_flow() {
-    use meshflow::io::gltf_read::read_gltf_animation;
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out");
-    solve(&shipped_sphere(), &out, &["--format", "glb,npy"]);
-    let sequence = load_sequence(&shipped_sphere(), &Default::default())
-        .unwrap()
-        .sequence;
-    let replay = read_gltf_animation(&out.join("flow.glb"), None).unwrap();
+    // OBJ frames (+z up), then that output's own flow.glb as input (glTF: +y up).
+    let from_obj = dir.path().join("obj");
+    check_flow_glb(&shipped_sphere(), &from_obj, UpAxis::Z);
+    check_flow_glb(
+        &from_obj.join("flow.glb"),
+        &dir.path().join("glb"),
+        UpAxis::Y,
+    );
+}
+
+/// Solves `input` into `out` and checks that `flow.glb` replays the frames coloured as the
+/// default view about `up` shows the flow, and that `summary.json` records that view.
+fn check_flow_glb(input: &Path, out: &Path, up: UpAxis) {
+    use meshflow::io::gltf_read::read_gltf_animation;
+    use meshflow::render::color_wheel::robust_max;
+    use meshflow::render::{screen_flow_colors, Camera, View};
+    solve(input, out, &["--format", "glb,npy"]);
+    let sequence = load_sequence(input, &Default::default()).unwrap().sequence;
+    let replay = read_gltf_animation(&out.join("flow.glb"), &Default::default()).unwrap();
     assert_eq!(replay.times.as_deref(), Some(sequence.times()));
     assert_eq!(replay.faces, sequence.mesh().faces());
     for k in 0..sequence.n_frames() {
@@ -479,10 +513,16 @@ fn flow_glb_replays_the_frames_coloured_by_the_flow() {
             );
         }
     }
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let view = View::default().with_up(up);
+    assert_eq!(summary["view"]["up"], up.name());
+    assert_eq!(
+        serde_json::from_value::<View>(summary["view"].clone()).unwrap(),
+        view
+    );
     // The colours are those of flow_SSSS.png: the colour wheel of the screen directions seen
-    // from the default view of all frames, scaled by the robust maximum R^3 speed.
-    use meshflow::render::color_wheel::robust_max;
-    use meshflow::render::{screen_flow_colors, Camera, View};
+    // from that view of all frames, scaled by the robust maximum R^3 speed.
     let flow = read_npy(&out.join("flow.npy")).unwrap();
     let vectors: Vec<nalgebra::Vector3<f64>> = flow
         .data
@@ -493,7 +533,7 @@ fn flow_glb_replays_the_frames_coloured_by_the_flow() {
     let all_positions: Vec<_> = (0..sequence.n_frames())
         .flat_map(|k| sequence.positions(k).unwrap().to_vec())
         .collect();
-    let camera = Camera::framing(&all_positions, View::default(), 960, 720);
+    let camera = Camera::framing(&all_positions, view, 960, 720);
     let colors = screen_flow_colors(
         &camera,
         &vectors[..sequence.mesh().n_vertices()],
@@ -506,5 +546,70 @@ fn flow_glb_replays_the_frames_coloured_by_the_flow() {
     assert!(
         colors.iter().any(|c| c != &[1.0; 3]),
         "the flow is not all zero"
+    );
+}
+
+/// Writes OBJ frames of the dyadic sphere into `dir` with the grey values `greys(k)` of frame
+/// `k` and the positions of frame `positions(k)`.
+fn write_sphere_frames(
+    dir: &Path,
+    positions: impl Fn(usize) -> usize,
+    greys: impl Fn(usize) -> Vec<f64>,
+) {
+    let (faces, frames, _) = dyadic_sphere_frames();
+    for k in 0..frames.len() {
+        let colours: Vec<[f64; 3]> = greys(k).iter().map(|&g| [g; 3]).collect();
+        let path = dir.join(format!("frame_{k}.obj"));
+        write_obj(&path, &frames[positions(k)], &faces, Some(&colours)).unwrap();
+    }
+}
+
+#[test]
+fn an_image_that_moves_with_the_surface_is_reported() {
+    use meshflow::io::{LoadWarning, STATIC_IMAGE_TOLERANCE};
+    let (_, _, greys) = dyadic_sphere_frames();
+    let range = greys[0].iter().fold(f64::NEG_INFINITY, |m, &g| m.max(g))
+        - greys[0].iter().fold(f64::INFINITY, |m, &g| m.min(g));
+    let root = tempfile::tempdir().unwrap();
+    let warnings = |name: &str, moving: bool, change: f64| {
+        let dir = root.path().join(name);
+        std::fs::create_dir(&dir).unwrap();
+        // Frame k's grey values: frame 0's, vertex 7 changed by k · change.
+        let grey = |k: usize| {
+            let mut grey = greys[0].clone();
+            grey[7] += k as f64 * change;
+            grey
+        };
+        write_sphere_frames(&dir, |k| if moving { k } else { 0 }, grey);
+        let loaded = load_sequence(&dir, &Default::default()).unwrap();
+        (dir, loaded.warnings)
+    };
+    // Frame 3 differs by 3 · 0.3 of the tolerance: still the same image.
+    let (glued, found) = warnings("glued", true, 0.3 * STATIC_IMAGE_TOLERANCE * range);
+    assert_eq!(
+        found,
+        vec![LoadWarning::StaticImage {
+            file: glued.clone(),
+            frames: 4
+        }]
+    );
+    assert!(found[0].to_string().contains("the flow is zero"));
+    let (_, found) = warnings("changing", true, 2.0 * STATIC_IMAGE_TOLERANCE * range);
+    assert_eq!(found, vec![]);
+    // Nothing moves at all: nothing to report.
+    let (_, found) = warnings("still", false, 0.0);
+    assert_eq!(found, vec![]);
+    // The CLI prints it as a warning line.
+    let run = run_solve(&glued, &root.path().join("out"), &["--format", "npy"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert_eq!(
+        stderr.trim(),
+        format!(
+            "meshflow: warning: {}: the grey values are the same in all 4 frames while the \
+             surface moves: the image moves with the surface (e.g. a texture fixed to the mesh), \
+             so the flow is zero",
+            glued.display()
+        )
     );
 }

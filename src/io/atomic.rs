@@ -1,6 +1,22 @@
 //! Write-then-rename output: single files and whole output directories.
+//!
+//! A file is written beside its target and renamed onto it ([`write_atomically`]). An output
+//! directory (the `--out` of a command) is built in a hidden staging directory beside its
+//! target and swapped in whole ([`StagedDir`]), so it holds exactly one run: never a mix of an
+//! earlier run's files and a new one's. Each output directory carries a manifest,
+//! [`RUN_MANIFEST`] (`meshflow_run.json`: the commands that made it and the files they wrote),
+//! by which a later run recognises meshflow's own output. A directory that is neither missing,
+//! empty nor such an output is refused unless forced ([`Overwrite::Force`]).
+//!
+//! Replacing an earlier output `OUT`: stage the new files in `.OUT.partial-PID`, write its
+//! manifest, rename `OUT` to `.OUT.previous-PID`, rename the staging directory to `OUT`
+//! (renaming the old one back if that fails), remove `.OUT.previous-PID`. An update
+//! ([`StagedDir::update`], e.g. new pictures of a solve output) hard-links the files it keeps
+//! into the staging directory first (copies them where hard links are not possible).
 
 use super::IoError;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeSet;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -34,45 +50,227 @@ pub fn write_atomically(
     })
 }
 
-/// An output directory that appears complete or not at all.
+/// The manifest file that marks a directory as meshflow's output.
+pub const RUN_MANIFEST: &str = "meshflow_run.json";
+
+/// The contents of [`RUN_MANIFEST`].
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RunManifest {
+    /// Always `"meshflow run"`: tells the file from any other JSON of that name.
+    pub format: String,
+    /// The meshflow version that wrote it.
+    pub version: String,
+    /// The command lines that made the directory, oldest first (a solve, then re-renders).
+    pub commands: Vec<Vec<String>>,
+    /// The directory's entries (besides the manifest), sorted.
+    pub files: Vec<String>,
+}
+
+const MANIFEST_FORMAT: &str = "meshflow run";
+
+impl RunManifest {
+    /// The manifest of `dir`, if it has one that reads as a manifest.
+    pub fn read(dir: &Path) -> Option<Self> {
+        let text = std::fs::read(dir.join(RUN_MANIFEST)).ok()?;
+        serde_json::from_slice::<Self>(&text)
+            .ok()
+            .filter(|m| m.format == MANIFEST_FORMAT)
+    }
+}
+
+/// What a [`StagedDir`] may replace at its target.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Overwrite {
+    /// A missing or empty directory, or an earlier meshflow output (which is replaced as a
+    /// whole); any other directory is refused when the `StagedDir` is made.
+    #[default]
+    EarlierRun,
+    /// Also a directory meshflow did not write (all of it or some of its files): the new files
+    /// are moved into it one by one, the files an earlier run's manifest lists are removed,
+    /// and its other files stay.
+    Force,
+}
+
+/// What is at a target now.
+#[derive(Debug)]
+enum Existing {
+    Missing,
+    Empty,
+    /// An earlier output and its manifest.
+    Run(RunManifest),
+    /// A directory with entries meshflow did not write (some of them, for messages), and the
+    /// manifest if there is one.
+    Foreign {
+        strangers: Vec<String>,
+        manifest: Option<RunManifest>,
+    },
+}
+
+impl Existing {
+    fn of(target: &Path) -> Result<Self, IoError> {
+        let fail = |e| IoError::file(target, e);
+        let entries = match std::fs::read_dir(target) {
+            Ok(entries) => entries,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Self::Missing),
+            Err(e) => return Err(fail(e)),
+        };
+        let mut names = BTreeSet::new();
+        for entry in entries {
+            names.insert(
+                entry
+                    .map_err(fail)?
+                    .file_name()
+                    .to_string_lossy()
+                    .into_owned(),
+            );
+        }
+        if names.is_empty() {
+            return Ok(Self::Empty);
+        }
+        let manifest = RunManifest::read(target);
+        if manifest.is_some() {
+            names.remove(RUN_MANIFEST);
+        }
+        let listed: BTreeSet<&String> = manifest.iter().flat_map(|m| &m.files).collect();
+        let strangers: Vec<String> = names.into_iter().filter(|n| !listed.contains(n)).collect();
+        Ok(match (manifest, strangers.is_empty()) {
+            (Some(manifest), true) => Self::Run(manifest),
+            (manifest, _) => Self::Foreign {
+                strangers,
+                manifest,
+            },
+        })
+    }
+
+    /// Refuses a directory meshflow did not write, unless forced.
+    fn check(&self, target: &Path, overwrite: Overwrite) -> Result<(), IoError> {
+        let Self::Foreign {
+            strangers,
+            manifest,
+        } = self
+        else {
+            return Ok(());
+        };
+        if overwrite == Overwrite::Force {
+            return Ok(());
+        }
+        let mut named: Vec<String> = strangers.iter().take(3).cloned().collect();
+        if strangers.len() > 3 {
+            named.push(format!("{} more", strangers.len() - 3));
+        }
+        let what = match manifest {
+            Some(_) => "holds files that meshflow did not write",
+            None => "is not empty and not a meshflow output",
+        };
+        Err(IoError::format(
+            target,
+            format!(
+                "{what} ({}); choose another output directory, empty it, or add --force to write into it (its other files stay)",
+                named.join(", ")
+            ),
+        ))
+    }
+}
+
+/// An output directory that appears complete or not at all, and holds exactly one run; see
+/// the module documentation.
 ///
-/// Files are written into a hidden staging directory next to the target
-/// (`.NAME.partial-PID`); [`StagedDir::commit`] renames it onto the target, or, when the target
-/// already exists, moves the files in one by one (each rename replaces an old file atomically).
-/// Dropped uncommitted, the staging directory is removed. Creating it first also checks, before
-/// any long computation, that the output location is writable.
+/// Files are written into [`StagedDir::path`]; [`StagedDir::commit`] writes the manifest and
+/// puts the directory in place. Dropped uncommitted, the staging directory is removed and the
+/// target is left as it was. Making one checks, before any long computation, that the target
+/// may be replaced and that its location is writable.
 #[derive(Debug)]
 pub struct StagedDir {
+    /// The directory as the caller named it, for messages.
     target: PathBuf,
+    /// The same with a symbolic link resolved, where the renames happen.
+    resolved: PathBuf,
     staging: PathBuf,
+    overwrite: Overwrite,
+    commands: Vec<Vec<String>>,
+    /// Files of the earlier output that stay (see [`StagedDir::update`]).
+    kept: Vec<String>,
     committed: bool,
 }
 
 impl StagedDir {
-    /// Creates the staging directory for `target` (and `target`'s parent directories).
+    /// A new output at `target`, replacing an earlier meshflow output there
+    /// ([`Overwrite::EarlierRun`]).
     pub fn new(target: &Path) -> Result<Self, IoError> {
+        Self::create(target, Overwrite::EarlierRun)
+    }
+
+    /// A new output at `target`, replacing what `overwrite` allows.
+    pub fn create(target: &Path, overwrite: Overwrite) -> Result<Self, IoError> {
+        Self::stage(target, overwrite, None)
+    }
+
+    /// A new version of the output at `target` that keeps the earlier output's files for which
+    /// `keep(name)` holds (e.g. all but the pictures, when drawing new pictures of a solve) and
+    /// its commands; what is written into [`StagedDir::path`] replaces the rest.
+    pub fn update(
+        target: &Path,
+        overwrite: Overwrite,
+        keep: impl Fn(&str) -> bool,
+    ) -> Result<Self, IoError> {
+        Self::stage(target, overwrite, Some(&keep))
+    }
+
+    fn stage(
+        target: &Path,
+        overwrite: Overwrite,
+        keep: Option<&dyn Fn(&str) -> bool>,
+    ) -> Result<Self, IoError> {
         if target.is_file() {
             return Err(IoError::format(target, "is a file, not a directory"));
         }
-        let name = target
-            .file_name()
-            .ok_or_else(|| IoError::format(target, "not a directory name"))?;
-        let parent = match target.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
+        let resolved = match target.is_symlink() {
+            true => std::fs::canonicalize(target).map_err(|e| IoError::file(target, e))?,
+            false => target.to_path_buf(),
         };
+        let existing = Existing::of(&resolved).map_err(|e| relabel(e, &resolved, target))?;
+        existing.check(target, overwrite)?;
+        let staging = sibling(&resolved, "partial").map_err(|e| relabel(e, &resolved, target))?;
+        let parent = staging.parent().expect("a sibling has a parent");
         std::fs::create_dir_all(parent).map_err(|e| IoError::file(target, e))?;
-        let staging = parent.join(format!(
-            ".{}.partial-{}",
-            name.to_string_lossy(),
-            std::process::id()
-        ));
         std::fs::create_dir_all(&staging).map_err(|e| IoError::file(target, e))?;
-        Ok(Self {
+        let mut staged = Self {
             target: target.to_path_buf(),
+            resolved,
             staging,
+            overwrite,
+            commands: Vec::new(),
+            kept: Vec::new(),
             committed: false,
-        })
+        };
+        let manifest = match &existing {
+            Existing::Run(manifest) => Some(manifest),
+            Existing::Foreign { manifest, .. } => manifest.as_ref(),
+            Existing::Missing | Existing::Empty => None,
+        };
+        if let (Some(keep), Some(manifest)) = (keep, manifest) {
+            staged.commands = manifest.commands.clone();
+            staged.kept = manifest.files.iter().filter(|n| keep(n)).cloned().collect();
+        }
+        // A whole directory is swapped in: the kept files must be in it. (Forced into a
+        // foreign directory, they stay where they are.)
+        if let Existing::Run(_) = existing {
+            for name in &staged.kept {
+                staged.link_earlier(name)?;
+            }
+        }
+        Ok(staged)
+    }
+
+    /// Hard-links (or copies) the earlier output's file `name` into the staging directory.
+    fn link_earlier(&self, name: &str) -> Result<(), IoError> {
+        let (from, to) = (self.resolved.join(name), self.staging.join(name));
+        if !from.is_file() {
+            return Ok(()); // a listed file removed since, or a directory: not kept
+        }
+        std::fs::hard_link(&from, &to)
+            .or_else(|_| std::fs::copy(&from, &to).map(|_| ()))
+            .map_err(|e| IoError::file(self.target.join(name), e))
     }
 
     /// Where to write the files now.
@@ -85,30 +283,92 @@ impl StagedDir {
         &self.target
     }
 
-    /// `error` with a staged file's path replaced by its final path, for messages.
-    pub fn in_target(&self, mut error: IoError) -> IoError {
-        let path = error.path_mut();
-        if let Ok(relative) = path.strip_prefix(&self.staging) {
-            *path = self.target.join(relative);
-        }
-        error
+    /// Records the command line that makes this output, for the manifest.
+    pub fn record_command<S: Into<String>>(&mut self, arguments: impl IntoIterator<Item = S>) {
+        self.commands
+            .push(arguments.into_iter().map(Into::into).collect());
     }
 
-    /// Moves the staged files to the target directory.
+    /// `error` with a staged file's path replaced by its final path, for messages.
+    pub fn in_target(&self, error: IoError) -> IoError {
+        relabel(error, &self.staging, &self.target)
+    }
+
+    /// Writes the manifest and puts the output in place (see the module documentation).
     pub fn commit(mut self) -> Result<(), IoError> {
         let fail = |e| IoError::file(&self.target, e);
-        if !self.target.exists() {
-            std::fs::rename(&self.staging, &self.target).map_err(fail)?;
-        } else {
-            for entry in std::fs::read_dir(&self.staging).map_err(fail)? {
-                let file = entry.map_err(fail)?.path();
-                let name = file.file_name().expect("directory entries have names");
-                std::fs::rename(&file, self.target.join(name)).map_err(fail)?;
+        let mut files = BTreeSet::new();
+        for entry in std::fs::read_dir(&self.staging).map_err(fail)? {
+            files.insert(
+                entry
+                    .map_err(fail)?
+                    .file_name()
+                    .to_string_lossy()
+                    .into_owned(),
+            );
+        }
+        let kept = self.kept.iter().filter(|n| self.resolved.join(n).is_file());
+        files.extend(kept.cloned());
+        let manifest = RunManifest {
+            format: MANIFEST_FORMAT.into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+            commands: std::mem::take(&mut self.commands),
+            files: files.into_iter().collect(),
+        };
+        write_atomically(&self.staging.join(RUN_MANIFEST), |w| {
+            serde_json::to_writer_pretty(&mut *w, &manifest).map_err(std::io::Error::other)?;
+            writeln!(w)
+        })
+        .map_err(|e| self.in_target(e))?;
+        // Checked again: the target may have changed during a long computation.
+        let existing = Existing::of(&self.resolved).map_err(|e| self.in_target(e))?;
+        existing.check(&self.target, self.overwrite)?;
+        match existing {
+            Existing::Missing => std::fs::rename(&self.staging, &self.resolved).map_err(fail)?,
+            Existing::Empty => {
+                std::fs::remove_dir(&self.resolved).map_err(fail)?;
+                std::fs::rename(&self.staging, &self.resolved).map_err(fail)?;
             }
-            std::fs::remove_dir(&self.staging).map_err(fail)?;
+            Existing::Run(_) => self.swap()?,
+            Existing::Foreign { manifest, .. } => {
+                self.merge(manifest.map(|m| m.files).unwrap_or_default())?
+            }
         }
         self.committed = true;
         Ok(())
+    }
+
+    /// Replaces the earlier output with the staging directory as a whole.
+    fn swap(&self) -> Result<(), IoError> {
+        let fail = |e| IoError::file(&self.target, e);
+        let backup = sibling(&self.resolved, "previous")?;
+        std::fs::rename(&self.resolved, &backup).map_err(fail)?;
+        if let Err(e) = std::fs::rename(&self.staging, &self.resolved) {
+            let _ = std::fs::rename(&backup, &self.resolved);
+            return Err(fail(e));
+        }
+        // The new output is complete; a leftover backup is only clutter beside it.
+        let _ = std::fs::remove_dir_all(&backup);
+        Ok(())
+    }
+
+    /// [`Overwrite::Force`] into a directory with other files: removes the files an earlier
+    /// run listed (but those kept), then moves the staged files in one by one.
+    fn merge(&self, earlier: Vec<String>) -> Result<(), IoError> {
+        let fail = |e| IoError::file(&self.target, e);
+        for name in earlier.iter().filter(|n| !self.kept.contains(n)) {
+            let path = self.resolved.join(name);
+            if path.is_file() {
+                std::fs::remove_file(&path)
+                    .map_err(|e| IoError::file(self.target.join(name), e))?;
+            }
+        }
+        for entry in std::fs::read_dir(&self.staging).map_err(fail)? {
+            let file = entry.map_err(fail)?.path();
+            let name = file.file_name().expect("directory entries have names");
+            std::fs::rename(&file, self.resolved.join(name)).map_err(fail)?;
+        }
+        std::fs::remove_dir(&self.staging).map_err(fail)
     }
 }
 
@@ -118,4 +378,29 @@ impl Drop for StagedDir {
             let _ = std::fs::remove_dir_all(&self.staging);
         }
     }
+}
+
+/// The hidden directory `.NAME.ROLE-PID` beside `target`.
+fn sibling(target: &Path, role: &str) -> Result<PathBuf, IoError> {
+    let name = target
+        .file_name()
+        .ok_or_else(|| IoError::format(target, "not a directory name"))?;
+    let parent = match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    Ok(parent.join(format!(
+        ".{}.{role}-{}",
+        name.to_string_lossy(),
+        std::process::id()
+    )))
+}
+
+/// `error` with a path under `from` moved under `to`.
+fn relabel(mut error: IoError, from: &Path, to: &Path) -> IoError {
+    let path = error.path_mut();
+    if let Ok(relative) = path.strip_prefix(from) {
+        *path = to.join(relative);
+    }
+    error
 }

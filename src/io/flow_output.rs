@@ -7,8 +7,8 @@
 //! | `vertex_map.npy` | (V_file,) int64: mesh vertex of each file vertex, when vertices were welded |
 //! | `angular_error.npy`, `endpoint_error.npy`, `direction_error.npy` | (S, V) float64, with a ground truth: per-vertex AE (degrees, on displacements in mean edge lengths), EPE (velocity units) and direction error (degrees, NaN where the truth does not move) ([`crate::accuracy`]) |
 //! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` with point data `flow`, `flow_intrinsic`, `speed`, `intensity` (and `angular_error`, `endpoint_error`, `direction_error` with a ground truth); the `.pvd` plays the slabs at their start times |
-//! | `flow.glb` | the frames as a morph-target animation, coloured by the flow as `flow_SSSS.png` shows it (Middlebury colour of the direction seen from the default view, scaled by a robust maximum speed) |
-//! | `summary.json` | energy and its terms, residual, iterations, solver, sizes, input, timings; the parameters as given (`params`, each weight `{"value": x}` or `{"relative": x}`), the weights used (`weights`: α, β, γ in the data's units) and the data's scales that resolved them (`scales`); with a ground truth, `ground_truth`: its file, the space-time means (AE, direction error, relative EPE, speed ratio, EPE) and maxima, per slab the same, and `zero_flow`, the zero flow's scores |
+//! | `flow.glb` | the frames as a morph-target animation, coloured by the flow as `flow_SSSS.png` shows it (Middlebury colour of the direction seen from the given [`View`], scaled by a robust maximum speed) |
+//! | `summary.json` | energy and its terms, residual, iterations, solver, sizes, input, timings, the `view` of the pictures and colours; the parameters as given (`params`, each weight `{"value": x}` or `{"relative": x}`), the weights used (`weights`: α, β, γ in the data's units) and the data's scales that resolved them (`scales`); with a ground truth, `ground_truth`: its file, the space-time means (AE, direction error, relative EPE, speed ratio, EPE) and maxima, per slab the same, and `zero_flow`, the zero flow's scores |
 //!
 //! Slab `s` spans `[t_s, t_{s+1}]`; `S = K − 1` slabs for `K` frames.
 
@@ -63,7 +63,9 @@ pub struct GroundTruthReport {
 }
 
 /// Writes the outputs of `result` for `loaded` into `out` (see the module table), with the
-/// errors against a ground truth when there is one.
+/// errors against a ground truth when there is one; `flow.glb` is coloured as pictures from
+/// `view` show the flow (e.g. `View::default().with_up(loaded.source.up())`), and
+/// `summary.json` records `view`.
 pub fn write_flow_outputs(
     out: &StagedDir,
     loaded: &LoadedSequence,
@@ -71,9 +73,18 @@ pub fn write_flow_outputs(
     result: &FlowResult,
     formats: &[OutputFormat],
     ground_truth: Option<&GroundTruthReport>,
+    view: &View,
 ) -> Result<(), IoError> {
-    write_all(out.path(), loaded, params, result, formats, ground_truth)
-        .map_err(|e| out.in_target(e))
+    write_all(
+        out.path(),
+        loaded,
+        params,
+        result,
+        formats,
+        ground_truth,
+        view,
+    )
+    .map_err(|e| out.in_target(e))
 }
 
 fn write_all(
@@ -83,6 +94,7 @@ fn write_all(
     result: &FlowResult,
     formats: &[OutputFormat],
     ground_truth: Option<&GroundTruthReport>,
+    view: &View,
 ) -> Result<(), IoError> {
     let sequence = &loaded.sequence;
     let errors = ground_truth.map(|g| &g.errors);
@@ -97,10 +109,11 @@ fn write_all(
             write_flow_vtk(dir, sequence, result, vectors, errors)?;
         }
         if formats.contains(&OutputFormat::Glb) {
-            write_flow_glb(&dir.join("flow.glb"), sequence, result)?;
+            write_flow_glb(&dir.join("flow.glb"), sequence, result, view)?;
         }
     }
-    let summary = summary_json(loaded, params, result, ground_truth);
+    let mut summary = summary_json(loaded, params, result, ground_truth);
+    summary["view"] = serde_json::to_value(view).expect("views serialize");
     write_atomically(&dir.join("summary.json"), |w| {
         serde_json::to_writer_pretty(&mut *w, &summary).map_err(std::io::Error::other)?;
         writeln!(w)
@@ -213,13 +226,14 @@ pub fn write_slab_vtus(
 }
 
 /// All frames as a morph animation; frame `k` is coloured by slab `min(k, S − 1)` with the
-/// colours of `flow_SSSS.png` ([`screen_flow_colors`] seen from the default [`View`], scaled by
-/// the robust maximum speed): a surface has no global tangent frame, so a view is what makes
-/// hues comparable between vertices.
+/// colours of `flow_SSSS.png` ([`screen_flow_colors`] seen from `view`, scaled by the robust
+/// maximum speed): a surface has no global tangent frame, so a view is what makes hues
+/// comparable between vertices.
 fn write_flow_glb(
     path: &Path,
     sequence: &MeshSequence,
     result: &FlowResult,
+    view: &View,
 ) -> Result<(), IoError> {
     let vectors = result.vectors.as_ref().expect("embedded sequence");
     let all_positions: Vec<Vector3<f64>> = (0..sequence.n_frames())
@@ -231,7 +245,7 @@ fn write_flow_glb(
                 .copied()
         })
         .collect();
-    let camera = Camera::framing(&all_positions, View::default(), 960, 720);
+    let camera = Camera::framing(&all_positions, *view, 960, 720);
     let speeds: Vec<f64> = vectors.iter().flatten().map(|u| u.norm()).collect();
     let scale = robust_max(&speeds);
     let colors: Vec<Vec<[f64; 3]>> = vectors

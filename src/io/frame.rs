@@ -1,6 +1,7 @@
 //! What every reader produces: one frame's triangle mesh with optional grey values, and
 //! a whole sequence read from a single file.
 
+use super::LoadWarning;
 use nalgebra::Vector3;
 use std::path::PathBuf;
 
@@ -24,6 +25,8 @@ pub struct RawSequence {
     pub times: Option<Vec<f64>>,
     /// The file each frame came from, for error messages.
     pub sources: Vec<PathBuf>,
+    /// What the reader noticed and worked around.
+    pub warnings: Vec<LoadWarning>,
 }
 
 /// The grey value of a colour: the value itself when `r = g = b` (so grey data passes through

@@ -29,13 +29,16 @@
 //! every primitive has a source for them. Vertices are returned as stored, one per glTF
 //! vertex: glTF splits vertices along texture and normal seams, so the caller welds
 //! coincident vertices. Indices may be `u8`, `u16` or `u32`, or absent (triangles
-//! `(0, 1, 2), (3, 4, 5), …`). For an animation, the first animation with a `weights` channel
-//! on the mesh node is used; it must not also move that node or its ancestors.
+//! `(0, 1, 2), (3, 4, 5), …`). For an animation, the one chosen by name or index is used, else
+//! the first with a `weights` channel on the mesh node (with a warning listing all of them
+//! when there are several); it must not also move that node or its ancestors.
 
 mod animation;
 mod file;
 
-use super::{grey_value, FrameMesh, IoError, RawSequence, Texture};
+use super::{grey_value, FrameMesh, IoError, LoadOptions, RawSequence, Texture};
+pub(crate) use animation::clip_list;
+pub use animation::AnimationClip;
 use animation::{resampled_times, WeightTrack};
 use file::GltfFile;
 use gltf::mesh::{Mode, Semantic};
@@ -45,16 +48,22 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::rc::Rc;
 
-/// Reads a morph-target animation: one frame per keyframe of the animation (`fps = None`),
-/// or frames at `t₀, t₀ + 1/fps, …` up to the last keyframe with interpolated weights. See
-/// the module documentation for what the file must contain. `times` are the frame times,
-/// `sources` the path once per frame.
-pub fn read_gltf_animation(path: &Path, fps: Option<f64>) -> Result<RawSequence, IoError> {
+/// Reads a morph-target animation (`options.animation`, by name or index, else the first
+/// that moves the mesh): one frame per keyframe of the animation (`options.fps = None`), or
+/// frames at `t₀, t₀ + 1/fps, …` up to the last keyframe with interpolated weights. See the
+/// module documentation for what the file must contain. `times` are the frame times,
+/// `sources` the path once per frame; the other options are not used here.
+pub fn read_gltf_animation(path: &Path, options: &LoadOptions) -> Result<RawSequence, IoError> {
     let file = GltfFile::open(path)?;
     let node = mesh_node(&file)?;
     let surface = Surface::read(&file, &node)?;
-    let track = WeightTrack::read(&file, &node, surface.target_count)?;
-    let times = match fps {
+    let (track, warning) = WeightTrack::read(
+        &file,
+        &node,
+        surface.target_count,
+        options.animation.as_deref(),
+    )?;
+    let times = match options.fps {
         None => track.times.clone(),
         Some(fps) => resampled_times(&track.times, fps).map_err(|m| file.error(m))?,
     };
@@ -71,6 +80,7 @@ pub fn read_gltf_animation(path: &Path, fps: Option<f64>) -> Result<RawSequence,
         intensities: intensities.into_iter().collect(),
         sources: vec![path.to_path_buf(); times.len()],
         times: Some(times),
+        warnings: warning.into_iter().collect(),
     })
 }
 

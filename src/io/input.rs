@@ -8,6 +8,7 @@
 //! | one `.gltf` or `.glb` file | a morph-target animation, one frame per keyframe |
 
 use super::{natural_order, IoError};
+use crate::render::UpAxis;
 use std::path::{Path, PathBuf};
 
 /// The format of per-frame mesh files.
@@ -94,6 +95,19 @@ impl SequenceSource {
             Self::GltfAnimation(file) => file,
         };
         first.parent().unwrap_or(Path::new(".")).to_path_buf()
+    }
+
+    /// The axis that is up by the input format's convention: +y for glTF (its specification
+    /// says so), +z for everything else (a guess: scanners and many tools write z up).
+    pub fn up(&self) -> UpAxis {
+        match self {
+            Self::Frames {
+                format: FrameFormat::Gltf,
+                ..
+            }
+            | Self::GltfAnimation(_) => UpAxis::Y,
+            Self::Frames { .. } | Self::Npy(_) => UpAxis::Z,
+        }
     }
 
     /// A short description, e.g. "6 OBJ frames".

@@ -7,7 +7,8 @@
 //!
 //! Every writer goes through [`write_atomically`]: the bytes land in a temporary file next to the
 //! target, which is renamed over it only when complete, so a failed run never leaves a
-//! half-written output behind.
+//! half-written output behind. Output directories are staged whole ([`StagedDir`]): each holds
+//! exactly one run, marked by its manifest [`RUN_MANIFEST`].
 
 mod atomic;
 mod flow_output;
@@ -28,7 +29,7 @@ pub mod vtk;
 mod warning;
 mod weld;
 
-pub use atomic::{write_atomically, StagedDir};
+pub use atomic::{write_atomically, Overwrite, RunManifest, StagedDir, RUN_MANIFEST};
 pub use flow_output::{
     summary_json, write_flow_outputs, write_slab_vtus, GroundTruthReport, OutputFormat,
 };
@@ -41,7 +42,7 @@ pub use npy::{read_npy, read_npy_float, read_npy_indices, write_npy, NpyArray};
 pub use obj::{read_obj, write_obj, ObjMesh};
 pub use sequence::{load_sequence, natural_order, read_mesh, LoadOptions, LoadedSequence};
 pub use texture::Texture;
-pub use warning::LoadWarning;
+pub use warning::{LoadWarning, STATIC_IMAGE_TOLERANCE};
 pub use weld::Welding;
 
 use std::path::PathBuf;

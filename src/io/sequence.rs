@@ -16,6 +16,7 @@
 use super::gltf_read::{read_gltf_animation, read_gltf_frame};
 use super::input::{FrameFormat, SequenceSource};
 use super::ply::read_ply;
+use super::warning::STATIC_IMAGE_TOLERANCE;
 use super::{grey_values, read_npy, read_npy_indices, read_obj, texture_intensity};
 use super::{FrameMesh, IoError, LoadWarning, RawSequence, TextureCache, Welding};
 use crate::flow::{check_finite_intensities, FlowError, MeshSequence};
@@ -39,6 +40,9 @@ pub struct LoadOptions {
     pub fps: Option<f64>,
     /// Weld vertices that coincide in every frame (split at texture seams by exporters).
     pub weld: bool,
+    /// The animation of a glTF file to read, by name, else by index (`"2"`); `None`: the first
+    /// that moves the mesh's morph weights.
+    pub animation: Option<String>,
 }
 
 impl Default for LoadOptions {
@@ -49,6 +53,7 @@ impl Default for LoadOptions {
             times: None,
             fps: None,
             weld: true,
+            animation: None,
         }
     }
 }
@@ -77,6 +82,7 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
         intensities,
         times,
         sources: files,
+        mut warnings,
     } = read_raw(&source, options)?;
     if positions.len() < 2 {
         return Err(FlowError::TooFewFrames(positions.len()).into());
@@ -120,12 +126,47 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
         e if times_from_file && is_about_times(&e) => Error::from(e).in_file(&times_file),
         e => in_frame_file(e, &files),
     })?;
+    warnings.extend(static_image_warning(&sequence, path));
     Ok(LoadedSequence {
         sequence,
         source,
         welding,
         frame_files: files,
-        warnings: Vec::new(),
+        warnings,
+    })
+}
+
+/// [`LoadWarning::StaticImage`] when every frame's grey values equal frame 0's (to
+/// [`STATIC_IMAGE_TOLERANCE`] of the grey range) while some position changes (beyond
+/// round-off of the surface's size).
+fn static_image_warning(sequence: &MeshSequence, path: &Path) -> Option<LoadWarning> {
+    let frames = sequence.n_frames();
+    let grey = |k: usize| sequence.intensities(k);
+    let (low, high) = (0..frames)
+        .flat_map(grey)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &g| {
+            (l.min(g), h.max(g))
+        });
+    let tolerance = STATIC_IMAGE_TOLERANCE * (high - low);
+    let same_image = (1..frames).all(|k| {
+        grey(k)
+            .iter()
+            .zip(grey(0))
+            .all(|(a, b)| (a - b).abs() <= tolerance)
+    });
+    let positions: Vec<&[Vector3<f64>]> = (0..frames)
+        .map(|k| sequence.positions(k))
+        .collect::<Option<_>>()?;
+    let size = positions[0].iter().map(|p| p.amax()).fold(0.0, f64::max);
+    let moves = positions[1..].iter().any(|frame| {
+        frame
+            .iter()
+            .zip(positions[0])
+            .any(|(p, q)| (p - q).amax() > 1e-12 * size)
+    });
+    (same_image && moves).then(|| LoadWarning::StaticImage {
+        file: path.to_path_buf(),
+        frames,
     })
 }
 
@@ -154,6 +195,12 @@ fn check_options(
             format!("--fps must be a positive number, got {fps}"),
         ));
     }
+    if options.animation.is_some() && !is_animation {
+        return Err(IoError::format(
+            path,
+            "--animation applies to a glTF animation (one .gltf/.glb file) only",
+        ));
+    }
     if options.intensity_attribute.is_some() && !is_ply {
         return Err(IoError::format(
             path,
@@ -166,7 +213,7 @@ fn check_options(
 fn read_raw(source: &SequenceSource, options: &LoadOptions) -> Result<RawSequence, Error> {
     match source {
         SequenceSource::Frames { format, files } => read_frames(*format, files, options),
-        SequenceSource::GltfAnimation(file) => Ok(read_gltf_animation(file, options.fps)?),
+        SequenceSource::GltfAnimation(file) => Ok(read_gltf_animation(file, options)?),
         SequenceSource::Npy(dir) => read_npy_sequence(dir),
     }
 }
@@ -208,6 +255,7 @@ fn read_frames(
         intensities: intensities.into_iter().collect(),
         times: None,
         sources: files.to_vec(),
+        warnings: Vec::new(),
     })
 }
 
@@ -326,6 +374,7 @@ fn read_npy_sequence(dir: &Path) -> Result<RawSequence, Error> {
         intensities,
         times: None,
         sources: vec![positions_file; k as usize],
+        warnings: Vec::new(),
     })
 }
 

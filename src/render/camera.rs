@@ -21,10 +21,37 @@
 //!
 //! # Views
 //!
-//! A [`View`] is the direction from the target to the eye, `(cos e cos a, cos e sin a, sin e)`
-//! for azimuth `a` (in the xy-plane, from +x towards +y) and elevation `e` (above the
-//! xy-plane). World up is +z; looking straight down or up, where +z is parallel to the view
-//! axis, +y takes its place (then +x, for an arbitrary `up` given to [`Camera::look_at`]).
+//! A [`View`] is the direction from the target to the eye, given by azimuth `a` and elevation
+//! `e` relative to a world *up axis* `u` (an [`UpAxis`]: ±x, ±y or ±z), and a roll `ρ`. With
+//! the horizontal axes `(h₁, h₂)` of `u` from the table below,
+//!
+//! ```text
+//! direction = cos e (cos a h₁ + sin a h₂) + sin e u
+//! ```
+//!
+//! so azimuth turns from `h₁` towards `h₂` (counter-clockwise seen from above, i.e. from `+u`)
+//! and elevation rises towards `u`. `(h₁, h₂, u)` is right-handed: it is the image of
+//! `(x, y, z)` under the smallest rotation that takes `+z` to `u` (for `−z`, the half turn
+//! about `x`). For `u = +z` this is the plain convention (azimuth from +x towards +y,
+//! elevation above the xy-plane); for `u = +y`, the glTF convention, it is the rotation that
+//! z-up modelling tools apply when they export to glTF (`(x, y, z) ↦ (x, z, −y)`), so a model
+//! looks the same from the same view angles before and after the export: azimuth −60°,
+//! elevation 30° sees it from the front right and above in both.
+//!
+//! | up `u` | `h₁` (azimuth 0°) | `h₂` (azimuth 90°) |
+//! |---|---|---|
+//! | `+z` | `+x` | `+y` |
+//! | `+y` | `+x` | `−z` |
+//! | `+x` | `−z` | `+y` |
+//! | `−z` | `+x` | `−y` |
+//! | `−y` | `+x` | `+z` |
+//! | `−x` | `+z` | `+y` |
+//!
+//! The camera's world up is `u`, so `u` points up in the picture. Looking straight along `u`
+//! (elevation ±90°) it falls back to `h₂`, then `h₁` (for an arbitrary `up` given to
+//! [`Camera::look_at`]: +y, then +x). Finally the roll `ρ` turns the picture about its centre,
+//! counter-clockwise for `ρ > 0`: the screen axes become
+//! `r' = cos ρ r + sin ρ d`, `d' = cos ρ d − sin ρ r`, and at `ρ = 90°` the up axis points left.
 //!
 //! # Screen components
 //!
@@ -54,47 +81,159 @@ const FRAMING_FILL: f64 = 0.88;
 /// Near plane distance relative to the eye–target distance.
 const NEAR_FRACTION: f64 = 1e-3;
 
-/// The direction from the target to the eye, in degrees; see the module documentation.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct View {
-    pub azimuth_degrees: f64,
-    pub elevation_degrees: f64,
+/// A signed coordinate axis that points up in pictures; see the module documentation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(into = "String", try_from = "String")]
+pub enum UpAxis {
+    X,
+    Y,
+    #[default]
+    Z,
+    NegX,
+    NegY,
+    NegZ,
 }
 
-impl Default for View {
-    /// Azimuth −60°, elevation 30°: a three-quarter view from the front right and above
-    /// (the eye towards +x, −y, +z) of something centred at the origin.
-    fn default() -> Self {
-        Self {
-            azimuth_degrees: -60.0,
-            elevation_degrees: 30.0,
+impl UpAxis {
+    pub const ALL: [UpAxis; 6] = [
+        Self::X,
+        Self::Y,
+        Self::Z,
+        Self::NegX,
+        Self::NegY,
+        Self::NegZ,
+    ];
+
+    /// The unit vector of the axis.
+    pub fn vector(self) -> Vector3<f64> {
+        let [_, _, up] = self.frame();
+        up
+    }
+
+    /// `[h₁, h₂, u]`: the horizontal axes at azimuth 0° and 90° and the up axis, a
+    /// right-handed orthonormal frame (the table of the module documentation).
+    pub fn frame(self) -> [Vector3<f64>; 3] {
+        let (x, y, z) = (Vector3::x(), Vector3::y(), Vector3::z());
+        match self {
+            Self::Z => [x, y, z],
+            Self::Y => [x, -z, y],
+            Self::X => [-z, y, x],
+            Self::NegZ => [x, -y, -z],
+            Self::NegY => [x, z, -y],
+            Self::NegX => [z, y, -x],
+        }
+    }
+
+    /// `x`, `y`, `z`, `-x`, `-y` or `-z`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::X => "x",
+            Self::Y => "y",
+            Self::Z => "z",
+            Self::NegX => "-x",
+            Self::NegY => "-y",
+            Self::NegZ => "-z",
         }
     }
 }
 
+impl std::fmt::Display for UpAxis {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for UpAxis {
+    type Err = RenderError;
+
+    /// Parses `x`, `y`, `z`, `-x`, `-y`, `-z` (also `+x`, upper case).
+    fn from_str(text: &str) -> Result<Self, RenderError> {
+        let wanted = text.trim().to_ascii_lowercase();
+        let wanted = wanted.strip_prefix('+').unwrap_or(&wanted);
+        Self::ALL
+            .into_iter()
+            .find(|axis| axis.name() == wanted)
+            .ok_or_else(|| RenderError::UpAxis {
+                text: text.to_string(),
+            })
+    }
+}
+
+impl From<UpAxis> for String {
+    fn from(axis: UpAxis) -> String {
+        axis.name().to_string()
+    }
+}
+
+impl TryFrom<String> for UpAxis {
+    type Error = RenderError;
+
+    fn try_from(text: String) -> Result<Self, RenderError> {
+        text.parse()
+    }
+}
+
+/// The direction from the target to the eye relative to an up axis, and the picture's roll,
+/// in degrees; see the module documentation.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct View {
+    pub azimuth_degrees: f64,
+    pub elevation_degrees: f64,
+    /// Counter-clockwise turn of the picture.
+    pub roll_degrees: f64,
+    pub up: UpAxis,
+}
+
+impl Default for View {
+    /// Azimuth −60°, elevation 30°, no roll, +z up: a three-quarter view from the front right
+    /// and above (the eye towards +x, −y, +z) of something centred at the origin.
+    fn default() -> Self {
+        Self::new(-60.0, 30.0)
+    }
+}
+
 impl View {
-    /// Unit vector from the target to the eye: `(cos e cos a, cos e sin a, sin e)`.
+    /// The view from azimuth and elevation in degrees, +z up, no roll.
+    pub fn new(azimuth_degrees: f64, elevation_degrees: f64) -> Self {
+        Self {
+            azimuth_degrees,
+            elevation_degrees,
+            roll_degrees: 0.0,
+            up: UpAxis::Z,
+        }
+    }
+
+    /// The same angles relative to another up axis.
+    pub fn with_up(self, up: UpAxis) -> Self {
+        Self { up, ..self }
+    }
+
+    /// Unit vector from the target to the eye: `cos e (cos a h₁ + sin a h₂) + sin e u`.
     pub fn direction(&self) -> Vector3<f64> {
         let (a, e) = (
             self.azimuth_degrees.to_radians(),
             self.elevation_degrees.to_radians(),
         );
-        Vector3::new(e.cos() * a.cos(), e.cos() * a.sin(), e.sin())
+        let [h1, h2, up] = self.up.frame();
+        (h1 * a.cos() + h2 * a.sin()) * e.cos() + up * e.sin()
     }
 }
 
 impl FromStr for View {
     type Err = RenderError;
 
-    /// Parses `"AZIMUTH,ELEVATION"` in degrees, e.g. `"-60,30"` (spaces allowed).
+    /// Parses `"AZIMUTH,ELEVATION[,ROLL]"` in degrees, e.g. `"-60,30"` or `"0,10,90"` (spaces
+    /// allowed); the up axis is +z (see [`View::with_up`]).
     fn from_str(text: &str) -> Result<Self, RenderError> {
         let error = |reason: &str| RenderError::View {
             text: text.to_string(),
             reason: reason.to_string(),
         };
         let parts: Vec<&str> = text.split(',').map(str::trim).collect();
-        let [azimuth, elevation] = parts[..] else {
-            return Err(error("needs exactly two numbers separated by a comma"));
+        let (azimuth, elevation, roll) = match parts[..] {
+            [azimuth, elevation] => (azimuth, elevation, None),
+            [azimuth, elevation, roll] => (azimuth, elevation, Some(roll)),
+            _ => return Err(error("needs two or three numbers separated by commas")),
         };
         let angle = |part: &str, name: &str| {
             part.parse::<f64>()
@@ -105,6 +244,8 @@ impl FromStr for View {
         Ok(Self {
             azimuth_degrees: angle(azimuth, "azimuth")?,
             elevation_degrees: angle(elevation, "elevation")?,
+            roll_degrees: roll.map(|r| angle(r, "roll")).transpose()?.unwrap_or(0.0),
+            up: UpAxis::Z,
         })
     }
 }
@@ -112,11 +253,7 @@ impl FromStr for View {
 /// A pinhole (perspective) camera and the size of its picture; see the module documentation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
-    eye: Vector3<f64>,
-    target: Vector3<f64>,
-    right: Vector3<f64>,
-    down: Vector3<f64>,
-    forward: Vector3<f64>,
+    frame: Frame,
     fov_y_degrees: f64,
     focal: f64,
     near: f64,
@@ -156,14 +293,8 @@ impl Camera {
                 "picture size {width}×{height} must be between 1 and {MAX_IMAGE_SIDE} pixels a side"
             ));
         }
-        Ok(Self::oriented(
-            eye,
-            target,
-            up,
-            fov_y_degrees,
-            width,
-            height,
-        ))
+        let frame = Frame::oriented(eye, target, [up, Vector3::y(), Vector3::x()], 0.0);
+        Ok(Self::new(frame, fov_y_degrees, width, height))
     }
 
     /// The camera that looks at the centre of the bounding box of the finite `points` from
@@ -186,40 +317,22 @@ impl Camera {
         let angular_radius = (FRAMING_FILL * tan_half_min).atan();
         let distance = radius / angular_radius.sin();
         let mut direction = view.direction();
-        if !direction.iter().all(|x| x.is_finite()) {
+        let mut roll = view.roll_degrees.to_radians();
+        if !(direction.iter().all(|x| x.is_finite()) && roll.is_finite()) {
             direction = View::default().direction();
+            roll = 0.0;
         }
-        Self::oriented(
-            centre + distance * direction,
-            centre,
-            Vector3::z(),
-            DEFAULT_FOV_Y_DEGREES,
-            width,
-            height,
-        )
+        let [h1, h2, up] = view.up.frame();
+        let frame = Frame::oriented(centre + distance * direction, centre, [up, h2, h1], roll);
+        Self::new(frame, DEFAULT_FOV_Y_DEGREES, width, height)
     }
 
-    /// Builds the frame of valid parameters (finite, `eye ≠ target`, `up ≠ 0`).
-    fn oriented(
-        eye: Vector3<f64>,
-        target: Vector3<f64>,
-        up: Vector3<f64>,
-        fov_y_degrees: f64,
-        width: u32,
-        height: u32,
-    ) -> Self {
-        let offset = target - eye;
-        let forward = offset.normalize();
-        let right = right_axis(&forward, &up);
+    fn new(frame: Frame, fov_y_degrees: f64, width: u32, height: u32) -> Self {
         Self {
-            eye,
-            target,
-            right,
-            down: forward.cross(&right),
-            forward,
+            near: NEAR_FRACTION * (frame.target - frame.eye).norm(),
+            frame,
             fov_y_degrees,
             focal: height as f64 / 2.0 / (fov_y_degrees / 2.0).to_radians().tan(),
-            near: NEAR_FRACTION * offset.norm(),
             width,
             height,
         }
@@ -228,15 +341,15 @@ impl Camera {
     /// Pixel x (right), pixel y (down) and depth of `p`; `None` when `p` is not in front of the
     /// near plane (or not finite). Points outside the picture are projected too.
     pub fn project(&self, p: &Vector3<f64>) -> Option<[f64; 3]> {
-        let q = p - self.eye;
-        let depth = q.dot(&self.forward);
+        let q = p - self.frame.eye;
+        let depth = q.dot(&self.frame.forward);
         if !(depth > self.near && depth.is_finite()) {
             return None;
         }
         let scale = self.focal / depth;
         Some([
-            self.width as f64 / 2.0 + scale * q.dot(&self.right),
-            self.height as f64 / 2.0 + scale * q.dot(&self.down),
+            self.width as f64 / 2.0 + scale * q.dot(&self.frame.right),
+            self.height as f64 / 2.0 + scale * q.dot(&self.frame.down),
             depth,
         ])
     }
@@ -244,12 +357,12 @@ impl Camera {
     /// `(v·right, v·down)`: the tangent vector `v` as the camera sees its direction, in the
     /// Middlebury `(u, v)` convention (x right, y down); see the module documentation.
     pub fn screen_components(&self, v: &Vector3<f64>) -> [f64; 2] {
-        [v.dot(&self.right), v.dot(&self.down)]
+        [v.dot(&self.frame.right), v.dot(&self.frame.down)]
     }
 
     /// The world vector with camera coordinates `(x, y, z)` = (right, down, forward).
     pub fn camera_to_world(&self, [x, y, z]: [f64; 3]) -> Vector3<f64> {
-        x * self.right + y * self.down + z * self.forward
+        x * self.frame.right + y * self.frame.down + z * self.frame.forward
     }
 
     /// Pixels per world length unit for a segment parallel to the picture at `depth`: `F / z`.
@@ -259,30 +372,30 @@ impl Camera {
 
     /// Distance from the eye to the target along the view axis.
     pub fn target_depth(&self) -> f64 {
-        (self.target - self.eye).norm()
+        (self.frame.target - self.frame.eye).norm()
     }
 
     pub fn eye(&self) -> Vector3<f64> {
-        self.eye
+        self.frame.eye
     }
 
     pub fn target(&self) -> Vector3<f64> {
-        self.target
+        self.frame.target
     }
 
     /// Unit vector pointing right in the picture.
     pub fn right(&self) -> Vector3<f64> {
-        self.right
+        self.frame.right
     }
 
     /// Unit vector pointing down in the picture.
     pub fn down(&self) -> Vector3<f64> {
-        self.down
+        self.frame.down
     }
 
     /// Unit vector along the view axis, from the eye into the scene.
     pub fn forward(&self) -> Vector3<f64> {
-        self.forward
+        self.frame.forward
     }
 
     pub fn fov_y_degrees(&self) -> f64 {
@@ -303,14 +416,49 @@ impl Camera {
     }
 }
 
-/// `f × up`, normalized; when `up` is (nearly) parallel to `f`, +y and then +x take its place.
-fn right_axis(forward: &Vector3<f64>, up: &Vector3<f64>) -> Vector3<f64> {
-    [up.normalize(), Vector3::y(), Vector3::x()]
-        .iter()
-        .map(|candidate| forward.cross(candidate))
-        .find(|right| right.norm() > 1e-6)
-        .unwrap_or_else(Vector3::x)
-        .normalize()
+/// A camera's position and orthonormal axes.
+#[derive(Clone, Debug, PartialEq)]
+struct Frame {
+    eye: Vector3<f64>,
+    target: Vector3<f64>,
+    right: Vector3<f64>,
+    down: Vector3<f64>,
+    forward: Vector3<f64>,
+}
+
+impl Frame {
+    /// The frame of valid parameters (finite, `eye ≠ target`, `ups[0] ≠ 0`): right is
+    /// `f × up` for the first of `ups` not (nearly) parallel to the view axis, then the axes
+    /// are turned by `roll` radians (counter-clockwise on the screen).
+    fn oriented(
+        eye: Vector3<f64>,
+        target: Vector3<f64>,
+        ups: [Vector3<f64>; 3],
+        roll: f64,
+    ) -> Self {
+        let forward = (target - eye).normalize();
+        let right = ups
+            .iter()
+            .map(|candidate| forward.cross(&candidate.normalize()))
+            .find(|right| right.norm() > 1e-6)
+            .unwrap_or_else(Vector3::x)
+            .normalize();
+        let down = forward.cross(&right);
+        // No roll leaves the axes bit for bit as they were.
+        let (right, down) = if roll == 0.0 {
+            (right, down)
+        } else {
+            let (sin, cos) = roll.sin_cos();
+            (cos * right + sin * down, cos * down - sin * right)
+        };
+        Self {
+            eye,
+            target,
+            right,
+            down,
+            forward,
+        }
+    }
 }
 
 /// Centre of the bounding box of the finite points and the largest distance from it (the unit

@@ -9,9 +9,14 @@ use crate::mesh::ConnectivityError;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum RenderError {
     #[error(
-        "view {text:?}: {reason} (expected \"AZIMUTH,ELEVATION\" in degrees, e.g. \"-60,30\")"
+        "view {text:?}: {reason} (expected \"AZIMUTH,ELEVATION[,ROLL]\" in degrees, e.g. \"-60,30\")"
     )]
     View { text: String, reason: String },
+    #[error("up axis {text:?} is not one of x, y, z, -x, -y, -z")]
+    UpAxis { text: String },
+    /// A slab list that does not parse or names a slab that does not exist.
+    #[error("slab list {text:?}: {reason}")]
+    Slabs { text: String, reason: String },
     #[error("camera: {reason}")]
     Camera { reason: String },
     #[error("expected {expected} {what} (one per vertex), got {got}")]

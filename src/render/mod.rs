@@ -62,7 +62,7 @@ pub mod shading;
 pub mod slabs;
 pub mod text;
 
-pub use camera::{Camera, View};
+pub use camera::{Camera, UpAxis, View};
 pub use error::RenderError;
 pub use figure::{
     arrow_picture, chart_picture, flow_picture, grey_picture, scalar_picture, screen_flow_colors,
@@ -70,4 +70,4 @@ pub use figure::{
 };
 pub use raster::Canvas;
 pub use shading::Lighting;
-pub use slabs::{sequence_views, write_slab_pictures, FigureOptions, SlabView};
+pub use slabs::{sequence_views, write_slab_pictures, FigureOptions, SlabSelection, SlabView};

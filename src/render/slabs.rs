@@ -13,9 +13,13 @@
 //! | `flow_SSSS.png` | [`flow_picture`]: Middlebury colours of the flow's screen directions, with the wheel legend |
 //! | `arrows_SSSS.png` | [`arrow_picture`]: arrows on an even subsample of visible vertices |
 //! | `angular_error_SSSS.png` | [`scalar_picture`] of the angular error (degrees), when known |
+//!
+//! labelled `slab s  t = t_s` (times with six significant digits, [`format_number`]).
+//! [`SlabSelection`] reads which slabs to draw from a list such as `0,5,10-20,last`.
 
 use super::color_wheel::robust_max;
 use super::colormap::finite_range;
+use super::text::format_number;
 use super::RenderError;
 use super::{
     arrow_picture, flow_picture, grey_picture, scalar_picture, write_png, Camera, PictureStyle,
@@ -26,6 +30,7 @@ use crate::Error;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
+use std::str::FromStr;
 
 /// One slab as drawn: the surface of frame `slab` and the slab's flow.
 #[derive(Clone, Copy, Debug)]
@@ -169,7 +174,11 @@ fn write_one_slab(
     style: &PictureStyle,
 ) -> Result<Vec<PathBuf>, Error> {
     let style = PictureStyle {
-        label: Some(format!("slab {}  t = {}", view.slab, view.time)),
+        label: Some(format!(
+            "slab {}  t = {}",
+            view.slab,
+            format_number(view.time)
+        )),
         ..style.clone()
     };
     let surface = Surface {
@@ -217,4 +226,105 @@ fn write_one_slab(
             Ok(path)
         })
         .collect()
+}
+
+/// Which slabs to draw, as a user writes it: comma-separated slab numbers (`5`), inclusive
+/// ranges (`10-20`), `last` for the last slab (also as a range end, `10-last`), and `all`.
+/// [`SlabSelection::resolve`] checks it against a slab count.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SlabSelection {
+    text: String,
+    /// Each item as written, with its first and last slab (inclusive).
+    items: Vec<(String, SlabIndex, SlabIndex)>,
+}
+
+/// A slab number or the last slab.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum SlabIndex {
+    Number(usize),
+    Last,
+}
+
+impl SlabSelection {
+    /// Every slab.
+    pub fn all() -> Self {
+        "all".parse().expect("'all' parses")
+    }
+
+    /// The chosen slabs of a sequence with `n_slabs` slabs, ascending and without repeats; an
+    /// error names the first item that goes beyond the last slab or runs backwards.
+    pub fn resolve(&self, n_slabs: usize) -> Result<Vec<usize>, RenderError> {
+        let error = |reason: String| RenderError::Slabs {
+            text: self.text.clone(),
+            reason,
+        };
+        let Some(last) = n_slabs.checked_sub(1) else {
+            return Err(error("there are no slabs".into()));
+        };
+        let mut chosen = vec![false; n_slabs];
+        for (item, first, end) in &self.items {
+            let number = |index: &SlabIndex| match index {
+                SlabIndex::Number(s) => *s,
+                SlabIndex::Last => last,
+            };
+            let (first, end) = (number(first), number(end));
+            if end > last {
+                return Err(error(format!(
+                    "{item:?} names slab {end}, but there are {n_slabs} slabs (0-{last})"
+                )));
+            }
+            if first > end {
+                return Err(error(format!(
+                    "{item:?} runs backwards (slab {first} to {end})"
+                )));
+            }
+            chosen[first..=end].iter_mut().for_each(|c| *c = true);
+        }
+        Ok((0..n_slabs).filter(|&s| chosen[s]).collect())
+    }
+}
+
+impl FromStr for SlabSelection {
+    type Err = RenderError;
+
+    /// Parses the syntax of [`SlabSelection`]; slab numbers are checked by
+    /// [`SlabSelection::resolve`].
+    fn from_str(text: &str) -> Result<Self, RenderError> {
+        let error = |reason: String| RenderError::Slabs {
+            text: text.to_string(),
+            reason,
+        };
+        let index = |item: &str, part: &str| match part.trim() {
+            "last" => Ok(SlabIndex::Last),
+            number => number.parse().map(SlabIndex::Number).map_err(|_| {
+                error(format!(
+                    "{item:?} is not a slab number, a range FIRST-LAST, 'last' or 'all'"
+                ))
+            }),
+        };
+        let mut items = Vec::new();
+        for item in text.split(',').map(str::trim) {
+            let (first, end) = match item {
+                "" => return Err(error("an item is empty".into())),
+                "all" => (SlabIndex::Number(0), SlabIndex::Last),
+                _ => match item.split_once('-') {
+                    Some((first, end)) => (index(item, first)?, index(item, end)?),
+                    None => {
+                        let single = index(item, item)?;
+                        (single, single)
+                    }
+                },
+            };
+            if let (SlabIndex::Number(a), SlabIndex::Number(b)) = (first, end) {
+                if a > b {
+                    return Err(error(format!("{item:?} runs backwards")));
+                }
+            }
+            items.push((item.to_string(), first, end));
+        }
+        Ok(Self {
+            text: text.to_string(),
+            items,
+        })
+    }
 }

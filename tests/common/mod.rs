@@ -31,6 +31,16 @@ pub fn meshflow_ok(args: &[&str]) -> Output {
     run
 }
 
+/// The names of the entries of `dir`, sorted.
+pub fn listing(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
 /// The path of a file or directory under `meshes/`.
 pub fn shipped(name: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -7,7 +7,7 @@ mod solve;
 
 use clap::{Parser, Subcommand};
 use meshflow::flow::{Boundary, FlowParams, SolverChoice, TimeCoupling};
-use meshflow::io::OutputFormat;
+use meshflow::io::{FrameFormat, OutputFormat, Overwrite};
 use pictures::PictureArgs;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -31,9 +31,11 @@ enum Command {
     Operators {
         /// Triangle mesh (.obj, .ply, .gltf, .glb)
         mesh: PathBuf,
-        /// Output directory (created if missing)
+        /// Output directory (created if missing; an earlier meshflow output there is replaced)
         #[arg(long)]
         out: PathBuf,
+        #[command(flatten)]
+        force: ForceArg,
     },
     /// Compute the optical flow of a mesh sequence. INPUT is a directory of .obj/.ply/.gltf/.glb
     /// frames (natural order, same faces), a glob ('dir/frame_*.ply'), one .gltf/.glb morph
@@ -44,11 +46,12 @@ enum Command {
     /// summary.json; with --ground-truth also the errors against the known flow; with --png the
     /// pictures of `meshflow render`.
     Solve(Box<SolveArgs>),
-    /// Draw PNG pictures of every slab of a `solve` output directory (read from flow.pvd and its
+    /// Draw PNG pictures of the slabs of a `solve` output directory (read from flow.pvd and its
     /// flow_SSSS.vtu files): grey_SSSS.png (the image on the surface), flow_SSSS.png (flow
     /// directions on the screen, Middlebury colour wheel, with its legend), arrows_SSSS.png and,
     /// when the output has a ground truth, angular_error_SSSS.png. One camera and one flow scale
-    /// for all slabs.
+    /// for all slabs; the view and up axis of the solve unless given. Drawn into DIR, the new
+    /// pictures replace the earlier ones.
     Render {
         /// Output directory of `meshflow solve`
         dir: PathBuf,
@@ -56,17 +59,39 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
         #[command(flatten)]
+        force: ForceArg,
+        #[command(flatten)]
         pictures: PictureArgs,
     },
 }
 
 #[derive(clap::Args)]
+struct ForceArg {
+    /// Write into the output directory even if it holds files that meshflow did not write
+    /// (they stay; without --force such a directory is refused)
+    #[arg(long)]
+    force: bool,
+}
+
+impl ForceArg {
+    fn overwrite(&self) -> Overwrite {
+        match self.force {
+            true => Overwrite::Force,
+            false => Overwrite::EarlierRun,
+        }
+    }
+}
+
+#[derive(clap::Args)]
 struct SolveArgs {
-    /// Frames directory, glob, .gltf/.glb animation, or NPY directory
+    /// Frames directory, glob (quoted), .gltf/.glb animation, or NPY directory
     input: PathBuf,
-    /// Output directory (created if missing)
+    /// Output directory (created if missing; an earlier meshflow output there is replaced as a
+    /// whole)
     #[arg(long)]
     out: PathBuf,
+    #[command(flatten)]
+    force: ForceArg,
     /// Spatial smoothing scale in mean edge lengths, unit-free: sets γ = (SPREAD·h̄·S)² from
     /// the mean edge length h̄ and the image's gradient scale S [default: 0.5]
     #[arg(
@@ -129,6 +154,10 @@ struct SolveArgs {
     /// Resample a glTF animation at N frames per unit of time (default: its keyframes)
     #[arg(long, value_name = "N")]
     fps: Option<f64>,
+    /// The glTF animation (clip) to read, by name or index (default: the first that moves the
+    /// mesh's morph weights)
+    #[arg(long, value_name = "NAME|INDEX")]
+    animation: Option<String>,
     /// Keep vertices that coincide in every frame apart (default: weld them, as exporters split
     /// vertices at texture seams)
     #[arg(long)]
@@ -141,7 +170,7 @@ struct SolveArgs {
     /// Output files: any of npy, vtu, glb (summary.json is always written)
     #[arg(long, value_delimiter = ',', default_value = "npy,vtu,glb")]
     format: Vec<OutputFormat>,
-    /// Also draw the pictures of `meshflow render` for every slab
+    /// Also draw the pictures of `meshflow render` (of every slab, or those of --slabs)
     #[arg(long)]
     png: bool,
     #[command(flatten)]
@@ -149,16 +178,21 @@ struct SolveArgs {
 }
 
 fn main() -> ExitCode {
-    let cli = match Cli::try_parse() {
+    let cli = match Cli::try_parse().and_then(check_usage) {
         Ok(cli) => cli,
         Err(error) => return usage_error(error),
     };
     let result = match cli.command {
-        Command::Operators { mesh, out } => operators::write_operators(&mesh, &out),
-        Command::Solve(args) => solve::solve(&args),
-        Command::Render { dir, out, pictures } => {
-            pictures::render_output(&dir, out.as_deref().unwrap_or(&dir), &pictures)
+        Command::Operators { mesh, out, force } => {
+            operators::write_operators(&mesh, &out, force.overwrite())
         }
+        Command::Solve(args) => solve::solve(&args),
+        Command::Render {
+            dir,
+            out,
+            force,
+            pictures,
+        } => pictures::render_output(&dir, out.as_deref(), force.overwrite(), &pictures),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -167,6 +201,27 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// This command line, as recorded in an output's manifest (the program as `meshflow`).
+pub fn command_line() -> Vec<String> {
+    std::iter::once("meshflow".to_string())
+        .chain(std::env::args().skip(1))
+        .collect()
+}
+
+/// Usage rules that clap's attributes do not express.
+fn check_usage(cli: Cli) -> Result<Cli, clap::Error> {
+    use clap::CommandFactory;
+    if let Command::Solve(args) = &cli.command {
+        if args.pictures.chooses_slabs() && !args.png {
+            return Err(Cli::command().error(
+                clap::error::ErrorKind::MissingRequiredArgument,
+                "--slabs chooses the pictures of --png; add --png",
+            ));
+        }
+    }
+    Ok(cli)
 }
 
 /// `--help` and `--version` print as usual; a usage error becomes one line, exit code 2.
@@ -187,6 +242,33 @@ fn usage_error(error: clap::Error) -> ExitCode {
         .map(str::trim)
         .filter(|line| !line.is_empty() && !line.starts_with("For more information"))
         .collect();
-    eprintln!("meshflow: {} (see meshflow --help)", message.join(" "));
+    let hint = glob_hint(&error).unwrap_or_default();
+    eprintln!(
+        "meshflow: {}{hint} (see meshflow --help)",
+        message.join(" ")
+    );
     ExitCode::from(2)
+}
+
+/// When an unexpected argument is a mesh file, the shell has most likely expanded an unquoted
+/// glob into many arguments: a hint to quote it, or to give the directory.
+fn glob_hint(error: &clap::Error) -> Option<String> {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    if error.kind() != ErrorKind::UnknownArgument {
+        return None;
+    }
+    let Some(ContextValue::String(argument)) = error.get(ContextKind::InvalidArg) else {
+        return None;
+    };
+    let path = std::path::Path::new(argument);
+    FrameFormat::of(path)?;
+    let extension = path.extension()?.to_string_lossy();
+    let directory = match path.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent.display().to_string(),
+        _ => ".".to_string(),
+    };
+    Some(format!(
+        "; it looks like the shell expanded a glob into many files: quote it \
+         ('{directory}/*.{extension}') or give the directory ({directory})"
+    ))
 }

@@ -1,15 +1,20 @@
 //! `meshflow operators`: the finite-element operators of one mesh, for SciPy/MATLAB.
 
+use crate::progress::during;
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::fem;
 use meshflow::geometry::IntrinsicGeometry;
-use meshflow::io::{read_mesh, write_matrix_market, write_npy, IoError};
+use meshflow::io::{read_mesh, write_matrix_market, write_npy, Overwrite, StagedDir};
 use meshflow::mesh::Mesh;
 use meshflow::Error;
 use std::path::Path;
 
-pub fn write_operators(mesh_path: &Path, out: &Path) -> Result<(), Error> {
-    let obj = read_mesh(mesh_path)?;
+pub fn write_operators(mesh_path: &Path, out: &Path, overwrite: Overwrite) -> Result<(), Error> {
+    let mut staged = StagedDir::create(out, overwrite)?;
+    staged.record_command(crate::command_line());
+    let obj = during(format!("reading {}", mesh_path.display()), || {
+        read_mesh(mesh_path)
+    })?;
     let in_file = |e: Error| e.in_file(mesh_path);
     let mesh = Mesh::new(obj.positions.len(), obj.faces).map_err(|e| in_file(e.into()))?;
     let geometry =
@@ -17,14 +22,19 @@ pub fn write_operators(mesh_path: &Path, out: &Path) -> Result<(), Error> {
     let connection = Connection::new(&mesh, &geometry);
     let frames = vertex_frames_in_r3(&mesh, &geometry, &connection, &obj.positions)
         .map_err(|e| in_file(e.into()))?;
-    let matrices = fem::exported_operators(&mesh, &geometry, &connection);
-    std::fs::create_dir_all(out).map_err(|e| IoError::File {
-        path: out.to_path_buf(),
-        source: e,
-    })?;
-    for (name, matrix) in &matrices {
-        write_matrix_market(&out.join(format!("{name}.mtx")), matrix)?;
-    }
+    let matrices = during("assembling the operators", || {
+        fem::exported_operators(&mesh, &geometry, &connection)
+    });
+    let dir = staged.path();
+    let writing = during(format!("writing {}", out.display()), || {
+        matrices
+            .iter()
+            .try_for_each(|(name, matrix)| {
+                write_matrix_market(&dir.join(format!("{name}.mtx")), matrix)
+            })
+            .map_err(|e| staged.in_target(e))
+    });
+    writing?;
     // frames.npy[i][k] = R^3 image of basis vector k of vertex i's frame.
     let frame_values: Vec<f64> = frames
         .iter()
@@ -35,10 +45,12 @@ pub fn write_operators(mesh_path: &Path, out: &Path) -> Result<(), Error> {
         })
         .collect();
     write_npy(
-        &out.join("frames.npy"),
+        &dir.join("frames.npy"),
         &[mesh.n_vertices() as u64, 2, 3],
         &frame_values,
-    )?;
+    )
+    .map_err(|e| staged.in_target(e))?;
+    staged.commit()?;
     println!(
         "{}: {} vertices, {} faces, {} boundary vertices, Euler characteristic {} -> {}",
         mesh_path.display(),

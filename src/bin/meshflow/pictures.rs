@@ -1,11 +1,13 @@
 //! PNG pictures of a flow: `meshflow render DIR` (from a solve output's VTU files) and
-//! `meshflow solve … --png` (from the flow in memory). Both draw every slab with
+//! `meshflow solve … --png` (from the flow in memory). Both draw the chosen slabs with
 //! [`write_slab_pictures`].
 
-use crate::progress::count_progress;
+use crate::progress::{count_progress, spinner};
 use meshflow::io::vtk::{read_pvd, read_vtu, VtuMesh};
-use meshflow::io::IoError;
-use meshflow::render::{write_slab_pictures, FigureOptions, SlabView, View};
+use meshflow::io::{IoError, Overwrite, StagedDir};
+use meshflow::render::{
+    write_slab_pictures, FigureOptions, RenderError, SlabSelection, SlabView, UpAxis, View,
+};
 use meshflow::Error;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
@@ -16,22 +18,50 @@ pub struct PictureArgs {
     /// Picture size in pixels, WIDTHxHEIGHT
     #[arg(long, default_value = "960x720", value_parser = parse_size)]
     size: (u32, u32),
-    /// Direction from the surface to the camera, AZIMUTH,ELEVATION in degrees (azimuth from +x
-    /// towards +y, elevation above the xy-plane; +z is up)
-    #[arg(long, default_value = "-60,30", allow_hyphen_values = true)]
-    view: View,
+    /// Direction from the surface to the camera, AZIMUTH,ELEVATION[,ROLL] in degrees: azimuth
+    /// about the up axis, elevation above the plane across it, roll turning the picture
+    /// counter-clockwise [default: -60,30 (solve), the solve's view (render)]
+    #[arg(long, allow_hyphen_values = true)]
+    view: Option<View>,
+    /// The world axis that points up in pictures: x, y, z, -x, -y or -z [default: y for glTF
+    /// input, else z (solve), the solve's axis (render)]
+    #[arg(long, allow_hyphen_values = true)]
+    up: Option<UpAxis>,
     /// Flow speed at the rim of the colour wheel and of the reference arrow (default: the 99th
     /// percentile of all speeds)
     #[arg(long, value_name = "SPEED", allow_negative_numbers = true, value_parser = parse_speed)]
     flow_scale: Option<f64>,
+    /// The slabs to draw: numbers, ranges FIRST-LAST and 'last', e.g. 0,5,10-20,last
+    /// [default: all]
+    #[arg(long, value_name = "LIST")]
+    slabs: Option<SlabSelection>,
 }
 
 impl PictureArgs {
-    fn options(&self) -> FigureOptions {
+    /// `base` with the angles of `--view` and the axis of `--up`, where given.
+    pub fn view(&self, base: View) -> View {
+        let up = self.up.unwrap_or(base.up);
+        self.view.unwrap_or(base).with_up(up)
+    }
+
+    /// The slabs of `--slabs` among `n_slabs`, all by default.
+    pub fn slabs(&self, n_slabs: usize) -> Result<Vec<usize>, RenderError> {
+        match &self.slabs {
+            Some(selection) => selection.resolve(n_slabs),
+            None => SlabSelection::all().resolve(n_slabs),
+        }
+    }
+
+    /// Whether `--slabs` was given.
+    pub fn chooses_slabs(&self) -> bool {
+        self.slabs.is_some()
+    }
+
+    fn options(&self, view: View) -> FigureOptions {
         FigureOptions {
             width: self.size.0,
             height: self.size.1,
-            view: self.view,
+            view,
             flow_scale: self.flow_scale,
             ..FigureOptions::default()
         }
@@ -57,14 +87,15 @@ fn parse_speed(text: &str) -> Result<f64, String> {
     }
 }
 
-/// Draws every slab of `views` into `out`, with a progress bar.
+/// Draws the slabs of `views` into `out` as seen from `view`, with a progress bar.
 pub fn draw(
     out: &Path,
     faces: &[[u32; 3]],
     views: &[SlabView],
     args: &PictureArgs,
+    view: View,
 ) -> Result<Vec<PathBuf>, Error> {
-    let options = args.options();
+    let options = args.options(view);
     let bar = count_progress(views.len() as u64, "drawing slabs");
     let written = write_slab_pictures(out, faces, views, &options, &|| bar.inc(1));
     bar.finish_and_clear();
@@ -117,16 +148,34 @@ impl SlabFile {
     }
 }
 
-/// `meshflow render DIR`: reads `DIR/flow.pvd` and every slab file it lists (all of them before
-/// drawing anything), then draws them into `out`.
-pub fn render_output(dir: &Path, out: &Path, args: &PictureArgs) -> Result<(), Error> {
-    let datasets = read_pvd(&dir.join("flow.pvd"))?;
-    let slabs: Vec<SlabFile> = datasets
+/// `meshflow render DIR`: reads `DIR/flow.pvd` and the slab files it lists (all of them before
+/// drawing anything), then draws the chosen slabs into `out` (default `DIR`, where the new
+/// pictures replace the earlier ones and the run's other files stay).
+pub fn render_output(
+    dir: &Path,
+    out: Option<&Path>,
+    overwrite: Overwrite,
+    args: &PictureArgs,
+) -> Result<(), Error> {
+    let pvd = dir.join("flow.pvd");
+    let datasets = read_pvd(&pvd)?;
+    let into_run = out.is_none_or(|out| same_directory(out, dir));
+    let target = out.unwrap_or(dir);
+    let mut staged = match into_run {
+        // Pictures are the run's only PNG files.
+        true => StagedDir::update(dir, overwrite, |name| !name.ends_with(".png"))?,
+        false => StagedDir::create(target, overwrite)?,
+    };
+    staged.record_command(crate::command_line());
+    let reading = spinner(format!("reading {} slab files", datasets.len()));
+    let slabs: Result<Vec<SlabFile>, Error> = datasets
         .into_iter()
         .map(|(time, path)| SlabFile::read(time, path))
-        .collect::<Result<_, _>>()?;
+        .collect();
+    reading.finish_and_clear();
+    let slabs = slabs?;
     let Some(first) = slabs.first() else {
-        return Err(IoError::format(dir.join("flow.pvd"), "lists no slabs").into());
+        return Err(IoError::format(pvd, "lists no slabs").into());
     };
     if let Some(other) = slabs
         .iter()
@@ -141,28 +190,62 @@ pub fn render_output(dir: &Path, out: &Path, args: &PictureArgs) -> Result<(), E
         )
         .into());
     }
-    std::fs::create_dir_all(out).map_err(|e| IoError::file(out, e))?;
-    let flows: Vec<Vec<Vector3<f64>>> = slabs.iter().map(SlabFile::flow).collect();
-    let views: Vec<SlabView> = slabs
+    let chosen = args.slabs(slabs.len())?;
+    let view = args.view(solved_view(dir)?);
+    let flows: Vec<Vec<Vector3<f64>>> = chosen.iter().map(|&s| slabs[s].flow()).collect();
+    let views: Vec<SlabView> = chosen
         .iter()
         .zip(&flows)
-        .enumerate()
-        .map(|(s, (slab, flow))| SlabView {
+        .map(|(&s, flow)| SlabView {
             slab: s,
-            time: slab.time,
-            positions: &slab.mesh.points,
-            intensity: slab.array("intensity").expect("checked on reading"),
+            time: slabs[s].time,
+            positions: &slabs[s].mesh.points,
+            intensity: slabs[s].array("intensity").expect("checked on reading"),
             flow,
-            angular_error: slab.array("angular_error"),
+            angular_error: slabs[s].array("angular_error"),
         })
         .collect();
-    let written = draw(out, &first.mesh.triangles, &views, args)?;
+    let written =
+        draw(staged.path(), &first.mesh.triangles, &views, args, view).map_err(|e| match e {
+            Error::Io(e) => Error::Io(staged.in_target(e)),
+            other => other,
+        })?;
+    staged.commit()?;
+    let drawn = match chosen.len() == slabs.len() {
+        true => format!("{} slabs", slabs.len()),
+        false => format!("{} of {} slabs", chosen.len(), slabs.len()),
+    };
     println!(
-        "{}: {} slabs -> {} pictures in {}",
+        "{}: {drawn} -> {} pictures in {}",
         dir.display(),
-        slabs.len(),
         written.len(),
-        out.display()
+        target.display()
     );
     Ok(())
+}
+
+/// Whether two paths name the same existing directory.
+fn same_directory(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
+}
+
+/// The view that `meshflow solve` recorded in `DIR/summary.json`; the default view (+z up) for
+/// outputs without one.
+fn solved_view(dir: &Path) -> Result<View, Error> {
+    let file = dir.join("summary.json");
+    let text = match std::fs::read(&file) {
+        Ok(text) => text,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(View::default()),
+        Err(e) => return Err(IoError::file(&file, e).into()),
+    };
+    let summary: serde_json::Value = serde_json::from_slice(&text)
+        .map_err(|e| IoError::format(&file, format!("not JSON ({e})")))?;
+    match summary.get("view") {
+        None => Ok(View::default()),
+        Some(view) => serde_json::from_value(view.clone())
+            .map_err(|e| IoError::format(&file, format!("'view' is not a view ({e})")).into()),
+    }
 }

@@ -31,3 +31,11 @@ pub fn count_progress(total: u64, what: &str) -> indicatif::ProgressBar {
     bar.enable_steady_tick(std::time::Duration::from_millis(200));
     bar
 }
+
+/// Runs `step` under a spinner saying `message`, so that no phase runs silently.
+pub fn during<T>(message: impl Into<String>, step: impl FnOnce() -> T) -> T {
+    let spinner = spinner(message.into());
+    let result = step();
+    spinner.finish_and_clear();
+    result
+}

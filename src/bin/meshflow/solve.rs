@@ -1,14 +1,14 @@
 //! `meshflow solve`: read a sequence, compute its flow, write the outputs (and pictures).
 
 use crate::pictures;
-use crate::progress::{solver_progress, spinner};
+use crate::progress::{during, solver_progress};
 use crate::SolveArgs;
 use meshflow::accuracy::FlowErrors;
 use meshflow::accuracy::{check_embedded, compare_result};
 use meshflow::flow::{FlowParams, FlowProblem, FlowResult, SolveEvent, Weight, Weights};
 use meshflow::io::{load_sequence, write_flow_outputs, LoadOptions, StagedDir};
 use meshflow::io::{read_ground_truth, GroundTruthReport, LoadedSequence};
-use meshflow::render::sequence_views;
+use meshflow::render::{sequence_views, View};
 use meshflow::Error;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
@@ -32,19 +32,21 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         ..FlowParams::default()
     };
     params.validate()?;
-    // Before any long computation: fail now if the output cannot be written.
-    let out = StagedDir::new(&args.out)?;
+    // Before any long computation: fail now if the output cannot be written or would replace
+    // files that are not an earlier meshflow output.
+    let mut out = StagedDir::create(&args.out, args.force.overwrite())?;
+    out.record_command(crate::command_line());
     let options = LoadOptions {
         intensity: args.intensity.clone(),
         intensity_attribute: args.intensity_attribute.clone(),
         times: args.times.clone(),
         fps: args.fps,
         weld: !args.no_weld,
+        animation: args.animation.clone(),
     };
-    let reading = spinner(format!("reading {}", args.input.display()));
-    let loaded = load_sequence(&args.input, &options);
-    reading.finish_and_clear();
-    let loaded = loaded?;
+    let loaded = during(format!("reading {}", args.input.display()), || {
+        load_sequence(&args.input, &options)
+    })?;
     for warning in &loaded.warnings {
         eprintln!("meshflow: warning: {warning}");
     }
@@ -60,12 +62,21 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
             n => format!(" (welded {n} duplicate vertices)"),
         }
     );
+    let slabs = match args.png {
+        true => args.pictures.slabs(sequence.n_slabs())?,
+        false => Vec::new(),
+    };
+    let view = args
+        .pictures
+        .view(View::default().with_up(loaded.source.up()));
     let truth = args
         .ground_truth
         .as_deref()
         .map(|file| read_truth(file, &loaded))
         .transpose()?;
-    let problem = FlowProblem::new(sequence, &params)?;
+    let problem = during("assembling the space-time system", || {
+        FlowProblem::new(sequence, &params)
+    })?;
     let progress = solver_progress(params.tolerance);
     let result = problem.solve(&|event| match event {
         SolveEvent::Factorizing { slabs } => progress.set_message(match slabs {
@@ -96,26 +107,29 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
             })
         })
         .transpose()?;
-    write_flow_outputs(
-        &out,
-        &loaded,
-        &params,
-        &result,
-        &args.format,
-        report.as_ref(),
-    )?;
-    if args.png {
-        draw_pictures(
-            out.path(),
+    during(format!("writing {}", args.out.display()), || {
+        write_flow_outputs(
+            &out,
             &loaded,
+            &params,
             &result,
+            &args.format,
             report.as_ref(),
-            &args.pictures,
+            &view,
         )
-        .map_err(|e| match e {
-            Error::Io(e) => Error::Io(out.in_target(e)),
-            other => other,
-        })?;
+    })?;
+    if args.png {
+        let pictures = Pictures {
+            slabs: &slabs,
+            view,
+            args: &args.pictures,
+        };
+        pictures
+            .draw(out.path(), &loaded, &result, report.as_ref())
+            .map_err(|e| match e {
+                Error::Io(e) => Error::Io(out.in_target(e)),
+                other => other,
+            })?;
     }
     out.commit()?;
     println!(
@@ -154,23 +168,32 @@ fn read_truth(file: &Path, loaded: &LoadedSequence) -> Result<(PathBuf, TrueFlow
     Ok((file.to_path_buf(), truth))
 }
 
-/// `--png`: the pictures of every slab, from the flow in memory, into the staged output.
-fn draw_pictures(
-    dir: &Path,
-    loaded: &LoadedSequence,
-    result: &FlowResult,
-    report: Option<&GroundTruthReport>,
-    args: &pictures::PictureArgs,
-) -> Result<(), Error> {
-    let sequence = &loaded.sequence;
-    let vectors = result
-        .vectors
-        .as_ref()
-        .expect("sequences read from files are embedded");
-    let errors = report.map(|r| r.errors.angular_degrees.as_slice());
-    let views = sequence_views(sequence, vectors, errors, 0..sequence.n_slabs())?;
-    pictures::draw(dir, sequence.mesh().faces(), &views, args)?;
-    Ok(())
+/// `--png`: which slabs, seen how.
+struct Pictures<'a> {
+    slabs: &'a [usize],
+    view: View,
+    args: &'a pictures::PictureArgs,
+}
+
+impl Pictures<'_> {
+    /// Draws the slabs, from the flow in memory, into the staged output `dir`.
+    fn draw(
+        &self,
+        dir: &Path,
+        loaded: &LoadedSequence,
+        result: &FlowResult,
+        report: Option<&GroundTruthReport>,
+    ) -> Result<(), Error> {
+        let sequence = &loaded.sequence;
+        let vectors = result
+            .vectors
+            .as_ref()
+            .expect("sequences read from files are embedded");
+        let errors = report.map(|r| r.errors.angular_degrees.as_slice());
+        let views = sequence_views(sequence, vectors, errors, self.slabs.iter().copied())?;
+        pictures::draw(dir, sequence.mesh().faces(), &views, self.args, self.view)?;
+        Ok(())
+    }
 }
 
 /// One line with the weights used, and the unit-free scales they came from.

@@ -12,11 +12,104 @@
 //!
 //! with keyframe values `v`, out-tangents `b` and in-tangents `a`; outside the keyframes the
 //! first or last values hold.
+//!
+//! A file may hold several animations (clips). The one read is chosen by name or index, else it
+//! is the first with a `weights` channel on the mesh node (and a warning lists them all when
+//! there are several).
 
 use super::{ancestry, GltfFile, NO_ANIMATION};
-use crate::io::IoError;
+use crate::io::{IoError, LoadWarning};
 use gltf::animation::{Interpolation, Property};
 use gltf::Node;
+
+/// One animation of a glTF file, as listed in messages: `1: "Pulse"`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct AnimationClip {
+    pub index: usize,
+    pub name: Option<String>,
+    /// Whether it animates the morph weights of the mesh's node (only those can be read).
+    pub moves_mesh: bool,
+}
+
+impl std::fmt::Display for AnimationClip {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.name {
+            Some(name) => write!(f, "{}: {name:?}", self.index)?,
+            None => write!(f, "{}: (unnamed)", self.index)?,
+        }
+        match self.moves_mesh {
+            true => Ok(()),
+            false => f.write_str(" (no morph weights)"),
+        }
+    }
+}
+
+/// `0: "A", 1: "B"`.
+pub(crate) fn clip_list(clips: &[AnimationClip]) -> String {
+    let listed: Vec<String> = clips.iter().map(ToString::to_string).collect();
+    listed.join(", ")
+}
+
+/// The `weights` channel of `animation` on `node`.
+fn weights_channel<'a>(
+    animation: &gltf::Animation<'a>,
+    node: &Node,
+) -> Option<gltf::animation::Channel<'a>> {
+    animation.channels().find(|c| {
+        c.target().node().index() == node.index()
+            && c.target().property() == Property::MorphTargetWeights
+    })
+}
+
+/// The `weights` channel to read: that of the animation named (by name, else by index) by
+/// `choice`, or of the first animation that has one; with a warning when the choice was
+/// implicit among several animations.
+fn chosen_channel<'a>(
+    file: &'a GltfFile,
+    node: &Node,
+    choice: Option<&str>,
+) -> Result<(gltf::animation::Channel<'a>, Option<LoadWarning>), IoError> {
+    let animations: Vec<gltf::Animation> = file.document.animations().collect();
+    let clips: Vec<AnimationClip> = animations
+        .iter()
+        .map(|a| AnimationClip {
+            index: a.index(),
+            name: a.name().map(str::to_string),
+            moves_mesh: weights_channel(a, node).is_some(),
+        })
+        .collect();
+    let Some(choice) = choice else {
+        let first = clips
+            .iter()
+            .position(|c| c.moves_mesh)
+            .ok_or_else(|| file.error(NO_ANIMATION))?;
+        let warning = (clips.len() > 1).then(|| LoadWarning::SeveralAnimations {
+            file: file.path.to_path_buf(),
+            chosen: clips[first].clone(),
+            clips: clips.clone(),
+        });
+        let channel = weights_channel(&animations[first], node).expect("it moves the mesh");
+        return Ok((channel, warning));
+    };
+    let found = clips
+        .iter()
+        .position(|c| c.name.as_deref() == Some(choice))
+        .or_else(|| choice.trim().parse().ok().filter(|&i| i < clips.len()));
+    let listing = match clips.is_empty() {
+        true => "the file has no animations".to_string(),
+        false => format!("the file has {}", clip_list(&clips)),
+    };
+    let Some(index) = found else {
+        return Err(file.error(format!("no animation {choice:?}: {listing}")));
+    };
+    match weights_channel(&animations[index], node) {
+        Some(channel) => Ok((channel, None)),
+        None => Err(file.error(format!(
+            "animation {} does not animate the morph weights of the mesh: {listing}",
+            clips[index]
+        ))),
+    }
+}
 
 /// The animated morph weights of the mesh node.
 pub(super) struct WeightTrack {
@@ -29,20 +122,18 @@ pub(super) struct WeightTrack {
 }
 
 impl WeightTrack {
-    /// The sampler of the first `weights` channel on `node`.
-    pub fn read(file: &GltfFile, node: &Node, target_count: usize) -> Result<Self, IoError> {
+    /// The sampler of the `weights` channel on `node` of the animation `choice` names (by name,
+    /// else by index), or of the first animation with one; see the module documentation.
+    pub fn read(
+        file: &GltfFile,
+        node: &Node,
+        target_count: usize,
+        choice: Option<&str>,
+    ) -> Result<(Self, Option<LoadWarning>), IoError> {
         if target_count == 0 {
             return Err(file.error(format!("the mesh has no morph targets: {NO_ANIMATION}")));
         }
-        let channel = file
-            .document
-            .animations()
-            .flat_map(|a| a.channels())
-            .find(|c| {
-                c.target().node().index() == node.index()
-                    && c.target().property() == Property::MorphTargetWeights
-            })
-            .ok_or_else(|| file.error(NO_ANIMATION))?;
+        let (channel, warning) = chosen_channel(file, node, choice)?;
         check_no_node_motion(file, &channel.animation(), node)?;
         let sampler = channel.sampler();
         let label = format!(
@@ -77,12 +168,13 @@ impl WeightTrack {
             .into_iter()
             .map(|[w]| w)
             .collect();
-        Ok(Self {
+        let track = Self {
             times,
             interpolation,
             outputs,
             target_count,
-        })
+        };
+        Ok((track, warning))
     }
 
     /// Part `part` of keyframe `k`'s outputs (0 = values; for CUBICSPLINE −1 = in-tangents,
