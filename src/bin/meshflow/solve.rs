@@ -31,15 +31,13 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         intensity_attribute: args.intensity_attribute.clone(),
         times: args.times.clone(),
         fps: args.fps,
-        weld: !args.no_weld,
+        ..args.building.options()
     };
     let reading = spinner(format!("reading {}", args.input.display()));
     let loaded = load_sequence(&args.input, &options);
     reading.finish_and_clear();
     let loaded = loaded?;
-    for warning in &loaded.warnings {
-        eprintln!("meshflow: warning: {warning}");
-    }
+    crate::print_warnings(&loaded.warnings);
     let sequence = &loaded.sequence;
     println!(
         "{}: {}, {} vertices, {} faces{}",
@@ -47,7 +45,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         loaded.source.describe(),
         sequence.mesh().n_vertices(),
         sequence.mesh().n_faces(),
-        match loaded.welding.n_welded() {
+        match loaded.vertex_map.n_welded() {
             0 => String::new(),
             n => format!(" (welded {n} duplicate vertices)"),
         }
@@ -135,7 +133,7 @@ type TrueFlow = Vec<Vec<Vector3<f64>>>;
 /// fails at once.
 fn read_truth(file: &Path, loaded: &LoadedSequence) -> Result<(PathBuf, TrueFlow), Error> {
     check_embedded(&loaded.sequence).map_err(|e| Error::from(e).in_file(file))?;
-    let truth = read_ground_truth(file, &loaded.welding, loaded.sequence.n_slabs())?;
+    let truth = read_ground_truth(file, &loaded.vertex_map, loaded.sequence.n_slabs())?;
     Ok((file.to_path_buf(), truth))
 }
 
