@@ -314,7 +314,7 @@ fn textured_obj_frames_are_sampled_bilinearly_and_welded() {
     let loaded = load_sequence(dir.path(), &Default::default()).unwrap();
     let sequence = &loaded.sequence;
     assert_eq!(sequence.mesh().n_vertices(), n_vertices);
-    assert_eq!(loaded.welding.n_welded(), 3 * 2 * n * n - n_vertices);
+    assert_eq!(loaded.vertex_map.n_welded(), 3 * 2 * n * n - n_vertices);
     assert!(
         sequence.mesh().euler_characteristic() == 1,
         "one disc, not loose triangles"
