@@ -171,7 +171,8 @@ fn ground_truth_is_float32_or_float64_and_lands_on_mesh_vertices() {
     use meshflow::io::{read_ground_truth, VertexMap};
     let dir = tempfile::tempdir().unwrap();
     // File vertex 3 is a welded copy of 0, file vertex 4 was dropped.
-    let welding = VertexMap::from_mesh_vertices(&[Some(0), Some(1), Some(2), Some(0), None]).unwrap();
+    let welding =
+        VertexMap::from_mesh_vertices(&[Some(0), Some(1), Some(2), Some(0), None]).unwrap();
     // (slabs 2, file vertices 5, 3); row 3 repeats row 0 in each slab, row 4 is NaN (ignored).
     let row = |s: usize, i: usize| match i {
         4 => [f64::NAN; 3],

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 #[non_exhaustive]
 pub enum LoadWarning {
     /// File vertices that are shared by no face were left out of the mesh.
-    #[error("{}: dropped {count} vertices that no face uses (e.g. file vertex {first}); outputs keep the file's numbering", file.display())]
+    #[error("{}: dropped {} that no face uses (e.g. file vertex {first}); outputs keep the file's numbering", file.display(), counted(*count, "vertex", "vertices"))]
     UnusedVertices {
         file: PathBuf,
         count: usize,
@@ -19,14 +19,14 @@ pub enum LoadWarning {
     },
     /// Coincident vertices that were not welded: joining them would make the mesh
     /// non-manifold (the surface touches itself there).
-    #[error("{}: kept {count} pairs of coincident vertices apart where the surface touches itself (e.g. file vertices {} and {}); they are not seam copies", file.display(), first[0], first[1])]
+    #[error("{}: kept {} of coincident vertices apart where the surface touches itself (e.g. file vertices {} and {}); they are not seam copies", file.display(), counted(*count, "pair", "pairs"), first[0], first[1])]
     TouchingVertices {
         file: PathBuf,
         count: usize,
         first: [usize; 2],
     },
     /// Faces flipped to agree with their neighbours.
-    #[error("{}: flipped {count} faces to orient them like their neighbours", file.display())]
+    #[error("{}: flipped {} to orient them like their neighbours", file.display(), counted(*count, "face", "faces"))]
     FlippedFaces { file: PathBuf, count: usize },
     /// What `--repair` changed.
     #[error("{}: repaired: {}", file.display(), describe_repair(report))]
@@ -35,29 +35,27 @@ pub enum LoadWarning {
 
 /// The non-zero counts of a repair (flips are reported on their own).
 fn describe_repair(report: &RepairReport) -> String {
-    let count =
-        |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
     let mut said = Vec::new();
     if report.degenerate_faces > 0 {
-        let faces = count(report.degenerate_faces, "face", "faces");
+        let faces = counted(report.degenerate_faces, "face", "faces");
         said.push(format!("removed {faces} with a repeated vertex"));
     }
     if report.duplicate_faces > 0 {
-        let faces = count(report.duplicate_faces, "duplicate face", "duplicate faces");
+        let faces = counted(report.duplicate_faces, "duplicate face", "duplicate faces");
         said.push(format!("removed {faces}"));
     }
     if report.non_manifold_edges > 0 {
-        let edges = count(report.non_manifold_edges, "edge", "edges");
+        let edges = counted(report.non_manifold_edges, "edge", "edges");
         said.push(format!("cut {edges} with three or more faces"));
     }
     if report.orientation_cuts > 0 {
-        let edges = count(report.orientation_cuts, "edge", "edges");
+        let edges = counted(report.orientation_cuts, "edge", "edges");
         said.push(format!(
             "cut {edges} where the orientation flips (not orientable)"
         ));
     }
     if report.split_vertices > 0 {
-        let vertices = count(
+        let vertices = counted(
             report.split_vertices,
             "non-manifold vertex",
             "non-manifold vertices",
@@ -66,4 +64,9 @@ fn describe_repair(report: &RepairReport) -> String {
         said.push(format!("split {vertices} into {pieces}"));
     }
     said.join(", ")
+}
+
+/// "1 face", "2 faces".
+fn counted(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
 }

@@ -176,6 +176,15 @@ fn main() -> ExitCode {
     }
 }
 
+/// " (welded N duplicate vertices)" after a vertex count, or nothing.
+fn welded_note(n_welded: usize) -> String {
+    match n_welded {
+        0 => String::new(),
+        1 => " (welded 1 duplicate vertex)".into(),
+        n => format!(" (welded {n} duplicate vertices)"),
+    }
+}
+
 /// One `meshflow: warning: …` line per warning, on stderr.
 fn print_warnings(warnings: &[meshflow::io::LoadWarning]) {
     for warning in warnings {

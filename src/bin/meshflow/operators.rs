@@ -52,10 +52,7 @@ pub fn write_operators(mesh_path: &Path, out: &Path, options: &LoadOptions) -> R
         "{}: {} vertices{}, {} faces, {} boundary vertices, Euler characteristic {} -> {}",
         mesh_path.display(),
         mesh.n_vertices(),
-        match map.n_welded() {
-            0 => String::new(),
-            n => format!(" (welded {n} duplicate vertices)"),
-        },
+        crate::welded_note(map.n_welded()),
         mesh.n_faces(),
         (0..mesh.n_vertices())
             .filter(|&i| mesh.is_boundary_vertex(i))

@@ -45,10 +45,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         loaded.source.describe(),
         sequence.mesh().n_vertices(),
         sequence.mesh().n_faces(),
-        match loaded.vertex_map.n_welded() {
-            0 => String::new(),
-            n => format!(" (welded {n} duplicate vertices)"),
-        }
+        crate::welded_note(loaded.vertex_map.n_welded())
     );
     let truth = args
         .ground_truth
