@@ -16,7 +16,8 @@ use super::gltf_read::read_gltf_geometry;
 use super::ply::read_ply;
 use super::weld::{weld, Weld};
 use super::{read_obj, FrameFormat, IoError, LoadOptions, LoadWarning, VertexMap};
-use crate::mesh::{check_index_range, orient, repair, ConnectivityError, Mesh, RepairReport};
+use crate::mesh::{check_index_range, orient, repair, ConnectivityError, Mesh};
+use crate::mesh::{RepairReport, Repaired};
 use crate::Error;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
@@ -61,24 +62,29 @@ pub(crate) fn prepare_mesh(
         file,
         welded: &weld.welded,
     };
-    let (connected, report) = match options.repair {
+    let (mut connected, mut report) = match options.repair {
         true => {
             let repaired = repair(weld.n_welded, &welded_faces);
             let report = repaired.report;
             (repaired, report)
         }
-        false => {
-            let mut oriented = welded_faces;
-            let flipped = orient(&mut oriented).map_err(|e| names.error(e, &identity))?;
-            let report = RepairReport {
-                flipped_faces: flipped,
-                ..RepairReport::default()
-            };
-            (drop_unused(weld.n_welded, oriented), report)
-        }
+        false => (
+            drop_unused(weld.n_welded, welded_faces),
+            RepairReport::default(),
+        ),
     };
-    let mesh = Mesh::new(connected.vertex_origin.len(), connected.faces.clone())
-        .map_err(|e| names.error(e, &|m| connected.vertex_origin[m as usize]))?;
+    let welded_of = |m: u32| connected.vertex_origin[m as usize];
+    let n_mesh = connected.vertex_origin.len();
+    let mesh = match Mesh::new(n_mesh, connected.faces.clone()) {
+        // Orienting costs as much as validating: only when needed (repair has oriented).
+        Err(ConnectivityError::InconsistentOrientation { .. }) if !options.repair => {
+            report.flipped_faces =
+                orient(&mut connected.faces).map_err(|e| names.error(e, &welded_of))?;
+            Mesh::new(n_mesh, connected.faces.clone())
+        }
+        built => built,
+    }
+    .map_err(|e| names.error(e, &welded_of))?;
     let vertex_map = vertex_map(faces, &weld, &connected);
     let warnings = warnings(file, faces, n_file, &weld, &report);
     Ok(Prepared {
@@ -88,13 +94,9 @@ pub(crate) fn prepare_mesh(
     })
 }
 
-fn identity(w: u32) -> u32 {
-    w
-}
-
 /// The faces over the used vertices only, renumbered in order (`vertex_origin`: the old
 /// number of each new vertex), in [`repair`]'s output form.
-fn drop_unused(n_vertices: usize, faces: Vec<[u32; 3]>) -> crate::mesh::Repaired {
+fn drop_unused(n_vertices: usize, faces: Vec<[u32; 3]>) -> Repaired {
     let mut new_number = vec![u32::MAX; n_vertices];
     for &v in faces.iter().flatten() {
         new_number[v as usize] = 0;
@@ -106,7 +108,7 @@ fn drop_unused(n_vertices: usize, faces: Vec<[u32; 3]>) -> crate::mesh::Repaired
             vertex_origin.push(v as u32);
         }
     }
-    crate::mesh::Repaired {
+    Repaired {
         face_origin: (0..faces.len() as u32).collect(),
         faces: faces
             .into_iter()
@@ -118,11 +120,7 @@ fn drop_unused(n_vertices: usize, faces: Vec<[u32; 3]>) -> crate::mesh::Repaired
 }
 
 /// Follows every corner of the mesh back to its file vertex (see [`VertexMap`]'s conventions).
-fn vertex_map(
-    file_faces: &[[u32; 3]],
-    weld: &Weld,
-    connected: &crate::mesh::Repaired,
-) -> VertexMap {
+fn vertex_map(file_faces: &[[u32; 3]], weld: &Weld, connected: &Repaired) -> VertexMap {
     const NONE: u32 = u32::MAX;
     let n_mesh = connected.vertex_origin.len();
     let mut mesh_vertices = vec![NONE; weld.welded.len()];

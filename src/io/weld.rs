@@ -26,6 +26,7 @@
 
 use crate::mesh::UnionFind;
 use nalgebra::Vector3;
+use rayon::prelude::*;
 use std::collections::{HashMap, HashSet};
 
 /// The outcome of [`weld`].
@@ -56,11 +57,21 @@ impl Weld {
 /// be in range.
 pub(crate) fn weld(faces: &[[u32; 3]], frames: &[Vec<Vector3<f64>>], tolerance: f64) -> Weld {
     let n = frames.first().map_or(0, Vec::len);
-    let surface = Surface::new(n, faces);
-    let pairs = coincident_pairs(&surface, frames, tolerance);
-    if pairs.is_empty() {
+    let mut used = vec![false; n];
+    faces
+        .iter()
+        .flatten()
+        .for_each(|&v| used[v as usize] = true);
+    let close = close_pairs(&used, frames, tolerance);
+    if close.is_empty() {
         return Weld::none(n);
     }
+    // Most meshes have no close pairs: the face tables are built only when some are.
+    let surface = Surface::new(n, faces);
+    let pairs: Vec<[u32; 2]> = close
+        .into_iter()
+        .filter(|&[a, b]| !surface.share_a_face(a, b))
+        .collect();
     let candidates = Adjacency::from_pairs(n, &pairs);
     let mut joined = UnionFind::new(n);
     for face in faces {
@@ -124,10 +135,6 @@ impl<'a> Surface<'a> {
             vertex_faces: Adjacency::from_directed(n, &incidences),
             edges,
         }
-    }
-
-    fn is_used(&self, v: u32) -> bool {
-        !self.vertex_faces.of(v).is_empty()
     }
 
     fn has_edge(&self, a: u32, b: u32) -> bool {
@@ -194,17 +201,14 @@ impl Adjacency {
     }
 }
 
-/// Coincident pairs `[a, b]`, `a < b` (rule 1), found through a grid on frame 0.
-fn coincident_pairs(
-    surface: &Surface,
-    frames: &[Vec<Vector3<f64>>],
-    tolerance: f64,
-) -> Vec<[u32; 2]> {
+/// Pairs `[a, b]`, `a < b`, of used vertices close in every frame (rule 1 without the face
+/// condition), found through a grid on frame 0.
+fn close_pairs(used: &[bool], frames: &[Vec<Vector3<f64>>], tolerance: f64) -> Vec<[u32; 2]> {
     let Some(first) = frames.first() else {
         return Vec::new();
     };
     let used: Vec<u32> = (0..first.len() as u32)
-        .filter(|&v| surface.is_used(v))
+        .filter(|&v| used[v as usize])
         .collect();
     let (low, high) = used.iter().fold(
         (
@@ -230,25 +234,28 @@ fn coincident_pairs(
             Grid::Cells { .. } => (p[a] - p[b]).norm() <= radius,
         })
     };
-    let mut cells: HashMap<[u64; 3], Vec<u32>> = HashMap::with_capacity(used.len());
-    for &v in &used {
-        cells
-            .entry(grid.cell(&first[v as usize]).0)
-            .or_default()
-            .push(v);
-    }
-    let mut pairs = Vec::new();
-    for &a in &used {
-        let (_, neighbours) = grid.cell(&first[a as usize]);
-        for key in neighbours {
-            for &b in cells.get(&key).into_iter().flatten() {
-                if a < b && close(a as usize, b as usize) && !surface.share_a_face(a, b) {
-                    pairs.push([a, b]);
-                }
-            }
-        }
-    }
-    pairs
+    // Vertices sorted by cell: a cell's vertices are one run, found by binary search.
+    let mut cells: Vec<([u64; 3], u32)> = used
+        .par_iter()
+        .map(|&v| (grid.key(&first[v as usize]), v))
+        .collect();
+    cells.par_sort_unstable();
+    used.par_iter()
+        .flat_map_iter(|&a| {
+            let mut pairs = Vec::new();
+            grid.for_each_neighbour(&first[a as usize], |key| {
+                let start = cells.partition_point(|(k, _)| *k < key);
+                let run = cells[start..].iter().take_while(|(k, _)| *k == key);
+                let partners = run.map(|&(_, b)| b);
+                pairs.extend(
+                    partners
+                        .filter(|&b| a < b && close(a as usize, b as usize))
+                        .map(|b| [a, b]),
+                );
+            });
+            pairs
+        })
+        .collect()
 }
 
 /// Grid cells are this many times the welding radius: a vertex's partners lie in its own cell
@@ -265,39 +272,49 @@ enum Grid {
 }
 
 impl Grid {
-    /// The key of `p`'s bucket, and the keys of the buckets its partners may be in (its own
-    /// among them). Cell keys are the bits of the floored f64 cell coordinates, which stay
-    /// distinct for any ratio of extent to radius.
-    fn cell(&self, p: &Vector3<f64>) -> ([u64; 3], Vec<[u64; 3]>) {
-        let Grid::Cells { origin, size } = *self else {
-            let key = bitwise_key(p);
-            return (key, vec![key]);
-        };
-        let q = (p - origin) / size;
-        let mut axes: [Vec<f64>; 3] = Default::default();
-        for (axis, options) in axes.iter_mut().enumerate() {
-            let k = q[axis].floor();
-            let fraction = q[axis] - k;
-            options.push(k);
-            if fraction < 1.0 / 3.0 {
-                options.push(k - 1.0);
-            }
-            if fraction > 2.0 / 3.0 {
-                options.push(k + 1.0);
+    /// The bucket of `p`: its bits, or the bits of its floored f64 cell coordinates (which
+    /// stay distinct for any ratio of extent to radius).
+    fn key(&self, p: &Vector3<f64>) -> [u64; 3] {
+        match *self {
+            Grid::Bitwise => bitwise_key(p),
+            Grid::Cells { origin, size } => {
+                let q = ((p - origin) / size).map(f64::floor);
+                [q.x, q.y, q.z].map(|c| (c + 0.0).to_bits())
             }
         }
-        let mut neighbours = Vec::with_capacity(8);
-        for &x in &axes[0] {
-            for &y in &axes[1] {
-                for &z in &axes[2] {
-                    let key = [x, y, z].map(|c: f64| (c + 0.0).to_bits());
-                    if !neighbours.contains(&key) {
-                        neighbours.push(key);
-                    }
+    }
+
+    /// Calls `visit` with each bucket where `p`'s partners may be, its own among them.
+    fn for_each_neighbour(&self, p: &Vector3<f64>, mut visit: impl FnMut([u64; 3])) {
+        let Grid::Cells { origin, size } = *self else {
+            return visit(bitwise_key(p));
+        };
+        let q = (p - origin) / size;
+        // Per axis: the cell, and its neighbour across a face less than a third of a cell away.
+        let mut axes = [[0.0; 2]; 3];
+        let mut counts = [1; 3];
+        for axis in 0..3 {
+            let k = q[axis].floor();
+            let fraction = q[axis] - k;
+            axes[axis][0] = k;
+            let across = match fraction {
+                f if f < 1.0 / 3.0 => k - 1.0,
+                f if f > 2.0 / 3.0 => k + 1.0,
+                _ => k,
+            };
+            // Far from the origin k ± 1 may round to k.
+            if across != k {
+                axes[axis][1] = across;
+                counts[axis] = 2;
+            }
+        }
+        for &x in &axes[0][..counts[0]] {
+            for &y in &axes[1][..counts[1]] {
+                for &z in &axes[2][..counts[2]] {
+                    visit([x, y, z].map(|c: f64| (c + 0.0).to_bits()));
                 }
             }
         }
-        (neighbours[0], neighbours)
     }
 }
 
