@@ -123,10 +123,10 @@ fn octahedron(centre: Vector3<f64>, first: u32) -> (Vec<Vector3<f64>>, Vec<[u32;
     (positions, faces)
 }
 
-fn two_octahedra(
-    a: Vector3<f64>,
-    b: Vector3<f64>,
-) -> (Vec<Vector3<f64>>, Vec<[u32; 3]>, Vec<[u32; 3]>) {
+/// Positions of both, faces of the first, faces of the second.
+type TwoSurfaces = (Vec<Vector3<f64>>, Vec<[u32; 3]>, Vec<[u32; 3]>);
+
+fn two_octahedra(a: Vector3<f64>, b: Vector3<f64>) -> TwoSurfaces {
     let (mut positions, faces_a) = octahedron(a, 0);
     let (positions_b, faces_b) = octahedron(b, 6);
     positions.extend(positions_b);

@@ -15,7 +15,7 @@
 use super::gltf_read::read_gltf_geometry;
 use super::ply::read_ply;
 use super::weld::{weld, Weld};
-use super::{read_obj, FrameFormat, IoError, LoadOptions, LoadWarning, VertexMap};
+use super::{read_obj, FrameFormat, FrameMesh, IoError, LoadOptions, LoadWarning, VertexMap};
 use crate::mesh::{check_index_range, orient, repair, ConnectivityError, Mesh};
 use crate::mesh::{RepairReport, Repaired};
 use crate::Error;
@@ -270,7 +270,9 @@ pub struct LoadedMesh {
 /// opened) and builds its mesh by the module's steps; of `options`, `weld`, `weld_tolerance`
 /// and `repair` apply.
 pub fn load_mesh(path: &Path, options: &LoadOptions) -> Result<LoadedMesh, Error> {
-    let (positions, faces) = read_mesh_geometry(path)?;
+    let FrameMesh {
+        positions, faces, ..
+    } = read_mesh_geometry(path)?;
     crate::geometry::check_finite_positions(&positions)
         .map_err(|e| Error::from(e).in_file(path))?;
     let frames = [positions];
@@ -285,15 +287,16 @@ pub fn load_mesh(path: &Path, options: &LoadOptions) -> Result<LoadedMesh, Error
     })
 }
 
-/// Positions and faces of a mesh file, as stored; no textures or colours are read.
-pub fn read_mesh_geometry(path: &Path) -> Result<(Vec<Vector3<f64>>, Vec<[u32; 3]>), IoError> {
+/// Positions and faces of a mesh file, as stored (`intensity` is `None`): no colours are
+/// read and no textures opened.
+pub fn read_mesh_geometry(path: &Path) -> Result<FrameMesh, IoError> {
     let format = FrameFormat::of(path).ok_or_else(|| {
         IoError::format(
             path,
             "unknown mesh format (expected .obj, .ply, .gltf or .glb)",
         )
     })?;
-    Ok(match format {
+    let (positions, faces) = match format {
         FrameFormat::Obj => {
             let obj = read_obj(path)?;
             (obj.positions, obj.faces)
@@ -302,9 +305,11 @@ pub fn read_mesh_geometry(path: &Path) -> Result<(Vec<Vector3<f64>>, Vec<[u32; 3
             let ply = read_ply(path)?;
             (ply.positions, ply.faces)
         }
-        FrameFormat::Gltf => {
-            let gltf = read_gltf_geometry(path)?;
-            (gltf.positions, gltf.faces)
-        }
+        FrameFormat::Gltf => return read_gltf_geometry(path),
+    };
+    Ok(FrameMesh {
+        positions,
+        faces,
+        intensity: None,
     })
 }

@@ -246,8 +246,7 @@ impl Orientation {
             component.clear();
             while let Some(f) = queue.pop_front() {
                 component.push(f);
-                for h in 3 * f..3 * f + 3 {
-                    let (other, same) = partner[h];
+                for &(other, same) in &partner[3 * f..3 * f + 3] {
                     let g = other as usize / 3;
                     if other != NO_HALFEDGE && !visited[g] {
                         visited[g] = true;
