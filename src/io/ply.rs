@@ -890,20 +890,12 @@ fn read_faces(
 ) -> Result<Vec<[u32; 3]>, ParseError> {
     let mut faces = Vec::with_capacity(capacity(element.count));
     let mut corners = Vec::new();
-    for index in 0..element.count {
-        for (k, property) in element.properties.iter().enumerate() {
-            let at = locate(element, index, property);
-            match property.kind {
-                Kind::List { count, item } if k == plan.index_list => {
-                    read_corners(body, count, item, plan.vertex_count, &mut corners).map_err(at)?;
-                    let fan =
-                        (1..corners.len() - 1).map(|k| [corners[0], corners[k], corners[k + 1]]);
-                    faces.extend(fan);
-                }
-                kind => skip_property(body, kind).map_err(at)?,
-            }
-        }
-    }
+    read_index_lists(body, element, plan.index_list, |body, count, item| {
+        read_corners(body, count, item, plan.vertex_count, &mut corners)?;
+        let fan = (1..corners.len() - 1).map(|k| [corners[0], corners[k], corners[k + 1]]);
+        faces.extend(fan);
+        Ok(())
+    })?;
     Ok(faces)
 }
 
@@ -914,31 +906,43 @@ fn read_strips(
 ) -> Result<Vec<[u32; 3]>, ParseError> {
     let mut triangles = Vec::new();
     let mut strip = Vec::new();
+    read_index_lists(body, element, plan.strip_list, |body, count, item| {
+        let n = list_length(body, count)?;
+        strip.clear();
+        for _ in 0..n {
+            let value = body.value(item)?;
+            if value == -1.0 {
+                add_strip(&strip, &mut triangles);
+                strip.clear();
+                continue;
+            }
+            let vertex = vertex_index(value, plan.vertex_count).map_err(|m| body.invalid(m))?;
+            strip.push(vertex);
+        }
+        add_strip(&strip, &mut triangles);
+        Ok(())
+    })?;
+    Ok(triangles)
+}
+
+/// Reads the records of a face or strip element: the index list (property `list`, with its
+/// count and item types) by `read`, the other properties skipped.
+fn read_index_lists<B: Body>(
+    body: &mut B,
+    element: &Element,
+    list: usize,
+    mut read: impl FnMut(&mut B, Scalar, Scalar) -> Result<(), RecordError>,
+) -> Result<(), ParseError> {
     for index in 0..element.count {
         for (k, property) in element.properties.iter().enumerate() {
             let at = locate(element, index, property);
             match property.kind {
-                Kind::List { count, item } if k == plan.strip_list => {
-                    let n = list_length(body, count).map_err(&at)?;
-                    strip.clear();
-                    for _ in 0..n {
-                        let value = body.value(item).map_err(&at)?;
-                        if value == -1.0 {
-                            add_strip(&strip, &mut triangles);
-                            strip.clear();
-                            continue;
-                        }
-                        let vertex = vertex_index(value, plan.vertex_count)
-                            .map_err(|m| at(body.invalid(m)))?;
-                        strip.push(vertex);
-                    }
-                    add_strip(&strip, &mut triangles);
-                }
+                Kind::List { count, item } if k == list => read(body, count, item).map_err(at)?,
                 kind => skip_property(body, kind).map_err(at)?,
             }
         }
     }
-    Ok(triangles)
+    Ok(())
 }
 
 /// The triangles of one strip (see the module docs), those with a repeated vertex skipped.
