@@ -4,8 +4,9 @@
 //!    rule and `--weld-tolerance`).
 //! 2. With `--repair`, **repair** ([`crate::mesh::repair`]): drop faces with a repeated vertex
 //!    and duplicate faces, orient, cut non-manifold edges and orientation conflicts, split
-//!    non-manifold vertices. Without it, **orient** ([`crate::mesh::orient`]) and refuse what
-//!    only repair can fix, naming the file's vertices and suggesting `--repair`.
+//!    non-manifold vertices. Without it, **orient** ([`crate::mesh::orient`]) when neighbouring
+//!    faces disagree, and refuse what only repair can fix, naming the file's vertices and
+//!    suggesting `--repair`.
 //! 3. **Drop** vertices that no face uses.
 //!
 //! The [`VertexMap`] records how file vertices became mesh vertices; every change is reported
@@ -64,12 +65,12 @@ pub(crate) fn prepare_mesh(
     };
     let (mut connected, mut report) = match options.repair {
         true => {
-            let repaired = repair(weld.n_welded, &welded_faces);
+            let repaired = repair(weld.n_vertices, &welded_faces);
             let report = repaired.report;
             (repaired, report)
         }
         false => (
-            drop_unused(weld.n_welded, welded_faces),
+            drop_unused(weld.n_vertices, welded_faces),
             RepairReport::default(),
         ),
     };
@@ -143,7 +144,7 @@ fn vertex_map(file_faces: &[[u32; 3]], weld: &Weld, connected: &Repaired) -> Ver
     }
     // File vertices without a face left (their faces removed by repair) go with their welded
     // vertex's first piece, if it has one.
-    let mut first_piece = vec![NONE; weld.n_welded];
+    let mut first_piece = vec![NONE; weld.n_vertices];
     for (m, &w) in connected.vertex_origin.iter().enumerate().rev() {
         first_piece[w as usize] = m as u32;
     }

@@ -161,13 +161,4 @@ impl VertexMap {
             })
             .collect()
     }
-
-    /// The file vertices mapped to mesh vertex `m`, in order (empty for a split-off piece).
-    pub fn file_vertices(&self, m: usize) -> impl Iterator<Item = usize> + '_ {
-        self.mesh_vertices
-            .iter()
-            .enumerate()
-            .filter(move |(_, &x)| x as usize == m)
-            .map(|(i, _)| i)
-    }
 }

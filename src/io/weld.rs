@@ -34,7 +34,8 @@ use std::collections::{HashMap, HashSet};
 pub(crate) struct Weld {
     /// `welded[i]`: the welded vertex of file vertex `i`.
     pub welded: Vec<u32>,
-    pub n_welded: usize,
+    /// How many welded vertices there are.
+    pub n_vertices: usize,
     /// Coincident pairs left apart (a surface touching itself), and the first of them.
     pub apart: usize,
     pub first_apart: Option<[u32; 2]>,
@@ -45,7 +46,7 @@ impl Weld {
     pub fn none(n: usize) -> Self {
         Self {
             welded: (0..n as u32).collect(),
-            n_welded: n,
+            n_vertices: n,
             apart: 0,
             first_apart: None,
         }
@@ -90,13 +91,14 @@ pub(crate) fn weld(faces: &[[u32; 3]], frames: &[Vec<Vector3<f64>>], tolerance: 
     }
     let mut classes = Classes::new(n, &mut joined);
     classes.undo_non_manifold(&surface);
+    // A class's root is its lowest file vertex, so it is numbered first.
     let mut welded = vec![u32::MAX; n];
-    let mut n_welded = 0;
+    let mut n_vertices = 0;
     for i in 0..n {
         let root = classes.class[i] as usize;
         if welded[root] == u32::MAX {
-            welded[root] = n_welded;
-            n_welded += 1;
+            welded[root] = n_vertices;
+            n_vertices += 1;
         }
         welded[i] = welded[root];
     }
@@ -106,7 +108,7 @@ pub(crate) fn weld(faces: &[[u32; 3]], frames: &[Vec<Vector3<f64>>], tolerance: 
         .collect();
     Weld {
         welded,
-        n_welded: n_welded as usize,
+        n_vertices: n_vertices as usize,
         apart: apart.len(),
         first_apart: apart.into_iter().min(),
     }
@@ -334,14 +336,10 @@ struct Classes {
 impl Classes {
     fn new(n: usize, joined: &mut UnionFind) -> Self {
         let class: Vec<u32> = (0..n).map(|i| joined.find(i) as u32).collect();
+        // A root is its class's lowest member: members come in file order after it.
         let mut members: HashMap<u32, Vec<u32>> = HashMap::new();
-        for (i, &c) in class.iter().enumerate() {
-            if c as usize != i || members.contains_key(&c) {
-                members.entry(c).or_insert_with(|| vec![c]);
-                if c as usize != i {
-                    members.get_mut(&c).expect("inserted").push(i as u32);
-                }
-            }
+        for (i, &c) in class.iter().enumerate().filter(|&(i, &c)| c as usize != i) {
+            members.entry(c).or_insert_with(|| vec![c]).push(i as u32);
         }
         Self { class, members }
     }
@@ -384,9 +382,10 @@ impl Classes {
         }
         // Faces on each welded edge, and the most faces on one file edge welded into it.
         let mut welded_edges: HashMap<u32, Vec<usize>> = HashMap::new();
-        for (k, (_, others)) in corners.iter().enumerate() {
-            for &x in others {
-                welded_edges.entry(x).or_default().push(k);
+        for (k, (_, [x, y])) in corners.iter().enumerate() {
+            welded_edges.entry(*x).or_default().push(k);
+            if y != x {
+                welded_edges.entry(*y).or_default().push(k);
             }
         }
         let most_in_file = |x: u32| {
