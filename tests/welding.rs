@@ -262,3 +262,32 @@ fn vertex_map_moves_values_between_numberings() {
     // Mesh vertex 1 has no file vertex: not a map.
     assert!(VertexMap::from_mesh_vertices(&[Some(0), Some(2)]).is_none());
 }
+
+#[test]
+fn tolerances_that_join_neighbours_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let surface = grid(20, 20, 1.0, 1.0);
+    let path = dir.path().join("mesh.obj");
+    write_obj(&path, &surface.positions, &surface.faces, None).unwrap();
+    let message = |tolerance: f64| {
+        let options = LoadOptions {
+            weld_tolerance: tolerance,
+            ..LoadOptions::default()
+        };
+        load_mesh(&path, &options)
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    };
+    // Grid spacing 0.05 is 0.035 of the diagonal: at 0.2, every vertex has dozens of partners.
+    let refused = message(0.2).unwrap_err();
+    assert!(
+        refused.contains("mesh.obj: --weld-tolerance 0.2 makes more than 7056 pairs"),
+        "{refused}"
+    );
+    // At 0.02 nothing is close: the grid loads as it is.
+    assert_eq!(message(0.02), Ok(()));
+    for bad in [-1.0, f64::NAN, f64::INFINITY] {
+        let refused = message(bad).unwrap_err();
+        assert!(refused.contains("must be a finite number ≥ 0"), "{refused}");
+    }
+}

@@ -52,7 +52,16 @@ pub(crate) fn prepare_mesh(
         .into());
     }
     let weld = match options.weld {
-        true => weld(faces, frames, options.weld_tolerance),
+        true => weld(faces, frames, options.weld_tolerance).map_err(|e| {
+            IoError::format(
+                file,
+                format!(
+                    "--weld-tolerance {} makes more than {} pairs of vertices coincide: seam \
+                     copies are far closer than neighbouring vertices; give a smaller tolerance",
+                    options.weld_tolerance, e.limit
+                ),
+            )
+        })?,
         false => Weld::none(n_file),
     };
     let welded_faces: Vec<[u32; 3]> = faces

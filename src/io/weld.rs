@@ -10,7 +10,8 @@
 //! 1. **Coincident**: vertices `a ≠ b` are coincident when `|p_a − p_b| ≤ tolerance · d` in
 //!    every frame, `d` the bounding-box diagonal of the used vertices in frame 0; with
 //!    tolerance 0, when their positions are bitwise equal in every frame (`−0 = +0`). Two
-//!    vertices of one face are never coincident.
+//!    vertices of one face are never coincident. A tolerance that makes neighbours coincide
+//!    (more than [`MAX_PAIRS_PER_VERTEX`] close pairs per vertex) is refused.
 //! 2. **Seam evidence**: coincident `a, b` are joined when they end *coincident edges*: an edge
 //!    `(a, c)` of one face and `(b, d)` of another with `c, d` coincident or equal. Joined
 //!    vertices, transitively, make one welded vertex. A point where a surface touches itself has
@@ -28,6 +29,7 @@ use crate::mesh::UnionFind;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The outcome of [`weld`].
 #[derive(Clone, Debug, PartialEq)]
@@ -53,19 +55,34 @@ impl Weld {
     }
 }
 
+/// A tolerance so large that it makes neighbours coincide, not just copies: more close pairs
+/// than [`MAX_PAIRS_PER_VERTEX`] per used vertex (welding would take quadratic time).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct TooManyPairs {
+    pub limit: usize,
+}
+
+/// Seam copies make a few close pairs per vertex (a pole copied once per triangle a few
+/// dozen); neighbours within the tolerance make many more.
+const MAX_PAIRS_PER_VERTEX: usize = 16;
+
 /// Welds the file vertices of `faces` by the module's rule; `frames` holds one position per
 /// file vertex each, `tolerance` is relative to frame 0's bounding-box diagonal. Indices must
 /// be in range.
-pub(crate) fn weld(faces: &[[u32; 3]], frames: &[Vec<Vector3<f64>>], tolerance: f64) -> Weld {
+pub(crate) fn weld(
+    faces: &[[u32; 3]],
+    frames: &[Vec<Vector3<f64>>],
+    tolerance: f64,
+) -> Result<Weld, TooManyPairs> {
     let n = frames.first().map_or(0, Vec::len);
     let mut used = vec![false; n];
     faces
         .iter()
         .flatten()
         .for_each(|&v| used[v as usize] = true);
-    let close = close_pairs(&used, frames, tolerance);
+    let close = close_pairs(&used, frames, tolerance)?;
     if close.is_empty() {
-        return Weld::none(n);
+        return Ok(Weld::none(n));
     }
     // Most meshes have no close pairs: the face tables are built only when some are.
     let surface = Surface::new(n, faces);
@@ -106,12 +123,12 @@ pub(crate) fn weld(faces: &[[u32; 3]], frames: &[Vec<Vector3<f64>>], tolerance: 
         .into_iter()
         .filter(|&[a, b]| welded[a as usize] != welded[b as usize])
         .collect();
-    Weld {
+    Ok(Weld {
         welded,
         n_vertices: n_vertices as usize,
         apart: apart.len(),
         first_apart: apart.into_iter().min(),
-    }
+    })
 }
 
 /// The faces of each file vertex and the file's edges.
@@ -205,9 +222,13 @@ impl Adjacency {
 
 /// Pairs `[a, b]`, `a < b`, of used vertices close in every frame (rule 1 without the face
 /// condition), found through a grid on frame 0.
-fn close_pairs(used: &[bool], frames: &[Vec<Vector3<f64>>], tolerance: f64) -> Vec<[u32; 2]> {
+fn close_pairs(
+    used: &[bool],
+    frames: &[Vec<Vector3<f64>>],
+    tolerance: f64,
+) -> Result<Vec<[u32; 2]>, TooManyPairs> {
     let Some(first) = frames.first() else {
-        return Vec::new();
+        return Ok(Vec::new());
     };
     let used: Vec<u32> = (0..first.len() as u32)
         .filter(|&v| used[v as usize])
@@ -242,9 +263,15 @@ fn close_pairs(used: &[bool], frames: &[Vec<Vector3<f64>>], tolerance: f64) -> V
         .map(|&v| (grid.key(&first[v as usize]), v))
         .collect();
     cells.par_sort_unstable();
-    used.par_iter()
+    let limit = MAX_PAIRS_PER_VERTEX * used.len();
+    let found = AtomicUsize::new(0);
+    let pairs: Vec<[u32; 2]> = used
+        .par_iter()
         .flat_map_iter(|&a| {
             let mut pairs = Vec::new();
+            if found.load(Ordering::Relaxed) > limit {
+                return pairs;
+            }
             grid.for_each_neighbour(&first[a as usize], |key| {
                 let start = cells.partition_point(|(k, _)| *k < key);
                 let run = cells[start..].iter().take_while(|(k, _)| *k == key);
@@ -255,9 +282,14 @@ fn close_pairs(used: &[bool], frames: &[Vec<Vector3<f64>>], tolerance: f64) -> V
                         .map(|b| [a, b]),
                 );
             });
+            found.fetch_add(pairs.len(), Ordering::Relaxed);
             pairs
         })
-        .collect()
+        .collect();
+    match found.into_inner() > limit {
+        true => Err(TooManyPairs { limit }),
+        false => Ok(pairs),
+    }
 }
 
 /// Grid cells are this many times the welding radius: a vertex's partners lie in its own cell

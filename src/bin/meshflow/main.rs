@@ -132,7 +132,7 @@ struct MeshArgs {
     no_weld: bool,
     /// Welding distance relative to the bounding-box diagonal of frame 0 (0: bitwise equal
     /// positions)
-    #[arg(long, value_name = "REL", default_value_t = LoadOptions::DEFAULT_WELD_TOLERANCE)]
+    #[arg(long, value_name = "REL", default_value_t = LoadOptions::DEFAULT_WELD_TOLERANCE, allow_negative_numbers = true)]
     weld_tolerance: f64,
     /// Split non-manifold edges and vertices into manifold pieces, cut non-orientable surfaces
     /// open, drop faces with a repeated vertex and duplicate faces (default: refuse them)
