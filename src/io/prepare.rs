@@ -263,7 +263,7 @@ impl VertexNames<'_> {
     }
 }
 
-/// One mesh read from a file through the module's steps, geometry only.
+/// One mesh read from a file by [`load_mesh`], geometry only.
 #[derive(Clone, Debug)]
 pub struct LoadedMesh {
     pub mesh: Mesh,
@@ -277,8 +277,9 @@ pub struct LoadedMesh {
 }
 
 /// Reads one mesh file (`.obj`, `.ply`, `.gltf`, `.glb`) without grey values (no textures are
-/// opened) and builds its mesh by the module's steps; of `options`, `weld`, `weld_tolerance`
-/// and `repair` apply.
+/// opened) and builds its mesh as [`super::load_sequence`] does: seam copies welded, unused
+/// vertices dropped, faces oriented, repaired on request (`docs/io.md`). Of `options`,
+/// `weld`, `weld_tolerance` and `repair` apply.
 pub fn load_mesh(path: &Path, options: &LoadOptions) -> Result<LoadedMesh, Error> {
     let FrameMesh {
         positions, faces, ..

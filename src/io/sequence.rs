@@ -39,8 +39,8 @@ pub struct LoadOptions {
     pub times: Option<Vec<f64>>,
     /// Resample a glTF animation at this many frames per unit of time.
     pub fps: Option<f64>,
-    /// Weld seam copies: vertices that coincide in every frame and end coincident edges (see
-    /// [`super::weld`]).
+    /// Weld seam copies: vertices that coincide in every frame and end coincident edges, never
+    /// where the surface only touches itself (`docs/io.md`).
     pub weld: bool,
     /// How close coincident vertices are, relative to the bounding-box diagonal of frame 0
     /// (0: bitwise equal).
