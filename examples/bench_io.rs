@@ -61,7 +61,7 @@ fn main() -> Result<(), meshflow::Error> {
         "load_sequence of 2 frames: {:.2} s ({} vertices, {} welded)",
         start.elapsed().as_secs_f64(),
         loaded.sequence.mesh().n_vertices(),
-        loaded.welding.n_welded()
+        loaded.vertex_map.n_welded()
     );
     std::fs::remove_dir_all(&dir).expect("cleanup");
     Ok(())

@@ -84,18 +84,19 @@ fn failing_operators(mesh_text: &str) -> String {
 #[test]
 fn bad_meshes_fail_with_one_line_naming_file_and_element() {
     let square = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
+    // A Möbius strip of three quads: top 1..3, bottom 4..6, the last quad joins top to bottom.
+    let moebius =
+        "v 1 0 0\nv -0.5 0.87 0\nv -0.5 -0.87 0\nv 1 0 1\nv -0.5 0.87 1\nv -0.5 -0.87 1\n\
+        f 1 4 5\nf 1 5 2\nf 2 5 6\nf 2 6 3\nf 3 6 1\nf 3 1 4\n";
     let cases = [
-        (
-            format!("{square}f 1 2 3\nf 1 2 4\n"),
-            "inconsistent orientation",
-        ),
+        (moebius.to_string(), "not orientable"),
         (
             format!("{square}f 1 2 3\nf 1 3 4\nf 1 3 2\n"),
             "non-manifold edge",
         ),
         (
-            format!("{square}v 5 5 5\nf 1 2 3\nf 1 3 4\n"),
-            "vertex 4 is not used",
+            format!("{square}v 2 2 0\nv 3 2 0\nf 1 2 3\nf 3 5 6\n"),
+            "file vertex 2 has 2 separate fans",
         ),
         ("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n".to_string(), "face 0"),
         (
@@ -108,6 +109,10 @@ fn bad_meshes_fail_with_one_line_naming_file_and_element() {
     for (text, expected) in cases {
         let stderr = failing_operators(&text);
         assert!(stderr.contains(expected), "{expected:?} not in {stderr}");
+        let repairable = ["orientable", "non-manifold", "fans"];
+        if repairable.iter().any(|r| expected.contains(r)) {
+            assert!(stderr.contains("use --repair"), "{stderr}");
+        }
     }
 }
 
@@ -563,30 +568,31 @@ fn ground_truth_is_mapped_through_the_welding() {
     let plain_truth = format!("{}/ground_truth.npy", shipped("rotating_sphere"));
     let plain = solve(&shipped("rotating_sphere"), &plain_truth);
 
-    // Mesh vertex 0 is the copied vertex; 1..=copied are file vertices 1..=copied (originals
-    // 0..copied); the rest keep their original numbers.
-    let (welded_summary, plain_summary) = (summary(welded.path()), summary(plain.path()));
-    assert_eq!(welded_summary["welded_vertices"], 1);
-    for key in ["mean_angular_error_degrees", "mean_endpoint_error"] {
-        let (a, b) = (
-            json_f64(&welded_summary["ground_truth"][key]),
-            json_f64(&plain_summary["ground_truth"][key]),
-        );
-        assert_close(&[a], &[b], 1e-9, key);
-    }
-    let original = |w: usize| match w {
-        0 => copied,
-        w if w <= copied => w - 1,
-        w => w,
-    };
+    // NPY outputs are in the files' numbering: file vertex 0 is the copy of original vertex
+    // `copied`, file vertex i ≥ 1 is original i − 1.
+    let original = |i: usize| if i == 0 { copied } else { i - 1 };
     let welded_errors = read_npy(&welded.path().join("angular_error.npy")).unwrap();
     let plain_errors = read_npy(&plain.path().join("angular_error.npy")).unwrap();
-    assert_eq!(welded_errors.shape, vec![5, 642]);
+    assert_eq!(welded_errors.shape, vec![5, 643]);
     let permuted: Vec<f64> = (0..5)
-        .flat_map(|s| (0..642).map(move |w| (s, w)))
-        .map(|(s, w)| plain_errors.data[s * 642 + original(w)])
+        .flat_map(|s| (0..643).map(move |i| (s, i)))
+        .map(|(s, i)| plain_errors.data[s * 642 + original(i)])
         .collect();
     assert_close(&welded_errors.data, &permuted, 1e-6, "angular_error");
+    // Mesh vertex 0 is file vertices 0 and copied + 1; file vertices 1..=copied keep their
+    // numbers, later ones move down by one.
+    let (shape, map) =
+        meshflow::io::read_npy_indices(&welded.path().join("vertex_map.npy")).unwrap();
+    assert_eq!(shape, vec![643]);
+    let expected: Vec<u32> = (0..643u32)
+        .map(|i| match i {
+            i if i <= copied as u32 => i,
+            i if i == copied as u32 + 1 => 0,
+            i => i - 1,
+        })
+        .collect();
+    assert_eq!(map, expected);
+    assert!(!plain.path().join("vertex_map.npy").exists());
 
     // The two copies disagree: refused, naming both file vertices.
     let mut broken = with_copy.clone();
@@ -786,6 +792,79 @@ fn animations_are_chosen_on_the_command_line() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(
         stderr.contains("--animation applies to a glTF animation"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn operators_builds_the_mesh_as_solve_does_without_textures() {
+    let dir = tempfile::tempdir().unwrap();
+    // A square of two faces, the second using its own copy (vertex 5) of vertex 2; a triangle
+    // hanging at vertex 2 by that vertex alone; an unused vertex 4; a material library that
+    // does not exist (textures are not read).
+    let obj = "mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 7 7 7\nv 1 1 0\n\
+        v 2 1 0\nv 2 2 0\nvt 0 0\nusemtl paint\nf 1/1 2/1 3/1\nf 1/1 6/1 4/1\nf 3/1 7/1 8/1\n";
+    let mesh_path = dir.path().join("square.obj");
+    std::fs::write(&mesh_path, obj).unwrap();
+    let run = meshflow(&[
+        "operators",
+        mesh_path.to_str().unwrap(),
+        "--out",
+        dir.path().join("refused").to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("file vertex 2 (welded with file vertex 5) has 2 separate fans")
+            && stderr.contains("use --repair"),
+        "{stderr}"
+    );
+
+    let out = dir.path().join("ops");
+    let run = meshflow_ok(&[
+        "operators",
+        mesh_path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--repair",
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("dropped 1 vertex that no face uses (e.g. file vertex 4)")
+            && stderr.contains("repaired: split 1 non-manifold vertex into 2"),
+        "{stderr}"
+    );
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        stdout.contains("7 vertices (welded 1 duplicate vertex), 3 faces")
+            && stdout.contains("Euler characteristic 2"),
+        "{stdout}"
+    );
+    // Mesh vertex 2 is file vertices 2 and 5; 3 is vertex 2's piece in the hanging triangle.
+    let table = std::fs::read(out.join("vertex_map.npy")).unwrap();
+    let table = npyz::NpyFile::new(&table[..]).unwrap();
+    assert_eq!(
+        table.into_vec::<i64>().unwrap(),
+        vec![0, 1, 2, 4, -1, 2, 5, 6]
+    );
+    assert_eq!(
+        read_npy(&out.join("frames.npy")).unwrap().shape,
+        vec![7, 2, 3]
+    );
+    assert_eq!(
+        read_matrix_market(&out.join("cotan.mtx")).unwrap().nrows(),
+        7
+    );
+
+    // solve does read the material library, and says which file asked for it.
+    let frames = dir.path().join("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    for k in 0..2 {
+        std::fs::write(frames.join(format!("f{k}.obj")), obj).unwrap();
+    }
+    let stderr = failing_solve(&frames, &["--repair"]);
+    assert!(
+        stderr.contains("f0.obj: material library missing.mtl:")
+            && stderr.contains("missing.mtl: No such file"),
         "{stderr}"
     );
 }

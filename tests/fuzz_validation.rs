@@ -1,12 +1,12 @@
 //! Property tests: validation of arbitrary index and position arrays never panics. Whatever
 //! the arrays, building the mesh, its geometry, a sequence (directly or through the NPY
-//! reader, which also welds) and solving the flow returns `Ok` or a typed error; so does reading
-//! arbitrary OBJ-like text.
+//! reader, which also welds, with and without repair) and solving the flow returns `Ok` or a
+//! typed error; so does reading arbitrary OBJ-like text. Repairing any face list gives a mesh.
 
 use meshflow::flow::{compute_flow, FlowParams, MeshSequence};
 use meshflow::geometry::IntrinsicGeometry;
-use meshflow::io::{load_sequence, write_npy};
-use meshflow::mesh::Mesh;
+use meshflow::io::{load_sequence, write_npy, LoadOptions};
+use meshflow::mesh::{repair, ConnectivityError, Mesh};
 use meshflow::shapes::grid;
 use nalgebra::Vector3;
 use proptest::prelude::*;
@@ -108,6 +108,21 @@ fn validate_everything(faces: &[[u32; 3]], frames: &[Vec<Vector3<f64>>]) {
     let grey: Vec<f64> = intensities.concat();
     write_npy(&dir.path().join("intensity.npy"), &[k, n as u64], &grey).unwrap();
     let _ = load_sequence(dir.path(), &Default::default());
+    let repairing = LoadOptions {
+        repair: true,
+        ..LoadOptions::default()
+    };
+    let _ = load_sequence(dir.path(), &repairing);
+}
+
+/// Any triangles over `n` vertices: repeated, duplicated, non-manifold, inconsistent.
+fn face_soup() -> impl Strategy<Value = (usize, Vec<[u32; 3]>)> {
+    (3u32..12).prop_flat_map(|n| {
+        (
+            Just(n as usize),
+            prop::collection::vec([0..n, 0..n, 0..n], 0..40),
+        )
+    })
 }
 
 /// OBJ-like text: statements with random numbers and references, some malformed.
@@ -152,5 +167,23 @@ proptest! {
     #[test]
     fn edited_grids_never_panic((faces, frames) in edited_grid()) {
         validate_everything(&faces, &frames);
+    }
+
+    #[test]
+    fn repaired_face_soups_are_oriented_manifolds((n, faces) in face_soup()) {
+        let repaired = repair(n, &faces);
+        match Mesh::new(repaired.vertex_origin.len(), repaired.faces.clone()) {
+            Ok(_) => {}
+            Err(ConnectivityError::NoFaces) => prop_assert!(repaired.faces.is_empty()),
+            Err(e) => prop_assert!(false, "{e} for {faces:?}"),
+        }
+        // Every face is an input face (perhaps flipped) over split copies of its vertices.
+        for (face, &origin) in repaired.faces.iter().zip(&repaired.face_origin) {
+            let mut back = face.map(|v| repaired.vertex_origin[v as usize]);
+            let mut input = faces[origin as usize];
+            back.sort_unstable();
+            input.sort_unstable();
+            prop_assert_eq!(back, input);
+        }
     }
 }

@@ -168,30 +168,27 @@ fn failed_atomic_write_leaves_nothing_behind() {
 }
 
 #[test]
-fn ground_truth_is_float32_or_float64_and_lands_on_welded_vertices() {
-    use meshflow::io::{read_ground_truth, Welding};
+fn ground_truth_is_float32_or_float64_and_lands_on_mesh_vertices() {
+    use meshflow::io::{read_ground_truth, VertexMap};
     let dir = tempfile::tempdir().unwrap();
-    // File vertex 3 is a copy of 0 in both frames: welded map [0, 1, 2, 0].
-    let points = vec![
-        Vector3::zeros(),
-        Vector3::x(),
-        Vector3::y(),
-        Vector3::zeros(),
-    ];
-    let welding = Welding::of_coincident(&[points.clone(), points]);
-    assert_eq!(welding.vertex_map, vec![0, 1, 2, 0]);
-    // (slabs 2, file vertices 4, 3); row 3 repeats row 0 in each slab.
-    let row = |s: usize, i: usize| {
-        let i = if i == 3 { 0 } else { i };
-        [0.1, 0.2, 0.3].map(|c| c * (1 + i + 10 * s) as f64)
+    // File vertex 3 is a welded copy of 0, file vertex 4 was dropped.
+    let welding =
+        VertexMap::from_mesh_vertices(&[Some(0), Some(1), Some(2), Some(0), None]).unwrap();
+    // (slabs 2, file vertices 5, 3); row 3 repeats row 0 in each slab, row 4 is NaN (ignored).
+    let row = |s: usize, i: usize| match i {
+        4 => [f64::NAN; 3],
+        _ => {
+            let i = if i == 3 { 0 } else { i };
+            [0.1, 0.2, 0.3].map(|c| c * (1 + i + 10 * s) as f64)
+        }
     };
     let rows: Vec<f64> = (0..2)
-        .flat_map(|s| (0..4).flat_map(move |i| row(s, i)))
+        .flat_map(|s| (0..5).flat_map(move |i| row(s, i)))
         .collect();
 
     let single: Vec<f32> = rows.iter().map(|&v| v as f32).collect();
     let path = dir.path().join("truth32.npy");
-    write_npy(&path, &[2, 4, 3], &single).unwrap();
+    write_npy(&path, &[2, 5, 3], &single).unwrap();
     let truth = read_ground_truth(&path, &welding, 2).unwrap();
     assert_eq!(truth.len(), 2);
     for (s, slab) in truth.iter().enumerate() {
@@ -211,8 +208,8 @@ fn ground_truth_is_float32_or_float64_and_lands_on_welded_vertices() {
     let largest = Vector3::from(row(1, 2)).norm();
     for (offset, accepted) in [(1e-12 * largest, true), (1e-8 * largest, false)] {
         let mut shifted = rows.clone();
-        shifted[3 * (4 + 3)] += offset; // slab 1, file vertex 3, x
-        write_npy(&path, &[2, 4, 3], &shifted).unwrap();
+        shifted[3 * (5 + 3)] += offset; // slab 1, file vertex 3, x
+        write_npy(&path, &[2, 5, 3], &shifted).unwrap();
         let result = read_ground_truth(&path, &welding, 2);
         assert_eq!(result.is_ok(), accepted, "{offset}: {result:?}");
         if let Err(error) = result {
@@ -225,11 +222,19 @@ fn ground_truth_is_float32_or_float64_and_lands_on_welded_vertices() {
         }
     }
     // Three slabs expected: the shape is named.
-    write_npy(&path, &[2, 4, 3], &rows).unwrap();
+    write_npy(&path, &[2, 5, 3], &rows).unwrap();
     let message = read_ground_truth(&path, &welding, 3)
         .unwrap_err()
         .to_string();
-    assert!(message.contains("expected (3, 4, 3)"), "{message}");
+    assert!(message.contains("expected (3, 5, 3)"), "{message}");
+    // A NaN at a kept vertex is refused.
+    let mut broken = rows.clone();
+    broken[3 * 2] = f64::NAN; // slab 0, file vertex 2
+    write_npy(&path, &[2, 5, 3], &broken).unwrap();
+    let message = read_ground_truth(&path, &welding, 2)
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("slab 0, vertex 2"), "{message}");
 }
 
 /// Stages `files` (name, contents) for `target` with `overwrite`, recording `command`, and

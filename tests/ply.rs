@@ -290,6 +290,78 @@ fn little_endian_binary_reads_every_scalar_type_under_both_names() {
     assert_eq!(mesh.properties.len(), 12);
 }
 
+/// The triangles of the strips `[0 1 2 3 4 | 5 6 7 7 8 9]` (`|` = −1), by hand: alternating
+/// orientation from each start, the two with vertex 7 twice skipped.
+const STRIP_TRIANGLES: [[u32; 3]; 5] = [[0, 1, 2], [2, 1, 3], [2, 3, 4], [5, 6, 7], [8, 7, 9]];
+
+#[test]
+fn triangle_strips_ascii_restart_alternate_and_skip_turns() {
+    let dir = tempfile::tempdir().unwrap();
+    // The strips come before the face element in the file; faces are listed first.
+    let header = "ply\nformat ascii 1.0\nelement vertex 10\n\
+        property float x\nproperty float y\nproperty float z\n\
+        element tristrips 1\nproperty list int int vertex_indices\n\
+        element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    let vertices: String = (0..10).map(|i| format!("{i} {} 0\n", i % 2)).collect();
+    let body = format!("{vertices}12 0 1 2 3 4 -1 5 6 7 7 8 9\n3 0 9 5\n");
+    let mesh = read_ply(&write_file(
+        dir.path(),
+        "strips.ply",
+        ply_bytes(header, body.as_bytes()),
+    ))
+    .unwrap();
+    let mut expected = vec![[0, 9, 5]];
+    expected.extend(STRIP_TRIANGLES);
+    assert_eq!(mesh.faces, expected);
+    assert_eq!(mesh.positions.len(), 10);
+
+    // Without a face element, strips alone make the mesh; a bad index names the strip.
+    let header = header.replace(
+        "element face 1\nproperty list uchar int vertex_indices\n",
+        "",
+    );
+    let body = format!("{vertices}12 0 1 2 3 4 -1 5 6 7 7 8 9\n");
+    let mesh = read_ply(&write_file(
+        dir.path(),
+        "strips.ply",
+        ply_bytes(&header, body.as_bytes()),
+    ))
+    .unwrap();
+    assert_eq!(mesh.faces, STRIP_TRIANGLES);
+    let body = format!("{vertices}4 0 1 -2 3\n");
+    let text = message(ply_error(ply_bytes(&header, body.as_bytes())), Some(20));
+    assert!(
+        text.contains("tristrips 0: negative vertex index -2"),
+        "{text}"
+    );
+}
+
+#[test]
+fn triangle_strips_in_binary_span_records() {
+    let dir = tempfile::tempdir().unwrap();
+    let header = "ply\nformat binary_little_endian 1.0\nelement vertex 10\n\
+        property float x\nproperty float y\nproperty float z\n\
+        element tristrips 2\nproperty list int int vertex_indices\nend_header\n";
+    let mut body = Vec::new();
+    for i in 0..10 {
+        [i as f32, (i % 2) as f32, 0.0]
+            .iter()
+            .for_each(|v| body.extend(v.to_le_bytes()));
+    }
+    // Two records: the second strip in its own record (each record starts a strip).
+    for strip in [&[0i32, 1, 2, 3, 4][..], &[5, 6, 7, 7, 8, 9]] {
+        body.extend((strip.len() as i32).to_le_bytes());
+        strip.iter().for_each(|v| body.extend(v.to_le_bytes()));
+    }
+    let mesh = read_ply(&write_file(
+        dir.path(),
+        "strips.ply",
+        ply_bytes(header, &body),
+    ))
+    .unwrap();
+    assert_eq!(mesh.faces, STRIP_TRIANGLES);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Errors
 

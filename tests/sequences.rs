@@ -336,7 +336,7 @@ fn textured_obj_frames_are_sampled_bilinearly_and_welded() {
     let loaded = load_sequence(dir.path(), &Default::default()).unwrap();
     let sequence = &loaded.sequence;
     assert_eq!(sequence.mesh().n_vertices(), n_vertices);
-    assert_eq!(loaded.welding.n_welded(), 3 * 2 * n * n - n_vertices);
+    assert_eq!(loaded.vertex_map.n_welded(), 3 * 2 * n * n - n_vertices);
     assert!(
         sequence.mesh().euler_characteristic() == 1,
         "one disc, not loose triangles"
@@ -611,5 +611,135 @@ fn an_image_that_moves_with_the_surface_is_reported() {
              so the flow is zero",
             glued.display()
         )
+    );
+}
+
+/// The shipped frames with what scans have: an unused file vertex 0, face 0 flipped, and a
+/// triangle hanging at original vertex 5 by that vertex alone (file vertices 643, 644), which
+/// makes vertex 5 non-manifold.
+fn scan_like_frames(dir: &Path) {
+    for k in 0..6 {
+        let name = format!("frame_{k}.obj");
+        let obj = read_obj(&shipped_sphere().join(&name)).unwrap();
+        let mut positions = vec![Vector3::new(9.0, 9.0, 9.0)];
+        positions.extend(&obj.positions);
+        let tip = obj.positions[5];
+        positions.extend([tip * 1.2, tip * 1.2 + Vector3::new(0.0, 0.0, 0.1)]);
+        let mut colors = vec![[0.5; 3]];
+        colors.extend(obj.colors.unwrap());
+        colors.extend([[0.25; 3], [0.75; 3]]);
+        let mut faces: Vec<[u32; 3]> = obj.faces.iter().map(|f| f.map(|v| v + 1)).collect();
+        faces[0].swap(1, 2);
+        faces.push([6, 643, 644]);
+        write_obj(&dir.join(name), &positions, &faces, Some(&colors)).unwrap();
+    }
+}
+
+#[test]
+fn scan_defects_are_dropped_flipped_and_repaired_and_outputs_keep_file_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("scan");
+    std::fs::create_dir_all(&input).unwrap();
+    scan_like_frames(&input);
+    let message = load_sequence(&input, &LoadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("frame_0.obj: file vertex 6 has 2 separate fans of faces")
+            && message.contains("use --repair"),
+        "{message}"
+    );
+    let options = LoadOptions {
+        repair: true,
+        ..LoadOptions::default()
+    };
+    let loaded = load_sequence(&input, &options).unwrap();
+    // 645 file vertices: 0 dropped; 1..=642 the sphere (mesh 0..642); vertex 6 split into
+    // mesh 5 (its first face, on the sphere) and mesh 6 (the hanging triangle's corner).
+    let map = loaded.vertex_map.to_npy();
+    assert_eq!(map.len(), 645);
+    assert_eq!(map[..8], [-1, 0, 1, 2, 3, 4, 5, 7]);
+    assert_eq!(map[642..], [642, 643, 644]);
+    assert_eq!(loaded.sequence.mesh().n_vertices(), 645);
+    assert_eq!(loaded.vertex_map.representative(6), 6);
+    let messages: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(messages.len(), 3, "{messages:?}");
+    assert!(messages[0].ends_with("dropped 1 vertex that no face uses (e.g. file vertex 0); outputs keep the file's numbering"));
+    assert!(messages[1].ends_with("flipped 1 face to orient them like their neighbours"));
+    assert!(messages[2].ends_with("repaired: split 1 non-manifold vertex into 2"));
+
+    // The binary writes NPY rows per file vertex: NaN for the dropped one, the split vertex
+    // its first piece's value.
+    let out = dir.path().join("out");
+    solve(&input, &out, &["--repair"]);
+    let flow = read_npy(&out.join("flow.npy")).unwrap();
+    assert_eq!(flow.shape, vec![5, 645, 3]);
+    for (s, slab) in flow.data.chunks(645 * 3).enumerate() {
+        assert!(slab[..3].iter().all(|x| x.is_nan()));
+        // Every other row is its mesh vertex's flow, as the VTU (on mesh vertices) has it.
+        let vtu = meshflow::io::vtk::read_vtu(&out.join(format!("flow_{s:04}.vtu"))).unwrap();
+        let mesh_flow = &vtu.point_array("flow").unwrap().values;
+        assert_eq!(mesh_flow.len(), 645 * 3);
+        for (i, &m) in map.iter().enumerate().skip(1) {
+            let m = m as usize;
+            assert_eq!(
+                slab[3 * i..3 * i + 3],
+                mesh_flow[3 * m..3 * m + 3],
+                "row {i}"
+            );
+        }
+    }
+    let table = std::fs::read(out.join("vertex_map.npy")).unwrap();
+    let table = npyz::NpyFile::new(&table[..]).unwrap();
+    assert_eq!(table.shape(), &[645]);
+    assert_eq!(table.into_vec::<i64>().unwrap(), map);
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["dropped_vertices"], 1);
+    assert_eq!(summary["warnings"].as_array().unwrap().len(), 3);
+}
+
+#[test]
+fn float32_arrays_are_accepted_and_a_ply_without_colours_names_its_properties() {
+    let dir = tempfile::tempdir().unwrap();
+    let (npy, ply) = (dir.path().join("npy"), dir.path().join("ply"));
+    convert_shipped(&npy, &ply);
+    let double = load_sequence(&npy, &LoadOptions::default()).unwrap();
+    for name in ["positions.npy", "intensity.npy"] {
+        let array = read_npy(&npy.join(name)).unwrap();
+        let single: Vec<f32> = array.data.iter().map(|&x| x as f32).collect();
+        write_npy(&npy.join(name), &array.shape, &single).unwrap();
+    }
+    let single = load_sequence(&npy, &LoadOptions::default()).unwrap();
+    let (a, b) = (&double.sequence, &single.sequence);
+    for k in 0..a.n_frames() {
+        let widened = |x: f64| f64::from(x as f32);
+        let expected: Vec<f64> = a.intensities(k).iter().map(|&x| widened(x)).collect();
+        assert_eq!(bits(b.intensities(k)), bits(&expected));
+        let expected: Vec<Vector3<f64>> = a
+            .positions(k)
+            .unwrap()
+            .iter()
+            .map(|p| p.map(widened))
+            .collect();
+        assert_eq!(b.positions(k).unwrap(), expected.as_slice());
+    }
+    // --intensity in float32 too.
+    let options = LoadOptions {
+        intensity: Some(npy.join("intensity.npy")),
+        ..LoadOptions::default()
+    };
+    let from_option = load_sequence(&shipped_sphere(), &options).unwrap();
+    assert_eq!(
+        bits(from_option.sequence.intensities(2)),
+        bits(b.intensities(2))
+    );
+
+    let message = load_sequence(&ply, &LoadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("frame_0.ply: no grey values: no vertex colours, but scalar vertex properties quality; use --intensity-attribute quality"),
+        "{message}"
     );
 }

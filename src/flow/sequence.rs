@@ -139,13 +139,17 @@ fn check_intensities(
             });
         }
     }
-    check_finite_intensities(intensities)
+    check_finite_intensities(intensities, |_| true)
 }
 
-/// Checks that every grey value of every frame is finite.
-pub(crate) fn check_finite_intensities(intensities: &[Vec<f64>]) -> Result<(), FlowError> {
+/// Fails on the first non-finite grey value at a vertex that `checked` selects.
+pub(crate) fn check_finite_intensities(
+    intensities: &[Vec<f64>],
+    checked: impl Fn(usize) -> bool,
+) -> Result<(), FlowError> {
     for (frame, values) in intensities.iter().enumerate() {
-        if let Some(vertex) = values.iter().position(|v| !v.is_finite()) {
+        let bad = |(i, v): &(usize, &f64)| !v.is_finite() && checked(*i);
+        if let Some((vertex, _)) = values.iter().enumerate().find(bad) {
             return Err(FlowError::NonFiniteIntensity {
                 frame,
                 vertex,

@@ -1,25 +1,30 @@
 //! Writing a computed flow: NPY arrays, ParaView files, a glTF animation and a JSON summary.
 //!
+//! NPY arrays are in the **files' vertex numbering** (`V_file` rows, through the
+//! [`super::VertexMap`]): welded copies repeat their mesh vertex's value, vertices the loader
+//! dropped are NaN, a file vertex split by `--repair` has the value of its first piece. VTU and
+//! glTF files are meshes and hold the `V` mesh vertices.
+//!
 //! | file | contents |
 //! |---|---|
-//! | `flow.npy` | (S, V, 3) float64: R^3 flow vectors of slab `s` at the vertices of frame `s` |
-//! | `flow_intrinsic.npy` | (S, V, 2) float64: components in the vertex frames |
-//! | `vertex_map.npy` | (V_file,) int64: mesh vertex of each file vertex, when vertices were welded |
-//! | `angular_error.npy`, `endpoint_error.npy`, `direction_error.npy` | (S, V) float64, with a ground truth: per-vertex AE (degrees, on displacements in mean edge lengths), EPE (velocity units) and direction error (degrees, NaN where the truth does not move) ([`crate::accuracy`]) |
-//! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` with point data `flow`, `flow_intrinsic`, `speed`, `intensity` (and `angular_error`, `endpoint_error`, `direction_error` with a ground truth); the `.pvd` plays the slabs at their start times |
+//! | `flow.npy` | (S, V_file, 3) float64: R^3 flow vectors of slab `s` at the vertices of frame `s`, one row per vertex of the input files (NaN for dropped vertices) |
+//! | `flow_intrinsic.npy` | (S, V_file, 2) float64: components in the vertex frames |
+//! | `vertex_map.npy` | (V_file,) int64: mesh vertex of each file vertex, −1 if dropped; only when that is not the identity |
+//! | `angular_error.npy`, `endpoint_error.npy`, `direction_error.npy` | (S, V_file) float64, with a ground truth: per-vertex AE (degrees, on displacements in mean edge lengths), EPE (velocity units) and direction error (degrees, NaN where the truth does not move) ([`crate::accuracy`]) |
+//! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` (mesh vertices) with point data `flow`, `flow_intrinsic`, `speed`, `intensity` (and `angular_error`, `endpoint_error`, `direction_error` with a ground truth); the `.pvd` plays the slabs at their start times |
 //! | `flow.glb` | the frames as a morph-target animation, coloured by the flow as `flow_SSSS.png` shows it (Middlebury colour of the direction seen from the given [`View`], scaled by a robust maximum speed) |
-//! | `summary.json` | energy and its terms, residual, iterations, solver, sizes, input, timings, the `view` of the pictures and colours; the parameters as given (`params`, each weight `{"value": x}` or `{"relative": x}`), the weights used (`weights`: α, β, γ in the data's units) and the data's scales that resolved them (`scales`); with a ground truth, `ground_truth`: its file, the space-time means (AE, direction error, relative EPE, speed ratio, EPE) and maxima, per slab the same, and `zero_flow`, the zero flow's scores |
+//! | `summary.json` | energy and its terms, residual, iterations, solver, sizes, input, timings, dropped vertices and warnings, the `view` of the pictures and colours; the parameters as given (`params`, each weight `{"value": x}` or `{"relative": x}`), the weights used (`weights`: α, β, γ in the data's units) and the data's scales that resolved them (`scales`); with a ground truth, `ground_truth`: its file, the space-time means (AE, direction error, relative EPE, speed ratio, EPE) and maxima, per slab the same, and `zero_flow`, the zero flow's scores |
 //!
 //! Slab `s` spans `[t_s, t_{s+1}]`; `S = K − 1` slabs for `K` frames.
 
 use super::gltf_write::{write_glb_animation, AnimationFrame};
 use super::vtk::{write_pvd, write_vtu, NamedArray, PointArray};
-use super::{write_atomically, write_npy, IoError, LoadedSequence, StagedDir};
+use super::{write_atomically, write_npy, IoError, LoadedSequence, StagedDir, VertexMap};
 use crate::accuracy::FlowErrors;
 use crate::flow::{FlowParams, FlowResult, MeshSequence};
 use crate::render::color_wheel::robust_max;
 use crate::render::{screen_flow_colors, Camera, View};
-use nalgebra::Vector3;
+use nalgebra::{Vector2, Vector3};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
@@ -101,7 +106,7 @@ fn write_all(
     if formats.contains(&OutputFormat::Npy) {
         write_flow_npy(dir, loaded, result)?;
         if let Some(errors) = errors {
-            write_error_npy(dir, errors)?;
+            write_error_npy(dir, &loaded.vertex_map, errors)?;
         }
     }
     if let Some(vectors) = &result.vectors {
@@ -121,44 +126,42 @@ fn write_all(
 }
 
 fn write_flow_npy(dir: &Path, loaded: &LoadedSequence, result: &FlowResult) -> Result<(), IoError> {
-    let (s, v) = (
-        result.intrinsic.len() as u64,
-        loaded.sequence.mesh().n_vertices() as u64,
-    );
+    let map = &loaded.vertex_map;
+    let (s, v) = (result.intrinsic.len() as u64, map.n_file_vertices() as u64);
     let intrinsic: Vec<f64> = result
         .intrinsic
         .iter()
-        .flatten()
+        .flat_map(|slab| map.file_rows(slab, Vector2::repeat(f64::NAN)))
         .flat_map(|u| [u.x, u.y])
         .collect();
     write_npy(&dir.join("flow_intrinsic.npy"), &[s, v, 2], &intrinsic)?;
     if let Some(vectors) = &result.vectors {
-        write_npy(
-            &dir.join("flow.npy"),
-            &[s, v, 3],
-            &flatten3(vectors.iter().flatten()),
-        )?;
+        let rows: Vec<Vector3<f64>> = vectors
+            .iter()
+            .flat_map(|slab| map.file_rows(slab, Vector3::repeat(f64::NAN)))
+            .collect();
+        write_npy(&dir.join("flow.npy"), &[s, v, 3], &flatten3(rows.iter()))?;
     }
-    let map = &loaded.welding.vertex_map;
-    if loaded.welding.n_welded() > 0 {
-        let map: Vec<i64> = map.iter().map(|&w| w as i64).collect();
-        write_npy(&dir.join("vertex_map.npy"), &[map.len() as u64], &map)?;
+    if !map.is_identity() {
+        let table = map.to_npy();
+        write_npy(&dir.join("vertex_map.npy"), &[table.len() as u64], &table)?;
     }
     Ok(())
 }
 
-/// `angular_error.npy`, `endpoint_error.npy` and `direction_error.npy`, (S, V).
-fn write_error_npy(dir: &Path, errors: &FlowErrors) -> Result<(), IoError> {
+/// `angular_error.npy`, `endpoint_error.npy` and `direction_error.npy`, (S, V_file).
+fn write_error_npy(dir: &Path, map: &VertexMap, errors: &FlowErrors) -> Result<(), IoError> {
     for (name, values) in [
         ("angular_error.npy", &errors.angular_degrees),
         ("endpoint_error.npy", &errors.endpoint),
         ("direction_error.npy", &errors.direction_degrees),
     ] {
-        let shape = [
-            values.len() as u64,
-            values.first().map_or(0, Vec::len) as u64,
-        ];
-        write_npy(&dir.join(name), &shape, &values.concat())?;
+        let shape = [values.len() as u64, map.n_file_vertices() as u64];
+        let rows: Vec<f64> = values
+            .iter()
+            .flat_map(|slab| map.file_rows(slab, f64::NAN))
+            .collect();
+        write_npy(&dir.join(name), &shape, &rows)?;
     }
     Ok(())
 }
@@ -288,7 +291,9 @@ pub fn summary_json(
     let mut summary = serde_json::json!({
         "input": loaded.source.describe(),
         "input_files": files,
-        "welded_vertices": loaded.welding.n_welded(),
+        "welded_vertices": loaded.vertex_map.n_welded(),
+        "dropped_vertices": loaded.vertex_map.n_dropped(),
+        "warnings": loaded.warnings.iter().map(ToString::to_string).collect::<Vec<_>>(),
         "energy": result.energy,
         "energy_terms": result.energy_terms,
         "energy_at_zero": result.energy_at_zero,

@@ -56,7 +56,7 @@ use std::rc::Rc;
 pub fn read_gltf_animation(path: &Path, options: &LoadOptions) -> Result<RawSequence, IoError> {
     let file = GltfFile::open(path)?;
     let node = mesh_node(&file)?;
-    let surface = Surface::read(&file, &node)?;
+    let surface = Surface::read(&file, &node, true)?;
     let (track, warning) = WeightTrack::read(
         &file,
         &node,
@@ -89,9 +89,18 @@ pub fn read_gltf_animation(path: &Path, options: &LoadOptions) -> Result<RawSequ
 /// if neither gives any), with grey values as in [`read_gltf_animation`]. Animations are
 /// ignored.
 pub fn read_gltf_frame(path: &Path) -> Result<FrameMesh, IoError> {
+    read_static(path, true)
+}
+
+/// [`read_gltf_frame`] without grey values: no colours are read and no image is decoded.
+pub fn read_gltf_geometry(path: &Path) -> Result<FrameMesh, IoError> {
+    read_static(path, false)
+}
+
+fn read_static(path: &Path, grey: bool) -> Result<FrameMesh, IoError> {
     let file = GltfFile::open(path)?;
     let node = mesh_node(&file)?;
-    let surface = Surface::read(&file, &node)?;
+    let surface = Surface::read(&file, &node, grey)?;
     let weights = default_weights(&file, &node, surface.target_count)?;
     Ok(FrameMesh {
         positions: surface.positions(&weights),
@@ -288,7 +297,8 @@ struct Surface {
 }
 
 impl Surface {
-    fn read(file: &GltfFile, node: &Node) -> Result<Self, IoError> {
+    /// The surface of `node`, with the primitives' grey-value sources when `grey`.
+    fn read(file: &GltfFile, node: &Node, grey: bool) -> Result<Self, IoError> {
         let mesh = node
             .mesh()
             .ok_or_else(|| file.error(format!("{} has no mesh", node_label(node))))?;
@@ -309,7 +319,7 @@ impl Surface {
                 mesh: mesh.index(),
                 primitive,
             };
-            let (faces, read) = reader.read(&mut textures)?;
+            let (faces, read) = reader.read(grey.then_some(&mut textures))?;
             let target_count = read.positions.deltas.len();
             // glTF requires all primitives of a mesh to have the same morph targets.
             if !surface.primitives.is_empty() && target_count != surface.target_count {
@@ -378,11 +388,11 @@ struct PrimitiveReader<'f, 'p> {
 }
 
 impl PrimitiveReader<'_, '_> {
-    /// The primitive's triangles (local vertex numbers) and data. `textures` caches decoded
-    /// images by index.
+    /// The primitive's triangles (local vertex numbers) and data, with its grey-value source
+    /// when given `textures` (a cache of decoded images by index).
     fn read(
         &self,
-        textures: &mut HashMap<usize, Rc<Texture>>,
+        textures: Option<&mut HashMap<usize, Rc<Texture>>>,
     ) -> Result<(Vec<[u32; 3]>, MorphPrimitive), IoError> {
         if self.primitive.mode() != Mode::Triangles {
             return Err(self.error(format!(
@@ -394,7 +404,10 @@ impl PrimitiveReader<'_, '_> {
         let positions = positions.ok_or_else(|| self.error("no POSITION attribute".to_string()))?;
         let vertex_count = positions.base.len();
         let faces = self.faces(vertex_count)?;
-        let grey = self.grey_source(vertex_count, textures)?;
+        let grey = match textures {
+            Some(textures) => self.grey_source(vertex_count, textures)?,
+            None => None,
+        };
         Ok((faces, MorphPrimitive { positions, grey }))
     }
 

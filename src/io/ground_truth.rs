@@ -2,14 +2,15 @@
 //!
 //! The file is a `.npy` of shape `(S, V_file, 3)`, float64 or float32: `truth[s, i]` is the R^3
 //! flow of slab `s` at vertex `i` of frame `s`, with `S = K − 1` slabs and `V_file` the vertex
-//! count **of the input files** (before welding, as the user wrote them). It becomes `[s][w]`
-//! over the welded vertices `w` through the [`Welding`]: the vector of the first file vertex of
-//! each welded group. The other file vertices of a group (copies at a texture seam) must carry
-//! the same flow, to within `1e-9` of the slab's largest true speed; anything else means the
-//! file's numbering is not the input's. Every vector must be finite. Errors name the file, and
-//! the slab and file vertices at fault.
+//! count **of the input files** (before welding, as the user wrote them). It becomes `[s][m]`
+//! over the mesh vertices `m` through the [`VertexMap`]: the vector of each mesh vertex's
+//! representative file vertex. The other file vertices mapped to it (copies at a texture seam)
+//! must carry the same flow, to within `1e-9` of the slab's largest true speed; anything else
+//! means the file's numbering is not the input's. Every vector of a file vertex that was not
+//! dropped must be finite (dropped ones are ignored). Errors name the file, and the slab and
+//! file vertices at fault.
 
-use super::{read_npy_float, IoError, Welding};
+use super::{read_npy_float, IoError, VertexMap};
 use nalgebra::Vector3;
 use std::path::Path;
 
@@ -18,14 +19,14 @@ use std::path::Path;
 const DUPLICATE_TOLERANCE: f64 = 1e-9;
 
 /// Reads the true flow of an `n_slabs`-slab sequence from `path` (see the module docs) and maps
-/// it onto the welded vertices: `truth[s][w]`.
+/// it onto the mesh vertices: `truth[s][m]`.
 pub fn read_ground_truth(
     path: &Path,
-    welding: &Welding,
+    vertex_map: &VertexMap,
     n_slabs: usize,
 ) -> Result<Vec<Vec<Vector3<f64>>>, IoError> {
     let array = read_npy_float(path)?;
-    let n_file_vertices = welding.vertex_map.len();
+    let n_file_vertices = vertex_map.n_file_vertices();
     if array.shape != [n_slabs as u64, n_file_vertices as u64, 3] {
         return Err(IoError::format(
             path,
@@ -42,29 +43,36 @@ pub fn read_ground_truth(
                 .chunks_exact(3)
                 .map(Vector3::from_column_slice)
                 .collect();
-            welded_slab(s, &vectors, welding).map_err(|message| IoError::format(path, message))
+            mesh_slab(s, &vectors, vertex_map).map_err(|message| IoError::format(path, message))
         })
         .collect()
 }
 
-/// The vectors of slab `s` (file numbering) on the welded vertices, checked.
-fn welded_slab(
+/// The vectors of slab `s` (file numbering) on the mesh vertices, checked.
+fn mesh_slab(
     s: usize,
     vectors: &[Vector3<f64>],
-    welding: &Welding,
+    vertex_map: &VertexMap,
 ) -> Result<Vec<Vector3<f64>>, String> {
-    if let Some(i) = vectors
-        .iter()
-        .position(|v| !v.iter().all(|c| c.is_finite()))
+    let kept = |i: &usize| vertex_map.mesh_vertex(*i).is_some();
+    if let Some(i) = (0..vectors.len())
+        .filter(kept)
+        .find(|&i| !vectors[i].iter().all(|c| c.is_finite()))
     {
         return Err(format!(
             "slab {s}, vertex {i}: true flow {} is not finite",
             show(&vectors[i])
         ));
     }
-    let largest = vectors.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    for (i, &w) in welding.vertex_map.iter().enumerate() {
-        let first = welding.representatives[w as usize] as usize;
+    let largest = (0..vectors.len())
+        .filter(kept)
+        .map(|i| vectors[i].norm())
+        .fold(0.0, f64::max);
+    for i in 0..vectors.len() {
+        let Some(m) = vertex_map.mesh_vertex(i) else {
+            continue;
+        };
+        let first = vertex_map.representative(m);
         if (vectors[i] - vectors[first]).norm() > DUPLICATE_TOLERANCE * largest {
             return Err(format!(
                 "slab {s}: file vertices {first} and {i} are welded into one vertex (same position in every frame) but their true flows differ, {} vs {}",
@@ -73,10 +81,8 @@ fn welded_slab(
             ));
         }
     }
-    Ok(welding
-        .representatives
-        .iter()
-        .map(|&r| vectors[r as usize])
+    Ok((0..vertex_map.n_mesh_vertices())
+        .map(|m| vectors[vertex_map.representative(m)])
         .collect())
 }
 

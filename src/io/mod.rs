@@ -1,8 +1,9 @@
 //! Reading and writing files.
 //!
 //! In: mesh sequences as OBJ, PLY or glTF frames, one glTF morph animation, or NPY arrays
-//! ([`load_sequence`]); a known flow to compare with ([`read_ground_truth`]); OBJ meshes for
-//! single-mesh commands. Out: the flow (and its errors against a known one) as NPY, ParaView
+//! ([`load_sequence`]); a known flow to compare with ([`read_ground_truth`]); single meshes
+//! ([`load_mesh`]). Both loaders weld seams, drop unused vertices, orient and optionally
+//! repair the faces, and keep a [`VertexMap`] between the files' vertices and the mesh's. Out: the flow (and its errors against a known one) as NPY, ParaView
 //! VTU/PVD and glTF ([`write_flow_outputs`]), operators as MatrixMarket.
 //!
 //! Every writer goes through [`write_atomically`]: the bytes land in a temporary file next to the
@@ -23,8 +24,10 @@ mod mtx;
 mod npy;
 mod obj;
 pub mod ply;
+mod prepare;
 mod sequence;
 mod texture;
+mod vertex_map;
 pub mod vtk;
 mod warning;
 mod weld;
@@ -40,10 +43,11 @@ pub use mtl::{texture_intensity, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};
 pub use npy::{read_npy, read_npy_float, read_npy_indices, write_npy, NpyArray};
 pub use obj::{read_obj, write_obj, ObjMesh};
+pub use prepare::{load_mesh, read_mesh_geometry, LoadedMesh};
 pub use sequence::{load_sequence, natural_order, read_mesh, LoadOptions, LoadedSequence};
 pub use texture::Texture;
+pub use vertex_map::VertexMap;
 pub use warning::{LoadWarning, STATIC_IMAGE_TOLERANCE};
-pub use weld::Welding;
 
 use std::path::PathBuf;
 
@@ -64,6 +68,22 @@ pub enum IoError {
     },
     #[error("{}: {message}", path.display())]
     Format { path: PathBuf, message: String },
+    /// The faces of a file are not an oriented manifold; `message` tells it in the file's
+    /// vertex numbers (`source` has the mesh's).
+    #[error("{}: {message}", path.display())]
+    Connectivity {
+        path: PathBuf,
+        message: String,
+        #[source]
+        source: crate::mesh::ConnectivityError,
+    },
+    /// A file that `path` refers to (an OBJ's material library or texture) failed.
+    #[error("{}: {context}: {source}", path.display())]
+    Referenced {
+        path: PathBuf,
+        context: String,
+        source: Box<IoError>,
+    },
 }
 
 impl IoError {
@@ -78,13 +98,21 @@ impl IoError {
     /// The file the error is about.
     pub fn path(&self) -> &std::path::Path {
         match self {
-            Self::File { path, .. } | Self::Parse { path, .. } | Self::Format { path, .. } => path,
+            Self::File { path, .. }
+            | Self::Parse { path, .. }
+            | Self::Format { path, .. }
+            | Self::Connectivity { path, .. }
+            | Self::Referenced { path, .. } => path,
         }
     }
 
     fn path_mut(&mut self) -> &mut PathBuf {
         match self {
-            Self::File { path, .. } | Self::Parse { path, .. } | Self::Format { path, .. } => path,
+            Self::File { path, .. }
+            | Self::Parse { path, .. }
+            | Self::Format { path, .. }
+            | Self::Connectivity { path, .. }
+            | Self::Referenced { path, .. } => path,
         }
     }
 

@@ -84,7 +84,8 @@ pub fn texture_intensity(
     ))
 }
 
-/// The `map_Kd` texture of each material of `obj` (`None` for untextured ones).
+/// The `map_Kd` texture of each material of `obj` (`None` for untextured ones). A library or
+/// image that fails is an error about the OBJ file that names it.
 fn material_textures(
     obj: &ObjMesh,
     obj_path: &Path,
@@ -94,14 +95,31 @@ fn material_textures(
         return Ok(vec![None; obj.materials.len()]);
     }
     let base = obj_path.parent().unwrap_or(Path::new(""));
+    let referenced = |context: String| {
+        move |source: IoError| IoError::Referenced {
+            path: obj_path.to_path_buf(),
+            context,
+            source: Box::new(source),
+        }
+    };
+    // Material name → (image, the library that names it).
     let mut maps = HashMap::new();
     for library in &obj.material_libraries {
-        maps.extend(read_mtl(&base.join(library))?);
+        let path = base.join(library);
+        let images = read_mtl(&path).map_err(referenced(format!("material library {library}")))?;
+        maps.extend(
+            images
+                .into_iter()
+                .map(|(name, image)| (name, (image, path.clone()))),
+        );
     }
     obj.materials
         .iter()
         .map(|name| match maps.get(name) {
-            Some(image) => cache.get(image).map(Some),
+            Some((image, library)) => cache.get(image).map(Some).map_err(referenced(format!(
+                "texture of material '{name}' ({})",
+                library.display()
+            ))),
             None => Ok(None),
         })
         .collect()

@@ -23,10 +23,14 @@
 //!
 //! Read: element `vertex` (scalar properties `x y z` required) and element `face` with a list
 //! `vertex_indices` (or `vertex_index`) of 0-based vertex indices; polygons are fan-triangulated
-//! `(0, k, k + 1)`. Colours come from `red green blue` when all three are present: integer types
+//! `(0, k, k + 1)`. Triangle strips, element `tristrips` with a list `vertex_indices`, are read
+//! too (after the faces, in file order): `−1` restarts a strip, and triangle `k` of a strip
+//! (counted from its start) is `(v_k, v_{k+1}, v_{k+2})` for even `k`, `(v_{k+1}, v_k,
+//! v_{k+2})` for odd `k`, so that all have the orientation of the first; triangles with a
+//! repeated vertex (strips repeat vertices to turn) are skipped. Colours come from `red green blue` when all three are present: integer types
 //! divided by their maximum (`uchar` by 255, `ushort` by 65535, …), float types as stored. `alpha`
 //! is dropped; every other scalar vertex property is kept as f64, in header order. List
-//! properties of vertices, other face properties and all other elements are skipped. Element
+//! properties of vertices, other face and strip properties and all other elements are skipped. Element
 //! numbers in error messages count from 0, like the indices in the file.
 //!
 //! Before an element is read, its declared count is checked against the bytes left (a binary
@@ -45,7 +49,7 @@ use std::path::Path;
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PlyMesh {
     pub positions: Vec<Vector3<f64>>,
-    /// 0-based vertex indices, polygons fan-triangulated.
+    /// 0-based vertex indices: polygons fan-triangulated, then the triangles of the strips.
     pub faces: Vec<[u32; 3]>,
     /// One RGB colour per vertex when the file has `red green blue`, scaled to [0, 1] for
     /// integer types.
@@ -542,13 +546,16 @@ impl VertexLayout {
     }
 }
 
-/// The position of the vertex index list among the face properties.
+/// The position of the vertex index list among the properties of a face or strip element.
 fn index_list(element: &Element) -> Result<usize, String> {
     let position = element
         .properties
         .iter()
         .position(|p| matches!(p.name.as_str(), "vertex_indices" | "vertex_index"))
-        .ok_or("the face element has no 'vertex_indices' (or 'vertex_index') property")?;
+        .ok_or(format!(
+            "the {} element has no 'vertex_indices' (or 'vertex_index') property",
+            element.name
+        ))?;
     match element.properties[position].kind {
         Kind::List { .. } => Ok(position),
         Kind::Scalar(_) => Err(format!(
@@ -567,14 +574,26 @@ fn parse_ply(bytes: &[u8]) -> Result<PlyMesh, ParseError> {
         .element("vertex")
         .ok_or((0, "the file has no vertex element".to_string()))?;
     let layout = VertexLayout::new(vertices).map_err(|m| (0, m))?;
-    let faces = header.element("face").filter(|f| f.count > 0).ok_or((
-        0,
-        "no faces: the file has no face element or an empty one (a point cloud, not a mesh)"
-            .to_string(),
-    ))?;
+    let [faces, strips] = ["face", "tristrips"].map(|name| header.element(name));
+    if !faces.into_iter().chain(strips).any(|e| e.count > 0) {
+        return Err((
+            0,
+            "no faces: the file has no face or tristrips element, or empty ones (a point \
+             cloud, not a mesh)"
+                .to_string(),
+        ));
+    }
+    let list = |element: Option<&Element>| {
+        element
+            .filter(|e| e.count > 0)
+            .map(index_list)
+            .transpose()
+            .map_err(|m| (0, m))
+    };
     let plan = Plan {
         layout,
-        index_list: index_list(faces).map_err(|m| (0, m))?,
+        index_list: list(faces)?.unwrap_or(0),
+        strip_list: list(strips)?.unwrap_or(0),
         vertex_count: vertices.count,
     };
     let body = &bytes[header.body_start..];
@@ -592,10 +611,12 @@ fn parse_ply(bytes: &[u8]) -> Result<PlyMesh, ParseError> {
     }
 }
 
-/// What the header says about the vertex and face records.
+/// What the header says about the vertex, face and strip records.
 struct Plan {
     layout: VertexLayout,
+    /// The positions of the index lists among the face and the strip properties.
     index_list: usize,
+    strip_list: usize,
     vertex_count: u64,
 }
 
@@ -745,15 +766,18 @@ impl Body for BinaryBody<'_> {
 
 fn read_body<B: Body>(mut body: B, header: &Header, plan: &Plan) -> Result<PlyMesh, ParseError> {
     let mut mesh = PlyMesh::default();
+    let mut strip_triangles = Vec::new();
     // An element without properties has no bytes, whatever its count.
     for element in header.elements.iter().filter(|e| !e.properties.is_empty()) {
         check_fits(&body, element)?;
         match element.name.as_str() {
             "vertex" => read_vertices(&mut body, element, &plan.layout, &mut mesh)?,
             "face" => mesh.faces = read_faces(&mut body, element, plan)?,
+            "tristrips" => strip_triangles = read_strips(&mut body, element, plan)?,
             _ => skip_records(&mut body, element)?,
         }
     }
+    mesh.faces.extend(strip_triangles);
     Ok(mesh)
 }
 
@@ -866,21 +890,69 @@ fn read_faces(
 ) -> Result<Vec<[u32; 3]>, ParseError> {
     let mut faces = Vec::with_capacity(capacity(element.count));
     let mut corners = Vec::new();
+    read_index_lists(body, element, plan.index_list, |body, count, item| {
+        read_corners(body, count, item, plan.vertex_count, &mut corners)?;
+        let fan = (1..corners.len() - 1).map(|k| [corners[0], corners[k], corners[k + 1]]);
+        faces.extend(fan);
+        Ok(())
+    })?;
+    Ok(faces)
+}
+
+fn read_strips(
+    body: &mut impl Body,
+    element: &Element,
+    plan: &Plan,
+) -> Result<Vec<[u32; 3]>, ParseError> {
+    let mut triangles = Vec::new();
+    let mut strip = Vec::new();
+    read_index_lists(body, element, plan.strip_list, |body, count, item| {
+        let n = list_length(body, count)?;
+        strip.clear();
+        for _ in 0..n {
+            let value = body.value(item)?;
+            if value == -1.0 {
+                add_strip(&strip, &mut triangles);
+                strip.clear();
+                continue;
+            }
+            let vertex = vertex_index(value, plan.vertex_count).map_err(|m| body.invalid(m))?;
+            strip.push(vertex);
+        }
+        add_strip(&strip, &mut triangles);
+        Ok(())
+    })?;
+    Ok(triangles)
+}
+
+/// Reads the records of a face or strip element: the index list (property `list`, with its
+/// count and item types) by `read`, the other properties skipped.
+fn read_index_lists<B: Body>(
+    body: &mut B,
+    element: &Element,
+    list: usize,
+    mut read: impl FnMut(&mut B, Scalar, Scalar) -> Result<(), RecordError>,
+) -> Result<(), ParseError> {
     for index in 0..element.count {
         for (k, property) in element.properties.iter().enumerate() {
             let at = locate(element, index, property);
             match property.kind {
-                Kind::List { count, item } if k == plan.index_list => {
-                    read_corners(body, count, item, plan.vertex_count, &mut corners).map_err(at)?;
-                    let fan =
-                        (1..corners.len() - 1).map(|k| [corners[0], corners[k], corners[k + 1]]);
-                    faces.extend(fan);
-                }
+                Kind::List { count, item } if k == list => read(body, count, item).map_err(at)?,
                 kind => skip_property(body, kind).map_err(at)?,
             }
         }
     }
-    Ok(faces)
+    Ok(())
+}
+
+/// The triangles of one strip (see the module docs), those with a repeated vertex skipped.
+fn add_strip(strip: &[u32], triangles: &mut Vec<[u32; 3]>) {
+    for (k, window) in strip.windows(3).enumerate() {
+        let [a, b, c] = [window[0], window[1], window[2]];
+        if a != b && b != c && a != c {
+            triangles.push(if k % 2 == 0 { [a, b, c] } else { [b, a, c] });
+        }
+    }
 }
 
 /// Reads one polygon's vertex indices into `corners` (at least 3, each naming a vertex).

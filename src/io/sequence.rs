@@ -2,11 +2,12 @@
 //!
 //! Every source (see [`SequenceSource`]) is first read into a [`RawSequence`] with the files'
 //! own vertex numbering, checked frame by frame (same vertex count and faces as frame 0, finite
-//! values), then welded (see [`Welding`]) and validated as a [`MeshSequence`]. Errors name the
-//! file, and the frame, vertex or face at fault.
+//! values), then turned into a mesh by the steps of [`super::prepare`] (welding, orientation,
+//! repair, dropping unused vertices; the [`VertexMap`] keeps the files' numbering) and validated
+//! as a [`MeshSequence`]. Errors name the file, and the frame, vertex or face at fault.
 //!
-//! Grey values come from `--intensity` (a float64 `.npy` of shape (K, V) over the files'
-//! vertices) when given, else from each format's own data: OBJ vertex colours or `map_Kd`
+//! Grey values come from `--intensity` (a float32 or float64 `.npy` of shape (K, V) over the
+//! files' vertices) when given, else from each format's own data: OBJ vertex colours or `map_Kd`
 //! texture, a PLY scalar property (`intensity_attribute`) or its colours, glTF `COLOR_0` or
 //! base-colour texture, `intensity.npy` next to NPY arrays. Colours become grey by
 //! [`grey_values`]. Frame times come from `--times`, else a glTF animation's keyframes, else a
@@ -16,21 +17,22 @@
 use super::gltf_read::{read_gltf_animation, read_gltf_frame};
 use super::input::{FrameFormat, SequenceSource};
 use super::ply::read_ply;
+use super::prepare::prepare_mesh;
 use super::warning::STATIC_IMAGE_TOLERANCE;
-use super::{grey_values, read_npy, read_npy_indices, read_obj, texture_intensity};
-use super::{FrameMesh, IoError, LoadWarning, RawSequence, TextureCache, Welding};
+use super::{grey_values, read_npy_float, read_npy_indices, read_obj, texture_intensity};
+use super::{FrameMesh, IoError, LoadWarning, RawSequence, TextureCache, VertexMap};
 use crate::flow::{check_finite_intensities, FlowError, MeshSequence};
-use crate::mesh::{check_index_range, Mesh};
 use crate::Error;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use std::cmp::Ordering;
 use std::path::{Path, PathBuf};
 
-/// Choices for [`load_sequence`]; `Default` is "everything from the files, welded".
+/// Choices for [`load_sequence`] (and [`super::load_mesh`]); `Default` is "everything from the
+/// files, welded at the default tolerance, not repaired".
 #[derive(Clone, Debug)]
 pub struct LoadOptions {
-    /// Grey values from this float64 `.npy` of shape (frames, file vertices).
+    /// Grey values from this float32 or float64 `.npy` of shape (frames, file vertices).
     pub intensity: Option<PathBuf>,
     /// The PLY vertex property holding the grey value (instead of the colours).
     pub intensity_attribute: Option<String>,
@@ -38,11 +40,23 @@ pub struct LoadOptions {
     pub times: Option<Vec<f64>>,
     /// Resample a glTF animation at this many frames per unit of time.
     pub fps: Option<f64>,
-    /// Weld vertices that coincide in every frame (split at texture seams by exporters).
+    /// Weld seam copies: vertices that coincide in every frame and end coincident edges, never
+    /// where the surface only touches itself (`docs/io.md`).
     pub weld: bool,
     /// The animation of a glTF file to read, by name, else by index (`"2"`); `None`: the first
     /// that moves the mesh's morph weights.
     pub animation: Option<String>,
+    /// How close coincident vertices are, relative to the bounding-box diagonal of frame 0
+    /// (0: bitwise equal).
+    pub weld_tolerance: f64,
+    /// Repair non-manifold edges and vertices, faces with a repeated vertex and duplicate faces
+    /// (see [`crate::mesh::repair`]) instead of refusing them.
+    pub repair: bool,
+}
+
+impl LoadOptions {
+    /// The default [`LoadOptions::weld_tolerance`].
+    pub const DEFAULT_WELD_TOLERANCE: f64 = 1e-9;
 }
 
 impl Default for LoadOptions {
@@ -54,6 +68,8 @@ impl Default for LoadOptions {
             fps: None,
             weld: true,
             animation: None,
+            weld_tolerance: Self::DEFAULT_WELD_TOLERANCE,
+            repair: false,
         }
     }
 }
@@ -63,8 +79,8 @@ impl Default for LoadOptions {
 pub struct LoadedSequence {
     pub sequence: MeshSequence,
     pub source: SequenceSource,
-    /// File vertices → mesh vertices.
-    pub welding: Welding,
+    /// File vertices ↔ mesh vertices.
+    pub vertex_map: VertexMap,
     /// The file each frame came from.
     pub frame_files: Vec<PathBuf>,
     /// What the loader noticed and worked around (see [`LoadWarning`]).
@@ -89,14 +105,8 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
     }
     let n_file_vertices = positions[0].len();
     check_finite_positions(&positions).map_err(|e| in_frame_file(e, &files))?;
-    // Welding renumbers vertices, so indices are checked against the files' count first.
-    check_index_range(&faces, n_file_vertices).map_err(|e| Error::from(e).in_file(&files[0]))?;
-    let welding = match options.weld {
-        true => Welding::of_coincident(&positions),
-        false => Welding::identity(n_file_vertices),
-    };
-    let mesh = Mesh::new(welding.n_vertices(), welding.faces(faces))
-        .map_err(|e| Error::from(e).in_file(&files[0]))?;
+    let prepared = prepare_mesh(&files[0], &faces, &positions, options)?;
+    let vertex_map = prepared.vertex_map;
     let intensities = match &options.intensity {
         Some(file) => intensity_array(file, positions.len(), n_file_vertices)?,
         None => intensities.ok_or_else(|| {
@@ -106,7 +116,9 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
             )
         })?,
     };
-    check_finite_intensities(&intensities).map_err(|e| in_frame_file(e, &files))?;
+    // Dropped vertices' grey values are never used.
+    check_finite_intensities(&intensities, |i| vertex_map.mesh_vertex(i).is_some())
+        .map_err(|e| in_frame_file(e, &files))?;
     let times_file = source.directory().join("times.txt");
     let (times, times_from_file) = match (&options.times, times) {
         (Some(times), _) => (Some(times.clone()), false),
@@ -117,20 +129,22 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
             (times, from_file)
         }
     };
-    let positions = positions
-        .into_iter()
-        .map(|p| welding.positions(p))
+    let positions = positions.iter().map(|p| vertex_map.positions(p)).collect();
+    let intensities = intensities
+        .iter()
+        .map(|v| vertex_map.mean_values(v))
         .collect();
-    let intensities = intensities.into_iter().map(|v| welding.values(v)).collect();
-    let sequence = MeshSequence::new(mesh, positions, intensities, times).map_err(|e| match e {
-        e if times_from_file && is_about_times(&e) => Error::from(e).in_file(&times_file),
-        e => in_frame_file(e, &files),
-    })?;
+    let sequence =
+        MeshSequence::new(prepared.mesh, positions, intensities, times).map_err(|e| match e {
+            e if times_from_file && is_about_times(&e) => Error::from(e).in_file(&times_file),
+            e => in_frame_file(e, &files),
+        })?;
+    warnings.extend(prepared.warnings);
     warnings.extend(static_image_warning(&sequence, path));
     Ok(LoadedSequence {
         sequence,
         source,
-        welding,
+        vertex_map,
         frame_files: files,
         warnings,
     })
@@ -296,8 +310,22 @@ fn read_frame(
         }
         FrameFormat::Ply => {
             let ply = read_ply(file)?;
+            let untold = ply.colors.is_none() && options.intensity.is_none();
             let intensity = match &options.intensity_attribute {
                 Some(name) => Some(ply_property(ply.properties, name, file)?),
+                None if untold && !ply.properties.is_empty() => {
+                    // Without colours, a scalar property is most likely the grey value.
+                    let names: Vec<&str> = ply.properties.iter().map(|(n, _)| n.as_str()).collect();
+                    return Err(IoError::format(
+                        file,
+                        format!(
+                            "no grey values: no vertex colours, but scalar vertex properties \
+                             {}; use --intensity-attribute {} (or --intensity FILE.npy)",
+                            names.join(", "),
+                            names[0]
+                        ),
+                    ));
+                }
                 None => ply.colors.as_deref().map(grey_values),
             };
             Ok(FrameMesh {
@@ -334,7 +362,7 @@ fn ply_property(
 /// `positions.npy` (K, V, 3), `faces.npy` (F, 3) and, if present, `intensity.npy` (K, V).
 fn read_npy_sequence(dir: &Path) -> Result<RawSequence, Error> {
     let positions_file = dir.join("positions.npy");
-    let array = read_npy(&positions_file)?;
+    let array = read_npy_float(&positions_file)?;
     let [k, v, 3] = array.shape[..] else {
         return Err(IoError::format(
             &positions_file,
@@ -435,7 +463,7 @@ fn intensity_array(
     n_frames: usize,
     n_vertices: usize,
 ) -> Result<Vec<Vec<f64>>, IoError> {
-    let array = read_npy(path)?;
+    let array = read_npy_float(path)?;
     if array.shape != [n_frames as u64, n_vertices as u64] {
         return Err(IoError::format(
             path,

@@ -2,6 +2,8 @@
 //!
 //! Nothing here knows about positions or lengths. A [`Mesh`] is validated on construction: it is
 //! an oriented 2-manifold (possibly with boundary) with every vertex used by some face.
+//! [`orient`] makes the faces of a manifold agree in orientation and [`repair`] turns any face
+//! list into an oriented manifold by splitting vertices.
 //!
 //! # Conventions (used by every other module)
 //!
@@ -16,8 +18,11 @@
 //!   at its corner in the lowest-numbered face.
 //! - Undirected edge `e` joins `edges[e][0] < edges[e][1]`.
 
+mod repair;
 mod validate;
 
+pub(crate) use repair::UnionFind;
+pub use repair::{orient, repair, RepairReport, Repaired};
 pub use validate::{check_index_range, ConnectivityError};
 
 /// A corner of a face: the face and the local index (0, 1, 2) of the vertex in it.

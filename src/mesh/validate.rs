@@ -3,36 +3,97 @@
 use super::{Corner, Mesh, NO_HALFEDGE};
 
 /// Why a face list is not an oriented manifold triangle mesh.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+///
+/// `Display` names vertices "vertex i"; [`ConnectivityError::describe`] gives the same message
+/// with vertices named otherwise (e.g. in a file's numbering).
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum ConnectivityError {
-    #[error("the mesh has no faces")]
     NoFaces,
-    #[error("face {face} refers to vertex {index}, but the mesh has {n_vertices} vertices")]
     IndexOutOfRange {
         face: usize,
         index: u32,
         n_vertices: usize,
     },
-    #[error("face {face} uses vertex {vertex} more than once")]
-    RepeatedVertex { face: usize, vertex: u32 },
-    #[error(
-        "edge {vertices:?} is shared by {n_faces} faces (non-manifold edge), e.g. faces {faces:?}"
-    )]
+    RepeatedVertex {
+        face: usize,
+        vertex: u32,
+    },
     NonManifoldEdge {
         vertices: [u32; 2],
         n_faces: usize,
         faces: [usize; 2],
     },
-    #[error("faces {faces:?} traverse their shared edge {vertices:?} in the same direction (inconsistent orientation)")]
     InconsistentOrientation {
         vertices: [u32; 2],
         faces: [usize; 2],
     },
-    #[error("vertex {vertex} has {n_fans} separate fans of faces (non-manifold vertex)")]
-    NonManifoldVertex { vertex: usize, n_fans: usize },
-    #[error("vertex {vertex} is not used by any face (isolated vertex)")]
-    IsolatedVertex { vertex: usize },
+    /// No flips make the faces of a connected component agree (a Möbius strip): orienting
+    /// breadth-first, `faces` still traverse their shared edge in the same direction.
+    NonOrientable {
+        vertices: [u32; 2],
+        faces: [usize; 2],
+    },
+    NonManifoldVertex {
+        vertex: usize,
+        n_fans: usize,
+    },
+    IsolatedVertex {
+        vertex: usize,
+    },
 }
+
+impl ConnectivityError {
+    /// The message, with every vertex of the mesh named by `vertex` (e.g. `"vertex 3"`).
+    pub fn describe(&self, vertex: impl Fn(u32) -> String) -> String {
+        let edge = |[a, b]: [u32; 2]| format!("the edge between {} and {}", vertex(a), vertex(b));
+        match self {
+            Self::NoFaces => "the mesh has no faces".into(),
+            Self::IndexOutOfRange {
+                face,
+                index,
+                n_vertices,
+            } => format!(
+                "face {face} refers to vertex {index}, but the mesh has {n_vertices} vertices"
+            ),
+            Self::RepeatedVertex { face, vertex: v } => {
+                format!("face {face} uses {} more than once", vertex(*v))
+            }
+            Self::NonManifoldEdge {
+                vertices,
+                n_faces,
+                faces,
+            } => format!(
+                "{} is shared by {n_faces} faces (non-manifold edge), e.g. faces {faces:?}",
+                edge(*vertices)
+            ),
+            Self::InconsistentOrientation { vertices, faces } => format!(
+                "faces {faces:?} traverse {} in the same direction (inconsistent orientation)",
+                edge(*vertices)
+            ),
+            Self::NonOrientable { vertices, faces } => format!(
+                "the surface is not orientable: no flips make faces {faces:?} traverse {} in \
+                 opposite directions",
+                edge(*vertices)
+            ),
+            Self::NonManifoldVertex { vertex: v, n_fans } => format!(
+                "{} has {n_fans} separate fans of faces (non-manifold vertex)",
+                vertex(*v as u32)
+            ),
+            Self::IsolatedVertex { vertex: v } => format!(
+                "{} is not used by any face (isolated vertex)",
+                vertex(*v as u32)
+            ),
+        }
+    }
+}
+
+impl std::fmt::Display for ConnectivityError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.describe(|v| format!("vertex {v}")))
+    }
+}
+
+impl std::error::Error for ConnectivityError {}
 
 pub(super) fn build(n_vertices: usize, faces: Vec<[u32; 3]>) -> Result<Mesh, ConnectivityError> {
     if faces.is_empty() {
@@ -71,6 +132,11 @@ pub fn check_index_range(faces: &[[u32; 3]], n_vertices: usize) -> Result<(), Co
 
 fn check_face_indices(n_vertices: usize, faces: &[[u32; 3]]) -> Result<(), ConnectivityError> {
     check_index_range(faces, n_vertices)?;
+    check_repeated_vertices(faces)
+}
+
+/// Fails on the first face that names a vertex twice.
+pub(super) fn check_repeated_vertices(faces: &[[u32; 3]]) -> Result<(), ConnectivityError> {
     for (f, face) in faces.iter().enumerate() {
         if face[0] == face[1] || face[0] == face[2] {
             return Err(ConnectivityError::RepeatedVertex {
@@ -94,21 +160,13 @@ type HalfedgeTables = (Vec<u32>, Vec<u32>, Vec<[u32; 2]>);
 /// halfedges) and pairs each interior halfedge with its twin.
 fn pair_halfedges(faces: &[[u32; 3]]) -> Result<HalfedgeTables, ConnectivityError> {
     let n_halfedges = 3 * faces.len();
-    let vertices_of = |h: usize| [faces[h / 3][h % 3], faces[h / 3][(h + 1) % 3]];
-    let mut keyed: Vec<(u64, u32)> = (0..n_halfedges)
-        .map(|h| {
-            let [i, j] = vertices_of(h);
-            let key = ((i.min(j) as u64) << 32) | i.max(j) as u64;
-            (key, h as u32)
-        })
-        .collect();
-    keyed.sort_unstable();
-
+    let vertices_of = |h: usize| halfedge_vertices(faces, h);
+    let keyed = halfedges_by_edge(faces);
     let mut twins = vec![NO_HALFEDGE; n_halfedges];
     let mut halfedge_edges = vec![0u32; n_halfedges];
     let mut edges = Vec::with_capacity(n_halfedges / 2 + 1);
     for run in keyed.chunk_by(|a, b| a.0 == b.0) {
-        let vertices = [(run[0].0 >> 32) as u32, run[0].0 as u32];
+        let vertices = edge_of_key(run[0].0);
         let first = run[0].1 as usize;
         if run.len() > 2 {
             return Err(ConnectivityError::NonManifoldEdge {
@@ -134,6 +192,30 @@ fn pair_halfedges(faces: &[[u32; 3]]) -> Result<HalfedgeTables, ConnectivityErro
         edges.push(vertices);
     }
     Ok((twins, halfedge_edges, edges))
+}
+
+/// Tail and head of halfedge `h` (see the module conventions).
+pub(super) fn halfedge_vertices(faces: &[[u32; 3]], h: usize) -> [u32; 2] {
+    [faces[h / 3][h % 3], faces[h / 3][(h + 1) % 3]]
+}
+
+/// Every halfedge as `(edge key, halfedge)`, sorted: the halfedges of one undirected edge
+/// `[i, j]`, `i < j` (key `i << 32 | j`), follow each other in halfedge order.
+pub(super) fn halfedges_by_edge(faces: &[[u32; 3]]) -> Vec<(u64, u32)> {
+    let mut keyed: Vec<(u64, u32)> = (0..3 * faces.len())
+        .map(|h| {
+            let [i, j] = halfedge_vertices(faces, h);
+            let key = ((i.min(j) as u64) << 32) | i.max(j) as u64;
+            (key, h as u32)
+        })
+        .collect();
+    keyed.sort_unstable();
+    keyed
+}
+
+/// The two vertices of an edge key of [`halfedges_by_edge`].
+pub(super) fn edge_of_key(key: u64) -> [u32; 2] {
+    [(key >> 32) as u32, key as u32]
 }
 
 type FanTables = (Vec<usize>, Vec<Corner>, Vec<bool>);
@@ -193,11 +275,28 @@ fn build_fans(
         if ordered.len() - before != corners.len() {
             return Err(ConnectivityError::NonManifoldVertex {
                 vertex: i,
-                n_fans: 2,
+                n_fans: count_fans(&starts, corners, twins),
             });
         }
     }
     Ok((offsets, ordered, boundary))
+}
+
+/// How many fans the corners of one vertex form: one per boundary start, then closed ones.
+fn count_fans(starts: &[Corner], corners: &[Corner], twins: &[u32]) -> usize {
+    let mut seen = std::collections::HashSet::new();
+    let mut fans = 0;
+    let mut fan = Vec::new();
+    for &corner in starts.iter().chain(corners) {
+        if seen.contains(&corner) {
+            continue;
+        }
+        fans += 1;
+        fan.clear();
+        walk_fan(corner, twins, corners.len(), &mut fan);
+        seen.extend(fan.iter().copied());
+    }
+    fans
 }
 
 /// Appends the corners reached from `start` by stepping counter-clockwise (across the second

@@ -7,7 +7,7 @@ mod solve;
 
 use clap::{Parser, Subcommand};
 use meshflow::flow::{Boundary, FlowParams, SolverChoice, TimeCoupling};
-use meshflow::io::{FrameFormat, OutputFormat, Overwrite};
+use meshflow::io::{FrameFormat, LoadOptions, OutputFormat, Overwrite};
 use pictures::PictureArgs;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -27,13 +27,17 @@ struct Cli {
 enum Command {
     /// Write the finite-element operators of a mesh for SciPy/MATLAB: cotan.mtx (V×V cotan
     /// Laplacian), mass_scalar.mtx (V×V P1 mass), stiffness.mtx (2V×2V connection Laplacian),
-    /// mass.mtx (2V×2V vector mass) and frames.npy (V×2×3 vertex frames in R^3).
+    /// mass.mtx (2V×2V vector mass) and frames.npy (V×2×3 vertex frames in R^3), over the mesh
+    /// vertices (welded, unused ones dropped, split by --repair), with vertex_map.npy (the mesh
+    /// vertex of each file vertex, −1 if dropped) when they differ from the file's.
     Operators {
         /// Triangle mesh (.obj, .ply, .gltf, .glb)
         mesh: PathBuf,
         /// Output directory (created if missing; an earlier meshflow output there is replaced)
         #[arg(long)]
         out: PathBuf,
+        #[command(flatten)]
+        building: MeshArgs,
         #[command(flatten)]
         force: ForceArg,
     },
@@ -142,7 +146,8 @@ struct SolveArgs {
     /// Relative residual at which the iterative solver stops
     #[arg(long, default_value_t = FlowParams::default().tolerance, allow_negative_numbers = true)]
     tolerance: f64,
-    /// Grey values as a float64 .npy of shape (frames, vertices) instead of vertex colours
+    /// Grey values as a float32 or float64 .npy of shape (frames, file vertices) instead of
+    /// vertex colours
     #[arg(long)]
     intensity: Option<PathBuf>,
     /// PLY vertex property holding the grey values (instead of the colours)
@@ -158,10 +163,8 @@ struct SolveArgs {
     /// mesh's morph weights)
     #[arg(long, value_name = "NAME|INDEX")]
     animation: Option<String>,
-    /// Keep vertices that coincide in every frame apart (default: weld them, as exporters split
-    /// vertices at texture seams)
-    #[arg(long)]
-    no_weld: bool,
+    #[command(flatten)]
+    building: MeshArgs,
     /// Known flow to measure the result against: .npy (slabs, vertices in the files, 3), float64
     /// or float32, R^3 vectors on frame s. Adds angular_error/endpoint_error to the .vtu files,
     /// angular_error.npy, endpoint_error.npy and "ground_truth" in summary.json
@@ -177,15 +180,47 @@ struct SolveArgs {
     pictures: PictureArgs,
 }
 
+/// How the mesh is built from the files' faces (`solve` and `operators`).
+#[derive(clap::Args)]
+struct MeshArgs {
+    /// Keep coincident vertices apart (default: weld seam copies, which exporters split at
+    /// texture seams: coincident vertices joined by coincident edges, never where the surface
+    /// only touches itself)
+    #[arg(long)]
+    no_weld: bool,
+    /// Welding distance relative to the bounding-box diagonal of frame 0 (0: bitwise equal
+    /// positions)
+    #[arg(long, value_name = "REL", default_value_t = LoadOptions::DEFAULT_WELD_TOLERANCE, allow_negative_numbers = true)]
+    weld_tolerance: f64,
+    /// Split non-manifold edges and vertices into manifold pieces, cut non-orientable surfaces
+    /// open, drop faces with a repeated vertex and duplicate faces (default: refuse them)
+    #[arg(long)]
+    repair: bool,
+}
+
+impl MeshArgs {
+    fn options(&self) -> LoadOptions {
+        LoadOptions {
+            weld: !self.no_weld,
+            weld_tolerance: self.weld_tolerance,
+            repair: self.repair,
+            ..LoadOptions::default()
+        }
+    }
+}
+
 fn main() -> ExitCode {
     let cli = match Cli::try_parse().and_then(check_usage) {
         Ok(cli) => cli,
         Err(error) => return usage_error(error),
     };
     let result = match cli.command {
-        Command::Operators { mesh, out, force } => {
-            operators::write_operators(&mesh, &out, force.overwrite())
-        }
+        Command::Operators {
+            mesh,
+            out,
+            building,
+            force,
+        } => operators::write_operators(&mesh, &out, &building.options(), force.overwrite()),
         Command::Solve(args) => solve::solve(&args),
         Command::Render {
             dir,
@@ -222,6 +257,22 @@ fn check_usage(cli: Cli) -> Result<Cli, clap::Error> {
         }
     }
     Ok(cli)
+}
+
+/// " (welded N duplicate vertices)" after a vertex count, or nothing.
+fn welded_note(n_welded: usize) -> String {
+    match n_welded {
+        0 => String::new(),
+        1 => " (welded 1 duplicate vertex)".into(),
+        n => format!(" (welded {n} duplicate vertices)"),
+    }
+}
+
+/// One `meshflow: warning: …` line per warning, on stderr.
+fn print_warnings(warnings: &[meshflow::io::LoadWarning]) {
+    for warning in warnings {
+        eprintln!("meshflow: warning: {warning}");
+    }
 }
 
 /// `--help` and `--version` print as usual; a usage error becomes one line, exit code 2.

@@ -41,15 +41,13 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         intensity_attribute: args.intensity_attribute.clone(),
         times: args.times.clone(),
         fps: args.fps,
-        weld: !args.no_weld,
         animation: args.animation.clone(),
+        ..args.building.options()
     };
     let loaded = during(format!("reading {}", args.input.display()), || {
         load_sequence(&args.input, &options)
     })?;
-    for warning in &loaded.warnings {
-        eprintln!("meshflow: warning: {warning}");
-    }
+    crate::print_warnings(&loaded.warnings);
     let sequence = &loaded.sequence;
     println!(
         "{}: {}, {} vertices, {} faces{}",
@@ -57,10 +55,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         loaded.source.describe(),
         sequence.mesh().n_vertices(),
         sequence.mesh().n_faces(),
-        match loaded.welding.n_welded() {
-            0 => String::new(),
-            n => format!(" (welded {n} duplicate vertices)"),
-        }
+        crate::welded_note(loaded.vertex_map.n_welded())
     );
     let slabs = match args.png {
         true => args.pictures.slabs(sequence.n_slabs())?,
@@ -164,7 +159,7 @@ type TrueFlow = Vec<Vec<Vector3<f64>>>;
 /// fails at once.
 fn read_truth(file: &Path, loaded: &LoadedSequence) -> Result<(PathBuf, TrueFlow), Error> {
     check_embedded(&loaded.sequence).map_err(|e| Error::from(e).in_file(file))?;
-    let truth = read_ground_truth(file, &loaded.welding, loaded.sequence.n_slabs())?;
+    let truth = read_ground_truth(file, &loaded.vertex_map, loaded.sequence.n_slabs())?;
     Ok((file.to_path_buf(), truth))
 }
 
