@@ -18,14 +18,17 @@
 //! - `M ≻ 0`: the consistent vector mass M is positive definite (its Cholesky factorization
 //!   succeeds);
 //! - `|L·1|`: `max_i |(L 1)_i| / max_i L_ii` for the cotan Laplacian L; constants are in its
-//!   kernel, so this is round-off (`< 1e-12` passes).
+//!   kernel, so this is round-off (`< 1e-12` passes);
+//! - `frames`: `max_i |P_iᵀ P_i − I|` for the vertex frames in R^3 (`frames.npy`,
+//!   `docs/discretization.md` §8); they are orthonormal, so this is round-off (`< 1e-12`
+//!   passes).
 //!
 //! The process exits with status 1 if any mesh fails a check or does not load.
 
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::Triplet;
 use faer::Side;
-use meshflow::connection::Connection;
+use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::fem::{self, MassKind, SparseMatrix};
 use meshflow::geometry::IntrinsicGeometry;
 use meshflow::io::{load_mesh, LoadOptions, LoadWarning, LoadedMesh};
@@ -40,8 +43,8 @@ fn main() -> ExitCode {
         eprintln!("usage: scan_checks MESH...");
         return ExitCode::from(2);
     }
-    println!("| mesh | V | F | χ | parts | boundary | loader | K ⪰ 0 | M ≻ 0 | \\|L·1\\| |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("| mesh | V | F | χ | parts | boundary | loader | K ⪰ 0 | M ≻ 0 | \\|L·1\\| | frames \\|PᵀP − I\\| |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     let mut all_pass = true;
     for path in &paths {
         let name = Path::new(path)
@@ -54,7 +57,7 @@ fn main() -> ExitCode {
             }
             Err(error) => {
                 all_pass = false;
-                println!("| {name} | does not load: {error} |||||||||");
+                println!("| {name} | does not load: {error} ||||||||||");
             }
         }
     }
@@ -71,11 +74,12 @@ struct Row {
     k_semidefinite: bool,
     m_definite: bool,
     constants: f64,
+    frames: f64,
 }
 
 impl Row {
     fn passes(&self) -> bool {
-        self.k_semidefinite && self.m_definite && self.constants < 1e-12
+        self.k_semidefinite && self.m_definite && self.constants < 1e-12 && self.frames < 1e-12
     }
 
     fn cells(&self) -> Vec<String> {
@@ -94,6 +98,7 @@ impl Row {
             verdict(self.k_semidefinite),
             verdict(self.m_definite),
             format!("{:.1e}", self.constants),
+            format!("{:.1e}", self.frames),
         ]
     }
 }
@@ -124,7 +129,12 @@ fn check(path: &Path) -> Result<Row, Error> {
         .into_iter()
         .fold(0.0, |a: f64, s| a.max(s.abs()))
         / diagonal(&l).into_iter().fold(0.0, f64::max);
+    let frames = vertex_frames_in_r3(&mesh, &geometry, &connection, &positions)?
+        .iter()
+        .map(|p| (p.transpose() * p - nalgebra::Matrix2::identity()).amax())
+        .fold(0.0, f64::max);
     Ok(Row {
+        frames,
         k_semidefinite: cholesky_succeeds(&sum(&k, 1.0, &m, shift)),
         m_definite: cholesky_succeeds(&m),
         constants,
