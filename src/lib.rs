@@ -56,6 +56,11 @@ pub mod synth;
 
 use std::path::PathBuf;
 
+/// The README's Rust examples, compiled with the doctests so that they stay true.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeExamples;
+
 /// Any error meshflow reports. Variants carry the element (vertex, face, edge, line) at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
