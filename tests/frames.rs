@@ -46,6 +46,16 @@ fn saddle() -> Surface {
     surface
 }
 
+/// Curved (sphere, torus), sharp (spike) and with boundary (saddle).
+fn test_surfaces() -> [(&'static str, Surface); 4] {
+    [
+        ("sphere", icosphere(2)),
+        ("torus", torus(2.0, 0.6, 16, 9)),
+        ("spike", spike()),
+        ("saddle", saddle()),
+    ]
+}
+
 fn assert_orthonormal(frames: &[Matrix3x2<f64>], what: &str) {
     for (i, p) in frames.iter().enumerate() {
         let defect = (p.transpose() * p - Matrix2::identity()).amax();
@@ -55,12 +65,7 @@ fn assert_orthonormal(frames: &[Matrix3x2<f64>], what: &str) {
 
 #[test]
 fn frames_are_orthonormal_on_curved_sharp_and_boundary_meshes() {
-    for (what, surface) in [
-        ("sphere", icosphere(2)),
-        ("torus", torus(2.0, 0.6, 16, 9)),
-        ("spike", spike()),
-        ("saddle", saddle()),
-    ] {
+    for (what, surface) in test_surfaces() {
         let (_, frames) = frames_of(&surface);
         assert_orthonormal(&frames, what);
     }
@@ -139,12 +144,7 @@ fn reference_frames(mesh: &Mesh, x: &[Vector3<f64>]) -> Vec<Matrix3x2<f64>> {
 
 #[test]
 fn frames_follow_geometry_centrals_vertex_tangent_basis() {
-    for (what, surface) in [
-        ("sphere", icosphere(2)),
-        ("torus", torus(2.0, 0.6, 16, 9)),
-        ("spike", spike()),
-        ("saddle", saddle()),
-    ] {
+    for (what, surface) in test_surfaces() {
         let (mesh, frames) = frames_of(&surface);
         let expected = reference_frames(&mesh, &surface.positions);
         for (i, (p, q)) in frames.iter().zip(&expected).enumerate() {
