@@ -3,8 +3,7 @@
 use crate::pictures;
 use crate::progress::{during, solver_progress};
 use crate::SolveArgs;
-use meshflow::accuracy::FlowErrors;
-use meshflow::accuracy::{check_embedded, compare_result};
+use meshflow::accuracy::{check_embedded, compare_result, FlowErrors};
 use meshflow::flow::{FlowParams, FlowProblem, FlowResult, SolveEvent, Weight, Weights};
 use meshflow::io::{load_sequence, write_flow_outputs, LoadOptions, StagedDir};
 use meshflow::io::{read_ground_truth, GroundTruthReport, LoadedSequence};
