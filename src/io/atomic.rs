@@ -108,22 +108,11 @@ enum Existing {
 
 impl Existing {
     fn of(target: &Path) -> Result<Self, IoError> {
-        let fail = |e| IoError::file(target, e);
-        let entries = match std::fs::read_dir(target) {
-            Ok(entries) => entries,
+        let mut names = match entry_names(target) {
+            Ok(names) => names,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Self::Missing),
-            Err(e) => return Err(fail(e)),
+            Err(e) => return Err(IoError::file(target, e)),
         };
-        let mut names = BTreeSet::new();
-        for entry in entries {
-            names.insert(
-                entry
-                    .map_err(fail)?
-                    .file_name()
-                    .to_string_lossy()
-                    .into_owned(),
-            );
-        }
         if names.is_empty() {
             return Ok(Self::Empty);
         }
@@ -297,16 +286,7 @@ impl StagedDir {
     /// Writes the manifest and puts the output in place (see the module documentation).
     pub fn commit(mut self) -> Result<(), IoError> {
         let fail = |e| IoError::file(&self.target, e);
-        let mut files = BTreeSet::new();
-        for entry in std::fs::read_dir(&self.staging).map_err(fail)? {
-            files.insert(
-                entry
-                    .map_err(fail)?
-                    .file_name()
-                    .to_string_lossy()
-                    .into_owned(),
-            );
-        }
+        let mut files = entry_names(&self.staging).map_err(fail)?;
         let kept = self.kept.iter().filter(|n| self.resolved.join(n).is_file());
         files.extend(kept.cloned());
         let manifest = RunManifest {
@@ -378,6 +358,13 @@ impl Drop for StagedDir {
             let _ = std::fs::remove_dir_all(&self.staging);
         }
     }
+}
+
+/// The names of the entries of directory `dir`.
+fn entry_names(dir: &Path) -> std::io::Result<BTreeSet<String>> {
+    std::fs::read_dir(dir)?
+        .map(|entry| Ok(entry?.file_name().to_string_lossy().into_owned()))
+        .collect()
 }
 
 /// The hidden directory `.NAME.ROLE-PID` beside `target`.
