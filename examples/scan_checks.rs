@@ -92,7 +92,7 @@ impl Row {
             mesh.n_vertices().to_string(),
             mesh.n_faces().to_string(),
             mesh.euler_characteristic().to_string(),
-            components(mesh).to_string(),
+            mesh.connected_components().len().to_string(),
             boundary.to_string(),
             self.loader.clone(),
             verdict(self.k_semidefinite),
@@ -186,25 +186,6 @@ fn describe_loading(loaded: &LoadedMesh, repaired: bool) -> String {
         true => "as written".into(),
         false => said.join("; "),
     }
-}
-
-/// Connected components of faces sharing vertices.
-fn components(mesh: &Mesh) -> usize {
-    let mut parent: Vec<usize> = (0..mesh.n_vertices()).collect();
-    fn root(parent: &mut [usize], mut x: usize) -> usize {
-        while parent[x] != x {
-            parent[x] = parent[parent[x]];
-            x = parent[x];
-        }
-        x
-    }
-    for &[a, b] in mesh.edges() {
-        let (a, b) = (root(&mut parent, a as usize), root(&mut parent, b as usize));
-        parent[a.max(b)] = a.min(b);
-    }
-    (0..mesh.n_vertices())
-        .filter(|&i| root(&mut parent, i) == i)
-        .count()
 }
 
 fn diagonal(a: &SparseMatrix) -> Vec<f64> {

@@ -339,3 +339,13 @@ fn repair_cuts_a_moebius_strip_open() {
     assert_eq!(mesh.euler_characteristic(), 1, "a disc");
     assert_eq!(mesh.n_vertices(), 12);
 }
+
+#[test]
+fn connected_components_list_the_vertices_of_each_piece() {
+    // A square (two faces) and, apart from it, a triangle listed first.
+    let mesh = Mesh::new(7, vec![[4, 5, 6], [0, 1, 2], [0, 2, 3]]).unwrap();
+    assert_eq!(
+        mesh.connected_components(),
+        vec![vec![0, 1, 2, 3], vec![4, 5, 6]]
+    );
+}

@@ -34,7 +34,7 @@ pub fn check_unique_minimizer(
     if weights.beta > 0.0 {
         return Ok(());
     }
-    for component in components(mesh) {
+    for component in mesh.connected_components() {
         let pinned = params.boundary == Boundary::Dirichlet
             && component.iter().any(|&v| mesh.is_boundary_vertex(v));
         if pinned {
@@ -165,31 +165,6 @@ fn parallel_face_angles(mesh: &Mesh, slab: &Slab, start: usize) -> Option<Vec<f6
 }
 
 /// Vertex sets of the connected components (through shared faces).
-fn components(mesh: &Mesh) -> Vec<Vec<usize>> {
-    let mut seen = vec![false; mesh.n_vertices()];
-    let mut result = Vec::new();
-    for root in 0..mesh.n_vertices() {
-        if seen[root] {
-            continue;
-        }
-        seen[root] = true;
-        let mut component = vec![root];
-        let mut k = 0;
-        while k < component.len() {
-            for corner in mesh.vertex_fan(component[k]) {
-                for &w in &mesh.faces()[corner.face as usize] {
-                    if !std::mem::replace(&mut seen[w as usize], true) {
-                        component.push(w as usize);
-                    }
-                }
-            }
-            k += 1;
-        }
-        result.push(component);
-    }
-    result
-}
-
 fn component_faces(mesh: &Mesh, component: &[usize]) -> Vec<usize> {
     let mut faces: Vec<usize> = component
         .iter()

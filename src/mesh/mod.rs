@@ -133,6 +133,32 @@ impl Mesh {
         !self.boundary_vertices.iter().any(|&b| b)
     }
 
+    /// The vertices of each connected component (vertices joined by faces), each component
+    /// in breadth-first order from its lowest vertex, components in order of that vertex.
+    pub fn connected_components(&self) -> Vec<Vec<usize>> {
+        let mut seen = vec![false; self.n_vertices];
+        let mut result = Vec::new();
+        for root in 0..self.n_vertices {
+            if std::mem::replace(&mut seen[root], true) {
+                continue;
+            }
+            let mut component = vec![root];
+            let mut k = 0;
+            while k < component.len() {
+                for corner in self.vertex_fan(component[k]) {
+                    for &w in &self.faces[corner.face as usize] {
+                        if !std::mem::replace(&mut seen[w as usize], true) {
+                            component.push(w as usize);
+                        }
+                    }
+                }
+                k += 1;
+            }
+            result.push(component);
+        }
+        result
+    }
+
     /// Euler characteristic V - E + F.
     pub fn euler_characteristic(&self) -> i64 {
         self.n_vertices as i64 - self.n_edges() as i64 + self.n_faces() as i64
