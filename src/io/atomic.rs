@@ -283,6 +283,14 @@ impl StagedDir {
         relabel(error, &self.staging, &self.target)
     }
 
+    /// [`StagedDir::in_target`] for any error: a file error names the final path.
+    pub fn error_in_target(&self, error: crate::Error) -> crate::Error {
+        match error {
+            crate::Error::Io(e) => crate::Error::Io(self.in_target(e)),
+            other => other,
+        }
+    }
+
     /// Writes the manifest and puts the output in place (see the module documentation).
     pub fn commit(mut self) -> Result<(), IoError> {
         let fail = |e| IoError::file(&self.target, e);

@@ -2,7 +2,7 @@
 //! `meshflow solve … --png` (from the flow in memory). Both draw the chosen slabs with
 //! [`write_slab_pictures`].
 
-use crate::progress::{count_progress, spinner};
+use crate::progress::{count_progress, during};
 use meshflow::io::vtk::{read_pvd, read_vtu, VtuMesh};
 use meshflow::io::{IoError, Overwrite, StagedDir};
 use meshflow::render::{
@@ -167,13 +167,12 @@ pub fn render_output(
         false => StagedDir::create(target, overwrite)?,
     };
     staged.record_command(crate::command_line());
-    let reading = spinner(format!("reading {} slab files", datasets.len()));
-    let slabs: Result<Vec<SlabFile>, Error> = datasets
-        .into_iter()
-        .map(|(time, path)| SlabFile::read(time, path))
-        .collect();
-    reading.finish_and_clear();
-    let slabs = slabs?;
+    let slabs: Vec<SlabFile> = during(format!("reading {} slab files", datasets.len()), || {
+        datasets
+            .into_iter()
+            .map(|(time, path)| SlabFile::read(time, path))
+            .collect::<Result<_, Error>>()
+    })?;
     let Some(first) = slabs.first() else {
         return Err(IoError::format(pvd, "lists no slabs").into());
     };
@@ -205,11 +204,8 @@ pub fn render_output(
             angular_error: slabs[s].array("angular_error"),
         })
         .collect();
-    let written =
-        draw(staged.path(), &first.mesh.triangles, &views, args, view).map_err(|e| match e {
-            Error::Io(e) => Error::Io(staged.in_target(e)),
-            other => other,
-        })?;
+    let written = draw(staged.path(), &first.mesh.triangles, &views, args, view)
+        .map_err(|e| staged.error_in_target(e))?;
     staged.commit()?;
     let drawn = match chosen.len() == slabs.len() {
         true => format!("{} slabs", slabs.len()),

@@ -120,10 +120,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         };
         pictures
             .draw(out.path(), &loaded, &result, report.as_ref())
-            .map_err(|e| match e {
-                Error::Io(e) => Error::Io(out.in_target(e)),
-                other => other,
-            })?;
+            .map_err(|e| out.error_in_target(e))?;
     }
     out.commit()?;
     println!(
