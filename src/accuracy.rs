@@ -262,8 +262,7 @@ impl SlabComparison {
         truth: &[Vector3<f64>],
     ) -> Result<Self, AccuracyError> {
         let geometry = sequence.slab_geometry(s)?;
-        let lengths = geometry.edge_lengths();
-        let edge_length = lengths.iter().sum::<f64>() / lengths.len() as f64;
+        let edge_length = geometry.mean_edge_length();
         let duration = sequence.slab_duration(s);
         let to_pixels = duration / edge_length;
         let true_speed: Vec<f64> = truth.iter().map(|v| v.norm()).collect();

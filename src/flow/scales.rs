@@ -47,10 +47,7 @@ impl DataScales {
         }
         let edge_length = slabs
             .iter()
-            .map(|slab| {
-                let lengths = slab.geometry.edge_lengths();
-                lengths.iter().sum::<f64>() / lengths.len() as f64
-            })
+            .map(|slab| slab.geometry.mean_edge_length())
             .sum::<f64>()
             / slabs.len() as f64;
         Self {

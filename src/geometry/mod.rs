@@ -154,6 +154,12 @@ impl IntrinsicGeometry {
             .collect()
     }
 
+    /// The mean of the edge lengths: the mesh's "pixel", the unit of displacements in
+    /// [`crate::accuracy`] and of the spread in [`crate::flow::FlowParams`].
+    pub fn mean_edge_length(&self) -> f64 {
+        self.edge_lengths.iter().sum::<f64>() / self.edge_lengths.len() as f64
+    }
+
     pub fn total_area(&self) -> f64 {
         self.triangles.iter().map(|t| t.area).sum()
     }
