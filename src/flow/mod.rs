@@ -90,6 +90,10 @@ pub struct FlowResult {
     pub relative_residual: f64,
     pub iterations: usize,
     pub method: SolverMethod,
+    /// Why `method`: the rule the `auto` choice applied, with the figures it compared.
+    pub solver_reason: String,
+    /// Levels of multigrid in time the solver used (1: none).
+    pub time_levels: usize,
     /// Stored entries of the Cholesky factors the solver used.
     pub factor_entries: usize,
     pub timings: Timings,
@@ -190,6 +194,8 @@ impl<'a> FlowProblem<'a> {
             relative_residual: solution.relative_residual,
             iterations: solution.iterations,
             method: solution.method,
+            solver_reason: solution.reason,
+            time_levels: solution.time_levels,
             factor_entries: solution.factor_entries,
             timings: Timings {
                 assembly: self.assembly_seconds,

@@ -73,6 +73,9 @@ pub enum SolverChoice {
     Direct,
     /// Conjugate gradients, symmetric block Gauss–Seidel in time with per-slab Cholesky factors.
     PcgSlabGaussSeidel,
+    /// Conjugate gradients preconditioned by a V-cycle of multigrid in time (slab sweeps as
+    /// smoother, slab pairs merged per level).
+    PcgTimeMultigrid,
     /// Conjugate gradients with the diagonal as preconditioner (least memory).
     PcgJacobi,
 }
@@ -336,5 +339,6 @@ parse_by_name!(
     "auto" => SolverChoice::Auto,
     "direct" => SolverChoice::Direct,
     "pcg-slab-gauss-seidel" => SolverChoice::PcgSlabGaussSeidel,
+    "pcg-time-multigrid" => SolverChoice::PcgTimeMultigrid,
     "pcg-jacobi" => SolverChoice::PcgJacobi
 );

@@ -112,6 +112,18 @@ impl SpaceTimeSystem {
         self.pattern.view(&self.blocks[s])
     }
 
+    /// The values of the mean of the diagonal blocks `slabs` (on [`Self::pattern`]).
+    pub fn mean_block(&self, slabs: std::ops::Range<usize>) -> Vec<f64> {
+        let weight = 1.0 / slabs.len() as f64;
+        let mut mean = vec![0.0; self.pattern.nnz()];
+        for s in slabs {
+            mean.iter_mut()
+                .zip(&self.blocks[s])
+                .for_each(|(m, v)| *m += weight * v);
+        }
+        mean
+    }
+
     /// `X_s`, the block at `(s + 1, s)`.
     pub fn link(&self, s: usize) -> &LinkMatrix {
         &self.links[s]
@@ -388,4 +400,172 @@ pub fn dot(x: &[f64], y: &[f64]) -> f64 {
         .collect::<Vec<f64>>()
         .iter()
         .sum()
+}
+
+/// Semi-coarsening in time: the Galerkin product `Pᵀ A P` for the prolongation that merges
+/// slabs `2k` and `2k + 1` into coarse slab `k`, `u_{2k} = ũ_k`, `u_{2k+1} = T_k ũ_k`, with
+/// `T_k` a 2×2 rotation per vertex (an odd last slab stays alone, `u_{2k} = ũ_k`).
+///
+/// ```text
+/// D̃_k = D_{2k} + T_kᵀ D_{2k+1} T_k + T_kᵀ X_{2k} + X_{2k}ᵀ T_k       X̃_k = X_{2k+1} T_k
+/// ```
+///
+/// Both keep the vertex pattern (and a lumped link stays lumped), so a coarse system is again a
+/// [`SpaceTimeSystem`]; it has no right-hand side and no energy constant.
+impl SpaceTimeSystem {
+    /// `T_k` for every pair: per vertex, the rotation that minimizes the link energy of
+    /// `X_{2k}` for fields transported as `u_{2k+1} = T u_{2k}`, the polar factor of `−X_ii`
+    /// (the identity where the link vanishes, e.g. at Dirichlet vertices).
+    pub(crate) fn pair_transports(&self) -> Vec<Vec<Matrix2<f64>>> {
+        (0..self.n_slabs() / 2)
+            .into_par_iter()
+            .map(|k| {
+                let diagonal = self.link_diagonal_blocks(2 * k);
+                diagonal.iter().map(|x| polar_rotation(&-x)).collect()
+            })
+            .collect()
+    }
+
+    /// The diagonal 2×2 blocks `(X_s)_ii`.
+    fn link_diagonal_blocks(&self, s: usize) -> Vec<Matrix2<f64>> {
+        match &self.links[s] {
+            LinkMatrix::Lumped(blocks) => blocks.clone(),
+            LinkMatrix::Consistent(values) => {
+                let mut diagonal = vec![Matrix2::zeros(); self.pattern.dimension() / 2];
+                for_each_vertex_block(&self.pattern, values, |i, j, block| {
+                    if i == j {
+                        diagonal[i] = block;
+                    }
+                });
+                diagonal
+            }
+        }
+    }
+
+    /// `Pᵀ A P` for the pair transports `transports` (from [`Self::pair_transports`]).
+    pub(crate) fn merge_slab_pairs(&self, transports: &[Vec<Matrix2<f64>>]) -> SpaceTimeSystem {
+        let n_coarse = self.n_slabs().div_ceil(2);
+        let blocks = (0..n_coarse)
+            .into_par_iter()
+            .map(|k| match transports.get(k) {
+                Some(t) => self.merged_block(k, t),
+                None => self.blocks[2 * k].clone(),
+            })
+            .collect();
+        let links = (0..n_coarse - 1)
+            .into_par_iter()
+            .map(|k| self.right_multiplied_link(2 * k + 1, &transports[k]))
+            .collect();
+        SpaceTimeSystem {
+            pattern: self.pattern.clone(),
+            blocks,
+            links,
+            rhs: Vec::new(),
+            constant: 0.0,
+        }
+    }
+
+    /// `D_{2k} + Tᵀ D_{2k+1} T + Tᵀ X_{2k} + X_{2k}ᵀ T`.
+    fn merged_block(&self, k: usize, t: &[Matrix2<f64>]) -> Vec<f64> {
+        let mut merged = map_vertex_blocks(&self.pattern, &self.blocks[2 * k + 1], |i, j, d| {
+            t[i].transpose() * d * t[j]
+        });
+        merged
+            .iter_mut()
+            .zip(&self.blocks[2 * k])
+            .for_each(|(m, d)| *m += d);
+        match &self.links[2 * k] {
+            LinkMatrix::Lumped(x) => {
+                let coupling: Vec<_> = x.iter().zip(t).map(|(x, t)| t.transpose() * x).collect();
+                merged = map_vertex_blocks(&self.pattern, &merged, |i, j, m| match i == j {
+                    true => m + coupling[i] + coupling[i].transpose(),
+                    false => m,
+                });
+            }
+            LinkMatrix::Consistent(x) => {
+                let tx = map_vertex_blocks(&self.pattern, x, |i, _, x| t[i].transpose() * x);
+                let txt = transposed_values(&self.pattern, &tx);
+                merged
+                    .iter_mut()
+                    .zip(tx.iter().zip(&txt))
+                    .for_each(|(m, (a, b))| *m += a + b);
+            }
+        }
+        merged
+    }
+
+    /// `X_s T` for a block-diagonal `T`.
+    fn right_multiplied_link(&self, s: usize, t: &[Matrix2<f64>]) -> LinkMatrix {
+        match &self.links[s] {
+            LinkMatrix::Lumped(x) => LinkMatrix::Lumped(x.iter().zip(t).map(|(x, t)| x * t).collect()),
+            LinkMatrix::Consistent(x) => {
+                LinkMatrix::Consistent(map_vertex_blocks(&self.pattern, x, |_, j, x| x * t[j]))
+            }
+        }
+    }
+}
+
+/// The rotation `R` of the polar decomposition `M = R S` of a 2×2 matrix (the identity for 0).
+fn polar_rotation(m: &Matrix2<f64>) -> Matrix2<f64> {
+    let angle = (m[(1, 0)] - m[(0, 1)]).atan2(m[(0, 0)] + m[(1, 1)]);
+    let (s, c) = angle.sin_cos();
+    Matrix2::new(c, -s, s, c)
+}
+
+/// Every stored 2×2 vertex block `(i, j)` of the pattern with the positions of its entries
+/// `(0,0), (0,1), (1,0), (1,1)` (block size 2: columns `2j`, `2j + 1` list the same rows, in
+/// pairs `2i`, `2i + 1`).
+fn vertex_blocks(pattern: &VertexPattern) -> impl Iterator<Item = (usize, usize, [usize; 4])> + '_ {
+    let (col_ptr, row_idx) = (pattern.symbolic().col_ptr(), pattern.symbolic().row_idx());
+    (0..col_ptr.len() / 2).flat_map(move |j| {
+        let (first, second) = (col_ptr[2 * j], col_ptr[2 * j + 1]);
+        (first..second).step_by(2).map(move |p| {
+            let q = second + (p - first);
+            (row_idx[p] / 2, j, [p, q, p + 1, q + 1])
+        })
+    })
+}
+
+fn read_block(values: &[f64], [a, b, c, d]: [usize; 4]) -> Matrix2<f64> {
+    Matrix2::new(values[a], values[b], values[c], values[d])
+}
+
+/// Calls `f(i, j, M_ij)` for every stored vertex block of `values` on `pattern`.
+fn for_each_vertex_block(
+    pattern: &VertexPattern,
+    values: &[f64],
+    mut f: impl FnMut(usize, usize, Matrix2<f64>),
+) {
+    vertex_blocks(pattern).for_each(|(i, j, slots)| f(i, j, read_block(values, slots)));
+}
+
+/// The values of the matrix whose block `(i, j)` is `f(i, j, M_ij)`.
+fn map_vertex_blocks(
+    pattern: &VertexPattern,
+    values: &[f64],
+    f: impl Fn(usize, usize, Matrix2<f64>) -> Matrix2<f64>,
+) -> Vec<f64> {
+    let mut out = vec![0.0; values.len()];
+    for (i, j, slots) in vertex_blocks(pattern) {
+        let m = f(i, j, read_block(values, slots));
+        for (slot, k) in slots.into_iter().zip(0..4) {
+            out[slot] = m[(k / 2, k % 2)];
+        }
+    }
+    out
+}
+
+/// The values of `Mᵀ` on the same (symmetric) pattern.
+fn transposed_values(pattern: &VertexPattern, values: &[f64]) -> Vec<f64> {
+    let (col_ptr, row_idx) = (pattern.symbolic().col_ptr(), pattern.symbolic().row_idx());
+    let mut out = vec![0.0; values.len()];
+    for j in 0..col_ptr.len() - 1 {
+        for p in col_ptr[j]..col_ptr[j + 1] {
+            let i = row_idx[p];
+            let column = &row_idx[col_ptr[i]..col_ptr[i + 1]];
+            let q = col_ptr[i] + column.binary_search(&j).expect("the pattern is symmetric");
+            out[q] = values[p];
+        }
+    }
+    out
 }

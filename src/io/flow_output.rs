@@ -300,6 +300,8 @@ pub fn summary_json(
         "relative_residual": result.relative_residual,
         "iterations": result.iterations,
         "solver": result.method,
+        "solver_reason": result.solver_reason,
+        "time_levels": result.time_levels,
         "factor_entries": result.factor_entries,
         "frames": sequence.n_frames(),
         "slabs": sequence.n_slabs(),

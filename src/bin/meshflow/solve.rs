@@ -138,6 +138,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         args.out.display()
     );
     println!("{}", describe_weights(&result.weights, &params));
+    println!("solver: {}", describe_solver(&result));
     if let Some(report) = &report {
         println!("{}", describe_errors("ground truth: flow", &report.errors));
         println!(
@@ -214,4 +215,15 @@ fn describe_errors(label: &str, errors: &FlowErrors) -> String {
         100.0 * errors.relative_endpoint,
         errors.median_speed_ratio,
     )
+}
+
+/// `PCG (multigrid in time), 5 time levels: <why>`.
+fn describe_solver(result: &FlowResult) -> String {
+    match result.time_levels {
+        1 => format!("{}: {}", result.method, result.solver_reason),
+        n => format!(
+            "{}, {n} time levels: {}",
+            result.method, result.solver_reason
+        ),
+    }
 }

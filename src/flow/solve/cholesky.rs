@@ -1,19 +1,75 @@
 //! Sparse Cholesky factors through faer's low-level API, so that many factorizations can run
 //! in parallel under rayon, each single-threaded (`Par::Seq`), sharing one symbolic analysis.
+//!
+//! The fill-reducing ordering is METIS's nested dissection (`METIS_NodeND`) of the vertex
+//! graph, each vertex's two DOFs kept together: on surface meshes it leaves about a quarter
+//! less fill than faer's approximate minimum degree, which is memory and time in every
+//! factorization and every triangular solve. AMD remains the fallback should METIS refuse.
 
 use crate::fem::SparseMatrixRef;
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
+use faer::perm::PermRef;
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
+};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use std::sync::Arc;
 
-/// The symbolic analysis (AMD ordering, elimination tree, fill) of a sparsity pattern.
+/// The symbolic analysis (ordering, elimination tree, fill) of a sparsity pattern whose DOFs
+/// come in vertex pairs `2i`, `2i + 1`.
 pub fn analyze(pattern: SymbolicSparseColMatRef<'_, usize>) -> Arc<SymbolicCholesky<usize>> {
-    let symbolic =
-        factorize_symbolic_cholesky(pattern, Side::Lower, Default::default(), Default::default())
-            .expect("symbolic Cholesky needs only memory");
+    let Some(forward) = nested_dissection(pattern) else {
+        return symbolic_with(pattern, SymmetricOrdering::Amd);
+    };
+    let mut inverse = vec![0; forward.len()];
+    forward.iter().enumerate().for_each(|(new, &old)| inverse[old] = new);
+    let perm = PermRef::new_checked(&forward, &inverse, forward.len());
+    symbolic_with(pattern, SymmetricOrdering::Custom(perm))
+}
+
+fn symbolic_with(
+    pattern: SymbolicSparseColMatRef<'_, usize>,
+    ordering: SymmetricOrdering<'_, usize>,
+) -> Arc<SymbolicCholesky<usize>> {
+    let symbolic = factorize_symbolic_cholesky(pattern, Side::Lower, ordering, Default::default())
+        .expect("symbolic Cholesky needs only memory");
     Arc::new(symbolic)
+}
+
+/// METIS's nested-dissection order of the DOFs (`forward[new] = old`), by vertex pairs; `None`
+/// for an odd dimension, a graph too large for METIS's 32-bit indices, or a METIS error.
+fn nested_dissection(pattern: SymbolicSparseColMatRef<'_, usize>) -> Option<Vec<usize>> {
+    let n = pattern.ncols();
+    if n % 2 != 0 || pattern.compute_nnz() > i32::MAX as usize {
+        return None;
+    }
+    let mut xadj = vec![0i32];
+    let mut adjncy = Vec::new();
+    for vertex in 0..n / 2 {
+        let rows = pattern.row_idx_of_col(2 * vertex);
+        let mut neighbours: Vec<i32> = rows.map(|r| (r / 2) as i32).collect();
+        neighbours.dedup();
+        adjncy.extend(neighbours.into_iter().filter(|&v| v != vertex as i32));
+        xadj.push(adjncy.len() as i32);
+    }
+    let mut nvtxs = (n / 2) as i32;
+    let (mut perm, mut iperm) = (vec![0i32; n / 2], vec![0i32; n / 2]);
+    // SAFETY: xadj/adjncy form a valid CSR graph of nvtxs vertices (no self loops); perm and
+    // iperm hold nvtxs entries; null vertex weights and options mean METIS's defaults.
+    let status = unsafe {
+        metis_sys::METIS_NodeND(
+            &mut nvtxs,
+            xadj.as_mut_ptr(),
+            adjncy.as_mut_ptr(),
+            std::ptr::null_mut(),
+            std::ptr::null_mut(),
+            perm.as_mut_ptr(),
+            iperm.as_mut_ptr(),
+        )
+    };
+    (status == metis_sys::rstatus_et_METIS_OK)
+        .then(|| perm.iter().flat_map(|&v| [2 * v as usize, 2 * v as usize + 1]).collect())
 }
 
 /// A floating-point type the factors can be stored in; the system stays in `f64`.

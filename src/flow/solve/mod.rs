@@ -15,15 +15,19 @@
 //!   the memory budget.
 
 mod cholesky;
+mod multigrid;
 mod pcg;
 mod precondition;
 
 use super::system::{dot, SpaceTimeSystem};
 use super::{FlowError, FlowParams, SolverChoice};
 use cholesky::{analyze, CholeskyFactor, Precision};
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
-use precondition::{Jacobi, SlabGaussSeidel};
+use multigrid::{TimeHierarchy, TimeMultigrid};
+use precondition::{Jacobi, SlabGaussSeidel, SlabSweeps};
 use rayon::prelude::*;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// The method that produced a solution.
@@ -33,6 +37,7 @@ pub enum SolverMethod {
     Direct,
     SlabwiseDirect,
     PcgSlabGaussSeidel,
+    PcgTimeMultigrid,
     PcgJacobi,
 }
 
@@ -42,6 +47,7 @@ impl std::fmt::Display for SolverMethod {
             SolverMethod::Direct => "direct",
             SolverMethod::SlabwiseDirect => "slab-wise direct",
             SolverMethod::PcgSlabGaussSeidel => "PCG (slab Gauss-Seidel)",
+            SolverMethod::PcgTimeMultigrid => "PCG (multigrid in time)",
             SolverMethod::PcgJacobi => "PCG (Jacobi)",
         })
     }
@@ -69,6 +75,10 @@ pub struct Solution {
     pub factor_seconds: f64,
     /// Stored entries of all Cholesky factors used.
     pub factor_entries: usize,
+    /// Levels of multigrid in time (1: none).
+    pub time_levels: usize,
+    /// Why this method: the rule `auto` applied, with the figures it compared.
+    pub reason: String,
 }
 
 /// Solves the system with the method `params.solver` asks for (see the module docs).
@@ -80,56 +90,80 @@ pub fn solve(
     let b = system.rhs();
     if b.iter().all(|&v| v == 0.0) {
         // A static image: u = 0 is the exact minimizer (E ≥ 0 = E(0) minus the constant).
-        return Ok(Solution {
-            u: vec![0.0; b.len()],
-            method: SolverMethod::Direct,
-            iterations: 0,
-            relative_residual: 0.0,
-            factor_seconds: 0.0,
-            factor_entries: 0,
-        });
+        return Ok(Solution::exact(
+            vec![0.0; b.len()],
+            SolverMethod::Direct,
+            "the right-hand side is zero (a static image): u = 0".into(),
+        ));
     }
-    // One symbolic analysis serves every slab; only the slab-wise methods need it.
-    let slab_symbolic = std::cell::LazyCell::new(|| analyze(system.block(0).symbolic()));
-    // Budgeted at f64 size, the worst case of the single-precision factors' fallback.
-    let factor_bytes = || slab_symbolic.len_val() * system.n_slabs() * std::mem::size_of::<f64>();
-    let method = match params.solver {
-        SolverChoice::Auto if !system.has_links() => SolverMethod::SlabwiseDirect,
-        SolverChoice::Auto if system.dimension() <= params.direct_limit => SolverMethod::Direct,
-        SolverChoice::Auto if factor_bytes() <= params.factor_memory_limit => {
-            SolverMethod::PcgSlabGaussSeidel
-        }
-        SolverChoice::Auto => SolverMethod::PcgJacobi,
-        SolverChoice::Direct => SolverMethod::Direct,
-        SolverChoice::PcgSlabGaussSeidel => SolverMethod::PcgSlabGaussSeidel,
-        SolverChoice::PcgJacobi => SolverMethod::PcgJacobi,
-    };
     let start = Instant::now();
-    let mut solution = match method {
-        SolverMethod::Direct => direct(system, observer)?,
-        SolverMethod::SlabwiseDirect => slabwise_direct(system, &slab_symbolic, observer)?,
-        SolverMethod::PcgSlabGaussSeidel => {
-            observer(SolveEvent::Factorizing {
-                slabs: system.n_slabs(),
-            });
-            // Single-precision factors suffice for a preconditioner; f64 if a block is too
-            // ill-conditioned for them.
-            match factor_slabs::<f32>(system, &slab_symbolic) {
-                Ok(factors) => slab_gauss_seidel(system, factors, start, params, observer)?,
-                Err(_) => slab_gauss_seidel(
-                    system,
-                    factor_slabs::<f64>(system, &slab_symbolic)?,
-                    start,
-                    params,
-                    observer,
-                )?,
-            }
+    let mut solution = match params.solver {
+        SolverChoice::Auto if !system.has_links() => {
+            slabwise_direct(system, observer, "α = ∞: the slabs are independent".into())?
         }
-        SolverMethod::PcgJacobi => iterate(system, &Jacobi::new(system), params, observer)?,
+        SolverChoice::Auto if system.dimension() <= params.direct_limit => direct(
+            system,
+            observer,
+            format!(
+                "{} unknowns, within the direct solver's limit of {}",
+                system.dimension(),
+                params.direct_limit
+            ),
+        )?,
+        SolverChoice::Auto => slab_pcg(system, params, Preconditioning::Adaptive, observer)?,
+        SolverChoice::Direct => direct(system, observer, "asked for".into())?,
+        SolverChoice::PcgSlabGaussSeidel => {
+            slab_pcg(system, params, Preconditioning::GaussSeidel, observer)?
+        }
+        SolverChoice::PcgTimeMultigrid => {
+            slab_pcg(system, params, Preconditioning::Multigrid, observer)?
+        }
+        SolverChoice::PcgJacobi => {
+            let outcome = run_pcg(system, None, &Jacobi::new(system), params, 0, observer);
+            Solution::iterated(outcome, SolverMethod::PcgJacobi, "asked for".into())
+                .converged(params)?
+        }
     };
-    solution.method = method;
+    if solution.method != SolverMethod::PcgJacobi && solution.factor_seconds == 0.0 {
+        solution.factor_seconds = start.elapsed().as_secs_f64();
+    }
     solution.relative_residual = relative_residual(system, &solution.u);
     Ok(solution)
+}
+
+impl Solution {
+    fn exact(u: Vec<f64>, method: SolverMethod, reason: String) -> Self {
+        Self {
+            u,
+            method,
+            iterations: 1,
+            relative_residual: f64::NAN,
+            factor_seconds: 0.0,
+            factor_entries: 0,
+            time_levels: 1,
+            reason,
+        }
+    }
+
+    fn iterated(outcome: pcg::CgOutcome, method: SolverMethod, reason: String) -> Self {
+        Self {
+            iterations: outcome.iterations,
+            relative_residual: outcome.relative_residual,
+            ..Self::exact(outcome.x, method, reason)
+        }
+    }
+
+    /// `Err(NotConverged)` unless the recursive residual met the tolerance.
+    fn converged(self, params: &FlowParams) -> Result<Self, FlowError> {
+        match self.relative_residual <= params.tolerance {
+            true => Ok(self),
+            false => Err(FlowError::NotConverged {
+                iterations: self.iterations,
+                residual: self.relative_residual,
+                tolerance: params.tolerance,
+            }),
+        }
+    }
 }
 
 fn relative_residual(system: &SpaceTimeSystem, u: &[f64]) -> f64 {
@@ -140,37 +174,22 @@ fn relative_residual(system: &SpaceTimeSystem, u: &[f64]) -> f64 {
     (dot(&r, &r) / dot(b, b)).sqrt()
 }
 
-fn iterate(
+/// PCG from `x` (zero when `None`) with iterations `done` already counted.
+fn run_pcg(
     system: &SpaceTimeSystem,
+    x: Option<Vec<f64>>,
     preconditioner: &dyn pcg::Preconditioner,
     params: &FlowParams,
+    done: usize,
     observer: &(dyn Fn(SolveEvent) + Sync),
-) -> Result<Solution, FlowError> {
-    let outcome = pcg::pcg(
-        system,
-        system.rhs(),
-        preconditioner,
-        params.tolerance,
-        params.max_iterations,
-        observer,
-    );
-    let solution = Solution {
-        u: outcome.x,
-        method: SolverMethod::PcgJacobi,
-        iterations: outcome.iterations,
-        relative_residual: f64::NAN,
-        factor_seconds: 0.0,
-        factor_entries: 0,
+) -> pcg::CgOutcome {
+    let x = x.unwrap_or_else(|| vec![0.0; system.dimension()]);
+    let stop = pcg::Stop {
+        tolerance: params.tolerance,
+        done,
+        max_iterations: params.max_iterations,
     };
-    if outcome.converged {
-        Ok(solution)
-    } else {
-        Err(FlowError::NotConverged {
-            iterations: outcome.iterations,
-            residual: relative_residual(system, &solution.u),
-            tolerance: params.tolerance,
-        })
-    }
+    pcg::pcg(system, system.rhs(), x, preconditioner, stop, observer)
 }
 
 fn factorization_error(what: String) -> impl Fn(String) -> FlowError {
@@ -180,40 +199,231 @@ fn factorization_error(what: String) -> impl Fn(String) -> FlowError {
     }
 }
 
-/// Cholesky factors of every diagonal block, in parallel, each single-threaded.
-fn factor_slabs<T: Precision>(
-    system: &SpaceTimeSystem,
-    symbolic: &std::sync::Arc<faer::sparse::linalg::cholesky::SymbolicCholesky<usize>>,
-) -> Result<Vec<CholeskyFactor<T>>, FlowError> {
-    (0..system.n_slabs())
-        .into_par_iter()
-        .map(|s| {
-            CholeskyFactor::new(symbolic, system.block(s), Par::Seq)
-                .map_err(factorization_error(format!("slab {s}")))
-        })
-        .collect()
+/// How slab-factor PCG is preconditioned.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Preconditioning {
+    GaussSeidel,
+    Multigrid,
+    /// Slab Gauss–Seidel for [`PROBE_ITERATIONS`]; multigrid in time if it is too slow.
+    Adaptive,
 }
 
-/// PCG with the slab Gauss–Seidel preconditioner built from `factors` (factored since `start`).
-fn slab_gauss_seidel<T: Precision>(
+/// Iterations of slab Gauss–Seidel from which `Adaptive` projects its convergence.
+const PROBE_ITERATIONS: usize = 4;
+/// Projected Gauss–Seidel iterations above which `Adaptive` builds the multigrid levels.
+/// Measured (`examples/bench_solver.rs`): a V-cycle costs about 2.5 Gauss–Seidel sweeps and
+/// its coarse levels about one more round of factorizations; multigrid needs at most ~17
+/// iterations, so it pays from about 30 Gauss–Seidel iterations on.
+const SWITCH_ITERATIONS: f64 = 30.0;
+
+/// PCG preconditioned with exact slab solves: slab Gauss–Seidel, multigrid in time, or the
+/// first then the second when it converges too slowly.
+fn slab_pcg(
     system: &SpaceTimeSystem,
-    factors: Vec<CholeskyFactor<T>>,
-    start: Instant,
     params: &FlowParams,
+    preconditioning: Preconditioning,
     observer: &(dyn Fn(SolveEvent) + Sync),
 ) -> Result<Solution, FlowError> {
-    let factor_seconds = start.elapsed().as_secs_f64();
-    let factor_entries = factors.iter().map(CholeskyFactor::stored_entries).sum();
-    let preconditioner = SlabGaussSeidel::new(system, factors, rayon::current_num_threads());
-    let mut solution = iterate(system, &preconditioner, params, observer)?;
+    let start = Instant::now();
+    let symbolic = analyze(system.block(0).symbolic());
+    let plan = FactorPlan::new(system, &symbolic, params);
+    if plan.slabs_per_factor > system.n_slabs() {
+        let outcome = run_pcg(system, None, &Jacobi::new(system), params, 0, observer);
+        return Solution::iterated(outcome, SolverMethod::PcgJacobi, plan.describe()).converged(params);
+    }
+    observer(SolveEvent::Factorizing {
+        slabs: system.n_slabs(),
+    });
+    // Single-precision factors suffice for a preconditioner; f64 if a block is too
+    // ill-conditioned for them.
+    match plan.factor::<f32>(&[system]) {
+        Ok(sweeps) => slab_pcg_with(system, params, preconditioning, &plan, sweeps, start, observer),
+        Err(_) => {
+            let sweeps = plan.factor::<f64>(&[system])?;
+            slab_pcg_with(system, params, preconditioning, &plan, sweeps, start, observer)
+        }
+    }
+}
+
+fn slab_pcg_with<T: Precision>(
+    system: &SpaceTimeSystem,
+    params: &FlowParams,
+    preconditioning: Preconditioning,
+    plan: &FactorPlan,
+    mut fine: Vec<SlabSweeps<T>>,
+    start: Instant,
+    observer: &(dyn Fn(SolveEvent) + Sync),
+) -> Result<Solution, FlowError> {
+    let fine = fine.remove(0);
+    let mut factor_seconds = start.elapsed().as_secs_f64();
+    let mut factor_entries = fine.stored_entries();
+    let (x, done, reason) = match preconditioning {
+        Preconditioning::Multigrid => (None, 0, format!("asked for; {}", plan.describe())),
+        _ => {
+            let limit = match preconditioning {
+                Preconditioning::Adaptive => PROBE_ITERATIONS,
+                _ => params.max_iterations,
+            };
+            let probe_params = FlowParams {
+                max_iterations: limit,
+                ..params.clone()
+            };
+            let gauss_seidel = SlabGaussSeidel::new(system, &fine);
+            let outcome = run_pcg(system, None, &gauss_seidel, &probe_params, 0, observer);
+            let projected = outcome.projected_iterations(params.tolerance, 0);
+            let keep = outcome.converged
+                || preconditioning == Preconditioning::GaussSeidel
+                || projected <= SWITCH_ITERATIONS;
+            if keep {
+                let reason = match preconditioning {
+                    Preconditioning::GaussSeidel => format!("asked for; {}", plan.describe()),
+                    _ => format!(
+                        "slab Gauss-Seidel converges fast enough (about {} iterations \
+                         projected after {}); {}",
+                        projected.ceil(),
+                        outcome.iterations,
+                        plan.describe()
+                    ),
+                };
+                let outcome = match outcome.converged {
+                    true => outcome,
+                    false => {
+                        let (x, done) = (Some(outcome.x), outcome.iterations);
+                        run_pcg(system, x, &gauss_seidel, params, done, observer)
+                    }
+                };
+                let mut solution =
+                    Solution::iterated(outcome, SolverMethod::PcgSlabGaussSeidel, reason);
+                solution.factor_seconds = factor_seconds;
+                solution.factor_entries = factor_entries;
+                return solution.converged(params);
+            }
+            let reason = format!(
+                "slab Gauss-Seidel reached {:.1e} in {} iterations (about {} projected), too \
+                 slow: the time coupling dominates; {}",
+                outcome.relative_residual,
+                outcome.iterations,
+                projected.ceil(),
+                plan.describe()
+            );
+            (Some(outcome.x), outcome.iterations, reason)
+        }
+    };
+    let coarse_start = Instant::now();
+    let hierarchy = TimeHierarchy::new(system);
+    let coarse: Vec<&SpaceTimeSystem> = hierarchy.coarse_systems().iter().collect();
+    observer(SolveEvent::Factorizing {
+        slabs: coarse.iter().map(|c| c.n_slabs()).sum(),
+    });
+    let mut sweeps = vec![fine];
+    sweeps.extend(plan.factor::<T>(&coarse)?);
+    factor_seconds += coarse_start.elapsed().as_secs_f64();
+    factor_entries = sweeps.iter().map(SlabSweeps::stored_entries).sum();
+    let levels = sweeps.len();
+    let multigrid = TimeMultigrid::new(system, hierarchy, sweeps);
+    let outcome = run_pcg(system, x, &multigrid, params, done, observer);
+    let mut solution = Solution::iterated(outcome, SolverMethod::PcgTimeMultigrid, reason);
     solution.factor_seconds = factor_seconds;
     solution.factor_entries = factor_entries;
-    Ok(solution)
+    solution.time_levels = levels;
+    solution.converged(params)
+}
+
+/// How many slab factors to keep: all of them if they fit `params.factor_memory_limit`,
+/// otherwise one per run of `slabs_per_factor` neighbouring slabs (more than all slabs: not
+/// even one factor fits).
+struct FactorPlan<'a> {
+    symbolic: &'a Arc<SymbolicCholesky<usize>>,
+    slabs_per_factor: usize,
+    /// Bytes of one factor in double precision (the budget's unit: the worst case of the
+    /// single-precision factors' fallback).
+    factor_bytes: usize,
+    budget: usize,
+}
+
+impl<'a> FactorPlan<'a> {
+    fn new(
+        system: &SpaceTimeSystem,
+        symbolic: &'a Arc<SymbolicCholesky<usize>>,
+        params: &FlowParams,
+    ) -> Self {
+        let factor_bytes = symbolic.len_val() * std::mem::size_of::<f64>();
+        let fitting = (params.factor_memory_limit / factor_bytes.max(1)).max(0);
+        let slabs_per_factor = match fitting {
+            0 => system.n_slabs() + 1,
+            f => system.n_slabs().div_ceil(f).max(1),
+        };
+        Self {
+            symbolic,
+            slabs_per_factor,
+            factor_bytes,
+            budget: params.factor_memory_limit,
+        }
+    }
+
+    fn describe(&self) -> String {
+        let gb = |b: usize| b as f64 / 1e9;
+        match self.slabs_per_factor {
+            1 => format!(
+                "one factor per slab ({:.2} GB each at most, budget {:.1} GB)",
+                gb(self.factor_bytes),
+                gb(self.budget)
+            ),
+            n if n < usize::MAX => format!(
+                "one slab factor takes up to {:.2} GB: {n} neighbouring slabs share the \
+                 factor of their mean to stay within the {:.1} GB budget",
+                gb(self.factor_bytes),
+                gb(self.budget)
+            ),
+            _ => unreachable!(),
+        }
+    }
+
+    /// One [`SlabSweeps`] per system, all factors computed in one parallel pass.
+    fn factor<T: Precision>(
+        &self,
+        levels: &[&SpaceTimeSystem],
+    ) -> Result<Vec<SlabSweeps<T>>, FlowError> {
+        let g = self.slabs_per_factor;
+        let groups: Vec<(usize, usize)> = (0..levels.len())
+            .flat_map(|l| (0..levels[l].n_slabs().div_ceil(g)).map(move |k| (l, k)))
+            .collect();
+        let mut factors = groups
+            .par_iter()
+            .map(|&(l, k)| {
+                let system = levels[l];
+                let slabs = k * g..((k + 1) * g).min(system.n_slabs());
+                let what = match (l, g) {
+                    (0, 1) => format!("slab {}", slabs.start),
+                    (0, _) => format!("slabs {}..{}", slabs.start, slabs.end),
+                    _ => format!("merged slab {} of time level {l}", slabs.start),
+                };
+                let mean = (g > 1).then(|| system.mean_block(slabs.clone()));
+                let block = match &mean {
+                    Some(values) => system.pattern().view(values),
+                    None => system.block(slabs.start),
+                };
+                CholeskyFactor::new(self.symbolic, block, Par::Seq)
+                    .map_err(factorization_error(what))
+            })
+            .collect::<Result<Vec<_>, _>>()?
+            .into_iter();
+        let chunks = rayon::current_num_threads();
+        Ok(levels
+            .iter()
+            .map(|level| {
+                let n = level.n_slabs();
+                let own = factors.by_ref().take(n.div_ceil(g)).collect();
+                SlabSweeps::new(own, g, n, chunks)
+            })
+            .collect())
+    }
 }
 
 fn direct(
     system: &SpaceTimeSystem,
     observer: &(dyn Fn(SolveEvent) + Sync),
+    reason: String,
 ) -> Result<Solution, FlowError> {
     observer(SolveEvent::Factorizing { slabs: 0 });
     let start = Instant::now();
@@ -226,42 +436,35 @@ fn direct(
     let mut u = system.rhs().to_vec();
     factor.solve_in_place(&mut u, par);
     Ok(Solution {
-        u,
-        method: SolverMethod::Direct,
-        iterations: 1,
-        relative_residual: f64::NAN,
         factor_seconds,
         factor_entries: factor.stored_entries(),
+        ..Solution::exact(u, SolverMethod::Direct, reason)
     })
 }
 
 fn slabwise_direct(
     system: &SpaceTimeSystem,
-    symbolic: &std::sync::Arc<faer::sparse::linalg::cholesky::SymbolicCholesky<usize>>,
     observer: &(dyn Fn(SolveEvent) + Sync),
+    reason: String,
 ) -> Result<Solution, FlowError> {
     observer(SolveEvent::Factorizing {
         slabs: system.n_slabs(),
     });
-    let start = Instant::now();
+    let symbolic = analyze(system.block(0).symbolic());
     let n = system.slab_dimension();
     let mut u = system.rhs().to_vec();
     let entries: Vec<usize> = u
         .par_chunks_mut(n)
         .enumerate()
         .map(|(s, us)| {
-            let factor = CholeskyFactor::<f64>::new(symbolic, system.block(s), Par::Seq)
+            let factor = CholeskyFactor::<f64>::new(&symbolic, system.block(s), Par::Seq)
                 .map_err(factorization_error(format!("slab {s}")))?;
             factor.solve_in_place(us, Par::Seq);
             Ok(factor.stored_entries())
         })
         .collect::<Result<_, FlowError>>()?;
     Ok(Solution {
-        u,
-        method: SolverMethod::SlabwiseDirect,
-        iterations: 1,
-        relative_residual: f64::NAN,
-        factor_seconds: start.elapsed().as_secs_f64(),
         factor_entries: entries.iter().sum(),
+        ..Solution::exact(u, SolverMethod::SlabwiseDirect, reason)
     })
 }

@@ -9,47 +9,79 @@ pub trait Preconditioner: Sync {
     fn apply(&self, r: &[f64], z: &mut [f64]);
 }
 
-/// Result of a CG run: solution, iterations, and the recursive residual estimate.
+/// When CG stops, and how its iterations are numbered in the reports.
+#[derive(Clone, Copy, Debug)]
+pub struct Stop {
+    /// Stop when `‖b − Ax‖ ≤ tolerance · ‖b‖`.
+    pub tolerance: f64,
+    /// Iterations counted so far (by an earlier run this one continues); reported numbers
+    /// continue from here, and `max_iterations` counts them too.
+    pub done: usize,
+    pub max_iterations: usize,
+}
+
+/// Result of a CG run: iterate, iterations (including `Stop::done`), the last recursive
+/// residual `‖r‖/‖b‖`, and whether it met the tolerance.
 pub struct CgOutcome {
     pub x: Vec<f64>,
     pub iterations: usize,
+    pub relative_residual: f64,
+    /// `‖r‖/‖b‖` after this run's first iteration (that of `x` for a run of none).
+    pub first_residual: f64,
     pub converged: bool,
 }
 
-/// Solves `A x = b` from `x = 0` until `‖r‖ ≤ tolerance · ‖b‖` or `max_iterations`.
+impl CgOutcome {
+    /// The iterations this run would take to the tolerance at its rate after the first
+    /// iteration (the first drop is typically steeper than the rest): `∞` without progress.
+    pub fn projected_iterations(&self, tolerance: f64, done_before: usize) -> f64 {
+        let ran = (self.iterations - done_before) as f64;
+        let rate = (self.relative_residual / self.first_residual).powf(1.0 / (ran - 1.0));
+        match rate < 1.0 && ran > 1.0 {
+            true => 1.0 + (tolerance / self.first_residual).ln() / rate.ln(),
+            false => f64::INFINITY,
+        }
+    }
+}
+
+/// Solves `A x = b` from `x` (CG restarted there) until the tolerance or the iteration limit.
 pub fn pcg(
     system: &SpaceTimeSystem,
     b: &[f64],
+    mut x: Vec<f64>,
     preconditioner: &dyn Preconditioner,
-    tolerance: f64,
-    max_iterations: usize,
+    stop: Stop,
     observer: &(dyn Fn(SolveEvent) + Sync),
 ) -> CgOutcome {
     let n = b.len();
     let b_norm = dot(b, b).sqrt();
-    let mut x = vec![0.0; n];
-    let mut r = b.to_vec();
+    let mut r = vec![0.0; n];
+    system.apply(&x, &mut r);
+    r.par_iter_mut().zip(b).for_each(|(r, b)| *r = b - *r);
+    let mut relative = dot(&r, &r).sqrt() / b_norm;
     let mut z = vec![0.0; n];
     preconditioner.apply(&r, &mut z);
     let mut p = z.clone();
     let mut ap = vec![0.0; n];
     let mut rz = dot(&r, &z);
-    for iteration in 1..=max_iterations {
+    let mut iteration = stop.done;
+    let mut first_residual = relative;
+    while relative > stop.tolerance && relative.is_finite() && iteration < stop.max_iterations {
+        iteration += 1;
         system.apply(&p, &mut ap);
         let step = rz / dot(&p, &ap);
         axpy(step, &p, &mut x);
         axpy(-step, &ap, &mut r);
-        let relative = dot(&r, &r).sqrt() / b_norm;
+        relative = dot(&r, &r).sqrt() / b_norm;
+        if iteration == stop.done + 1 {
+            first_residual = relative;
+        }
         observer(SolveEvent::Iteration {
             iteration,
             relative_residual: relative,
         });
-        if relative <= tolerance || !relative.is_finite() {
-            return CgOutcome {
-                x,
-                iterations: iteration,
-                converged: relative <= tolerance,
-            };
+        if relative <= stop.tolerance {
+            break;
         }
         preconditioner.apply(&r, &mut z);
         let rz_next = dot(&r, &z);
@@ -61,8 +93,10 @@ pub fn pcg(
     }
     CgOutcome {
         x,
-        iterations: max_iterations,
-        converged: false,
+        iterations: iteration,
+        relative_residual: relative,
+        first_residual,
+        converged: relative <= stop.tolerance,
     }
 }
 

@@ -1,0 +1,121 @@
+//! Solver robustness benchmark: iterations, seconds and peak memory of the space-time solve
+//! over `α ∈ {∞, 10, 1, 0.1, 0.01, 0.001} × γ ∈ {1, 0.01}` on the paper's torus (grey values in
+//! [0, 1]), plus the default weights at 30 frames per second. Each cell runs in its own
+//! process so that its peak memory is its own.
+//!
+//! `cargo run --release --example bench_solver [-- N1 N2 FRAMES [SOLVER]]` (default 128 95 20
+//! auto).
+
+use meshflow::flow::{FlowParams, FlowProblem, MeshSequence, SolverChoice};
+use meshflow::synth::paper_torus;
+use std::process::Command;
+use std::time::Instant;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.first().map(String::as_str) == Some("--cell") {
+        return run_cell(&args[1..]);
+    }
+    let size: Vec<String> = ["128", "95", "20"]
+        .iter()
+        .enumerate()
+        .map(|(i, d)| args.get(i).cloned().unwrap_or(d.to_string()))
+        .collect();
+    let solver = args.get(3).cloned().unwrap_or("auto".into());
+    println!(
+        "paper torus {}×{}, {} frames, grey values in [0, 1], solver {solver}, {} threads, \
+         tolerance 1e-8",
+        size[0],
+        size[1],
+        size[2],
+        rayon::current_num_threads()
+    );
+    println!(
+        "{:>8} {:>6} {:>6} {:>11} {:>9} {:>9} {:>8}  method",
+        "α", "γ", "fps", "iterations", "factor s", "solve s", "peak GB"
+    );
+    let mut cells: Vec<[&str; 3]> = Vec::new();
+    for gamma in ["1", "0.01"] {
+        for alpha in ["inf", "10", "1", "0.1", "0.01", "0.001"] {
+            cells.push([alpha, gamma, "1"]);
+        }
+    }
+    cells.push(["default", "default", "30"]);
+    for [alpha, gamma, fps] in cells {
+        let output = Command::new(std::env::current_exe()?)
+            .arg("--cell")
+            .env("RUST_BACKTRACE", "0")
+            .args(&size)
+            .args([&solver, alpha, gamma, fps])
+            .output()?;
+        let line = String::from_utf8_lossy(&output.stdout);
+        match output.status.success() {
+            true => print!("{line}"),
+            false => println!(
+                "{alpha:>8} {gamma:>6} {fps:>6}  failed: {}",
+                String::from_utf8_lossy(&output.stderr).trim().replace('\n', " ")
+            ),
+        }
+    }
+    Ok(())
+}
+
+/// `--cell N1 N2 FRAMES SOLVER ALPHA GAMMA FPS`: one solve, one line.
+fn run_cell(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
+    let [n1, n2, frames]: [usize; 3] = std::array::from_fn(|i| args[i].parse().expect("a size"));
+    let solver: SolverChoice = args[3].parse()?;
+    let (alpha, gamma, fps) = (&args[4], &args[5], args[6].parse::<f64>()?);
+    let params = match (alpha.as_str(), gamma.as_str()) {
+        ("default", _) => FlowParams::default(),
+        (a, g) => FlowParams::paper(a.parse()?, 0.0, g.parse()?),
+    };
+    let params = FlowParams { solver, ..params };
+    let sequence = unit_grey(paper_torus(n1, n2, frames)?, fps)?;
+    let start = Instant::now();
+    let problem = FlowProblem::new(&sequence, &params)?;
+    let result = problem.solve(&|_| {})?;
+    let total = start.elapsed().as_secs_f64();
+    println!(
+        "{alpha:>8} {gamma:>6} {fps:>6} {:>11} {:>9.2} {:>9.2} {:>8.2}  {}, {} levels ({:.1} s with assembly)",
+        result.iterations,
+        result.timings.factorization,
+        result.timings.solve,
+        peak_memory_bytes() as f64 / 1e9,
+        result.method,
+        result.time_levels,
+        total
+    );
+    Ok(())
+}
+
+/// The sequence with grey values divided by their maximum and frames `fps` per time unit.
+fn unit_grey(sequence: MeshSequence, fps: f64) -> Result<MeshSequence, meshflow::Error> {
+    let frames = sequence.n_frames();
+    let max = (0..frames)
+        .flat_map(|k| sequence.intensities(k).iter().copied())
+        .fold(0.0, f64::max);
+    let positions = (0..frames)
+        .map(|k| sequence.positions(k).expect("embedded").to_vec())
+        .collect();
+    let intensities = (0..frames)
+        .map(|k| sequence.intensities(k).iter().map(|v| v / max).collect())
+        .collect();
+    let times = (0..frames).map(|k| k as f64 / fps).collect();
+    Ok(MeshSequence::new(
+        sequence.mesh().clone(),
+        positions,
+        intensities,
+        Some(times),
+    )?)
+}
+
+/// The process's peak resident set size (VmHWM), 0 where /proc is unavailable.
+fn peak_memory_bytes() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|status| {
+            let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+            line.split_whitespace().nth(1)?.parse::<u64>().ok()
+        })
+        .map_or(0, |kib| kib * 1024)
+}
