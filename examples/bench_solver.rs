@@ -53,7 +53,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             true => print!("{line}"),
             false => println!(
                 "{alpha:>8} {gamma:>6} {fps:>6}  failed: {}",
-                String::from_utf8_lossy(&output.stderr).trim().replace('\n', " ")
+                String::from_utf8_lossy(&output.stderr)
+                    .trim()
+                    .replace('\n', " ")
             ),
         }
     }

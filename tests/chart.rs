@@ -40,7 +40,7 @@ fn flat_torus_translation_error(n1: usize, n2: usize, velocity: Vector2<f64>) ->
     let problem = FlowProblem::new(&sequence, &params).unwrap();
     let flow = problem.solve(&|_| {}).unwrap();
     let pulled = chart
-        .pull_back(sequence.mesh(), problem.slabs(), &flow.intrinsic)
+        .pull_back(sequence.mesh(), &problem.slabs(), &flow.intrinsic)
         .unwrap();
     let errors: Vec<f64> = pulled
         .iter()
@@ -102,7 +102,7 @@ fn chart_of_a_flat_embedding_pulls_back_to_its_xy_components() {
     let flow = problem.solve(&|_| {}).unwrap();
     let vectors = &flow.vectors.as_ref().unwrap()[0];
     let pulled = &chart
-        .pull_back(sequence.mesh(), problem.slabs(), &flow.intrinsic)
+        .pull_back(sequence.mesh(), &problem.slabs(), &flow.intrinsic)
         .unwrap()[0];
     let largest = vectors.iter().map(|v| v.norm()).fold(0.0, f64::max);
     assert!(largest > 0.05, "a non-trivial flow: {largest}");

@@ -43,7 +43,7 @@ pub fn solve_in_chart(
         "\r{name}: solved ({}, {} iterations)          ",
         result.method, result.iterations
     );
-    let pixels = chart.pull_back(sequence.mesh(), problem.slabs(), &result.intrinsic)?;
+    let pixels = chart.pull_back(sequence.mesh(), &problem.slabs(), &result.intrinsic)?;
     Ok(ChartFlow { result, pixels })
 }
 

@@ -6,6 +6,7 @@ use super::{FlowParams, Weights};
 use crate::mesh::Mesh;
 use nalgebra::Vector6;
 use rayon::prelude::*;
+use std::borrow::Cow;
 
 /// The four terms of `E(u)`; [`EnergyTerms::total`] is the energy.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -26,62 +27,69 @@ impl EnergyTerms {
     }
 }
 
-/// The energy terms at `u` (slab-major, `2V` per slab).
-pub fn energy_terms(
+/// The energy terms at `u` (slab-major, `2V` per slab), with `slab(s)` giving slab `s` (kept or
+/// rebuilt; the time links are rebuilt from neighbouring slabs).
+pub fn energy_terms<'a>(
     mesh: &Mesh,
-    slabs: &[Slab],
-    links: &[TimeLink],
+    slab: &(dyn Fn(usize) -> Cow<'a, Slab> + Sync),
     params: &FlowParams,
     weights: &Weights,
     u: &[f64],
 ) -> EnergyTerms {
     let n = 2 * mesh.n_vertices();
+    let n_slabs = u.len() / n;
     let corner_values = |s: usize, face: &[u32; 3]| {
         Vector6::from_fn(|k, _| u[s * n + 2 * face[k / 2] as usize + k % 2])
     };
-    let spatial: Vec<EnergyTerms> = slabs
-        .par_iter()
-        .enumerate()
-        .map(|(s, slab)| {
-            let mut terms = EnergyTerms::default();
-            for (f, face) in mesh.faces().iter().enumerate() {
-                let e = slab.face_elements(face, f);
-                let x = corner_values(s, face);
-                terms.data += slab.dt
-                    * (x.dot(&(e.data.quadratic * x))
-                        + 2.0 * e.data.linear.dot(&x)
-                        + e.data.constant);
-                terms.speed += slab.dt * weights.beta * x.dot(&(e.mass * x));
-                terms.spatial += slab.dt * weights.gamma * x.dot(&(e.stiffness * x));
+    let per_slab: Vec<EnergyTerms> = (0..n_slabs)
+        .into_par_iter()
+        .map(|s| {
+            let this = slab(s);
+            let mut terms = spatial_terms(mesh, &this, weights, |face| corner_values(s, face));
+            if weights.is_coupled() && s + 1 < n_slabs {
+                let next = slab(s + 1);
+                let link = TimeLink::new(&this, &next, weights);
+                terms.temporal = mesh
+                    .faces()
+                    .iter()
+                    .enumerate()
+                    .map(|(f, face)| {
+                        let e = link.face_elements(&this, &next, f, params.time_coupling);
+                        let (x0, x1) = (corner_values(s, face), corner_values(s + 1, face));
+                        x0.dot(&(e.before * x0))
+                            + x1.dot(&(e.after * x1))
+                            + 2.0 * x1.dot(&(e.cross * x0))
+                    })
+                    .sum::<f64>();
             }
             terms
         })
         .collect();
-    let temporal: f64 = links
-        .par_iter()
-        .enumerate()
-        .map(|(s, link)| {
-            mesh.faces()
-                .iter()
-                .enumerate()
-                .map(|(f, face)| {
-                    let e = link.face_elements(&slabs[s], &slabs[s + 1], f, params.time_coupling);
-                    let (x0, x1) = (corner_values(s, face), corner_values(s + 1, face));
-                    x0.dot(&(e.before * x0))
-                        + x1.dot(&(e.after * x1))
-                        + 2.0 * x1.dot(&(e.cross * x0))
-                })
-                .sum::<f64>()
-        })
-        .sum();
-    let mut total = spatial
+    per_slab
         .iter()
         .fold(EnergyTerms::default(), |acc, t| EnergyTerms {
             data: acc.data + t.data,
             speed: acc.speed + t.speed,
             spatial: acc.spatial + t.spatial,
-            temporal: 0.0,
-        });
-    total.temporal = temporal;
-    total
+            temporal: acc.temporal + t.temporal,
+        })
+}
+
+/// Data, speed and spatial terms of one slab, with `x(face)` the corner values.
+fn spatial_terms(
+    mesh: &Mesh,
+    slab: &Slab,
+    weights: &Weights,
+    x: impl Fn(&[u32; 3]) -> Vector6<f64>,
+) -> EnergyTerms {
+    let mut terms = EnergyTerms::default();
+    for (f, face) in mesh.faces().iter().enumerate() {
+        let e = slab.face_elements(face, f);
+        let x = x(face);
+        terms.data += slab.dt
+            * (x.dot(&(e.data.quadratic * x)) + 2.0 * e.data.linear.dot(&x) + e.data.constant);
+        terms.speed += slab.dt * weights.beta * x.dot(&(e.mass * x));
+        terms.spatial += slab.dt * weights.gamma * x.dot(&(e.stiffness * x));
+    }
+    terms
 }

@@ -56,7 +56,9 @@ pub use system::{LinkMatrix, SpaceTimeSystem};
 
 use crate::connection::{push_forward, vertex_frames_in_r3};
 use nalgebra::{Vector2, Vector3};
+use rayon::prelude::*;
 use slab::TimeLink;
+use std::borrow::Cow;
 use std::time::Instant;
 
 /// Wall-clock seconds spent in each phase.
@@ -99,14 +101,20 @@ pub struct FlowResult {
     pub timings: Timings,
 }
 
+/// Slab geometry and connection kept after assembly up to this many bytes (an estimate: about
+/// 200 bytes per face and slab); beyond it they are rebuilt for the energy terms and the
+/// push-forward (each slab three more times), which bounds the memory per frame.
+pub const KEEP_SLABS_BYTES: usize = 1 << 30;
+
 /// A sequence with parameters, assembled: the energy and its linear system, ready to solve.
 pub struct FlowProblem<'a> {
     sequence: &'a MeshSequence,
     params: FlowParams,
     weights: Weights,
     scales: DataScales,
-    slabs: Vec<Slab>,
-    links: Vec<TimeLink>,
+    /// Kept while they take at most [`KEEP_SLABS_BYTES`]; rebuilt from the sequence when
+    /// needed otherwise, so that long sequences hold only the system and its factors.
+    slabs: Option<Vec<Slab>>,
     system: SpaceTimeSystem,
     assembly_seconds: f64,
 }
@@ -131,13 +139,13 @@ impl<'a> FlowProblem<'a> {
         let mesh = sequence.mesh();
         uniqueness::check_unique_minimizer(mesh, &slabs, &links, params, &weights)?;
         let system = SpaceTimeSystem::assemble(mesh, &slabs, &links, params, &weights);
+        let slab_bytes = slabs.len() * (200 * mesh.n_faces() + 8 * mesh.n_halfedges());
         Ok(Self {
             sequence,
             params: params.clone(),
             weights,
             scales,
-            slabs,
-            links,
+            slabs: (slab_bytes <= KEEP_SLABS_BYTES).then_some(slabs),
             system,
             assembly_seconds: start.elapsed().as_secs_f64(),
         })
@@ -147,8 +155,26 @@ impl<'a> FlowProblem<'a> {
         &self.system
     }
 
-    pub fn slabs(&self) -> &[Slab] {
-        &self.slabs
+    /// All slabs (rebuilt when the problem did not keep them, see [`KEEP_SLABS_BYTES`]).
+    pub fn slabs(&self) -> Cow<'_, [Slab]> {
+        match &self.slabs {
+            Some(slabs) => Cow::Borrowed(slabs),
+            None => Cow::Owned(
+                (0..self.system.n_slabs())
+                    .map(|s| self.slab(s).into_owned())
+                    .collect(),
+            ),
+        }
+    }
+
+    /// Slab `s`, kept or rebuilt.
+    pub fn slab(&self, s: usize) -> Cow<'_, Slab> {
+        match &self.slabs {
+            Some(slabs) => Cow::Borrowed(&slabs[s]),
+            None => {
+                Cow::Owned(Slab::new(self.sequence, s).expect("the slabs were built once already"))
+            }
+        }
     }
 
     /// `α`, `β`, `γ` in the data's units, relative weights resolved.
@@ -165,8 +191,7 @@ impl<'a> FlowProblem<'a> {
     pub fn energy_terms(&self, u: &[f64]) -> EnergyTerms {
         energy::energy_terms(
             self.sequence.mesh(),
-            &self.slabs,
-            &self.links,
+            &|s| self.slab(s),
             &self.params,
             &self.weights,
             u,
@@ -211,17 +236,18 @@ impl<'a> FlowProblem<'a> {
     /// The flow of slab `s` in R^3 on frame `s`, for embedded sequences.
     fn push_forward(&self, intrinsic: &[Vec<Vector2<f64>>]) -> Option<Vec<Vec<Vector3<f64>>>> {
         let mesh = self.sequence.mesh();
-        self.slabs
-            .iter()
-            .zip(intrinsic)
+        self.sequence.positions(0)?;
+        intrinsic
+            .par_iter()
             .enumerate()
-            .map(|(s, (slab, u))| {
+            .map(|(s, u)| {
+                let slab = self.slab(s);
                 let positions = self.sequence.positions(s)?;
                 let frames = vertex_frames_in_r3(mesh, &slab.geometry, &slab.connection, positions)
                     .expect("positions were validated with the sequence");
                 Some(push_forward(&frames, u))
             })
-            .collect()
+            .collect::<Option<Vec<_>>>()
     }
 }
 

@@ -27,7 +27,7 @@ pub struct FaceElements {
 }
 
 impl Slab {
-    fn new(sequence: &MeshSequence, s: usize) -> Result<Self, FlowError> {
+    pub(crate) fn new(sequence: &MeshSequence, s: usize) -> Result<Self, FlowError> {
         let geometry = sequence.slab_geometry(s)?;
         let connection = Connection::new(sequence.mesh(), &geometry);
         let dt = sequence.slab_duration(s);

@@ -497,7 +497,9 @@ impl SpaceTimeSystem {
     /// `X_s T` for a block-diagonal `T`.
     fn right_multiplied_link(&self, s: usize, t: &[Matrix2<f64>]) -> LinkMatrix {
         match &self.links[s] {
-            LinkMatrix::Lumped(x) => LinkMatrix::Lumped(x.iter().zip(t).map(|(x, t)| x * t).collect()),
+            LinkMatrix::Lumped(x) => {
+                LinkMatrix::Lumped(x.iter().zip(t).map(|(x, t)| x * t).collect())
+            }
             LinkMatrix::Consistent(x) => {
                 LinkMatrix::Consistent(map_vertex_blocks(&self.pattern, x, |_, j, x| x * t[j]))
             }

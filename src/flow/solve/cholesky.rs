@@ -23,7 +23,10 @@ pub fn analyze(pattern: SymbolicSparseColMatRef<'_, usize>) -> Arc<SymbolicChole
         return symbolic_with(pattern, SymmetricOrdering::Amd);
     };
     let mut inverse = vec![0; forward.len()];
-    forward.iter().enumerate().for_each(|(new, &old)| inverse[old] = new);
+    forward
+        .iter()
+        .enumerate()
+        .for_each(|(new, &old)| inverse[old] = new);
     let perm = PermRef::new_checked(&forward, &inverse, forward.len());
     symbolic_with(pattern, SymmetricOrdering::Custom(perm))
 }
@@ -68,8 +71,17 @@ fn nested_dissection(pattern: SymbolicSparseColMatRef<'_, usize>) -> Option<Vec<
             iperm.as_mut_ptr(),
         )
     };
-    (status == metis_sys::rstatus_et_METIS_OK)
-        .then(|| perm.iter().flat_map(|&v| [2 * v as usize, 2 * v as usize + 1]).collect())
+    (status == metis_sys::rstatus_et_METIS_OK).then(|| {
+        perm.iter()
+            .flat_map(|&v| [2 * v as usize, 2 * v as usize + 1])
+            .collect()
+    })
+}
+
+/// Reusable buffers of triangular solves.
+pub struct SolveWork<T> {
+    rhs: Vec<T>,
+    scratch: MemBuffer,
 }
 
 /// A floating-point type the factors can be stored in; the system stays in `f64`.
@@ -134,16 +146,34 @@ impl<T: Precision> CholeskyFactor<T> {
 
     /// Overwrites `x` with `A⁻¹ x` (computed in precision `T`).
     pub fn solve_in_place(&self, x: &mut [f64], par: Par) {
-        let n = x.len();
-        let mut rhs: Vec<T> = x.iter().map(|&v| T::from_f64(v)).collect();
+        self.solve_with(x, &mut self.workspace(par), par);
+    }
+
+    /// Buffers for [`Self::solve_with`] (one per thread), so that repeated solves allocate
+    /// nothing: each large allocation is fresh pages, i.e. page faults, on every solve.
+    pub fn workspace(&self, par: Par) -> SolveWork<T> {
         let scratch = self.symbolic.solve_in_place_scratch::<T>(1, par);
+        SolveWork {
+            rhs: Vec::with_capacity(self.symbolic.nrows()),
+            scratch: MemBuffer::new(scratch),
+        }
+    }
+
+    /// [`Self::solve_in_place`] with the buffers of `work` (from any factor with the same
+    /// symbolic analysis).
+    pub fn solve_with(&self, x: &mut [f64], work: &mut SolveWork<T>, par: Par) {
+        let n = x.len();
+        work.rhs.clear();
+        work.rhs.extend(x.iter().map(|&v| T::from_f64(v)));
         LltRef::<'_, usize, T>::new(&self.symbolic, &self.values).solve_in_place_with_conj(
             Conj::No,
-            MatMut::from_column_major_slice_mut(&mut rhs, n, 1),
+            MatMut::from_column_major_slice_mut(&mut work.rhs, n, 1),
             par,
-            MemStack::new(&mut MemBuffer::new(scratch)),
+            MemStack::new(&mut work.scratch),
         );
-        x.iter_mut().zip(&rhs).for_each(|(x, r)| *x = r.to_f64());
+        x.iter_mut()
+            .zip(&work.rhs)
+            .for_each(|(x, r)| *x = r.to_f64());
     }
 
     /// Stored entries of `L`.

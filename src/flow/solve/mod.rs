@@ -183,12 +183,23 @@ fn run_pcg(
     done: usize,
     observer: &(dyn Fn(SolveEvent) + Sync),
 ) -> pcg::CgOutcome {
-    let x = x.unwrap_or_else(|| vec![0.0; system.dimension()]);
     let stop = pcg::Stop {
         tolerance: params.tolerance,
         done,
         max_iterations: params.max_iterations,
+        give_up: None,
     };
+    run_pcg_until(system, x, preconditioner, stop, observer)
+}
+
+fn run_pcg_until(
+    system: &SpaceTimeSystem,
+    x: Option<Vec<f64>>,
+    preconditioner: &dyn pcg::Preconditioner,
+    stop: pcg::Stop,
+    observer: &(dyn Fn(SolveEvent) + Sync),
+) -> pcg::CgOutcome {
+    let x = x.unwrap_or_else(|| vec![0.0; system.dimension()]);
     pcg::pcg(system, system.rhs(), x, preconditioner, stop, observer)
 }
 
@@ -229,7 +240,8 @@ fn slab_pcg(
     let plan = FactorPlan::new(system, &symbolic, params);
     if plan.slabs_per_factor > system.n_slabs() {
         let outcome = run_pcg(system, None, &Jacobi::new(system), params, 0, observer);
-        return Solution::iterated(outcome, SolverMethod::PcgJacobi, plan.describe()).converged(params);
+        return Solution::iterated(outcome, SolverMethod::PcgJacobi, plan.describe())
+            .converged(params);
     }
     observer(SolveEvent::Factorizing {
         slabs: system.n_slabs(),
@@ -237,10 +249,26 @@ fn slab_pcg(
     // Single-precision factors suffice for a preconditioner; f64 if a block is too
     // ill-conditioned for them.
     match plan.factor::<f32>(&[system]) {
-        Ok(sweeps) => slab_pcg_with(system, params, preconditioning, &plan, sweeps, start, observer),
+        Ok(sweeps) => slab_pcg_with(
+            system,
+            params,
+            preconditioning,
+            &plan,
+            sweeps,
+            start,
+            observer,
+        ),
         Err(_) => {
             let sweeps = plan.factor::<f64>(&[system])?;
-            slab_pcg_with(system, params, preconditioning, &plan, sweeps, start, observer)
+            slab_pcg_with(
+                system,
+                params,
+                preconditioning,
+                &plan,
+                sweeps,
+                start,
+                observer,
+            )
         }
     }
 }
@@ -260,37 +288,25 @@ fn slab_pcg_with<T: Precision>(
     let (x, done, reason) = match preconditioning {
         Preconditioning::Multigrid => (None, 0, format!("asked for; {}", plan.describe())),
         _ => {
-            let limit = match preconditioning {
-                Preconditioning::Adaptive => PROBE_ITERATIONS,
-                _ => params.max_iterations,
-            };
-            let probe_params = FlowParams {
-                max_iterations: limit,
-                ..params.clone()
+            let stop = pcg::Stop {
+                tolerance: params.tolerance,
+                done: 0,
+                max_iterations: params.max_iterations,
+                give_up: (preconditioning == Preconditioning::Adaptive)
+                    .then_some((PROBE_ITERATIONS, SWITCH_ITERATIONS)),
             };
             let gauss_seidel = SlabGaussSeidel::new(system, &fine);
-            let outcome = run_pcg(system, None, &gauss_seidel, &probe_params, 0, observer);
-            let projected = outcome.projected_iterations(params.tolerance, 0);
-            let keep = outcome.converged
-                || preconditioning == Preconditioning::GaussSeidel
-                || projected <= SWITCH_ITERATIONS;
-            if keep {
+            let outcome = run_pcg_until(system, None, &gauss_seidel, stop, observer);
+            let gave_up = !outcome.converged && outcome.iterations == PROBE_ITERATIONS;
+            if !gave_up || preconditioning == Preconditioning::GaussSeidel {
                 let reason = match preconditioning {
                     Preconditioning::GaussSeidel => format!("asked for; {}", plan.describe()),
                     _ => format!(
-                        "slab Gauss-Seidel converges fast enough (about {} iterations \
-                         projected after {}); {}",
-                        projected.ceil(),
-                        outcome.iterations,
+                        "slab Gauss-Seidel converges fast enough (no more than {} iterations \
+                         projected after {PROBE_ITERATIONS}); {}",
+                        SWITCH_ITERATIONS,
                         plan.describe()
                     ),
-                };
-                let outcome = match outcome.converged {
-                    true => outcome,
-                    false => {
-                        let (x, done) = (Some(outcome.x), outcome.iterations);
-                        run_pcg(system, x, &gauss_seidel, params, done, observer)
-                    }
                 };
                 let mut solution =
                     Solution::iterated(outcome, SolverMethod::PcgSlabGaussSeidel, reason);
@@ -303,7 +319,7 @@ fn slab_pcg_with<T: Precision>(
                  slow: the time coupling dominates; {}",
                 outcome.relative_residual,
                 outcome.iterations,
-                projected.ceil(),
+                outcome.projected_iterations(params.tolerance, 0).ceil(),
                 plan.describe()
             );
             (Some(outcome.x), outcome.iterations, reason)
@@ -339,6 +355,7 @@ struct FactorPlan<'a> {
     /// single-precision factors' fallback).
     factor_bytes: usize,
     budget: usize,
+    n_slabs: usize,
 }
 
 impl<'a> FactorPlan<'a> {
@@ -348,7 +365,7 @@ impl<'a> FactorPlan<'a> {
         params: &FlowParams,
     ) -> Self {
         let factor_bytes = symbolic.len_val() * std::mem::size_of::<f64>();
-        let fitting = (params.factor_memory_limit / factor_bytes.max(1)).max(0);
+        let fitting = params.factor_memory_limit / factor_bytes.max(1);
         let slabs_per_factor = match fitting {
             0 => system.n_slabs() + 1,
             f => system.n_slabs().div_ceil(f).max(1),
@@ -358,6 +375,7 @@ impl<'a> FactorPlan<'a> {
             slabs_per_factor,
             factor_bytes,
             budget: params.factor_memory_limit,
+            n_slabs: system.n_slabs(),
         }
     }
 
@@ -369,13 +387,18 @@ impl<'a> FactorPlan<'a> {
                 gb(self.factor_bytes),
                 gb(self.budget)
             ),
-            n if n < usize::MAX => format!(
+            n if n <= self.n_slabs => format!(
                 "one slab factor takes up to {:.2} GB: {n} neighbouring slabs share the \
                  factor of their mean to stay within the {:.1} GB budget",
                 gb(self.factor_bytes),
                 gb(self.budget)
             ),
-            _ => unreachable!(),
+            _ => format!(
+                "one slab factor takes up to {:.2} GB and does not fit the {:.1} GB budget: \
+                 Jacobi, no factors",
+                gb(self.factor_bytes),
+                gb(self.budget)
+            ),
         }
     }
 

@@ -70,7 +70,11 @@ impl<'a, T: Precision> TimeMultigrid<'a, T> {
         hierarchy: TimeHierarchy,
         sweeps: Vec<SlabSweeps<T>>,
     ) -> Self {
-        assert_eq!(sweeps.len(), hierarchy.coarse.len() + 1, "one smoother per level");
+        assert_eq!(
+            sweeps.len(),
+            hierarchy.coarse.len() + 1,
+            "one smoother per level"
+        );
         Self {
             fine,
             hierarchy,
@@ -103,9 +107,7 @@ impl<'a, T: Precision> TimeMultigrid<'a, T> {
         prolong_add(transports, &coarse_z, z, n);
         let mut correction = residual(system, r, z);
         self.sweeps[level].backward(system, &mut correction);
-        z.par_iter_mut()
-            .zip(&correction)
-            .for_each(|(z, c)| *z += c);
+        z.par_iter_mut().zip(&correction).for_each(|(z, c)| *z += c);
     }
 }
 
@@ -127,20 +129,17 @@ fn residual(system: &SpaceTimeSystem, r: &[f64], z: &[f64]) -> Vec<f64> {
 fn restrict(transports: &[Vec<Matrix2<f64>>], r: &[f64], n: usize) -> Vec<f64> {
     let n_coarse = (r.len() / n).div_ceil(2);
     let mut coarse = vec![0.0; n_coarse * n];
-    coarse
-        .par_chunks_mut(n)
-        .enumerate()
-        .for_each(|(k, ck)| {
-            ck.copy_from_slice(&r[2 * k * n..(2 * k + 1) * n]);
-            if let Some(t) = transports.get(k) {
-                let odd = &r[(2 * k + 1) * n..(2 * k + 2) * n];
-                for (i, t) in t.iter().enumerate() {
-                    let v = t.transpose() * Vector2::new(odd[2 * i], odd[2 * i + 1]);
-                    ck[2 * i] += v.x;
-                    ck[2 * i + 1] += v.y;
-                }
+    coarse.par_chunks_mut(n).enumerate().for_each(|(k, ck)| {
+        ck.copy_from_slice(&r[2 * k * n..(2 * k + 1) * n]);
+        if let Some(t) = transports.get(k) {
+            let odd = &r[(2 * k + 1) * n..(2 * k + 2) * n];
+            for (i, t) in t.iter().enumerate() {
+                let v = t.transpose() * Vector2::new(odd[2 * i], odd[2 * i + 1]);
+                ck[2 * i] += v.x;
+                ck[2 * i + 1] += v.y;
             }
-        });
+        }
+    });
     coarse
 }
 

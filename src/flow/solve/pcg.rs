@@ -18,6 +18,9 @@ pub struct Stop {
     /// continue from here, and `max_iterations` counts them too.
     pub done: usize,
     pub max_iterations: usize,
+    /// `Some((k, n))`: give up after `k` iterations of this run when their rate projects more
+    /// than `n` iterations to the tolerance ([`CgOutcome::projected_iterations`]).
+    pub give_up: Option<(usize, f64)>,
 }
 
 /// Result of a CG run: iterate, iterations (including `Stop::done`), the last recursive
@@ -32,15 +35,10 @@ pub struct CgOutcome {
 }
 
 impl CgOutcome {
-    /// The iterations this run would take to the tolerance at its rate after the first
-    /// iteration (the first drop is typically steeper than the rest): `∞` without progress.
+    /// The iterations this run (after `done_before`) would take to `tolerance`.
     pub fn projected_iterations(&self, tolerance: f64, done_before: usize) -> f64 {
-        let ran = (self.iterations - done_before) as f64;
-        let rate = (self.relative_residual / self.first_residual).powf(1.0 / (ran - 1.0));
-        match rate < 1.0 && ran > 1.0 {
-            true => 1.0 + (tolerance / self.first_residual).ln() / rate.ln(),
-            false => f64::INFINITY,
-        }
+        let ran = self.iterations - done_before;
+        projected_iterations(ran, self.first_residual, self.relative_residual)(tolerance)
     }
 }
 
@@ -83,6 +81,12 @@ pub fn pcg(
         if relative <= stop.tolerance {
             break;
         }
+        if let Some((probe, limit)) = stop.give_up {
+            let projected = projected_iterations(iteration - stop.done, first_residual, relative);
+            if iteration - stop.done == probe && projected(stop.tolerance) > limit {
+                break;
+            }
+        }
         preconditioner.apply(&r, &mut z);
         let rz_next = dot(&r, &z);
         let beta = rz_next / rz;
@@ -103,4 +107,14 @@ pub fn pcg(
 /// `y += a x`.
 fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
     y.par_iter_mut().zip(x).for_each(|(y, x)| *y += a * x);
+}
+
+/// The iterations to a tolerance at the rate from iteration 1 to `ran` (the first drop is
+/// typically steeper than the rest): `∞` without progress.
+fn projected_iterations(ran: usize, first: f64, last: f64) -> impl Fn(f64) -> f64 {
+    let rate = (last / first).powf(1.0 / (ran as f64 - 1.0));
+    move |tolerance| match rate < 1.0 && ran > 1 {
+        true => 1.0 + (tolerance / first).ln() / rate.ln(),
+        false => f64::INFINITY,
+    }
 }

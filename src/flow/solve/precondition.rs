@@ -57,7 +57,11 @@ impl<T: Precision> SlabSweeps<T> {
         n_slabs: usize,
         chunks: usize,
     ) -> Self {
-        assert_eq!(factors.len(), n_slabs.div_ceil(slabs_per_factor), "one factor per group");
+        assert_eq!(
+            factors.len(),
+            n_slabs.div_ceil(slabs_per_factor),
+            "one factor per group"
+        );
         Self {
             factors,
             slabs_per_factor,
@@ -71,7 +75,10 @@ impl<T: Precision> SlabSweeps<T> {
 
     /// Stored entries of all factors.
     pub fn stored_entries(&self) -> usize {
-        self.factors.iter().map(CholeskyFactor::stored_entries).sum()
+        self.factors
+            .iter()
+            .map(CholeskyFactor::stored_entries)
+            .sum()
     }
 
     /// `z ← (D + L)⁻¹ z`.
@@ -81,7 +88,9 @@ impl<T: Precision> SlabSweeps<T> {
 
     /// `z ← (D + Lᵀ)⁻¹ z`.
     pub fn backward(&self, system: &SpaceTimeSystem, z: &mut [f64]) {
-        self.per_chunk(system, z, |first, zc| self.backward_chunk(system, first, zc));
+        self.per_chunk(system, z, |first, zc| {
+            self.backward_chunk(system, first, zc)
+        });
     }
 
     /// `z ← (D + Lᵀ)⁻¹ D (D + L)⁻¹ z`, the symmetric Gauss–Seidel sweep, with the backward
@@ -91,12 +100,14 @@ impl<T: Precision> SlabSweeps<T> {
             self.forward_chunk(system, first, zc);
             let n = system.slab_dimension();
             let mut coupled = vec![0.0; n];
+            let mut work = self.factors[0].workspace(Par::Seq);
             let coupled_slabs = if system.has_links() { zc.len() / n } else { 1 };
             for k in (0..coupled_slabs - 1).rev() {
                 let (head, tail) = zc.split_at_mut((k + 1) * n);
                 coupled.fill(0.0);
                 system.link_transpose_mul(first + k, &tail[..n], &mut coupled);
-                self.factor(first + k).solve_in_place(&mut coupled, Par::Seq);
+                self.factor(first + k)
+                    .solve_with(&mut coupled, &mut work, Par::Seq);
                 subtract(&mut head[k * n..], &coupled);
             }
         });
@@ -117,6 +128,7 @@ impl<T: Precision> SlabSweeps<T> {
     fn forward_chunk(&self, system: &SpaceTimeSystem, first: usize, z: &mut [f64]) {
         let n = system.slab_dimension();
         let mut coupled = vec![0.0; n];
+        let mut work = self.factors[0].workspace(Par::Seq);
         for k in 0..z.len() / n {
             let (done, rest) = z.split_at_mut(k * n);
             if k > 0 && system.has_links() {
@@ -124,7 +136,8 @@ impl<T: Precision> SlabSweeps<T> {
                 system.link_mul(first + k - 1, &done[(k - 1) * n..], &mut coupled);
                 subtract(&mut rest[..n], &coupled);
             }
-            self.factor(first + k).solve_in_place(&mut rest[..n], Par::Seq);
+            self.factor(first + k)
+                .solve_with(&mut rest[..n], &mut work, Par::Seq);
         }
     }
 
@@ -132,6 +145,7 @@ impl<T: Precision> SlabSweeps<T> {
         let n = system.slab_dimension();
         let count = z.len() / n;
         let mut coupled = vec![0.0; n];
+        let mut work = self.factors[0].workspace(Par::Seq);
         for k in (0..count).rev() {
             let (head, tail) = z.split_at_mut((k + 1) * n);
             if k + 1 < count && system.has_links() {
@@ -139,7 +153,8 @@ impl<T: Precision> SlabSweeps<T> {
                 system.link_transpose_mul(first + k, &tail[..n], &mut coupled);
                 subtract(&mut head[k * n..], &coupled);
             }
-            self.factor(first + k).solve_in_place(&mut head[k * n..], Par::Seq);
+            self.factor(first + k)
+                .solve_with(&mut head[k * n..], &mut work, Par::Seq);
         }
     }
 }
