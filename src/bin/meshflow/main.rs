@@ -140,7 +140,7 @@ struct SolveArgs {
     /// lumped or consistent discretization of the time term
     #[arg(long, default_value = "lumped")]
     time_coupling: TimeCoupling,
-    /// auto, direct, pcg-slab-gauss-seidel or pcg-jacobi
+    /// auto, direct, pcg-slab-gauss-seidel, pcg-time-multigrid or pcg-jacobi
     #[arg(long, default_value = "auto")]
     solver: SolverChoice,
     /// Relative residual at which the iterative solver stops
