@@ -8,6 +8,10 @@ use meshflow::flow::{FlowParams, FlowProblem, SolveEvent};
 use meshflow::synth::paper_torus;
 use std::time::Instant;
 
+#[path = "common/memory.rs"]
+mod memory;
+use memory::peak_memory_bytes;
+
 fn main() -> Result<(), meshflow::Error> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let number = |i: usize, default: usize| {
@@ -69,15 +73,4 @@ fn main() -> Result<(), meshflow::Error> {
         peak_memory_bytes() as f64 / 1e9
     );
     Ok(())
-}
-
-/// The process's peak resident set size (VmHWM), 0 where /proc is unavailable.
-fn peak_memory_bytes() -> u64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|status| {
-            let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-            line.split_whitespace().nth(1)?.parse::<u64>().ok()
-        })
-        .map_or(0, |kib| kib * 1024)
 }

@@ -11,6 +11,10 @@ use meshflow::synth::paper_torus;
 use std::process::Command;
 use std::time::Instant;
 
+#[path = "common/memory.rs"]
+mod memory;
+use memory::peak_memory_bytes;
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.first().map(String::as_str) == Some("--cell") {
@@ -109,15 +113,4 @@ fn unit_grey(sequence: MeshSequence, fps: f64) -> Result<MeshSequence, meshflow:
         intensities,
         Some(times),
     )?)
-}
-
-/// The process's peak resident set size (VmHWM), 0 where /proc is unavailable.
-fn peak_memory_bytes() -> u64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|status| {
-            let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-            line.split_whitespace().nth(1)?.parse::<u64>().ok()
-        })
-        .map_or(0, |kib| kib * 1024)
 }

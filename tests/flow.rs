@@ -2,10 +2,11 @@
 //! known flow: `tests/accuracy.rs`).
 
 mod common;
+use common::{assert_same_intrinsic_flow, flat_u};
 
 use meshflow::flow::{
-    compute_flow, Boundary, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence,
-    SolverChoice, SolverMethod, TimeCoupling, Weight,
+    compute_flow, Boundary, FlowError, FlowParams, FlowProblem, MeshSequence, SolverChoice,
+    SolverMethod, TimeCoupling, Weight,
 };
 use meshflow::geometry::GeometryError;
 use meshflow::shapes::{grid, icosphere, Surface};
@@ -46,14 +47,6 @@ fn deforming_patch(n_frames: usize, jitter: f64) -> (Surface, Frames, Intensitie
         })
         .collect();
     (surface, frames, intensities)
-}
-
-fn flat_u(flow: &FlowResult) -> Vec<f64> {
-    flow.intrinsic
-        .iter()
-        .flatten()
-        .flat_map(|u| [u.x, u.y])
-        .collect()
 }
 
 #[test]
@@ -114,19 +107,6 @@ fn solution_minimizes_the_energy() {
 }
 
 /// The intrinsic flows of two sequences agree to round-off.
-fn assert_same_intrinsic_flow(a: &FlowResult, b: &FlowResult) {
-    let (ua, ub) = (flat_u(a), flat_u(b));
-    let scale = ua.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let difference = ua
-        .iter()
-        .zip(&ub)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
-    assert!(
-        difference < 1e-9 * scale,
-        "intrinsic flows differ by {difference:e} (scale {scale:e})"
-    );
-    assert!((a.energy - b.energy).abs() < 1e-10 * a.energy);
-}
 
 #[test]
 fn rigid_motions_of_each_frame_change_nothing_intrinsic() {

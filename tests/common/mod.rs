@@ -7,6 +7,7 @@ use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::{Mat, Side};
 use meshflow::fem::SparseMatrix;
+use meshflow::flow::FlowResult;
 use meshflow::shapes::{grid, Surface};
 use nalgebra::{DMatrix, Rotation3, Vector3};
 use std::path::Path;
@@ -198,4 +199,29 @@ pub fn jittered_grid(nx: usize, ny: usize, width: f64, height: f64, amplitude: f
         }
     }
     surface
+}
+
+/// The flow's intrinsic components, slab-major.
+pub fn flat_u(flow: &FlowResult) -> Vec<f64> {
+    flow.intrinsic
+        .iter()
+        .flatten()
+        .flat_map(|u| [u.x, u.y])
+        .collect()
+}
+
+/// The same minimizer: intrinsic flows within 1e-9 of the largest component, energies within
+/// 1e-10 relative.
+pub fn assert_same_intrinsic_flow(a: &FlowResult, b: &FlowResult) {
+    let (ua, ub) = (flat_u(a), flat_u(b));
+    let scale = ua.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let difference = ua
+        .iter()
+        .zip(&ub)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    assert!(
+        difference < 1e-9 * scale,
+        "intrinsic flows differ by {difference:e} (scale {scale:e})"
+    );
+    assert!((a.energy - b.energy).abs() < 1e-10 * a.energy);
 }

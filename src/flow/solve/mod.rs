@@ -288,40 +288,43 @@ fn slab_pcg(
     });
     // Single-precision factors suffice for a preconditioner; f64 if a block is too
     // ill-conditioned for them.
+    let job = SlabJob {
+        system,
+        params,
+        preconditioning,
+        plan: &plan,
+        start,
+        observer,
+    };
     match plan.factor::<f32>(&[system]) {
-        Ok(sweeps) => slab_pcg_with(
-            system,
-            params,
-            preconditioning,
-            &plan,
-            sweeps,
-            start,
-            observer,
-        ),
-        Err(_) => {
-            let sweeps = plan.factor::<f64>(&[system])?;
-            slab_pcg_with(
-                system,
-                params,
-                preconditioning,
-                &plan,
-                sweeps,
-                start,
-                observer,
-            )
-        }
+        Ok(sweeps) => slab_pcg_with(job, sweeps),
+        Err(_) => slab_pcg_with(job, plan.factor::<f64>(&[system])?),
     }
 }
 
-fn slab_pcg_with<T: Precision>(
-    system: &SpaceTimeSystem,
-    params: &FlowParams,
+/// What [`slab_pcg_with`] needs besides the factors (factored since `start`).
+#[derive(Clone, Copy)]
+struct SlabJob<'a> {
+    system: &'a SpaceTimeSystem,
+    params: &'a FlowParams,
     preconditioning: Preconditioning,
-    plan: &FactorPlan,
-    mut fine: Vec<SlabSweeps<T>>,
+    plan: &'a FactorPlan<'a>,
     start: Instant,
-    observer: &(dyn Fn(SolveEvent) + Sync),
+    observer: &'a (dyn Fn(SolveEvent) + Sync),
+}
+
+fn slab_pcg_with<T: Precision>(
+    job: SlabJob<'_>,
+    mut fine: Vec<SlabSweeps<T>>,
 ) -> Result<Solution, FlowError> {
+    let SlabJob {
+        system,
+        params,
+        preconditioning,
+        plan,
+        start,
+        observer,
+    } = job;
     let fine = fine.remove(0);
     let mut factor_seconds = start.elapsed().as_secs_f64();
     let mut factor_entries = fine.stored_entries();
