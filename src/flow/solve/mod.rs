@@ -136,7 +136,6 @@ pub fn solve(
             "the right-hand side is zero (a static image): u = 0".into(),
         ));
     }
-    let start = Instant::now();
     let mut solution = match params.solver {
         SolverChoice::Auto if !system.has_links() => {
             slabwise_direct(system, observer, "α = ∞: the slabs are independent".into())?
@@ -164,9 +163,6 @@ pub fn solve(
                 .converged(params)?
         }
     };
-    if solution.method != SolverMethod::PcgJacobi && solution.factor_seconds == 0.0 {
-        solution.factor_seconds = start.elapsed().as_secs_f64();
-    }
     solution.relative_residual = relative_residual(system, &solution.u);
     Ok(solution)
 }
@@ -516,6 +512,7 @@ fn slabwise_direct(
     observer(SolveEvent::Factorizing {
         slabs: system.n_slabs(),
     });
+    let start = Instant::now();
     let symbolic = analyze(system.block(0).symbolic());
     let n = system.slab_dimension();
     let mut u = system.rhs().to_vec();
@@ -530,6 +527,7 @@ fn slabwise_direct(
         })
         .collect::<Result<_, FlowError>>()?;
     Ok(Solution {
+        factor_seconds: start.elapsed().as_secs_f64(),
         factor_entries: entries.iter().sum(),
         ..Solution::exact(u, SolverMethod::SlabwiseDirect, reason)
     })
