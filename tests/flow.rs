@@ -57,6 +57,7 @@ fn static_image_gives_zero_flow_exactly() {
     let flow = compute_flow(&sequence, &FlowParams::default()).unwrap();
     assert!(flat_u(&flow).iter().all(|&v| v == 0.0));
     assert_eq!((flow.energy, flow.energy_at_zero), (0.0, 0.0));
+    assert_eq!((flow.iterations, flow.relative_residual), (0, 0.0));
 }
 
 #[test]

@@ -130,11 +130,15 @@ pub fn solve(
     let b = system.rhs();
     if b.iter().all(|&v| v == 0.0) {
         // A static image: u = 0 is the exact minimizer (E ≥ 0 = E(0) minus the constant).
-        return Ok(Solution::exact(
-            vec![0.0; b.len()],
-            SolverMethod::Direct,
-            "the right-hand side is zero (a static image): u = 0".into(),
-        ));
+        return Ok(Solution {
+            iterations: 0,
+            relative_residual: 0.0,
+            ..Solution::exact(
+                vec![0.0; b.len()],
+                SolverMethod::Direct,
+                "the right-hand side is zero (a static image): u = 0".into(),
+            )
+        });
     }
     let mut solution = match params.solver {
         SolverChoice::Auto if !system.has_links() => {
@@ -282,8 +286,6 @@ fn slab_pcg(
     observer(SolveEvent::Factorizing {
         slabs: system.n_slabs(),
     });
-    // Single-precision factors suffice for a preconditioner; f64 if a block is too
-    // ill-conditioned for them.
     let job = SlabJob {
         system,
         params,
@@ -292,9 +294,14 @@ fn slab_pcg(
         start,
         observer,
     };
-    match plan.factor::<f32>(&[system]) {
-        Ok(sweeps) => slab_pcg_with(job, sweeps),
-        Err(_) => slab_pcg_with(job, plan.factor::<f64>(&[system])?),
+    // Single-precision factors suffice for a preconditioner; f64 if a block of any level
+    // (the fine slabs, or the coarse levels multigrid adds later) is too ill-conditioned.
+    let single = plan
+        .factor::<f32>(&[system])
+        .and_then(|sweeps| slab_pcg_with(job, sweeps));
+    match single {
+        Err(FlowError::Factorization { .. }) => slab_pcg_with(job, plan.factor::<f64>(&[system])?),
+        other => other,
     }
 }
 
