@@ -160,3 +160,65 @@ fn prolong_add(transports: &[Vec<Matrix2<f64>>], coarse: &[f64], z: &mut [f64], 
             }
         });
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::flow::system::for_each_column;
+    use crate::flow::{FlowParams, FlowProblem, TimeCoupling};
+    use nalgebra::DMatrix;
+
+    fn dense(system: &SpaceTimeSystem) -> DMatrix<f64> {
+        let n = system.dimension();
+        let mut m = DMatrix::zeros(n, n);
+        for_each_column(system.to_sparse().as_ref(), |j, rows, values| {
+            rows.iter().zip(values).for_each(|(&i, &v)| m[(i, j)] += v);
+        });
+        m
+    }
+
+    /// `P` column by column, from `prolong_add` on unit vectors.
+    fn prolongation(transports: &[Vec<Matrix2<f64>>], fine: usize, coarse: usize) -> DMatrix<f64> {
+        let n = 2 * transports[0].len();
+        let mut p = DMatrix::zeros(fine * n, coarse * n);
+        for j in 0..coarse * n {
+            let mut unit = vec![0.0; coarse * n];
+            unit[j] = 1.0;
+            let mut column = vec![0.0; fine * n];
+            prolong_add(transports, &unit, &mut column, n);
+            p.column_mut(j).copy_from_slice(&column);
+        }
+        p
+    }
+
+    /// Every level of the hierarchy is `Pᵀ A P` of the one above, formed densely, and
+    /// `restrict` is `Pᵀ`: even and odd slab counts, lumped and consistent coupling.
+    #[test]
+    fn coarse_levels_are_the_dense_galerkin_products() {
+        for (frames, coupling) in [(6, TimeCoupling::Lumped), (5, TimeCoupling::Consistent)] {
+            let sequence = crate::synth::paper_torus(8, 6, frames).unwrap();
+            let params = FlowParams {
+                time_coupling: coupling,
+                ..FlowParams::paper(0.3, 0.0, 1.0)
+            };
+            let problem = FlowProblem::new(&sequence, &params).unwrap();
+            let mut fine = problem.system().clone();
+            while fine.n_slabs() > 1 {
+                let transports = fine.pair_transports();
+                let coarse = fine.merge_slab_pairs(&transports);
+                let p = prolongation(&transports, fine.n_slabs(), coarse.n_slabs());
+                let expected = p.transpose() * dense(&fine) * &p;
+                let error = (dense(&coarse) - &expected).amax() / expected.amax();
+                assert!(error < 1e-13, "{frames} frames: Galerkin error {error:e}");
+                let r: Vec<f64> = (0..fine.dimension()).map(|i| (i as f64).sin()).collect();
+                let restricted = restrict(&transports, &r, fine.slab_dimension());
+                let expected = p.transpose() * DMatrix::from_column_slice(r.len(), 1, &r);
+                let error = (DMatrix::from_column_slice(restricted.len(), 1, &restricted)
+                    - expected)
+                    .amax();
+                assert!(error < 1e-12, "restriction differs from Pᵀ by {error:e}");
+                fine = coarse;
+            }
+        }
+    }
+}
