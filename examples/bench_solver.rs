@@ -6,14 +6,16 @@
 //! `cargo run --release --example bench_solver [-- N1 N2 FRAMES [SOLVER]]` (default 128 95 20
 //! auto).
 
-use meshflow::flow::{FlowParams, FlowProblem, MeshSequence, SolverChoice};
-use meshflow::synth::paper_torus;
+use meshflow::flow::{FlowParams, FlowProblem, SolverChoice};
 use std::process::Command;
 use std::time::Instant;
 
 #[path = "common/memory.rs"]
 mod memory;
 use memory::peak_memory_bytes;
+#[path = "common/torus.rs"]
+mod torus;
+use torus::unit_grey_torus;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -76,7 +78,7 @@ fn run_cell(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
         (a, g) => FlowParams::paper(a.parse()?, 0.0, g.parse()?),
     };
     let params = FlowParams { solver, ..params };
-    let sequence = unit_grey(paper_torus(n1, n2, frames)?, fps)?;
+    let sequence = unit_grey_torus(n1, n2, frames, fps)?;
     let start = Instant::now();
     let problem = FlowProblem::new(&sequence, &params)?;
     let result = problem.solve(&|_| {})?;
@@ -92,25 +94,4 @@ fn run_cell(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
         total
     );
     Ok(())
-}
-
-/// The sequence with grey values divided by their maximum and frames `fps` per time unit.
-fn unit_grey(sequence: MeshSequence, fps: f64) -> Result<MeshSequence, meshflow::Error> {
-    let frames = sequence.n_frames();
-    let max = (0..frames)
-        .flat_map(|k| sequence.intensities(k).iter().copied())
-        .fold(0.0, f64::max);
-    let positions = (0..frames)
-        .map(|k| sequence.positions(k).expect("embedded").to_vec())
-        .collect();
-    let intensities = (0..frames)
-        .map(|k| sequence.intensities(k).iter().map(|v| v / max).collect())
-        .collect();
-    let times = (0..frames).map(|k| k as f64 / fps).collect();
-    Ok(MeshSequence::new(
-        sequence.mesh().clone(),
-        positions,
-        intensities,
-        Some(times),
-    )?)
 }
