@@ -53,6 +53,7 @@ pub mod mesh;
 pub mod render;
 pub mod shapes;
 pub mod synth;
+pub mod track;
 
 use std::path::PathBuf;
 
@@ -78,6 +79,8 @@ pub enum Error {
     Chart(#[from] chart::ChartError),
     #[error(transparent)]
     Render(#[from] render::RenderError),
+    #[error(transparent)]
+    Track(#[from] track::TrackError),
     /// An error in the contents of a file, with the file's name.
     #[error("{}: {source}", path.display())]
     InFile { path: PathBuf, source: Box<Error> },

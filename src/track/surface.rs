@@ -1,0 +1,114 @@
+//! One frame's surface as a spatial query structure: rays along vertex normals, closest
+//! points, and grey values sampled where they land.
+//!
+//! parry3d-f64's `TriMesh` (a BVH over the triangles) answers both queries; it speaks glam, so
+//! points are converted at this boundary and nowhere else.
+
+use super::TrackError;
+use nalgebra::Vector3;
+use parry3d_f64::math::Vector;
+use parry3d_f64::query::{PointQueryWithLocation, Ray, RayCast};
+use parry3d_f64::shape::TriMesh;
+
+/// A frame's triangles with a grey value per vertex.
+pub struct FrameSurface<'a> {
+    positions: &'a [Vector3<f64>],
+    faces: &'a [[u32; 3]],
+    intensity: &'a [f64],
+    bvh: TriMesh,
+}
+
+/// A point on a frame's surface: where it is and the grey value there.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint {
+    pub position: Vector3<f64>,
+    pub intensity: f64,
+}
+
+impl<'a> FrameSurface<'a> {
+    /// `frame` is the frame's number, for errors.
+    pub fn new(
+        frame: usize,
+        positions: &'a [Vector3<f64>],
+        faces: &'a [[u32; 3]],
+        intensity: &'a [f64],
+    ) -> Result<Self, TrackError> {
+        let vertices = positions.iter().map(to_glam).collect();
+        let bvh = TriMesh::new(vertices, faces.to_vec()).map_err(|e| TrackError::Surface {
+            frame,
+            detail: e.to_string(),
+        })?;
+        Ok(Self {
+            positions,
+            faces,
+            intensity,
+            bvh,
+        })
+    }
+
+    /// The nearer of the first hits of the rays from `origin` along `+direction` and
+    /// `−direction` (a unit vector), within `max_distance`.
+    pub fn nearest_hit_along(
+        &self,
+        origin: &Vector3<f64>,
+        direction: &Vector3<f64>,
+        max_distance: f64,
+    ) -> Option<SurfacePoint> {
+        [1.0, -1.0]
+            .into_iter()
+            .filter_map(|sign| {
+                let ray = Ray::new(to_glam(origin), to_glam(&(sign * direction)));
+                let hit = self
+                    .bvh
+                    .cast_local_ray_and_get_normal(&ray, max_distance, false)?;
+                Some((hit.time_of_impact, sign, hit.subshape))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(t, sign, face)| self.sample(face as usize, origin + sign * t * direction))
+    }
+
+    /// The closest point of the surface to `point`.
+    pub fn closest_point(&self, point: &Vector3<f64>) -> SurfacePoint {
+        let (projection, (face, _)) = self
+            .bvh
+            .project_local_point_and_get_location(to_glam(point), false);
+        let p = projection.point;
+        self.sample(face as usize, Vector3::new(p.x, p.y, p.z))
+    }
+
+    /// The grey value at `position` on face `face`: barycentric interpolation of its corners.
+    fn sample(&self, face: usize, position: Vector3<f64>) -> SurfacePoint {
+        let corners = self.faces[face].map(|v| v as usize);
+        let weights = barycentric(corners.map(|v| self.positions[v]), &position);
+        let intensity = corners
+            .iter()
+            .zip(weights)
+            .map(|(&v, w)| w * self.intensity[v])
+            .sum();
+        SurfacePoint {
+            position,
+            intensity,
+        }
+    }
+}
+
+/// Barycentric coordinates of the projection of `p` onto the plane of triangle `x`, clamped to
+/// the triangle (a point found on a triangle lies in it up to round-off); the centroid for a
+/// degenerate triangle.
+pub fn barycentric(x: [Vector3<f64>; 3], p: &Vector3<f64>) -> [f64; 3] {
+    let (e1, e2, d) = (x[1] - x[0], x[2] - x[0], p - x[0]);
+    let (a, b, c) = (e1.dot(&e1), e1.dot(&e2), e2.dot(&e2));
+    let determinant = a * c - b * b;
+    if determinant <= f64::EPSILON * a * c {
+        return [1.0 / 3.0; 3];
+    }
+    let (d1, d2) = (d.dot(&e1), d.dot(&e2));
+    let v = ((c * d1 - b * d2) / determinant).clamp(0.0, 1.0);
+    let w = ((a * d2 - b * d1) / determinant).clamp(0.0, 1.0);
+    let total = (1.0 - v - w).max(0.0) + v + w;
+    [(1.0 - v - w).max(0.0) / total, v / total, w / total]
+}
+
+fn to_glam(p: &Vector3<f64>) -> Vector {
+    Vector::new(p.x, p.y, p.z)
+}

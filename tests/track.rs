@@ -1,0 +1,159 @@
+//! Normal-motion tracking (`meshflow::track`): exact cases on small meshes.
+
+use meshflow::shapes::{grid, icosphere, Surface};
+use meshflow::track::{track, FrameSurface, TrackError, TrackFrame, TrackOptions};
+use nalgebra::{Rotation3, Vector3};
+
+/// `surface` with its positions mapped by `f` and grey value `grey(x)` at each vertex.
+fn frame(
+    surface: &Surface,
+    f: impl Fn(&Vector3<f64>) -> Vector3<f64>,
+    grey: impl Fn(&Vector3<f64>) -> f64,
+) -> TrackFrame {
+    let positions: Vec<_> = surface.positions.iter().map(f).collect();
+    TrackFrame {
+        intensity: positions.iter().map(grey).collect(),
+        positions,
+        faces: surface.faces.clone(),
+    }
+}
+
+fn linear_grey(x: &Vector3<f64>) -> f64 {
+    0.3 + 0.2 * x.x - 0.1 * x.y + 0.05 * x.z
+}
+
+/// A sphere scaled radially, each frame meshed differently: vertices move along their normals
+/// (within a degree of radial on an icosphere), land on the next frame's surface, and carry
+/// that frame's grey values.
+#[test]
+fn a_radially_scaled_sphere_is_tracked_along_the_normals_onto_each_surface() {
+    let coarse = icosphere(2);
+    let fine = icosphere(4);
+    let turn = Rotation3::from_euler_angles(0.3, 0.2, 0.1);
+    let frames = vec![
+        frame(&coarse, |x| *x, linear_grey),
+        frame(&fine, |x| 1.1 * x, linear_grey),
+        frame(&fine, |x| 1.25 * (turn * x), linear_grey),
+    ];
+    let tracked = track(&frames, None, &TrackOptions::default()).unwrap();
+    let sequence = &tracked.sequence;
+    for k in 1..3 {
+        let surface = FrameSurface::new(
+            k,
+            &frames[k].positions,
+            &frames[k].faces,
+            &frames[k].intensity,
+        )
+        .unwrap();
+        let before = sequence.positions(k - 1).unwrap();
+        let after = sequence.positions(k).unwrap();
+        for (i, (x0, x1)) in before.iter().zip(after).enumerate() {
+            let on_surface = (surface.closest_point(x1).position - x1).norm();
+            assert!(on_surface <= 1e-9 * 2.5, "frame {k}, vertex {i}: {on_surface:e} off");
+            let angle = (x1 - x0).angle(x0).to_degrees();
+            assert!(angle < 1.0, "frame {k}, vertex {i}: {angle}° from radial");
+            let grey = sequence.intensities(k)[i];
+            assert!((grey - linear_grey(x1)).abs() < 1e-12, "grey {grey} at vertex {i}");
+        }
+        let report = &tracked.report.frames[k];
+        assert_eq!((report.misses, report.flipped_triangles), (0, 0));
+        // Facets of the finer target lie inside the sphere by at most 1 − cos(edge / 2).
+        let radius = [1.0, 1.1, 1.25][k];
+        let facet = 0.01 * radius;
+        for x in after {
+            assert!((x.norm() - radius).abs() < facet, "|x| = {}", x.norm());
+        }
+    }
+    let area_change = tracked.report.frames[2].worst_area_change;
+    assert!((area_change - (1.25f64.powi(2) - 1.0)).abs() < 0.05, "{area_change}");
+}
+
+#[test]
+fn identical_frames_give_zero_motion() {
+    let sphere = icosphere(3);
+    let frames = vec![frame(&sphere, |x| *x, linear_grey); 3];
+    let tracked = track(&frames, None, &TrackOptions::default()).unwrap();
+    for report in &tracked.report.frames {
+        assert!(report.max_step < 1e-14, "frame {}: {}", report.frame, report.max_step);
+    }
+    assert_eq!(tracked.sequence.positions(2).unwrap(), &sphere.positions[..]);
+}
+
+/// A plane moving along its normal, remeshed (finer, shifted in its plane, larger): every
+/// vertex, boundary ones included, moves by exactly the offset.
+#[test]
+fn a_plane_moving_along_its_normal_moves_every_vertex_by_the_offset() {
+    let patch = grid(6, 5, 1.0, 1.0);
+    let larger = grid(13, 11, 2.0, 2.0);
+    let offset = Vector3::new(0.0, 0.0, 0.3);
+    let frames = vec![
+        frame(&patch, |x| *x, linear_grey),
+        frame(&larger, |x| x + offset - Vector3::new(0.47, 0.53, 0.0), linear_grey),
+    ];
+    let options = TrackOptions {
+        max_step: Some(0.5),
+        ..Default::default()
+    };
+    let tracked = track(&frames, None, &options).unwrap();
+    let (before, after) = (
+        tracked.sequence.positions(0).unwrap(),
+        tracked.sequence.positions(1).unwrap(),
+    );
+    for (x0, x1) in before.iter().zip(after) {
+        assert!((x1 - x0 - offset).norm() < 1e-12, "moved by {:?}", x1 - x0);
+    }
+    let report = &tracked.report.frames[1];
+    assert!((report.mean_step - 0.3).abs() < 1e-12);
+    assert!(report.worst_edge_change < 1e-12 && report.worst_area_change < 1e-12);
+}
+
+#[test]
+fn a_surface_beyond_the_step_bound_is_an_error_naming_frame_and_vertex() {
+    let patch = grid(4, 4, 1.0, 1.0);
+    let frames = vec![
+        frame(&patch, |x| *x, linear_grey),
+        frame(&patch, |x| x + Vector3::new(0.0, 0.0, 0.5), linear_grey),
+    ];
+    let options = TrackOptions {
+        max_step: Some(0.2),
+        ..Default::default()
+    };
+    let error = track(&frames, None, &options).err().expect("too far");
+    assert!(matches!(error, TrackError::TooFar { frame: 1, vertex: 0, .. }), "{error}");
+    assert!(error.to_string().contains("--max-step"), "{error}");
+    let lenient = TrackOptions {
+        keep_going: true,
+        ..options
+    };
+    let tracked = track(&frames, None, &lenient).unwrap();
+    assert_eq!(tracked.report.frames[1].beyond_max_step, patch.positions.len());
+}
+
+#[test]
+fn bad_frames_are_errors_naming_the_frame() {
+    let patch = grid(3, 3, 1.0, 1.0);
+    let good = frame(&patch, |x| *x, linear_grey);
+    let mut nan = good.clone();
+    nan.positions[4].y = f64::NAN;
+    let empty = TrackFrame {
+        faces: Vec::new(),
+        ..good.clone()
+    };
+    let mut out_of_range = good.clone();
+    out_of_range.faces[2][1] = 99;
+    let cases: [(TrackFrame, &str); 3] = [
+        (nan, "frame 1: vertex 4 has a non-finite coordinate"),
+        (empty, "frame 1 has no triangles"),
+        (out_of_range, "frame 1: face 2 uses vertex 99"),
+    ];
+    for (bad, message) in cases {
+        let error = track(&[good.clone(), bad], None, &TrackOptions::default())
+            .err()
+            .expect("an error");
+        assert!(error.to_string().starts_with(message), "{error}");
+    }
+    assert!(matches!(
+        track(&[], None, &TrackOptions::default()),
+        Err(TrackError::NoFrames)
+    ));
+}
