@@ -105,6 +105,35 @@ pub fn torus(major_radius: f64, minor_radius: f64, n_major: usize, n_minor: usiz
     }
 }
 
+/// The unit sphere as a latitude–longitude mesh: `n_lat` bands from pole to pole (`n_lat − 1`
+/// rings of `n_lon` vertices, plus the two poles), quads split along a diagonal, triangle fans
+/// at the poles. Counter-clockwise seen from outside.
+pub fn uv_sphere(n_lat: usize, n_lon: usize) -> Surface {
+    use std::f64::consts::{PI, TAU};
+    let ring_vertex = |j: usize, i: usize| (1 + (j - 1) * n_lon + i % n_lon) as u32;
+    let south = (1 + (n_lat - 1) * n_lon) as u32;
+    let mut positions = vec![Vector3::z()];
+    for j in 1..n_lat {
+        let (sin_theta, cos_theta) = (PI * j as f64 / n_lat as f64).sin_cos();
+        positions.extend((0..n_lon).map(|i| {
+            let (sin_phi, cos_phi) = (TAU * i as f64 / n_lon as f64).sin_cos();
+            Vector3::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta)
+        }));
+    }
+    positions.push(-Vector3::z());
+    let mut faces = Vec::with_capacity(2 * n_lat * n_lon);
+    for i in 0..n_lon {
+        faces.push([ring_vertex(1, i), ring_vertex(1, i + 1), 0]);
+        for j in 1..n_lat - 1 {
+            let (u0, u1) = (ring_vertex(j, i), ring_vertex(j, i + 1));
+            let (l0, l1) = (ring_vertex(j + 1, i), ring_vertex(j + 1, i + 1));
+            faces.extend([[l0, l1, u1], [l0, u1, u0]]);
+        }
+        faces.push([south, ring_vertex(n_lat - 1, i + 1), ring_vertex(n_lat - 1, i)]);
+    }
+    Surface { positions, faces }
+}
+
 /// Flat `width × height` rectangle in the plane z = 0 with its lower-left corner at the
 /// origin, `nx × ny` squares each split along its diagonal.
 pub fn grid(nx: usize, ny: usize, width: f64, height: f64) -> Surface {

@@ -2,7 +2,8 @@
 //! [`crate::accuracy`]).
 
 use crate::flow::{FlowError, MeshSequence};
-use crate::shapes::icosphere;
+use crate::shapes::{icosphere, uv_sphere, Surface};
+use crate::track::TrackFrame;
 use nalgebra::{Rotation3, Vector3};
 
 /// A sequence and the flow that generated it: `flow[s][i]` in R^3 on frame `s`.
@@ -271,4 +272,75 @@ pub fn moving_cells(x1: f64, x2: f64, t: f64) -> f64 {
                 0.8 * (-(d1 * d1 + d2 * d2) / (2.0 * 0.035f64.powi(2))).exp()
             })
             .sum::<f64>()
+}
+
+/// Frames of one scene without correspondence, and the same scene with it.
+pub struct RemeshedScene {
+    /// Each frame with its own triangulation: an icosphere, a latitude–longitude sphere and a
+    /// rotated, once more subdivided icosphere, in turn.
+    pub frames: Vec<TrackFrame>,
+    pub times: Vec<f64>,
+    /// The scene on the icosphere of the first frame, vertex `i` moving radially.
+    pub fixed: GroundTruth,
+    /// Angular velocity of the texture about the z-axis: the true flow at `x` is `ω ẑ × x`.
+    pub omega: f64,
+}
+
+/// A pulsating sphere, radius `r(t) = 1 + 0.1 sin 4t`, with [`texture`] turning about the
+/// z-axis at `omega`; frames at `t_k = k dt`, meshed as [`RemeshedScene::frames`] says, the
+/// icosphere at `level`. Normal motion of a sphere is radial, so tracked points keep their
+/// direction and the flow relative to them is the texture's, `u = ω ẑ × x`.
+pub fn remeshed_pulsating_sphere(
+    level: u32,
+    n_frames: usize,
+    dt: f64,
+    omega: f64,
+) -> Result<RemeshedScene, FlowError> {
+    let radius = |t: f64| 1.0 + 0.1 * (4.0 * t).sin();
+    let grey = |t: f64, x: &Vector3<f64>| {
+        texture(&(Rotation3::from_axis_angle(&Vector3::z_axis(), -omega * t) * x.normalize()))
+    };
+    let icosphere_vertices = 10 * 4usize.pow(level) + 2;
+    let bands = ((icosphere_vertices as f64 / 2.0).sqrt()).round() as usize;
+    let turned = Rotation3::from_euler_angles(0.4, 0.3, 0.2);
+    let mut rotated_finer = icosphere(level + 1);
+    rotated_finer.positions.iter_mut().for_each(|p| *p = turned * *p);
+    let meshes = [icosphere(level), uv_sphere(bands, 2 * bands), rotated_finer];
+    let times: Vec<f64> = (0..n_frames).map(|k| k as f64 * dt).collect();
+    let frame = |t: f64, surface: &Surface| {
+        let positions: Vec<_> = surface.positions.iter().map(|p| radius(t) * p).collect();
+        TrackFrame {
+            intensity: positions.iter().map(|x| grey(t, x)).collect(),
+            positions,
+            faces: surface.faces.clone(),
+        }
+    };
+    let frames = times
+        .iter()
+        .enumerate()
+        .map(|(k, &t)| frame(t, &meshes[k % meshes.len()]))
+        .collect();
+    let fixed_frames: Vec<TrackFrame> = times.iter().map(|&t| frame(t, &meshes[0])).collect();
+    let flow = fixed_frames[..n_frames.saturating_sub(1)]
+        .iter()
+        .map(|f| turning_flow(omega, &f.positions))
+        .collect();
+    let mesh = meshes[0].mesh().expect("icospheres are valid meshes");
+    let (positions, intensities) = fixed_frames
+        .into_iter()
+        .map(|f| (f.positions, f.intensity))
+        .unzip();
+    let sequence = MeshSequence::new(mesh, positions, intensities, Some(times.clone()))?;
+    Ok(RemeshedScene {
+        frames,
+        times,
+        fixed: GroundTruth { sequence, flow },
+        omega,
+    })
+}
+
+/// `ω ẑ × x` at every point: a rotation about the z-axis.
+pub fn turning_flow(omega: f64, positions: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+    let axis = Vector3::new(0.0, 0.0, omega);
+    positions.iter().map(|x| axis.cross(x)).collect()
 }

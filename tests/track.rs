@@ -157,3 +157,40 @@ fn bad_frames_are_errors_naming_the_frame() {
         Err(TrackError::NoFrames)
     ));
 }
+
+/// The flow of a sequence meshed differently in every frame, tracked, is close to the flow of
+/// the same scene with true correspondence (mean angular error against `ω ẑ × x`).
+#[test]
+fn the_flow_of_a_tracked_remeshed_sphere_is_close_to_the_flow_with_correspondence() {
+    use meshflow::accuracy::compare_result;
+    use meshflow::flow::{compute_flow, FlowParams};
+    use meshflow::synth::{remeshed_pulsating_sphere, turning_flow};
+    let scene = remeshed_pulsating_sphere(3, 4, 0.1, 0.5).unwrap();
+    let params = FlowParams::default();
+    let fixed = compute_flow(&scene.fixed.sequence, &params).unwrap();
+    let fixed_error = compare_result(&scene.fixed.sequence, &fixed, &scene.fixed.flow)
+        .unwrap()
+        .mean_angular_degrees;
+    let tracked = track(&scene.frames, Some(scene.times.clone()), &TrackOptions::default()).unwrap();
+    let sequence = &tracked.sequence;
+    let truth: Vec<_> = (0..sequence.n_slabs())
+        .map(|s| turning_flow(scene.omega, sequence.positions(s).unwrap()))
+        .collect();
+    let result = compute_flow(sequence, &params).unwrap();
+    let tracked_error = compare_result(sequence, &result, &truth).unwrap().mean_angular_degrees;
+    println!("fixed {fixed_error:.3}°, tracked {tracked_error:.3}°");
+    assert!(fixed_error < 5.0, "{fixed_error}");
+    assert!(tracked_error < 1.25 * fixed_error, "{tracked_error} vs {fixed_error}");
+}
+
+#[test]
+fn a_latitude_longitude_sphere_is_a_closed_outward_oriented_mesh() {
+    let sphere = meshflow::shapes::uv_sphere(6, 10);
+    let mesh = sphere.mesh().unwrap();
+    assert_eq!((mesh.n_vertices(), mesh.n_faces()), (2 + 5 * 10, 2 * 6 * 10 - 2 * 10));
+    assert_eq!(mesh.euler_characteristic(), 2);
+    for face in &sphere.faces {
+        let [a, b, c] = face.map(|v| sphere.positions[v as usize]);
+        assert!((b - a).cross(&(c - a)).dot(&(a + b + c)) > 0.0, "{face:?} points inwards");
+    }
+}

@@ -44,7 +44,9 @@ pub use mtx::{read_matrix_market, write_matrix_market};
 pub use npy::{read_npy, read_npy_float, read_npy_indices, write_npy, NpyArray};
 pub use obj::{read_obj, write_obj, ObjMesh};
 pub use prepare::{load_mesh, read_mesh_geometry, LoadedMesh};
-pub use sequence::{load_sequence, natural_order, read_mesh, LoadOptions, LoadedSequence};
+pub use sequence::{
+    load_sequence, natural_order, read_mesh, read_times_file, LoadOptions, LoadedSequence,
+};
 pub use texture::Texture;
 pub use vertex_map::VertexMap;
 pub use warning::{LoadWarning, STATIC_IMAGE_TOLERANCE};

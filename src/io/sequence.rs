@@ -481,7 +481,7 @@ fn split_frames<T: Clone>(data: &[T], n_frames: usize, row_length: usize) -> Vec
 }
 
 /// Frame times from a `times.txt`, if there is one.
-fn read_times_file(path: &Path) -> Result<Option<Vec<f64>>, IoError> {
+pub fn read_times_file(path: &Path) -> Result<Option<Vec<f64>>, IoError> {
     let text = match std::fs::read_to_string(path) {
         Ok(text) => text,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),

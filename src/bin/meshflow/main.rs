@@ -4,6 +4,7 @@ mod operators;
 mod pictures;
 mod progress;
 mod solve;
+mod track;
 
 use clap::{Parser, Subcommand};
 use meshflow::flow::{Boundary, FlowParams, SolverChoice, TimeCoupling};
@@ -50,6 +51,14 @@ enum Command {
     /// summary.json; with --ground-truth also the errors against the known flow; with --png the
     /// pictures of `meshflow render`.
     Solve(Box<SolveArgs>),
+    /// Turn frames that each have their own triangulation (a segmentation meshed per time
+    /// point, a 4D scan, a remeshing simulation) into one moving mesh with fixed connectivity,
+    /// by normal motion: from frame to frame every vertex of the reference mesh moves along its
+    /// (corner-angle-weighted) normal to the next frame's surface, nearest hit of the two
+    /// directions, and takes that frame's grey value there. Writes positions.npy, faces.npy,
+    /// intensity.npy and times.txt, which `meshflow solve DIR` reads, and track.json (misses,
+    /// steps, worst edge and area change, flipped triangles per frame).
+    Track(Box<TrackArgs>),
     /// Draw PNG pictures of the slabs of a `solve` output directory (read from flow.pvd and its
     /// flow_SSSS.vtu files): grey_SSSS.png (the image on the surface), flow_SSSS.png (flow
     /// directions on the screen, Middlebury colour wheel, with its legend), arrows_SSSS.png and,
@@ -180,6 +189,35 @@ struct SolveArgs {
     pictures: PictureArgs,
 }
 
+#[derive(clap::Args)]
+struct TrackArgs {
+    /// Frames directory, glob (quoted), .gltf/.glb animation, or NPY directory; frames may
+    /// differ in vertices and triangles
+    input: PathBuf,
+    /// Output directory (an NPY sequence for `meshflow solve`)
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    force: ForceArg,
+    /// The mesh to move (on or near frame 0's surface; default: frame 0's own mesh)
+    #[arg(long, value_name = "MESH")]
+    reference: Option<PathBuf>,
+    /// Largest normal step per frame, in the data's length unit; a vertex farther from the next
+    /// surface is an error [default: 10 % of frame 0's bounding-box diagonal]
+    #[arg(long, value_name = "LENGTH", allow_negative_numbers = true)]
+    max_step: Option<f64>,
+    /// Go on past vertices beyond --max-step (they take the closest point) and flipped
+    /// triangles, counting them in the report, instead of stopping with an error
+    #[arg(long)]
+    keep_going: bool,
+    /// Frame times t0,t1,… (default: times.txt beside the frames or the glTF animation's,
+    /// else 0,1,2,…)
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    times: Option<Vec<f64>>,
+    #[command(flatten)]
+    building: MeshArgs,
+}
+
 /// How the mesh is built from the files' faces (`solve` and `operators`).
 #[derive(clap::Args)]
 struct MeshArgs {
@@ -222,6 +260,19 @@ fn main() -> ExitCode {
             force,
         } => operators::write_operators(&mesh, &out, &building.options(), force.overwrite()),
         Command::Solve(args) => solve::solve(&args),
+        Command::Track(args) => track::run(track::TrackRequest {
+            input: &args.input,
+            out: &args.out,
+            reference: args.reference.as_deref(),
+            options: meshflow::track::TrackOptions {
+                max_step: args.max_step,
+                keep_going: args.keep_going,
+                reference: None,
+            },
+            times: args.times.clone(),
+            load: args.building.options(),
+            overwrite: args.force.overwrite(),
+        }),
         Command::Render {
             dir,
             out,
