@@ -868,3 +868,54 @@ fn operators_builds_the_mesh_as_solve_does_without_textures() {
         "{stderr}"
     );
 }
+
+/// `meshflow track` on OBJ frames meshed each on its own writes the library's tracked
+/// sequence as an NPY directory that `solve` reads; `solve` on the raw frames points to
+/// `track`; a step bound too small is one line naming frame and vertex, with no output.
+#[test]
+fn track_command_writes_the_library_tracking_for_solve() {
+    use meshflow::synth::remeshed_pulsating_sphere;
+    use meshflow::track::{track, TrackOptions};
+    let scene = remeshed_pulsating_sphere(2, 3, 0.1, 0.5).unwrap();
+    let work = tempfile::tempdir().unwrap();
+    let frames = work.path().join("frames");
+    std::fs::create_dir(&frames).unwrap();
+    for (k, frame) in scene.frames.iter().enumerate() {
+        let grey: Vec<[f64; 3]> = frame.intensity.iter().map(|&g| [g; 3]).collect();
+        let path = frames.join(format!("frame_{k}.obj"));
+        meshflow::io::write_obj(&path, &frame.positions, &frame.faces, Some(&grey)).unwrap();
+    }
+    let (frames, tracked) = (frames.to_str().unwrap(), work.path().join("tracked"));
+    let tracked = tracked.to_str().unwrap();
+    meshflow_ok(&["track", frames, "--out", tracked]);
+
+    let expected = track(&scene.frames, None, &TrackOptions::default()).unwrap();
+    let positions = read_npy(&Path::new(tracked).join("positions.npy")).unwrap();
+    assert_eq!(positions.shape, vec![3, 162, 3]);
+    let library: Vec<f64> = (0..3)
+        .flat_map(|k| expected.sequence.positions(k).unwrap().to_vec())
+        .flat_map(|p| [p.x, p.y, p.z])
+        .collect();
+    let difference = positions
+        .data
+        .iter()
+        .zip(&library)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(difference < 1e-12, "{difference:e}");
+    assert!(listing(Path::new(tracked)).contains(&"track.json".to_string()));
+
+    let out = work.path().join("flow");
+    meshflow_ok(&["solve", tracked, "--out", out.to_str().unwrap()]);
+    let raw = meshflow(&["solve", frames, "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&raw.stderr);
+    assert!(!raw.status.success() && stderr.contains("`meshflow track`"), "{stderr}");
+
+    let refused = work.path().join("refused");
+    let run = meshflow(&["track", frames, "--max-step", "1e-6", "--out", refused.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("frame 1: vertex 0 is"), "{stderr}");
+    assert!(!refused.exists(), "no output for a failed run");
+}

@@ -438,10 +438,14 @@ fn check_finite_positions(frames: &[Vec<Vector3<f64>>]) -> Result<(), FlowError>
     Ok(())
 }
 
+/// Frames that differ in connectivity need tracking first: the hint every such error ends with.
+const TRACK_HINT: &str =
+    "frames meshed each on its own: run `meshflow track` on them first, then solve its output";
+
 fn check_same_connectivity(first: &FrameMesh, frame: &FrameMesh, k: usize) -> Result<(), String> {
     if frame.positions.len() != first.positions.len() {
         return Err(format!(
-            "frame {k} has {} vertices, frame 0 has {}",
+            "frame {k} has {} vertices, frame 0 has {} ({TRACK_HINT})",
             frame.positions.len(),
             first.positions.len()
         ));
@@ -453,7 +457,12 @@ fn check_same_connectivity(first: &FrameMesh, frame: &FrameMesh, k: usize) -> Re
             .zip(&first.faces)
             .position(|(a, b)| a != b)
             .unwrap_or(first.faces.len().min(frame.faces.len()));
-        return Err(format!("frame {k} has different faces than frame 0 (first difference at face {face}; {} vs {} faces)", frame.faces.len(), first.faces.len()));
+        return Err(format!(
+            "frame {k} has different faces than frame 0 (first difference at face {face}; {} vs \
+             {} faces; {TRACK_HINT})",
+            frame.faces.len(),
+            first.faces.len()
+        ));
     }
     Ok(())
 }
