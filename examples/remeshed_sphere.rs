@@ -4,7 +4,8 @@
 //! Prints the mean angular error against the true flow `ω ẑ × x` for both, the tracking
 //! report, and the time to track a surface of more than 100k triangles through 20 frames.
 //!
-//! Writes the level-4 frames as OBJ files with grey vertex colours into
+//! Draws the first three level-3 frames as given and as tracked, each vertex a random grey so
+//! that the triangulations show (`out/remeshed_sphere/meshes.png`, the guide's figure), and writes the level-4 frames as OBJ files with grey vertex colours into
 //! `out/remeshed_sphere/frames/`, to try the command line on:
 //! `meshflow track out/remeshed_sphere/frames --out out/remeshed_sphere/tracked` then
 //! `meshflow solve out/remeshed_sphere/tracked --out out/remeshed_sphere/flow`.
@@ -14,6 +15,7 @@
 use meshflow::accuracy::compare_result;
 use meshflow::flow::{compute_flow, FlowParams};
 use meshflow::io::write_obj;
+use meshflow::render::{grey_picture, write_png, Camera, PictureStyle, Surface, View};
 use meshflow::shapes::uv_sphere;
 use meshflow::synth::{remeshed_pulsating_sphere, turning_flow, RemeshedScene};
 use meshflow::track::{track, TrackOptions};
@@ -40,8 +42,10 @@ fn main() -> Result<(), meshflow::Error> {
             report.frames.iter().map(|f| f.max_step).fold(0.0, f64::max),
             100.0 * report.frames.iter().map(|f| f.worst_edge_change).fold(0.0, f64::max),
         );
-        if level == 4 {
-            write_frames(&scene, Path::new("out/remeshed_sphere/frames"))?;
+        match level {
+            3 => draw_meshes(&scene, Path::new("out/remeshed_sphere"))?,
+            4 => write_frames(&scene, Path::new("out/remeshed_sphere/frames"))?,
+            _ => {}
         }
     }
     time_large_tracking()
@@ -72,6 +76,44 @@ fn write_frames(scene: &RemeshedScene, dir: &Path) -> Result<(), meshflow::Error
     let times: Vec<String> = scene.times.iter().map(f64::to_string).collect();
     std::fs::write(dir.join("times.txt"), times.join("\n") + "\n")
         .map_err(|e| meshflow::io::IoError::file(dir, e))?;
+    Ok(())
+}
+
+/// Frames 0–2 as given and as tracked, every vertex a pseudo-random grey.
+fn draw_meshes(scene: &RemeshedScene, dir: &Path) -> Result<(), meshflow::Error> {
+    std::fs::create_dir_all(dir).map_err(|e| meshflow::io::IoError::file(dir, e))?;
+    let tracked = track(&scene.frames, Some(scene.times.clone()), &TrackOptions::default())?;
+    let faces = tracked.sequence.mesh().faces();
+    let mosaic = |n: usize| -> Vec<f64> {
+        (0..n as u64)
+            .map(|i| {
+                let x = i.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+                ((x ^ (x >> 29)) >> 11) as f64 / (1u64 << 53) as f64
+            })
+            .collect()
+    };
+    let mut sheet = image::RgbImage::new(3 * 480, 2 * 480);
+    for k in 0..3 {
+        let given = &scene.frames[k];
+        let moved = tracked.sequence.positions(k).expect("embedded");
+        let camera = Camera::framing(&given.positions, View::new(-60.0, 30.0), 480, 480);
+        for (row, (name, positions, faces)) in [
+            ("input", &given.positions[..], &given.faces[..]),
+            ("tracked", moved, faces),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let surface = Surface { positions, faces };
+            let style = PictureStyle {
+                label: Some(format!("{name} {k}: {} faces", faces.len())),
+                ..Default::default()
+            };
+            let picture = grey_picture(&camera, surface, &mosaic(positions.len()), (0.0, 1.0), &style)?;
+            image::imageops::replace(&mut sheet, &picture, 480 * k as i64, 480 * row as i64);
+        }
+    }
+    write_png(&dir.join("meshes.png"), &sheet)?;
     Ok(())
 }
 
