@@ -15,8 +15,10 @@
 //! with `n_i^k` the corner-angle-weighted vertex normal of the tracked mesh at frame `k` (the
 //! normal of `connection::vertex_normals`, geometry-central's convention). The grey value of
 //! vertex `i` at frame `k + 1` is frame `k + 1`'s own, interpolated barycentrically in the
-//! triangle that was hit. A line that meets no triangle within `max_step` (a topology change,
-//! or a step too large for the surface) falls back to the closest point, and is counted.
+//! triangle that was hit. A line that meets no triangle within `max_step` and within
+//! [`FAR_HIT_RATIO`] times the distance to the closest point (a topology change, a thin
+//! feature that moved sideways by more than its width, a step too large for the surface)
+//! falls back to the closest point, and is counted.
 //!
 //! What it means for the flow: `solve` on the tracked sequence measures motion relative to
 //! points that move normally, which is exactly the flow of the paper's model; the tangential
@@ -61,7 +63,8 @@ pub struct TrackOptions {
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct FrameReport {
     pub frame: usize,
-    /// Vertices whose normal line met no triangle within the step bound.
+    /// Vertices whose normal line met no triangle within the step bound and
+    /// [`FAR_HIT_RATIO`] times the distance to the closest point.
     pub misses: usize,
     /// Misses that took the closest point within the step bound.
     pub fallbacks: usize,
@@ -129,13 +132,20 @@ pub enum TrackError {
     },
     #[error(
         "frame {frame}: {count} triangles flipped, first triangle {face} (the tracked mesh \
-         folds; --keep-going to continue anyway)"
+         folds where the normal step exceeds the surface's radius of curvature: use frames \
+         closer in time or a coarser --reference; --keep-going to continue anyway)"
     )]
     Flipped {
         frame: usize,
         face: usize,
         count: usize,
     },
+    #[error(
+        "frame {frame}: tracked triangle {face} collapsed to zero area (its vertices landed on \
+         one line): the tracked mesh cannot carry a flow; use frames closer in time or a \
+         coarser --reference"
+    )]
+    Collapsed { frame: usize, face: usize },
     #[error("the step bound must be a positive number, got {0}")]
     BadMaxStep(f64),
     #[error("the reference mesh: {0}")]
@@ -191,6 +201,14 @@ pub fn track(
         },
     })
 }
+
+/// How much farther than the closest point a hit along the normal may be: a surface tilted by
+/// up to `acos(1/3)` ≈ 70° against the normal is still hit; a farther hit means the line
+/// missed the nearby surface (a thin feature that moved sideways) and met another part.
+pub const FAR_HIT_RATIO: f64 = 3.0;
+
+/// Area, relative to the reference's, below which a tracked triangle counts as collapsed.
+const COLLAPSED_AREA: f64 = 1e-9;
 
 /// The reference connectivity and the rules of one step.
 struct Tracker<'a> {
@@ -260,17 +278,21 @@ impl Tracker<'_> {
         Ok((next, grey, report))
     }
 
-    /// The nearest hit along the normal line within the bound, else the closest point.
+    /// The nearest hit along the normal line within the bound, unless it is more than
+    /// [`FAR_HIT_RATIO`] times as far as the closest point (the line then passed the nearby
+    /// surface by and met another sheet); else the closest point.
     fn land(&self, surface: &FrameSurface, x: &Vector3<f64>, n: &Vector3<f64>) -> Landing {
-        if let Some(hit) = surface.nearest_hit_along(x, n, self.bound) {
-            return Landing::Hit(hit);
-        }
         let closest = surface.closest_point(x);
-        // A point already on the surface has no normal motion, whatever the ray saw.
-        match (closest.position - x).norm() {
-            d if d <= 1e-12 * self.bound => Landing::Hit(closest),
-            d if d <= self.bound => Landing::Fallback(closest),
-            _ => Landing::Beyond(closest),
+        let distance = (closest.position - x).norm();
+        // A point already on the surface has no normal motion, whatever the ray sees.
+        if distance <= 1e-12 * self.bound {
+            return Landing::Hit(closest);
+        }
+        let limit = self.bound.min(FAR_HIT_RATIO * distance);
+        match surface.nearest_hit_along(x, n, limit) {
+            Some(hit) => Landing::Hit(hit),
+            None if distance <= self.bound => Landing::Fallback(closest),
+            None => Landing::Beyond(closest),
         }
     }
 
@@ -289,6 +311,9 @@ impl Tracker<'_> {
         let mut flipped = Vec::new();
         for (f, face) in self.mesh.faces().iter().enumerate() {
             let (reference, now) = (normal(self.reference, face), normal(after, face));
+            if now.norm() <= COLLAPSED_AREA * reference.norm() {
+                return Err(TrackError::Collapsed { frame: k, face: f });
+            }
             let change = (now.norm() / reference.norm() - 1.0).abs();
             report.worst_area_change = report.worst_area_change.max(change);
             if normal(before, face).dot(&now) <= 0.0 {
