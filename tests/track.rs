@@ -194,3 +194,46 @@ fn a_latitude_longitude_sphere_is_a_closed_outward_oriented_mesh() {
         assert!((b - a).cross(&(c - a)).dot(&(a + b + c)) > 0.0, "{face:?} points inwards");
     }
 }
+
+/// Frame 0 a unit patch in z = 0; frame 1 a large plane through (0.5, 0.5, 0.2) tilted by
+/// `tilt` degrees about the y-axis.
+fn patch_and_tilted_plane(tilt: f64) -> Vec<TrackFrame> {
+    let patch = grid(2, 2, 1.0, 1.0);
+    let turn = Rotation3::from_axis_angle(&Vector3::y_axis(), tilt.to_radians());
+    let centre = Vector3::new(0.5, 0.5, 0.2);
+    let plane = frame(
+        &grid(1, 1, 40.0, 40.0),
+        |x| centre + turn * (x - Vector3::new(20.0, 20.0, 0.0)),
+        linear_grey,
+    );
+    vec![frame(&patch, |x| *x, linear_grey), plane]
+}
+
+/// A surface steeper than `acos(1 / FAR_HIT_RATIO)` ≈ 70.5° against the normal is hit farther
+/// than `FAR_HIT_RATIO` times its closest distance: the closest point wins (as for a line that
+/// passed the nearby surface by and met another sheet). Less steep, the line's hit stands.
+#[test]
+fn a_hit_far_beyond_the_closest_distance_gives_way_to_the_closest_point() {
+    let options = TrackOptions {
+        max_step: Some(10.0),
+        ..Default::default()
+    };
+    for (tilt, misses) in [(60.0, 0), (80.0, 9)] {
+        let frames = patch_and_tilted_plane(tilt);
+        let tracked = track(&frames, None, &options).unwrap();
+        let report = &tracked.report.frames[1];
+        assert_eq!(report.misses, misses, "tilt {tilt}°");
+        let normal = Rotation3::from_axis_angle(&Vector3::y_axis(), f64::to_radians(tilt))
+            * Vector3::z();
+        for (x0, x1) in frames[0].positions.iter().zip(tracked.sequence.positions(1).unwrap()) {
+            let on_plane = (x1 - Vector3::new(0.5, 0.5, 0.2)).dot(&normal);
+            assert!(on_plane.abs() < 1e-12, "tilt {tilt}°: {x1:?} off the plane");
+            let step = x1 - x0;
+            let along = match misses {
+                0 => step.cross(&Vector3::z()).norm(),
+                _ => step.cross(&normal).norm(),
+            };
+            assert!(along < 1e-9, "tilt {tilt}°: step {step:?} not along the right normal");
+        }
+    }
+}
