@@ -40,7 +40,12 @@ fn main() -> Result<(), meshflow::Error> {
             scene.fixed.sequence.mesh().n_vertices(),
             report.frames.iter().map(|f| f.misses).sum::<usize>(),
             report.frames.iter().map(|f| f.max_step).fold(0.0, f64::max),
-            100.0 * report.frames.iter().map(|f| f.worst_edge_change).fold(0.0, f64::max),
+            100.0
+                * report
+                    .frames
+                    .iter()
+                    .map(|f| f.worst_edge_change)
+                    .fold(0.0, f64::max),
         );
         match level {
             3 => draw_meshes(&scene, Path::new("out/remeshed_sphere"))?,
@@ -52,18 +57,28 @@ fn main() -> Result<(), meshflow::Error> {
 }
 
 /// Mean angular errors of the fixed-connectivity and the tracked flow, and the track report.
-fn errors(scene: &RemeshedScene) -> Result<(f64, f64, meshflow::track::TrackReport), meshflow::Error> {
+fn errors(
+    scene: &RemeshedScene,
+) -> Result<(f64, f64, meshflow::track::TrackReport), meshflow::Error> {
     let params = FlowParams::default();
     let fixed = compute_flow(&scene.fixed.sequence, &params)?;
     let fixed = compare_result(&scene.fixed.sequence, &fixed, &scene.fixed.flow)?;
-    let tracked = track(&scene.frames, Some(scene.times.clone()), &TrackOptions::default())?;
+    let tracked = track(
+        &scene.frames,
+        Some(scene.times.clone()),
+        &TrackOptions::default(),
+    )?;
     let sequence = &tracked.sequence;
     let truth: Vec<_> = (0..sequence.n_slabs())
         .map(|s| turning_flow(scene.omega, sequence.positions(s).expect("embedded")))
         .collect();
     let result = compute_flow(sequence, &params)?;
     let errors = compare_result(sequence, &result, &truth)?;
-    Ok((fixed.mean_angular_degrees, errors.mean_angular_degrees, tracked.report))
+    Ok((
+        fixed.mean_angular_degrees,
+        errors.mean_angular_degrees,
+        tracked.report,
+    ))
 }
 
 fn write_frames(scene: &RemeshedScene, dir: &Path) -> Result<(), meshflow::Error> {
@@ -82,7 +97,11 @@ fn write_frames(scene: &RemeshedScene, dir: &Path) -> Result<(), meshflow::Error
 /// Frames 0–2 as given and as tracked, every vertex a pseudo-random grey.
 fn draw_meshes(scene: &RemeshedScene, dir: &Path) -> Result<(), meshflow::Error> {
     std::fs::create_dir_all(dir).map_err(|e| meshflow::io::IoError::file(dir, e))?;
-    let tracked = track(&scene.frames, Some(scene.times.clone()), &TrackOptions::default())?;
+    let tracked = track(
+        &scene.frames,
+        Some(scene.times.clone()),
+        &TrackOptions::default(),
+    )?;
     let faces = tracked.sequence.mesh().faces();
     let mosaic = |n: usize| -> Vec<f64> {
         (0..n as u64)
@@ -109,7 +128,13 @@ fn draw_meshes(scene: &RemeshedScene, dir: &Path) -> Result<(), meshflow::Error>
                 label: Some(format!("{name} {k}: {} faces", faces.len())),
                 ..Default::default()
             };
-            let picture = grey_picture(&camera, surface, &mosaic(positions.len()), (0.0, 1.0), &style)?;
+            let picture = grey_picture(
+                &camera,
+                surface,
+                &mosaic(positions.len()),
+                (0.0, 1.0),
+                &style,
+            )?;
             image::imageops::replace(&mut sheet, &picture, 480 * k as i64, 480 * row as i64);
         }
     }
@@ -122,7 +147,7 @@ fn time_large_tracking() -> Result<(), meshflow::Error> {
     let scene = remeshed_pulsating_sphere(6, 20, DT, OMEGA)?;
     let reference = uv_sphere(230, 230);
     let options = TrackOptions {
-        reference: Some((reference.positions, reference.faces.clone())),
+        reference: Some(reference.clone()),
         ..Default::default()
     };
     let start = Instant::now();

@@ -129,7 +129,11 @@ pub fn uv_sphere(n_lat: usize, n_lon: usize) -> Surface {
             let (l0, l1) = (ring_vertex(j + 1, i), ring_vertex(j + 1, i + 1));
             faces.extend([[l0, l1, u1], [l0, u1, u0]]);
         }
-        faces.push([south, ring_vertex(n_lat - 1, i + 1), ring_vertex(n_lat - 1, i)]);
+        faces.push([
+            south,
+            ring_vertex(n_lat - 1, i + 1),
+            ring_vertex(n_lat - 1, i),
+        ]);
     }
     Surface { positions, faces }
 }

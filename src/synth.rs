@@ -304,7 +304,10 @@ pub fn remeshed_pulsating_sphere(
     let bands = ((icosphere_vertices as f64 / 2.0).sqrt()).round() as usize;
     let turned = Rotation3::from_euler_angles(0.4, 0.3, 0.2);
     let mut rotated_finer = icosphere(level + 1);
-    rotated_finer.positions.iter_mut().for_each(|p| *p = turned * *p);
+    rotated_finer
+        .positions
+        .iter_mut()
+        .for_each(|p| *p = turned * *p);
     let meshes = [icosphere(level), uv_sphere(bands, 2 * bands), rotated_finer];
     let times: Vec<f64> = (0..n_frames).map(|k| k as f64 * dt).collect();
     let frame = |t: f64, surface: &Surface| {

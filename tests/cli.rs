@@ -909,10 +909,20 @@ fn track_command_writes_the_library_tracking_for_solve() {
     meshflow_ok(&["solve", tracked, "--out", out.to_str().unwrap()]);
     let raw = meshflow(&["solve", frames, "--out", out.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&raw.stderr);
-    assert!(!raw.status.success() && stderr.contains("`meshflow track`"), "{stderr}");
+    assert!(
+        !raw.status.success() && stderr.contains("`meshflow track`"),
+        "{stderr}"
+    );
 
     let refused = work.path().join("refused");
-    let run = meshflow(&["track", frames, "--max-step", "1e-6", "--out", refused.to_str().unwrap()]);
+    let run = meshflow(&[
+        "track",
+        frames,
+        "--max-step",
+        "1e-6",
+        "--out",
+        refused.to_str().unwrap(),
+    ]);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(!run.status.success(), "{stderr}");
     assert_eq!(stderr.lines().count(), 1, "{stderr}");

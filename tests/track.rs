@@ -49,11 +49,17 @@ fn a_radially_scaled_sphere_is_tracked_along_the_normals_onto_each_surface() {
         let after = sequence.positions(k).unwrap();
         for (i, (x0, x1)) in before.iter().zip(after).enumerate() {
             let on_surface = (surface.closest_point(x1).position - x1).norm();
-            assert!(on_surface <= 1e-9 * 2.5, "frame {k}, vertex {i}: {on_surface:e} off");
+            assert!(
+                on_surface <= 1e-9 * 2.5,
+                "frame {k}, vertex {i}: {on_surface:e} off"
+            );
             let angle = (x1 - x0).angle(x0).to_degrees();
             assert!(angle < 1.0, "frame {k}, vertex {i}: {angle}° from radial");
             let grey = sequence.intensities(k)[i];
-            assert!((grey - linear_grey(x1)).abs() < 1e-12, "grey {grey} at vertex {i}");
+            assert!(
+                (grey - linear_grey(x1)).abs() < 1e-12,
+                "grey {grey} at vertex {i}"
+            );
         }
         let report = &tracked.report.frames[k];
         assert_eq!((report.misses, report.flipped_triangles), (0, 0));
@@ -65,7 +71,10 @@ fn a_radially_scaled_sphere_is_tracked_along_the_normals_onto_each_surface() {
         }
     }
     let area_change = tracked.report.frames[2].worst_area_change;
-    assert!((area_change - (1.25f64.powi(2) - 1.0)).abs() < 0.05, "{area_change}");
+    assert!(
+        (area_change - (1.25f64.powi(2) - 1.0)).abs() < 0.05,
+        "{area_change}"
+    );
 }
 
 #[test]
@@ -74,9 +83,17 @@ fn identical_frames_give_zero_motion() {
     let frames = vec![frame(&sphere, |x| *x, linear_grey); 3];
     let tracked = track(&frames, None, &TrackOptions::default()).unwrap();
     for report in &tracked.report.frames {
-        assert!(report.max_step < 1e-14, "frame {}: {}", report.frame, report.max_step);
+        assert!(
+            report.max_step < 1e-14,
+            "frame {}: {}",
+            report.frame,
+            report.max_step
+        );
     }
-    assert_eq!(tracked.sequence.positions(2).unwrap(), &sphere.positions[..]);
+    assert_eq!(
+        tracked.sequence.positions(2).unwrap(),
+        &sphere.positions[..]
+    );
 }
 
 /// A plane moving along its normal, remeshed (finer, shifted in its plane, larger): every
@@ -88,7 +105,11 @@ fn a_plane_moving_along_its_normal_moves_every_vertex_by_the_offset() {
     let offset = Vector3::new(0.0, 0.0, 0.3);
     let frames = vec![
         frame(&patch, |x| *x, linear_grey),
-        frame(&larger, |x| x + offset - Vector3::new(0.47, 0.53, 0.0), linear_grey),
+        frame(
+            &larger,
+            |x| x + offset - Vector3::new(0.47, 0.53, 0.0),
+            linear_grey,
+        ),
     ];
     let options = TrackOptions {
         max_step: Some(0.5),
@@ -119,14 +140,27 @@ fn a_surface_beyond_the_step_bound_is_an_error_naming_frame_and_vertex() {
         ..Default::default()
     };
     let error = track(&frames, None, &options).err().expect("too far");
-    assert!(matches!(error, TrackError::TooFar { frame: 1, vertex: 0, .. }), "{error}");
+    assert!(
+        matches!(
+            error,
+            TrackError::TooFar {
+                frame: 1,
+                vertex: 0,
+                ..
+            }
+        ),
+        "{error}"
+    );
     assert!(error.to_string().contains("--max-step"), "{error}");
     let lenient = TrackOptions {
         keep_going: true,
         ..options
     };
     let tracked = track(&frames, None, &lenient).unwrap();
-    assert_eq!(tracked.report.frames[1].beyond_max_step, patch.positions.len());
+    assert_eq!(
+        tracked.report.frames[1].beyond_max_step,
+        patch.positions.len()
+    );
 }
 
 #[test]
@@ -171,27 +205,43 @@ fn the_flow_of_a_tracked_remeshed_sphere_is_close_to_the_flow_with_correspondenc
     let fixed_error = compare_result(&scene.fixed.sequence, &fixed, &scene.fixed.flow)
         .unwrap()
         .mean_angular_degrees;
-    let tracked = track(&scene.frames, Some(scene.times.clone()), &TrackOptions::default()).unwrap();
+    let tracked = track(
+        &scene.frames,
+        Some(scene.times.clone()),
+        &TrackOptions::default(),
+    )
+    .unwrap();
     let sequence = &tracked.sequence;
     let truth: Vec<_> = (0..sequence.n_slabs())
         .map(|s| turning_flow(scene.omega, sequence.positions(s).unwrap()))
         .collect();
     let result = compute_flow(sequence, &params).unwrap();
-    let tracked_error = compare_result(sequence, &result, &truth).unwrap().mean_angular_degrees;
+    let tracked_error = compare_result(sequence, &result, &truth)
+        .unwrap()
+        .mean_angular_degrees;
     println!("fixed {fixed_error:.3}°, tracked {tracked_error:.3}°");
     assert!(fixed_error < 5.0, "{fixed_error}");
-    assert!(tracked_error < 1.25 * fixed_error, "{tracked_error} vs {fixed_error}");
+    assert!(
+        tracked_error < 1.25 * fixed_error,
+        "{tracked_error} vs {fixed_error}"
+    );
 }
 
 #[test]
 fn a_latitude_longitude_sphere_is_a_closed_outward_oriented_mesh() {
     let sphere = meshflow::shapes::uv_sphere(6, 10);
     let mesh = sphere.mesh().unwrap();
-    assert_eq!((mesh.n_vertices(), mesh.n_faces()), (2 + 5 * 10, 2 * 6 * 10 - 2 * 10));
+    assert_eq!(
+        (mesh.n_vertices(), mesh.n_faces()),
+        (2 + 5 * 10, 2 * 6 * 10 - 2 * 10)
+    );
     assert_eq!(mesh.euler_characteristic(), 2);
     for face in &sphere.faces {
         let [a, b, c] = face.map(|v| sphere.positions[v as usize]);
-        assert!((b - a).cross(&(c - a)).dot(&(a + b + c)) > 0.0, "{face:?} points inwards");
+        assert!(
+            (b - a).cross(&(c - a)).dot(&(a + b + c)) > 0.0,
+            "{face:?} points inwards"
+        );
     }
 }
 
@@ -223,9 +273,13 @@ fn a_hit_far_beyond_the_closest_distance_gives_way_to_the_closest_point() {
         let tracked = track(&frames, None, &options).unwrap();
         let report = &tracked.report.frames[1];
         assert_eq!(report.misses, misses, "tilt {tilt}°");
-        let normal = Rotation3::from_axis_angle(&Vector3::y_axis(), f64::to_radians(tilt))
-            * Vector3::z();
-        for (x0, x1) in frames[0].positions.iter().zip(tracked.sequence.positions(1).unwrap()) {
+        let normal =
+            Rotation3::from_axis_angle(&Vector3::y_axis(), f64::to_radians(tilt)) * Vector3::z();
+        for (x0, x1) in frames[0]
+            .positions
+            .iter()
+            .zip(tracked.sequence.positions(1).unwrap())
+        {
             let on_plane = (x1 - Vector3::new(0.5, 0.5, 0.2)).dot(&normal);
             assert!(on_plane.abs() < 1e-12, "tilt {tilt}°: {x1:?} off the plane");
             let step = x1 - x0;
@@ -233,7 +287,10 @@ fn a_hit_far_beyond_the_closest_distance_gives_way_to_the_closest_point() {
                 0 => step.cross(&Vector3::z()).norm(),
                 _ => step.cross(&normal).norm(),
             };
-            assert!(along < 1e-9, "tilt {tilt}°: step {step:?} not along the right normal");
+            assert!(
+                along < 1e-9,
+                "tilt {tilt}°: step {step:?} not along the right normal"
+            );
         }
     }
 }

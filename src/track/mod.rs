@@ -31,6 +31,7 @@ mod surface;
 use crate::connection::vertex_normals;
 use crate::flow::{FlowError, MeshSequence};
 use crate::mesh::{ConnectivityError, Mesh};
+use crate::shapes::Surface;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 pub use surface::{barycentric, FrameSurface, SurfacePoint};
@@ -56,7 +57,7 @@ pub struct TrackOptions {
     pub keep_going: bool,
     /// The mesh to track (positions on frame 0's surface, or near it: it is first moved onto
     /// frame 0 by the same normal step); `None`: frame 0's own mesh.
-    pub reference: Option<(Vec<Vector3<f64>>, Vec<[u32; 3]>)>,
+    pub reference: Option<Surface>,
 }
 
 /// What tracking did from the previous frame to this one.
@@ -171,7 +172,7 @@ pub fn track(
         None => 0.1 * bounding_diagonal(&first.positions),
     };
     let (reference, faces) = match &options.reference {
-        Some((positions, faces)) => (positions.clone(), faces.clone()),
+        Some(surface) => (surface.positions.clone(), surface.faces.clone()),
         None => (first.positions.clone(), first.faces.clone()),
     };
     let mesh = Mesh::new(reference.len(), faces)?;
@@ -186,11 +187,11 @@ pub fn track(
     let mut reports = Vec::with_capacity(frames.len());
     let mut current = reference.clone();
     for (k, frame) in frames.iter().enumerate() {
-        let (next, grey, report) = tracker.step(k, &current, frame)?;
-        current = next;
+        let step = tracker.step(k, &current, frame)?;
+        current = step.positions;
         positions.push(current.clone());
-        intensities.push(grey);
-        reports.push(report);
+        intensities.push(step.intensity);
+        reports.push(step.report);
     }
     let sequence = MeshSequence::new(mesh, positions, intensities, times)?;
     Ok(Tracked {
@@ -218,6 +219,13 @@ struct Tracker<'a> {
     keep_going: bool,
 }
 
+/// The tracked mesh on one frame: positions, grey values, and what happened.
+struct Step {
+    positions: Vec<Vector3<f64>>,
+    intensity: Vec<f64>,
+    report: FrameReport,
+}
+
 /// Where one vertex went.
 enum Landing {
     Hit(SurfacePoint),
@@ -232,7 +240,7 @@ impl Tracker<'_> {
         k: usize,
         current: &[Vector3<f64>],
         frame: &TrackFrame,
-    ) -> Result<(Vec<Vector3<f64>>, Vec<f64>, FrameReport), TrackError> {
+    ) -> Result<Step, TrackError> {
         let surface = FrameSurface::new(k, &frame.positions, &frame.faces, &frame.intensity)?;
         let normals = vertex_normals(self.mesh, current);
         let landings: Vec<Landing> = current
@@ -275,7 +283,11 @@ impl Tracker<'_> {
             grey.push(point.intensity);
         }
         self.measure_quality(k, current, &next, &mut report)?;
-        Ok((next, grey, report))
+        Ok(Step {
+            positions: next,
+            intensity: grey,
+            report,
+        })
     }
 
     /// The nearest hit along the normal line within the bound, unless it is more than
@@ -343,7 +355,11 @@ fn check_frame(k: usize, frame: &TrackFrame) -> Result<(), TrackError> {
     if frame.faces.is_empty() {
         return Err(TrackError::NoTriangles { frame: k });
     }
-    if let Some(vertex) = frame.positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+    if let Some(vertex) = frame
+        .positions
+        .iter()
+        .position(|p| !p.iter().all(|c| c.is_finite()))
+    {
         return Err(TrackError::NonFinite { frame: k, vertex });
     }
     if frame.intensity.len() != frame.positions.len() {
@@ -371,7 +387,9 @@ fn check_frame(k: usize, frame: &TrackFrame) -> Result<(), TrackError> {
 }
 
 fn bounding_diagonal(points: &[Vector3<f64>]) -> f64 {
-    let lower = points.iter().fold(Vector3::repeat(f64::INFINITY), |m, p| m.inf(p));
+    let lower = points
+        .iter()
+        .fold(Vector3::repeat(f64::INFINITY), |m, p| m.inf(p));
     let upper = points
         .iter()
         .fold(Vector3::repeat(f64::NEG_INFINITY), |m, p| m.sup(p));

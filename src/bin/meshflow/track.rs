@@ -3,9 +3,10 @@
 
 use crate::progress::during;
 use meshflow::io::{
-    load_mesh, load_sequence, read_mesh, read_times_file, write_atomically, write_npy,
-    LoadOptions, Overwrite, SequenceSource, StagedDir,
+    load_mesh, load_sequence, read_mesh, read_times_file, write_atomically, write_npy, LoadOptions,
+    Overwrite, SequenceSource, StagedDir,
 };
+use meshflow::shapes::Surface;
 use meshflow::track::{track, FrameReport, TrackFrame, TrackOptions, Tracked};
 use meshflow::Error;
 use rayon::prelude::*;
@@ -25,26 +26,31 @@ pub struct TrackRequest<'a> {
 pub fn run(request: TrackRequest) -> Result<(), Error> {
     let mut staged = StagedDir::create(request.out, request.overwrite)?;
     staged.record_command(crate::command_line());
-    let (frames, file_times, reference_file) = during(
-        format!("reading {}", request.input.display()),
-        || read_frames(request.input, &request.load),
-    )?;
-    let has_grey = frames.iter().any(|f| f.intensity.is_some());
-    let frames: Vec<TrackFrame> = frames
+    let input = during(format!("reading {}", request.input.display()), || {
+        read_frames(request.input, &request.load)
+    })?;
+    let has_grey = input.frames.iter().any(|f| f.intensity.is_some());
+    let frames: Vec<TrackFrame> = input
+        .frames
         .into_iter()
         .map(|f| TrackFrame {
-            intensity: f.intensity.unwrap_or_else(|| vec![0.0; f.frame.positions.len()]),
+            intensity: f
+                .intensity
+                .unwrap_or_else(|| vec![0.0; f.frame.positions.len()]),
             ..f.frame
         })
         .collect();
-    let reference_file = request.reference.unwrap_or(&reference_file);
+    let reference_file = request.reference.unwrap_or(&input.first_file);
     let reference = load_mesh(reference_file, &request.load)?;
     crate::print_warnings(&reference.warnings);
     let options = TrackOptions {
-        reference: Some((reference.positions, reference.mesh.faces().to_vec())),
+        reference: Some(Surface {
+            faces: reference.mesh.faces().to_vec(),
+            positions: reference.positions,
+        }),
         ..request.options
     };
-    let times = request.times.or(file_times);
+    let times = request.times.or(input.times);
     let tracked = during(format!("tracking {} frames", frames.len()), || {
         track(&frames, times, &options)
     })?;
@@ -63,12 +69,15 @@ struct ReadFrame {
     intensity: Option<Vec<f64>>,
 }
 
-/// The frames of `input` (each file its own mesh), times from a `times.txt` or the glTF
-/// animation, and the file whose mesh is the default reference.
-fn read_frames(
-    input: &Path,
-    load: &LoadOptions,
-) -> Result<(Vec<ReadFrame>, Option<Vec<f64>>, PathBuf), Error> {
+/// What `track` reads: the frames (each file its own mesh), times from a `times.txt` or the
+/// glTF animation, and the file whose mesh is the default reference.
+struct InputFrames {
+    frames: Vec<ReadFrame>,
+    times: Option<Vec<f64>>,
+    first_file: PathBuf,
+}
+
+fn read_frames(input: &Path, load: &LoadOptions) -> Result<InputFrames, Error> {
     let source = SequenceSource::detect(input)?;
     match &source {
         SequenceSource::Frames { files, .. } => {
@@ -87,7 +96,11 @@ fn read_frames(
                 })
                 .collect::<Result<Vec<_>, Error>>()?;
             let times = read_times_file(&source.directory().join("times.txt"))?;
-            Ok((frames, times, files[0].clone()))
+            Ok(InputFrames {
+                frames,
+                times,
+                first_file: files[0].clone(),
+            })
         }
         // One connectivity already: tracking re-parametrizes it by normal motion.
         SequenceSource::GltfAnimation(file) | SequenceSource::Npy(file) => {
@@ -103,7 +116,11 @@ fn read_frames(
                     intensity: Some(sequence.intensities(k).to_vec()),
                 })
                 .collect();
-            Ok((frames, Some(sequence.times().to_vec()), file.clone()))
+            Ok(InputFrames {
+                frames,
+                times: Some(sequence.times().to_vec()),
+                first_file: file.clone(),
+            })
         }
     }
 }
@@ -112,13 +129,22 @@ fn read_frames(
 fn write_outputs(staged: &StagedDir, tracked: &Tracked, has_grey: bool) -> Result<(), Error> {
     let dir = staged.path();
     let sequence = &tracked.sequence;
-    let (k, v) = (sequence.n_frames() as u64, sequence.mesh().n_vertices() as u64);
+    let (k, v) = (
+        sequence.n_frames() as u64,
+        sequence.mesh().n_vertices() as u64,
+    );
     let positions: Vec<f64> = (0..sequence.n_frames())
         .flat_map(|f| sequence.positions(f).expect("tracked in R^3").to_vec())
         .flat_map(|p| [p.x, p.y, p.z])
         .collect();
     write_npy(&dir.join("positions.npy"), &[k, v, 3], &positions)?;
-    let faces: Vec<i64> = sequence.mesh().faces().iter().flatten().map(|&i| i as i64).collect();
+    let faces: Vec<i64> = sequence
+        .mesh()
+        .faces()
+        .iter()
+        .flatten()
+        .map(|&i| i as i64)
+        .collect();
     write_npy(&dir.join("faces.npy"), &[faces.len() as u64 / 3, 3], &faces)?;
     if has_grey {
         let grey: Vec<f64> = (0..sequence.n_frames())
