@@ -42,8 +42,8 @@ mod time_transport;
 pub use push_forward::{push_forward, vertex_frames_in_r3, vertex_normals};
 pub use time_transport::polar_rotation_angles;
 
-use crate::geometry::IntrinsicGeometry;
-use crate::mesh::Mesh;
+use crate::geometry::{IntrinsicGeometry, SurfacePoint};
+use crate::mesh::{Corner, Mesh};
 use nalgebra::{Matrix2, Vector2};
 use std::f64::consts::PI;
 
@@ -164,6 +164,50 @@ impl Connection {
         u: Vector2<f64>,
     ) -> Vector2<f64> {
         rotation(self.transport_angle(mesh, geometry, h)) * u
+    }
+}
+
+impl Connection {
+    /// The start of a trace from vertex `i` along the vertex-frame vector `u`
+    /// ([`crate::geometry::trace`]): the vertex as a point of the corner whose scaled sector
+    /// `[ϑ, ϑ + s_i θ)` holds `u`'s polar angle `ψ`, and `u` in that face's frame, at the face
+    /// angle `φ + (ψ − ϑ) / s_i` (the sector unscaled). At a boundary vertex a direction
+    /// outside the fan is moved to the nearer of its two boundary edges.
+    pub fn vertex_trace_start(
+        &self,
+        mesh: &Mesh,
+        geometry: &IntrinsicGeometry,
+        i: usize,
+        u: Vector2<f64>,
+    ) -> (SurfacePoint, Vector2<f64>) {
+        let scale = self.vertex_scales[i];
+        let psi = u.y.atan2(u.x).rem_euclid(2.0 * PI);
+        let fan = mesh.vertex_fan(i);
+        let sector = |c: &Corner| {
+            let start = self.halfedge_angles[c.first_halfedge()];
+            let width = scale * geometry.triangle(c.face as usize).angles[c.local as usize];
+            (start, width)
+        };
+        // Offset of ψ into a sector, clamped to it; the corner with the least clamping wins.
+        let (corner, offset) = fan
+            .iter()
+            .map(|c| {
+                let (start, width) = sector(c);
+                let offset = (psi - start).rem_euclid(2.0 * PI);
+                let clamped = match offset <= width {
+                    true => offset,
+                    false if 2.0 * PI - offset < offset - width => 0.0,
+                    false => width,
+                };
+                (*c, clamped, (offset - clamped).abs().min(2.0 * PI - offset))
+            })
+            .min_by(|a, b| a.2.total_cmp(&b.2))
+            .map(|(c, clamped, _)| (c, clamped))
+            .expect("every vertex has a corner");
+        let (face, local) = (corner.face as usize, corner.local as usize);
+        let angle = geometry.triangle(face).first_edge_angles()[local] + offset / scale;
+        let step = u.norm() * Vector2::new(angle.cos(), angle.sin());
+        (SurfacePoint::corner(face, local), step)
     }
 }
 

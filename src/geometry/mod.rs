@@ -17,8 +17,10 @@
 //! relative to its size (`A ≤ ε · l_max²`) is reported as degenerate instead of producing
 //! infinite cotangents.
 
+mod trace;
 mod triangle;
 
+pub use trace::{trace, SurfacePoint, TraceEnd};
 pub use triangle::Triangle;
 
 use crate::mesh::Mesh;
