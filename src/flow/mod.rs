@@ -33,6 +33,7 @@
 //! # Ok::<(), meshflow::Error>(())
 //! ```
 
+mod advect;
 mod energy;
 mod error;
 mod params;
@@ -43,6 +44,7 @@ mod solve;
 mod system;
 mod uniqueness;
 
+pub use advect::{advect, vertex_seeds, Trajectories, SUBSTEPS};
 pub use energy::EnergyTerms;
 pub use error::FlowError;
 pub use params::{Boundary, FlowParams, SolverChoice, TimeCoupling, Weight, Weights};
