@@ -37,18 +37,22 @@ mod advect;
 mod energy;
 mod error;
 mod params;
+mod pyramid;
 mod scales;
 mod sequence;
 mod slab;
 mod solve;
 mod system;
 mod uniqueness;
+mod warp;
 
 pub use advect::{advect, vertex_seeds, Trajectories, SUBSTEPS};
 pub use energy::EnergyTerms;
 pub use error::FlowError;
 pub use params::{Boundary, FlowParams, SolverChoice, TimeCoupling, Weight, Weights};
-pub use params::{DEFAULT_SPREAD, DEFAULT_TIME_SCALE};
+pub use params::{Warping, DEFAULT_SPREAD, DEFAULT_TIME_SCALE};
+pub use pyramid::{heat_times, scale_pyramid, COARSEST_HEAT_TIME};
+pub use warp::warped_slab;
 pub use scales::DataScales;
 pub(crate) use sequence::check_finite_intensities;
 pub use sequence::MeshSequence;
@@ -125,9 +129,35 @@ impl<'a> FlowProblem<'a> {
     /// Validates the parameters, builds the slabs, resolves the weights with the data's scales,
     /// assembles the space-time system, and checks that the minimizer is unique.
     pub fn new(sequence: &'a MeshSequence, params: &FlowParams) -> Result<Self, FlowError> {
+        Self::with_slabs(sequence, params, slab::build_slabs(sequence)?, true)
+    }
+
+    /// The problem with given slabs (e.g. warped ones, [`warped_slab`]), which it keeps.
+    pub fn from_slabs(
+        sequence: &'a MeshSequence,
+        params: &FlowParams,
+        slabs: Vec<Slab>,
+    ) -> Result<Self, FlowError> {
+        if slabs.len() != sequence.n_slabs() {
+            return Err(FlowError::CountMismatch {
+                what: "slabs",
+                expected: sequence.n_slabs(),
+                got: slabs.len(),
+            });
+        }
+        Self::with_slabs(sequence, params, slabs, false)
+    }
+
+    /// `rebuildable`: the slabs are the sequence's own, so they may be dropped past
+    /// [`KEEP_SLABS_BYTES`] and rebuilt when needed.
+    fn with_slabs(
+        sequence: &'a MeshSequence,
+        params: &FlowParams,
+        slabs: Vec<Slab>,
+        rebuildable: bool,
+    ) -> Result<Self, FlowError> {
         params.validate()?;
         let start = Instant::now();
-        let slabs = slab::build_slabs(sequence)?;
         let scales = DataScales::measure(sequence.mesh(), &slabs);
         let weights = params.weights(&scales)?;
         let links: Vec<TimeLink> = if weights.is_coupled() {
@@ -147,7 +177,7 @@ impl<'a> FlowProblem<'a> {
             params: params.clone(),
             weights,
             scales,
-            slabs: (slab_bytes <= KEEP_SLABS_BYTES).then_some(slabs),
+            slabs: (slab_bytes <= KEEP_SLABS_BYTES || !rebuildable).then_some(slabs),
             system,
             assembly_seconds: start.elapsed().as_secs_f64(),
         })
@@ -200,8 +230,20 @@ impl<'a> FlowProblem<'a> {
         )
     }
 
-    /// Minimizes the energy; `observer` receives progress reports.
+    pub fn sequence(&self) -> &'a MeshSequence {
+        self.sequence
+    }
+
+    pub fn params(&self) -> &FlowParams {
+        &self.params
+    }
+
+    /// Minimizes the energy (coarse to fine when [`FlowParams::warping`] asks for it);
+    /// `observer` receives progress reports.
     pub fn solve(&self, observer: &(dyn Fn(SolveEvent) + Sync)) -> Result<FlowResult, FlowError> {
+        if self.params.warping.is_active() {
+            return warp::coarse_to_fine(self, observer);
+        }
         let start = Instant::now();
         let solution = solve::solve(&self.system, &self.params, observer)?;
         let solve_seconds = start.elapsed().as_secs_f64();

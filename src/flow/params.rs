@@ -162,6 +162,40 @@ pub struct FlowParams {
     pub direct_limit: usize,
     /// Bytes the per-slab Cholesky factors may take before `Auto` falls back to Jacobi.
     pub factor_memory_limit: usize,
+    /// Coarse-to-fine warping for large motions ([`Warping::NONE`]: the paper's single linear
+    /// solve).
+    pub warping: Warping,
+}
+
+/// Coarse-to-fine warping (`flow::warp`): `levels` image scales, coarsest first, with `warps`
+/// re-linearizations (each one solve of the whole sequence) per level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Warping {
+    pub levels: usize,
+    pub warps: usize,
+}
+
+impl Warping {
+    /// One level, no warp: the paper's linear model, solved once.
+    pub const NONE: Warping = Warping { levels: 1, warps: 0 };
+    /// `--large-motion`: 4 levels, 2 warps each (8 solves). Measured in `examples/large_motion`.
+    pub const LARGE_MOTION: Warping = Warping { levels: 4, warps: 2 };
+
+    /// Whether anything is warped.
+    pub fn is_active(&self) -> bool {
+        self.warps > 0
+    }
+
+    /// The linear solves it takes.
+    pub fn solves(&self) -> usize {
+        self.levels * self.warps.max(1)
+    }
+}
+
+impl Default for Warping {
+    fn default() -> Self {
+        Self::NONE
+    }
 }
 
 /// The default spread `λ`, in mean edge lengths.
@@ -183,6 +217,7 @@ impl Default for FlowParams {
             max_iterations: 5000,
             direct_limit: 60_000,
             factor_memory_limit: 8 << 30,
+            warping: Warping::NONE,
         }
     }
 }
@@ -246,6 +281,18 @@ impl FlowParams {
             self.max_iterations as f64,
             self.max_iterations > 0,
             "at least 1",
+        )?;
+        check(
+            "levels",
+            self.warping.levels as f64,
+            (1..=12).contains(&self.warping.levels),
+            "from 1 to 12",
+        )?;
+        check(
+            "warps",
+            self.warping.warps as f64,
+            self.warping.warps > 0 || self.warping.levels == 1,
+            "at least 1 with more than one level (coarse levels are only used by warping)",
         )
     }
 

@@ -5,7 +5,7 @@ use super::{FlowError, MeshSequence, TimeCoupling, Weights};
 use crate::connection::{polar_rotation_angles, rotation, Connection};
 use crate::fem::element::{self, DataElement};
 use crate::geometry::IntrinsicGeometry;
-use nalgebra::{Matrix2, Matrix3, Matrix6};
+use nalgebra::{Matrix2, Matrix3, Matrix6, Vector2};
 use rayon::prelude::*;
 
 /// Slab `s = [t_s, t_{s+1}]`: lengths are the mean of the two frames' lengths;
@@ -17,6 +17,10 @@ pub struct Slab {
     pub dt: f64,
     pub intensity_mid: Vec<f64>,
     pub rate: Vec<f64>,
+    /// The flow the data term is linearized around (vertex frames), `None` for zero: with
+    /// images warped by it, `∂_t I + dI(u)` becomes `τ + G·R_a (u_a − ū_a)` at corner `a`
+    /// (see [`super::warp`]).
+    pub linearization: Option<Vec<Vector2<f64>>>,
 }
 
 /// The element matrices of one face of one slab, before weighting by `Δt`, `β`, `γ`.
@@ -46,6 +50,7 @@ impl Slab {
                 .zip(after)
                 .map(|(a, b)| (b - a) / dt)
                 .collect(),
+            linearization: None,
         })
     }
 
@@ -54,13 +59,16 @@ impl Slab {
         let triangle = self.geometry.triangle(f);
         let rotations = self.connection.face_rotations(f);
         let at = |values: &[f64]| face.map(|v| values[v as usize]);
+        let intensity = at(&self.intensity_mid);
+        let mut rate = at(&self.rate);
+        if let Some(u) = &self.linearization {
+            let gradient = element::face_gradient(triangle, intensity);
+            for (a, &v) in face.iter().enumerate() {
+                rate[a] -= gradient.dot(&(rotations[a] * u[v as usize]));
+            }
+        }
         FaceElements {
-            data: element::data_element(
-                triangle,
-                rotations,
-                at(&self.intensity_mid),
-                at(&self.rate),
-            ),
+            data: element::data_element(triangle, rotations, intensity, rate),
             mass: element::vector_element(&element::consistent_mass(triangle), rotations),
             stiffness: element::vector_element(&element::cotan_stiffness(triangle), rotations),
         }

@@ -152,6 +152,18 @@ struct SolveArgs {
     /// auto, direct, pcg-slab-gauss-seidel, pcg-time-multigrid or pcg-jacobi
     #[arg(long, default_value = "auto")]
     solver: SolverChoice,
+    /// Coarse-to-fine warping for large motions: image scales, coarsest first (1: the paper's
+    /// single linear solve) [default: 1, or 4 with --large-motion]
+    #[arg(long, value_name = "N")]
+    levels: Option<usize>,
+    /// Warps (re-linearizations, each one solve of the whole sequence) per level [default: 0,
+    /// 1 with --levels above 1, 2 with --large-motion]
+    #[arg(long, value_name = "M")]
+    warps: Option<usize>,
+    /// Motions larger than the image's features (a texture turning by several triangle widths
+    /// per frame): coarse-to-fine symmetric warping with 4 levels and 2 warps each (8 solves)
+    #[arg(long)]
+    large_motion: bool,
     /// Relative residual at which the iterative solver stops
     #[arg(long, default_value_t = FlowParams::default().tolerance, allow_negative_numbers = true)]
     tolerance: f64,
@@ -216,6 +228,27 @@ struct TrackArgs {
     times: Option<Vec<f64>>,
     #[command(flatten)]
     building: MeshArgs,
+}
+
+impl SolveArgs {
+    /// `--levels`, `--warps` and `--large-motion` as one setting.
+    fn warping(&self) -> meshflow::flow::Warping {
+        use meshflow::flow::Warping;
+        let preset = match self.large_motion {
+            true => Warping::LARGE_MOTION,
+            false => Warping::NONE,
+        };
+        let levels = self.levels.unwrap_or(preset.levels);
+        let default_warps = match (self.large_motion, levels) {
+            (true, _) => preset.warps,
+            (false, 1) => 0,
+            (false, _) => 1,
+        };
+        Warping {
+            levels,
+            warps: self.warps.unwrap_or(default_warps),
+        }
+    }
 }
 
 /// How the mesh is built from the files' faces (`solve` and `operators`).

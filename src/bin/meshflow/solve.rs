@@ -28,6 +28,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         time_coupling: args.time_coupling,
         solver: args.solver,
         tolerance: args.tolerance,
+        warping: args.warping(),
         ..FlowParams::default()
     };
     params.validate()?;
@@ -77,6 +78,15 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
             0 => "factorizing the space-time system".to_string(),
             n => format!("factorizing {n} slabs"),
         }),
+        SolveEvent::Warp {
+            level,
+            warp,
+            solve,
+            solves,
+        } => progress.println(format!(
+            "warping: solve {solve} of {solves} (level {level}, warp {})",
+            warp + 1
+        )),
         SolveEvent::Iteration {
             iteration,
             relative_residual,

@@ -16,10 +16,14 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use std::sync::Arc;
 
-/// The symbolic analysis (ordering, elimination tree, fill) of a sparsity pattern whose DOFs
-/// come in vertex pairs `2i`, `2i + 1`.
-pub fn analyze(pattern: SymbolicSparseColMatRef<'_, usize>) -> Arc<SymbolicCholesky<usize>> {
-    let Some(forward) = nested_dissection(pattern) else {
+/// The symbolic analysis (ordering, elimination tree, fill) of a symmetric sparsity pattern
+/// whose DOFs come in vertex blocks `b i .. b i + b` (`b = dofs_per_vertex`: 2 for tangent
+/// fields, 1 for scalars).
+pub fn analyze(
+    pattern: SymbolicSparseColMatRef<'_, usize>,
+    dofs_per_vertex: usize,
+) -> Arc<SymbolicCholesky<usize>> {
+    let Some(forward) = nested_dissection(pattern, dofs_per_vertex) else {
         return symbolic_with(pattern, SymmetricOrdering::Amd);
     };
     let mut inverse = vec![0; forward.len()];
@@ -40,26 +44,33 @@ fn symbolic_with(
     Arc::new(symbolic)
 }
 
-/// METIS's nested-dissection order of the DOFs (`forward[new] = old`), by vertex pairs; `None`
-/// for an odd dimension, a graph too large for METIS's 32-bit indices, or a METIS error.
-fn nested_dissection(pattern: SymbolicSparseColMatRef<'_, usize>) -> Option<Vec<usize>> {
+/// METIS's nested-dissection order of the DOFs (`forward[new] = old`), by vertex blocks of
+/// `b` DOFs; `None` for a dimension that is not a multiple of `b`, a graph too large for
+/// METIS's 32-bit indices, or a METIS error.
+fn nested_dissection(pattern: SymbolicSparseColMatRef<'_, usize>, b: usize) -> Option<Vec<usize>> {
     let n = pattern.ncols();
-    if n % 2 != 0 || pattern.compute_nnz() > i32::MAX as usize {
+    if b == 0 || n % b != 0 || pattern.compute_nnz() > i32::MAX as usize {
         return None;
     }
+    let n_vertices = n / b;
     let mut xadj = vec![0i32];
     let mut adjncy = Vec::new();
-    for vertex in 0..n / 2 {
-        let rows = pattern.row_idx_of_col(2 * vertex);
-        let mut neighbours: Vec<i32> = rows.map(|r| (r / 2) as i32).collect();
+    for vertex in 0..n_vertices {
+        let mut neighbours: Vec<i32> = pattern
+            .row_idx_of_col(b * vertex)
+            .map(|r| (r / b) as i32)
+            .filter(|&v| v != vertex as i32)
+            .collect();
+        neighbours.sort_unstable();
         neighbours.dedup();
-        adjncy.extend(neighbours.into_iter().filter(|&v| v != vertex as i32));
+        adjncy.extend(neighbours);
         xadj.push(adjncy.len() as i32);
     }
-    let mut nvtxs = (n / 2) as i32;
-    let (mut perm, mut iperm) = (vec![0i32; n / 2], vec![0i32; n / 2]);
-    // SAFETY: xadj/adjncy form a valid CSR graph of nvtxs vertices (no self loops); perm and
-    // iperm hold nvtxs entries; null vertex weights and options mean METIS's defaults.
+    let mut nvtxs = n_vertices as i32;
+    let (mut perm, mut iperm) = (vec![0i32; n_vertices], vec![0i32; n_vertices]);
+    // SAFETY: xadj/adjncy form a valid CSR graph of nvtxs vertices (sorted, no duplicates, no
+    // self loops, symmetric because the pattern is); perm and iperm hold nvtxs entries; null
+    // vertex weights and options mean METIS's defaults.
     let status = unsafe {
         metis_sys::METIS_NodeND(
             &mut nvtxs,
@@ -73,7 +84,7 @@ fn nested_dissection(pattern: SymbolicSparseColMatRef<'_, usize>) -> Option<Vec<
     };
     (status == metis_sys::rstatus_et_METIS_OK).then(|| {
         perm.iter()
-            .flat_map(|&v| [2 * v as usize, 2 * v as usize + 1])
+            .flat_map(|&v| (0..b).map(move |d| b * v as usize + d))
             .collect()
     })
 }

@@ -62,7 +62,7 @@
 //! Results agree with the direct solver to 1e-9 relative (`tests/solver.rs`), for lumped and
 //! consistent coupling, Neumann and Dirichlet boundaries, even and odd slab counts.
 
-mod cholesky;
+pub(super) mod cholesky;
 mod multigrid;
 mod pcg;
 mod precondition;
@@ -109,6 +109,14 @@ pub enum SolveEvent {
     Iteration {
         iteration: usize,
         relative_residual: f64,
+    },
+    /// Coarse-to-fine warping starts linear solve `solve` of `solves` (level `level`, coarsest
+    /// first, warp `warp` on it).
+    Warp {
+        level: usize,
+        warp: usize,
+        solve: usize,
+        solves: usize,
     },
 }
 
@@ -284,7 +292,7 @@ fn slab_pcg(
     observer: &(dyn Fn(SolveEvent) + Sync),
 ) -> Result<Solution, FlowError> {
     let start = Instant::now();
-    let symbolic = analyze(system.block(0).symbolic());
+    let symbolic = analyze(system.block(0).symbolic(), 2);
     let plan = FactorPlan::new(system, &symbolic, params);
     if plan.slabs_per_factor > system.n_slabs() {
         let outcome = run_pcg(system, None, &Jacobi::new(system), params, 0, observer);
@@ -505,7 +513,7 @@ fn direct(
     observer(SolveEvent::Factorizing { slabs: 0 });
     let start = Instant::now();
     let matrix = system.to_sparse();
-    let symbolic = analyze(matrix.symbolic());
+    let symbolic = analyze(matrix.symbolic(), 2);
     let par = Par::rayon(rayon::current_num_threads());
     let factor = CholeskyFactor::<f64>::new(&symbolic, matrix.as_ref(), par)
         .map_err(factorization_error("the space-time system".into()))?;
@@ -528,7 +536,7 @@ fn slabwise_direct(
         slabs: system.n_slabs(),
     });
     let start = Instant::now();
-    let symbolic = analyze(system.block(0).symbolic());
+    let symbolic = analyze(system.block(0).symbolic(), 2);
     let n = system.slab_dimension();
     let mut u = system.rhs().to_vec();
     let entries: Vec<usize> = u

@@ -1,0 +1,110 @@
+//! The images at coarser scales, for coarse-to-fine warping: heat diffusion on each frame's
+//! own surface, by implicit steps that share one factorization per frame.
+//!
+//! ```text
+//! (M + τ L) I^{n+1} = M I^n        (M: P1 mass, L: cotan Laplacian of frame k)
+//! ```
+//!
+//! `n` steps of `τ` smooth to heat time `t = n τ`. Level `ℓ = 0` is the image itself; level
+//! `ℓ ≥ 1` has `t_ℓ = τ 4^{ℓ−1}` with the coarsest `t_{L−1} = 0.15 ρ²`, `ρ = √(A / 4π)` the
+//! radius of the sphere with the surface's area `A`: heat time `t` blurs over a distance of
+//! about `√(4t)`, so the coarsest level still sees a feature displaced by about `ρ` (a
+//! displacement `d` needs `t ≈ 0.15 d²`, Brox et al.'s rule of thumb carried to surfaces).
+//! Scales come from the surface's size, not from the data's units.
+
+use super::solve::cholesky::{analyze, CholeskyFactor};
+use super::{FlowError, MeshSequence};
+use crate::fem::{cotan_laplacian, scalar_mass, MassKind, SparseMatrix};
+use crate::geometry::IntrinsicGeometry;
+use faer::Par;
+use rayon::prelude::*;
+
+/// `t_max / ρ²`: the coarsest heat time relative to the surface's radius squared.
+pub const COARSEST_HEAT_TIME: f64 = 0.15;
+
+/// Heat times `[0, t_1, …, t_{L−1}]` of `levels` levels for a surface of area `area`.
+pub fn heat_times(levels: usize, area: f64) -> Vec<f64> {
+    let t_max = COARSEST_HEAT_TIME * area / (4.0 * std::f64::consts::PI);
+    (0..levels)
+        .map(|l| match l {
+            0 => 0.0,
+            l => t_max * 4f64.powi(l as i32 - (levels as i32 - 1)),
+        })
+        .collect()
+}
+
+/// `images[ℓ][k]`: frame `k`'s grey values smoothed to level `ℓ` (`images[0]` the originals).
+pub fn scale_pyramid(sequence: &MeshSequence, levels: usize) -> Result<Vec<Vec<Vec<f64>>>, FlowError> {
+    let mesh = sequence.mesh();
+    let per_frame: Vec<Vec<Vec<f64>>> = (0..sequence.n_frames())
+        .into_par_iter()
+        .map(|k| {
+            let geometry = IntrinsicGeometry::new(mesh, sequence.edge_lengths(k).to_vec())
+                .map_err(|source| FlowError::Frame { frame: k, source })?;
+            let times = heat_times(levels, geometry.total_area());
+            heat_levels(mesh, &geometry, sequence.intensities(k), &times, k)
+        })
+        .collect::<Result<_, _>>()?;
+    Ok((0..levels)
+        .map(|l| per_frame.iter().map(|frame| frame[l].clone()).collect())
+        .collect())
+}
+
+/// One image at the heat times `times` (`times[ℓ] = τ 4^{ℓ−1}`, `τ = times[1]`).
+fn heat_levels(
+    mesh: &crate::mesh::Mesh,
+    geometry: &IntrinsicGeometry,
+    image: &[f64],
+    times: &[f64],
+    frame: usize,
+) -> Result<Vec<Vec<f64>>, FlowError> {
+    let mut levels = vec![image.to_vec()];
+    let Some(&step) = times.get(1) else {
+        return Ok(levels);
+    };
+    let mass = scalar_mass(mesh, geometry, MassKind::Consistent);
+    let operator = sum_of(&mass, &cotan_laplacian(mesh, geometry), step);
+    let symbolic = analyze(operator.symbolic(), 1);
+    let factor = CholeskyFactor::<f64>::new(&symbolic, operator.as_ref(), Par::Seq).map_err(
+        |detail| FlowError::Factorization {
+            what: format!("the heat step of frame {frame}"),
+            detail,
+        },
+    )?;
+    let mut current = image.to_vec();
+    let mut steps_done = 0;
+    for &t in &times[1..] {
+        let steps = (t / step).round() as usize;
+        for _ in steps_done..steps {
+            current = mass_times(&mass, &current);
+            factor.solve_in_place(&mut current, Par::Seq);
+        }
+        steps_done = steps;
+        levels.push(current.clone());
+    }
+    Ok(levels)
+}
+
+/// `a + s b` for two matrices (any patterns).
+fn sum_of(a: &SparseMatrix, b: &SparseMatrix, s: f64) -> SparseMatrix {
+    let mut triplets = Vec::with_capacity(a.compute_nnz() + b.compute_nnz());
+    for (m, scale) in [(a, 1.0), (b, s)] {
+        super::system::for_each_column(m.as_ref(), |j, rows, values| {
+            for (&i, &v) in rows.iter().zip(values) {
+                triplets.push(faer::sparse::Triplet::new(i, j, scale * v));
+            }
+        });
+    }
+    SparseMatrix::try_new_from_triplets(a.nrows(), a.ncols(), &triplets)
+        .expect("both matrices have the same shape")
+}
+
+fn mass_times(mass: &SparseMatrix, x: &[f64]) -> Vec<f64> {
+    let mut y = vec![0.0; x.len()];
+    super::system::for_each_column(mass.as_ref(), |j, rows, values| {
+        for (&i, &v) in rows.iter().zip(values) {
+            y[i] += v * x[j];
+        }
+    });
+    y
+}
