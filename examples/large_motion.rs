@@ -14,8 +14,14 @@ use std::time::Instant;
 const GAMMAS: [f64; 3] = [1e-4, 3e-4, 1e-3];
 
 fn main() -> Result<(), meshflow::Error> {
-    let args: Vec<u32> = std::env::args().skip(1).map(|a| a.parse().expect("a number")).collect();
-    let (level, frames) = (args.first().copied().unwrap_or(4), args.get(1).copied().unwrap_or(2));
+    let args: Vec<u32> = std::env::args()
+        .skip(1)
+        .map(|a| a.parse().expect("a number"))
+        .collect();
+    let (level, frames) = (
+        args.first().copied().unwrap_or(4),
+        args.get(1).copied().unwrap_or(2),
+    );
     println!("texture turning on the level-{level} icosphere, {frames} frames, mean angular error (best γ)");
     println!(
         "{:>10} {:>22} {:>22} {:>10}",
@@ -33,7 +39,8 @@ fn main() -> Result<(), meshflow::Error> {
                 let start = Instant::now();
                 let result = compute_flow(&scene.sequence, &params)?;
                 let seconds = start.elapsed().as_secs_f64();
-                let error = compare_result(&scene.sequence, &result, &scene.flow)?.mean_angular_degrees;
+                let error =
+                    compare_result(&scene.sequence, &result, &scene.flow)?.mean_angular_degrees;
                 if error < best.0 {
                     best = (error, gamma, seconds);
                 }

@@ -52,13 +52,13 @@ pub use error::FlowError;
 pub use params::{Boundary, FlowParams, SolverChoice, TimeCoupling, Weight, Weights};
 pub use params::{Warping, DEFAULT_SPREAD, DEFAULT_TIME_SCALE};
 pub use pyramid::{heat_times, scale_pyramid, COARSEST_HEAT_TIME};
-pub use warp::warped_slab;
 pub use scales::DataScales;
 pub(crate) use sequence::check_finite_intensities;
 pub use sequence::MeshSequence;
 pub use slab::Slab;
 pub use solve::{SolveEvent, SolverMethod};
 pub use system::{LinkMatrix, SpaceTimeSystem};
+pub use warp::warped_slab;
 
 use crate::connection::{push_forward, vertex_frames_in_r3};
 use nalgebra::{Vector2, Vector3};

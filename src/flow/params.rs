@@ -177,9 +177,15 @@ pub struct Warping {
 
 impl Warping {
     /// One level, no warp: the paper's linear model, solved once.
-    pub const NONE: Warping = Warping { levels: 1, warps: 0 };
+    pub const NONE: Warping = Warping {
+        levels: 1,
+        warps: 0,
+    };
     /// `--large-motion`: 4 levels, 2 warps each (8 solves). Measured in `examples/large_motion`.
-    pub const LARGE_MOTION: Warping = Warping { levels: 4, warps: 2 };
+    pub const LARGE_MOTION: Warping = Warping {
+        levels: 4,
+        warps: 2,
+    };
 
     /// Whether anything is warped.
     pub fn is_active(&self) -> bool {

@@ -34,7 +34,10 @@ pub fn heat_times(levels: usize, area: f64) -> Vec<f64> {
 }
 
 /// `images[ℓ][k]`: frame `k`'s grey values smoothed to level `ℓ` (`images[0]` the originals).
-pub fn scale_pyramid(sequence: &MeshSequence, levels: usize) -> Result<Vec<Vec<Vec<f64>>>, FlowError> {
+pub fn scale_pyramid(
+    sequence: &MeshSequence,
+    levels: usize,
+) -> Result<Vec<Vec<Vec<f64>>>, FlowError> {
     let mesh = sequence.mesh();
     let per_frame: Vec<Vec<Vec<f64>>> = (0..sequence.n_frames())
         .into_par_iter()
@@ -65,12 +68,13 @@ fn heat_levels(
     let mass = scalar_mass(mesh, geometry, MassKind::Consistent);
     let operator = sum_of(&mass, &cotan_laplacian(mesh, geometry), step);
     let symbolic = analyze(operator.symbolic(), 1);
-    let factor = CholeskyFactor::<f64>::new(&symbolic, operator.as_ref(), Par::Seq).map_err(
-        |detail| FlowError::Factorization {
-            what: format!("the heat step of frame {frame}"),
-            detail,
-        },
-    )?;
+    let factor =
+        CholeskyFactor::<f64>::new(&symbolic, operator.as_ref(), Par::Seq).map_err(|detail| {
+            FlowError::Factorization {
+                what: format!("the heat step of frame {frame}"),
+                detail,
+            }
+        })?;
     let mut current = image.to_vec();
     let mut steps_done = 0;
     for &t in &times[1..] {

@@ -113,7 +113,11 @@ pub fn warped_slab(
         })
         .unzip();
     Ok(Slab {
-        intensity_mid: minus.iter().zip(&plus).map(|(a, b)| 0.5 * (a + b)).collect(),
+        intensity_mid: minus
+            .iter()
+            .zip(&plus)
+            .map(|(a, b)| 0.5 * (a + b))
+            .collect(),
         rate: minus.iter().zip(&plus).map(|(a, b)| (b - a) / dt).collect(),
         linearization: Some(u.to_vec()),
         geometry,
