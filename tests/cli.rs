@@ -929,3 +929,50 @@ fn track_command_writes_the_library_tracking_for_solve() {
     assert!(stderr.contains("frame 1: vertex 0 is"), "{stderr}");
     assert!(!refused.exists(), "no output for a failed run");
 }
+
+/// `--large-motion` warps (its flow differs from
+/// the single solve's); `--levels` above 1 with `--warps 0` is refused in one line.
+#[test]
+fn large_motion_flags_choose_coarse_to_fine_warping() {
+    let work = tempfile::tempdir().unwrap();
+    let input = shipped("rotating_sphere");
+    let out = |name: &str| work.path().join(name).to_str().unwrap().to_string();
+    meshflow_ok(&["solve", &input, "--out", &out("linear"), "--format", "npy"]);
+    meshflow_ok(&[
+        "solve",
+        &input,
+        "--out",
+        &out("warped"),
+        "--format",
+        "npy",
+        "--large-motion",
+    ]);
+    let flow = |name: &str| {
+        read_npy(&work.path().join(name).join("flow.npy"))
+            .unwrap()
+            .data
+    };
+    let (linear, warped) = (flow("linear"), flow("warped"));
+    let difference = linear
+        .iter()
+        .zip(&warped)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(difference > 1e-6, "warping changed nothing");
+    let run = meshflow(&[
+        "solve",
+        &input,
+        "--out",
+        &out("bad"),
+        "--levels",
+        "3",
+        "--warps",
+        "0",
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        !run.status.success() && stderr.lines().count() == 1,
+        "{stderr}"
+    );
+    assert!(stderr.contains("warps"), "{stderr}");
+}
