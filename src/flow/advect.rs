@@ -48,6 +48,24 @@ impl Trajectories {
     }
 }
 
+impl Trajectories {
+    /// `I_k` at the points of frame `k`: for vertex seeds, the image of the sequence
+    /// reparametrized by the flow, which a perfect flow makes static.
+    pub fn intensities(&self, sequence: &MeshSequence) -> Vec<Vec<f64>> {
+        self.points
+            .iter()
+            .enumerate()
+            .map(|(k, points)| {
+                let image = sequence.intensities(k);
+                points
+                    .iter()
+                    .map(|p| p.interpolate(sequence.mesh(), image))
+                    .collect()
+            })
+            .collect()
+    }
+}
+
 /// Every vertex of the mesh as a seed (its first corner).
 pub fn vertex_seeds(sequence: &MeshSequence) -> Vec<SurfacePoint> {
     let mesh = sequence.mesh();

@@ -1,5 +1,6 @@
 //! The `meshflow` command line. Every failure is one line on stderr and a non-zero exit code.
 
+mod advect;
 mod operators;
 mod pictures;
 mod progress;
@@ -59,6 +60,22 @@ enum Command {
     /// intensity.npy and times.txt, which `meshflow solve DIR` reads, and track.json (misses,
     /// steps, worst edge and area change, flipped triangles per frame).
     Track(Box<TrackArgs>),
+    /// Follow points through a finished `solve` run along its flow (straightest geodesics of
+    /// each slab, from every mesh vertex): writes trajectories.npy (frames × vertices × 3, on
+    /// each frame), trajectory_faces.npy and trajectory_barycentric.npy (where they are as
+    /// mesh points), and the sequence reparametrized by the flow (positions.npy, faces.npy,
+    /// intensity.npy, times.txt: the image the vertices see as they move, nearly static for a
+    /// good flow; its change per frame is printed). The input is read again as the run's
+    /// solve command read it.
+    Advect {
+        /// Output directory of `meshflow solve`
+        run: PathBuf,
+        /// Output directory
+        #[arg(long)]
+        out: PathBuf,
+        #[command(flatten)]
+        force: ForceArg,
+    },
     /// Draw PNG pictures of the slabs of a `solve` output directory (read from flow.pvd and its
     /// flow_SSSS.vtu files): grey_SSSS.png (the image on the surface), flow_SSSS.png (flow
     /// directions on the screen, Middlebury colour wheel, with its legend), arrows_SSSS.png and,
@@ -231,6 +248,18 @@ struct TrackArgs {
 }
 
 impl SolveArgs {
+    /// How `solve` reads its input (`advect` reads it again the same way).
+    fn load_options(&self) -> LoadOptions {
+        LoadOptions {
+            intensity: self.intensity.clone(),
+            intensity_attribute: self.intensity_attribute.clone(),
+            times: self.times.clone(),
+            fps: self.fps,
+            animation: self.animation.clone(),
+            ..self.building.options()
+        }
+    }
+
     /// `--levels`, `--warps` and `--large-motion` as one setting.
     fn warping(&self) -> meshflow::flow::Warping {
         use meshflow::flow::Warping;
@@ -293,6 +322,7 @@ fn main() -> ExitCode {
             force,
         } => operators::write_operators(&mesh, &out, &building.options(), force.overwrite()),
         Command::Solve(args) => solve::solve(&args),
+        Command::Advect { run, out, force } => advect::advect(&run, &out, force.overwrite()),
         Command::Track(args) => track::run(track::TrackRequest {
             input: &args.input,
             out: &args.out,

@@ -5,7 +5,7 @@ use crate::progress::{during, solver_progress};
 use crate::SolveArgs;
 use meshflow::accuracy::{check_embedded, compare_result, FlowErrors};
 use meshflow::flow::{FlowParams, FlowProblem, FlowResult, SolveEvent, Weight, Weights};
-use meshflow::io::{load_sequence, write_flow_outputs, LoadOptions, StagedDir};
+use meshflow::io::{load_sequence, write_flow_outputs, StagedDir};
 use meshflow::io::{read_ground_truth, GroundTruthReport, LoadedSequence};
 use meshflow::render::{sequence_views, View};
 use meshflow::Error;
@@ -36,16 +36,8 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
     // files that are not an earlier meshflow output.
     let mut out = StagedDir::create(&args.out, args.force.overwrite())?;
     out.record_command(crate::command_line());
-    let options = LoadOptions {
-        intensity: args.intensity.clone(),
-        intensity_attribute: args.intensity_attribute.clone(),
-        times: args.times.clone(),
-        fps: args.fps,
-        animation: args.animation.clone(),
-        ..args.building.options()
-    };
     let loaded = during(format!("reading {}", args.input.display()), || {
-        load_sequence(&args.input, &options)
+        load_sequence(&args.input, &args.load_options())
     })?;
     crate::print_warnings(&loaded.warnings);
     let sequence = &loaded.sequence;

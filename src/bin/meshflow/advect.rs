@@ -1,0 +1,169 @@
+//! `meshflow advect RUN --out DIR`: trajectories of the mesh vertices along a finished run's
+//! flow (`meshflow::flow::advect`), and the sequence reparametrized by them.
+
+use crate::progress::during;
+use crate::{Cli, Command};
+use clap::Parser;
+use meshflow::flow::{advect as carry, vertex_seeds, Trajectories};
+use meshflow::io::{
+    load_sequence, read_npy_float, write_atomically, write_npy, IoError, Overwrite, RunManifest,
+    StagedDir,
+};
+use meshflow::Error;
+use nalgebra::Vector2;
+use std::path::Path;
+
+pub fn advect(run: &Path, out: &Path, overwrite: Overwrite) -> Result<(), Error> {
+    let args = solve_command(run)?;
+    let mut staged = StagedDir::create(out, overwrite)?;
+    staged.record_command(crate::command_line());
+    let loaded = during(format!("reading {}", args.input.display()), || {
+        load_sequence(&args.input, &args.load_options())
+    })?;
+    let sequence = &loaded.sequence;
+    let flow = read_flow(run, &loaded)?;
+    let trajectories = during("following the vertices", || {
+        carry(sequence, &flow, &vertex_seeds(sequence))
+    })?;
+    let grey = trajectories.intensities(sequence);
+    write_outputs(&staged, sequence, &trajectories, &grey)
+        .map_err(|e| staged.error_in_target(e))?;
+    staged.commit()?;
+    report(sequence, &grey, &trajectories, run, out);
+    Ok(())
+}
+
+/// The `solve` arguments that made `run`, from its manifest.
+fn solve_command(run: &Path) -> Result<Box<crate::SolveArgs>, Error> {
+    let not_a_run = |why: &str| Error::from(IoError::format(run, why.to_string()));
+    let manifest = RunManifest::read(run)
+        .ok_or_else(|| not_a_run("not a meshflow output (no meshflow_run.json)"))?;
+    let command = manifest
+        .commands
+        .first()
+        .ok_or_else(|| not_a_run("its manifest lists no command"))?;
+    match Cli::try_parse_from(command).map(|cli| cli.command) {
+        Ok(Command::Solve(args)) => Ok(args),
+        _ => Err(not_a_run("not the output of `meshflow solve`")),
+    }
+}
+
+/// `flow_intrinsic.npy` of the run, per mesh vertex.
+fn read_flow(
+    run: &Path,
+    loaded: &meshflow::io::LoadedSequence,
+) -> Result<Vec<Vec<Vector2<f64>>>, Error> {
+    let file = run.join("flow_intrinsic.npy");
+    let array = read_npy_float(&file)?;
+    let map = &loaded.vertex_map;
+    let (s, v) = (loaded.sequence.n_slabs(), map.n_file_vertices());
+    if array.shape != [s as u64, v as u64, 2] {
+        return Err(IoError::format(
+            &file,
+            format!(
+                "shape {:?}, expected ({s}, {v}, 2) for the run's input (was it changed since?)",
+                array.shape
+            ),
+        )
+        .into());
+    }
+    Ok((0..s)
+        .map(|slab| {
+            (0..map.n_mesh_vertices())
+                .map(|m| {
+                    let row = 2 * (slab * v + map.representative(m));
+                    Vector2::new(array.data[row], array.data[row + 1])
+                })
+                .collect()
+        })
+        .collect())
+}
+
+fn write_outputs(
+    staged: &StagedDir,
+    sequence: &meshflow::flow::MeshSequence,
+    trajectories: &Trajectories,
+    grey: &[Vec<f64>],
+) -> Result<(), Error> {
+    let dir = staged.path();
+    let (k, n) = (
+        trajectories.points.len() as u64,
+        trajectories.points[0].len() as u64,
+    );
+    let positions = trajectories
+        .positions(sequence)
+        .ok_or_else(|| IoError::format(dir, "an intrinsic sequence has no positions to follow"))?;
+    let flat: Vec<f64> = positions
+        .iter()
+        .flatten()
+        .flat_map(|p| [p.x, p.y, p.z])
+        .collect();
+    write_npy(&dir.join("trajectories.npy"), &[k, n, 3], &flat)?;
+    write_npy(&dir.join("positions.npy"), &[k, n, 3], &flat)?;
+    let faces: Vec<i64> = trajectories
+        .points
+        .iter()
+        .flatten()
+        .map(|p| p.face as i64)
+        .collect();
+    write_npy(&dir.join("trajectory_faces.npy"), &[k, n], &faces)?;
+    let barycentric: Vec<f64> = trajectories
+        .points
+        .iter()
+        .flatten()
+        .flat_map(|p| p.barycentric)
+        .collect();
+    write_npy(
+        &dir.join("trajectory_barycentric.npy"),
+        &[k, n, 3],
+        &barycentric,
+    )?;
+    let mesh_faces: Vec<i64> = sequence
+        .mesh()
+        .faces()
+        .iter()
+        .flatten()
+        .map(|&i| i as i64)
+        .collect();
+    write_npy(
+        &dir.join("faces.npy"),
+        &[mesh_faces.len() as u64 / 3, 3],
+        &mesh_faces,
+    )?;
+    let image: Vec<f64> = grey.iter().flatten().copied().collect();
+    write_npy(&dir.join("intensity.npy"), &[k, n], &image)?;
+    write_atomically(&dir.join("times.txt"), |w| {
+        use std::io::Write;
+        sequence.times().iter().try_for_each(|t| writeln!(w, "{t}"))
+    })?;
+    Ok(())
+}
+
+/// Per frame, the mean change of the image the moving vertices see, next to that of the
+/// vertices at rest.
+fn report(
+    sequence: &meshflow::flow::MeshSequence,
+    grey: &[Vec<f64>],
+    trajectories: &Trajectories,
+    run: &Path,
+    out: &Path,
+) {
+    let stuck = trajectories.reached_boundary.iter().filter(|&&b| b).count();
+    println!(
+        "{}: {} vertices followed through {} frames ({stuck} reached the boundary) -> {}",
+        run.display(),
+        grey[0].len(),
+        grey.len(),
+        out.display()
+    );
+    let mean_change = |a: &[f64], b: &[f64]| {
+        a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f64>() / a.len() as f64
+    };
+    for k in 1..grey.len() {
+        println!(
+            "  frame {k:3}: mean image change along the trajectories {:.3e} (at rest {:.3e})",
+            mean_change(&grey[k], &grey[0]),
+            mean_change(sequence.intensities(k), sequence.intensities(0)),
+        );
+    }
+}
