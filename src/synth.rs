@@ -347,3 +347,42 @@ pub fn turning_flow(omega: f64, positions: &[Vector3<f64>]) -> Vec<Vector3<f64>>
     let axis = Vector3::new(0.0, 0.0, omega);
     positions.iter().map(|x| axis.cross(x)).collect()
 }
+
+/// The unit icosphere at rest with [`texture`] shearing about the z-axis: the circle of
+/// latitude at height `z` turns at `ω (1 − z²)` (fastest at the equator, still at the poles),
+/// frames at `t_k = k dt`. Not a rigid motion of the image: the true flow `ω (1 − z²) ẑ × x`
+/// has a strain a rotation lacks.
+pub fn shearing_sphere(
+    level: u32,
+    n_frames: usize,
+    dt: f64,
+    omega: f64,
+) -> Result<GroundTruth, FlowError> {
+    let sphere = icosphere(level);
+    let mesh = sphere.mesh().expect("icospheres are valid meshes");
+    let rate = |p: &Vector3<f64>| omega * (1.0 - p.z * p.z);
+    let times: Vec<f64> = (0..n_frames).map(|k| k as f64 * dt).collect();
+    let intensities = times
+        .iter()
+        .map(|&t| {
+            sphere
+                .positions
+                .iter()
+                .map(|p| {
+                    texture(&(Rotation3::from_axis_angle(&Vector3::z_axis(), -rate(p) * t) * p))
+                })
+                .collect()
+        })
+        .collect();
+    let flow = vec![
+        sphere
+            .positions
+            .iter()
+            .map(|p| rate(p) * Vector3::z().cross(p))
+            .collect();
+        n_frames.saturating_sub(1)
+    ];
+    let frames = vec![sphere.positions.clone(); n_frames];
+    let sequence = MeshSequence::new(mesh, frames, intensities, Some(times))?;
+    Ok(GroundTruth { sequence, flow })
+}
