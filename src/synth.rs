@@ -98,21 +98,36 @@ fn textured_deforming_sphere(
     omega: f64,
     strain: f64,
 ) -> Result<GroundTruth, FlowError> {
+    textured_sphere(image, level, n_frames, dt, |_| omega, strain)
+}
+
+/// The icosphere stretched by `D(t)` ([`deforming_sphere`]) with `image` turning about the
+/// z-axis at `rate(p)` radians per unit time at rest point `p`: `I(t, p) =
+/// image(R_z(−rate(p) t) p)`, true flow `D(t_s) (rate(p) ẑ × p)`. A rate constant on circles of
+/// latitude keeps every texture point on its circle.
+fn textured_sphere(
+    image: impl Fn(&Vector3<f64>) -> f64,
+    level: u32,
+    n_frames: usize,
+    dt: f64,
+    rate: impl Fn(&Vector3<f64>) -> f64,
+    strain: f64,
+) -> Result<GroundTruth, FlowError> {
     let sphere = icosphere(level);
     let mesh = sphere.mesh().expect("icospheres are valid meshes");
     let times: Vec<f64> = (0..n_frames).map(|k| k as f64 * dt).collect();
+    let turned_back =
+        |t: f64, p: &Vector3<f64>| Rotation3::from_axis_angle(&Vector3::z_axis(), -rate(p) * t) * p;
     let intensities = times
         .iter()
         .map(|&t| {
-            let back = Rotation3::from_axis_angle(&Vector3::z_axis(), -omega * t);
             sphere
                 .positions
                 .iter()
-                .map(|p| image(&(back * p)))
+                .map(|p| image(&turned_back(t, p)))
                 .collect()
         })
         .collect();
-    let axis = Vector3::new(0.0, 0.0, omega);
     let deform = |t: f64, v: &Vector3<f64>| stretch(strain * t, v);
     let frames = times
         .iter()
@@ -124,7 +139,7 @@ fn textured_deforming_sphere(
             sphere
                 .positions
                 .iter()
-                .map(|p| deform(t, &axis.cross(p)))
+                .map(|p| deform(t, &(rate(p) * Vector3::z().cross(p))))
                 .collect()
         })
         .collect();
@@ -358,31 +373,12 @@ pub fn shearing_sphere(
     dt: f64,
     omega: f64,
 ) -> Result<GroundTruth, FlowError> {
-    let sphere = icosphere(level);
-    let mesh = sphere.mesh().expect("icospheres are valid meshes");
-    let rate = |p: &Vector3<f64>| omega * (1.0 - p.z * p.z);
-    let times: Vec<f64> = (0..n_frames).map(|k| k as f64 * dt).collect();
-    let intensities = times
-        .iter()
-        .map(|&t| {
-            sphere
-                .positions
-                .iter()
-                .map(|p| {
-                    texture(&(Rotation3::from_axis_angle(&Vector3::z_axis(), -rate(p) * t) * p))
-                })
-                .collect()
-        })
-        .collect();
-    let flow = vec![
-        sphere
-            .positions
-            .iter()
-            .map(|p| rate(p) * Vector3::z().cross(p))
-            .collect();
-        n_frames.saturating_sub(1)
-    ];
-    let frames = vec![sphere.positions.clone(); n_frames];
-    let sequence = MeshSequence::new(mesh, frames, intensities, Some(times))?;
-    Ok(GroundTruth { sequence, flow })
+    textured_sphere(
+        texture,
+        level,
+        n_frames,
+        dt,
+        |p| omega * (1.0 - p.z * p.z),
+        0.0,
+    )
 }

@@ -41,7 +41,9 @@ pub use ground_truth::read_ground_truth;
 pub use input::{FrameFormat, SequenceSource};
 pub use mtl::{texture_intensity, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};
-pub use npy::{read_npy, read_npy_float, read_npy_indices, write_npy, NpyArray};
+pub use npy::{
+    read_npy, read_npy_float, read_npy_indices, write_npy, write_npy_sequence, NpyArray,
+};
 pub use obj::{read_obj, write_obj, ObjMesh};
 pub use prepare::{load_mesh, read_mesh_geometry, LoadedMesh};
 pub use sequence::{

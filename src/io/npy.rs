@@ -170,3 +170,35 @@ fn data_offset(bytes: &[u8]) -> usize {
         _ => 12 + le(8..12).unwrap_or(0),
     }
 }
+
+/// Writes a sequence as the NPY directory that `meshflow solve` reads: `positions.npy`
+/// (K, V, 3) float64, `faces.npy` (F, 3) int64, `intensity.npy` (K, V) float64 when given, and
+/// `times.txt` (one time per line).
+pub fn write_npy_sequence(
+    dir: &Path,
+    positions: &[Vec<nalgebra::Vector3<f64>>],
+    faces: &[[u32; 3]],
+    intensities: Option<&[Vec<f64>]>,
+    times: &[f64],
+) -> Result<(), IoError> {
+    let (k, v) = (
+        positions.len() as u64,
+        positions.first().map_or(0, Vec::len) as u64,
+    );
+    let coordinates: Vec<f64> = positions
+        .iter()
+        .flatten()
+        .flat_map(|p| [p.x, p.y, p.z])
+        .collect();
+    write_npy(&dir.join("positions.npy"), &[k, v, 3], &coordinates)?;
+    let indices: Vec<i64> = faces.iter().flatten().map(|&i| i as i64).collect();
+    write_npy(&dir.join("faces.npy"), &[faces.len() as u64, 3], &indices)?;
+    if let Some(intensities) = intensities {
+        let values: Vec<f64> = intensities.iter().flatten().copied().collect();
+        write_npy(&dir.join("intensity.npy"), &[k, v], &values)?;
+    }
+    write_atomically(&dir.join("times.txt"), |w| {
+        use std::io::Write;
+        times.iter().try_for_each(|t| writeln!(w, "{t}"))
+    })
+}

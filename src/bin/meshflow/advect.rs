@@ -6,7 +6,7 @@ use crate::{Cli, Command};
 use clap::Parser;
 use meshflow::flow::{advect as carry, vertex_seeds, Trajectories};
 use meshflow::io::{
-    load_sequence, read_npy_float, write_atomically, write_npy, IoError, Overwrite, RunManifest,
+    load_sequence, read_npy_float, write_npy, write_npy_sequence, IoError, Overwrite, RunManifest,
     StagedDir,
 };
 use meshflow::Error;
@@ -99,43 +99,17 @@ fn write_outputs(
         .flat_map(|p| [p.x, p.y, p.z])
         .collect();
     write_npy(&dir.join("trajectories.npy"), &[k, n, 3], &flat)?;
-    write_npy(&dir.join("positions.npy"), &[k, n, 3], &flat)?;
-    let faces: Vec<i64> = trajectories
-        .points
-        .iter()
-        .flatten()
-        .map(|p| p.face as i64)
-        .collect();
+    let points = || trajectories.points.iter().flatten();
+    let faces: Vec<i64> = points().map(|p| p.face as i64).collect();
     write_npy(&dir.join("trajectory_faces.npy"), &[k, n], &faces)?;
-    let barycentric: Vec<f64> = trajectories
-        .points
-        .iter()
-        .flatten()
-        .flat_map(|p| p.barycentric)
-        .collect();
+    let barycentric: Vec<f64> = points().flat_map(|p| p.barycentric).collect();
     write_npy(
         &dir.join("trajectory_barycentric.npy"),
         &[k, n, 3],
         &barycentric,
     )?;
-    let mesh_faces: Vec<i64> = sequence
-        .mesh()
-        .faces()
-        .iter()
-        .flatten()
-        .map(|&i| i as i64)
-        .collect();
-    write_npy(
-        &dir.join("faces.npy"),
-        &[mesh_faces.len() as u64 / 3, 3],
-        &mesh_faces,
-    )?;
-    let image: Vec<f64> = grey.iter().flatten().copied().collect();
-    write_npy(&dir.join("intensity.npy"), &[k, n], &image)?;
-    write_atomically(&dir.join("times.txt"), |w| {
-        use std::io::Write;
-        sequence.times().iter().try_for_each(|t| writeln!(w, "{t}"))
-    })?;
+    let mesh_faces = sequence.mesh().faces();
+    write_npy_sequence(dir, &positions, mesh_faces, Some(grey), sequence.times())?;
     Ok(())
 }
 

@@ -3,8 +3,8 @@
 
 use crate::progress::during;
 use meshflow::io::{
-    load_mesh, load_sequence, read_mesh, read_times_file, write_atomically, write_npy, LoadOptions,
-    Overwrite, SequenceSource, StagedDir,
+    load_mesh, load_sequence, read_mesh, read_times_file, write_atomically, write_npy_sequence,
+    LoadOptions, Overwrite, SequenceSource, StagedDir,
 };
 use meshflow::shapes::Surface;
 use meshflow::track::{track, FrameReport, TrackFrame, TrackOptions, Tracked};
@@ -129,33 +129,15 @@ fn read_frames(input: &Path, load: &LoadOptions) -> Result<InputFrames, Error> {
 fn write_outputs(staged: &StagedDir, tracked: &Tracked, has_grey: bool) -> Result<(), Error> {
     let dir = staged.path();
     let sequence = &tracked.sequence;
-    let (k, v) = (
-        sequence.n_frames() as u64,
-        sequence.mesh().n_vertices() as u64,
-    );
-    let positions: Vec<f64> = (0..sequence.n_frames())
-        .flat_map(|f| sequence.positions(f).expect("tracked in R^3").to_vec())
-        .flat_map(|p| [p.x, p.y, p.z])
+    let frames = 0..sequence.n_frames();
+    let positions: Vec<_> = frames
+        .clone()
+        .map(|f| sequence.positions(f).expect("tracked in R^3").to_vec())
         .collect();
-    write_npy(&dir.join("positions.npy"), &[k, v, 3], &positions)?;
-    let faces: Vec<i64> = sequence
-        .mesh()
-        .faces()
-        .iter()
-        .flatten()
-        .map(|&i| i as i64)
-        .collect();
-    write_npy(&dir.join("faces.npy"), &[faces.len() as u64 / 3, 3], &faces)?;
-    if has_grey {
-        let grey: Vec<f64> = (0..sequence.n_frames())
-            .flat_map(|f| sequence.intensities(f).to_vec())
-            .collect();
-        write_npy(&dir.join("intensity.npy"), &[k, v], &grey)?;
-    }
-    write_atomically(&dir.join("times.txt"), |w| {
-        use std::io::Write;
-        sequence.times().iter().try_for_each(|t| writeln!(w, "{t}"))
-    })?;
+    let grey: Vec<_> = frames.map(|f| sequence.intensities(f).to_vec()).collect();
+    let faces = sequence.mesh().faces();
+    let intensities = has_grey.then_some(&grey[..]);
+    write_npy_sequence(dir, &positions, faces, intensities, sequence.times())?;
     let report = serde_json::to_string_pretty(&tracked.report).expect("a report serializes");
     write_atomically(&dir.join("track.json"), |w| {
         use std::io::Write;
