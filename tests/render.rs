@@ -1071,3 +1071,51 @@ fn png_files_round_trip_and_are_written_atomically() {
     let error = write_png(&directory.path().join("missing/dir/x.png"), &image).unwrap_err();
     assert!(error.to_string().contains("missing/dir/x.png"), "{error}");
 }
+
+/// Paths are drawn for the vertices arrows would get (one per screen cell), each ending in a
+/// dot of the last colour; a path through a point hidden behind the surface loses that segment.
+#[test]
+fn paths_are_drawn_where_visible_from_the_arrow_cells() {
+    use meshflow::render::glyphs::draw_paths;
+    let (positions, faces) = sphere_at(Vector3::zeros());
+    let camera = camera_from_front(4.0, 200, 200);
+    let end = [1.0, 0.0, 0.0];
+    let turn = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 0.2);
+    let paths: Vec<Vec<Vector3<f64>>> = positions.iter().map(|p| vec![*p, turn * p]).collect();
+    let mut canvas = white_surface(&camera, &positions, &faces);
+    let chosen = glyph_vertices(&canvas, &camera, &positions, &faces, 20.0).len();
+    let drawn = draw_paths(
+        &mut canvas,
+        &camera,
+        (&positions, &faces),
+        &paths,
+        20.0,
+        2.0,
+        |_| end,
+    )
+    .unwrap();
+    assert!(
+        chosen > 10 && drawn > chosen / 2 && drawn <= chosen,
+        "{drawn} of {chosen}"
+    );
+    let image = canvas.finish();
+    let red = image
+        .pixels()
+        .filter(|p| p[0] > 200 && p[1] < 60 && p[2] < 60)
+        .count();
+    assert!(red > 5 * drawn, "{red} red pixels for {drawn} paths");
+    // Paths that end on the far side of the sphere draw no dot.
+    let hidden: Vec<Vec<Vector3<f64>>> = positions.iter().map(|p| vec![*p, -p]).collect();
+    let mut canvas = white_surface(&camera, &positions, &faces);
+    let drawn = draw_paths(
+        &mut canvas,
+        &camera,
+        (&positions, &faces),
+        &hidden,
+        20.0,
+        2.0,
+        |_| end,
+    )
+    .unwrap();
+    assert_eq!(drawn, 0);
+}

@@ -10,6 +10,7 @@
 //! | [`flow_picture`] | `flow_color(screen_components(u_i) / scale)` | colour wheel, rim = `scale` |
 //! | [`arrow_picture`] | `grey(I_i)`, plus arrows of `u_i` | reference arrow of length `scale` |
 //! | [`scalar_picture`] | `viridis(v_i)` over the range | colour bar with min and max |
+//! | [`trajectory_picture`] | grey values, with paths of moving points as polylines (viridis along time) | a dot at each path's end |
 //!
 //! Arrays must have one entry per vertex, faces must name existing vertices, scales must be
 //! positive and ranges finite with `min ≤ max`, or a [`RenderError`] says which is wrong.
@@ -198,6 +199,30 @@ pub fn chart_picture(
             [0; 3]
         })
     }))
+}
+
+/// The surface shaded in grey with the paths of moving points drawn over it
+/// ([`super::glyphs::draw_paths`]: `paths[i]` starts at vertex `i`, as points on this
+/// surface), coloured along time from dark to bright (viridis), one path per arrow cell.
+pub fn trajectory_picture(
+    camera: &Camera,
+    surface: Surface,
+    intensity: &[f64],
+    range: (f64, f64),
+    paths: &[Vec<Vector3<f64>>],
+    style: &PictureStyle,
+) -> Result<RgbImage, RenderError> {
+    let mut canvas = grey_surface(camera, surface, intensity, range, style)?;
+    super::glyphs::draw_paths(
+        &mut canvas,
+        camera,
+        (surface.positions, surface.faces),
+        paths,
+        style.arrow_spacing,
+        2.0,
+        |t| viridis(0.25 + 0.75 * t, 0.0, 1.0),
+    )?;
+    Ok(finish(canvas, style))
 }
 
 /// Writes `image` as a PNG file: encoded in memory, then written atomically.

@@ -218,3 +218,75 @@ pub fn draw_arrow(
     );
     true
 }
+
+/// Draws the paths of the seeds that start at the vertices chosen as for arrows (one per
+/// `spacing` screen cell, visible, facing the camera) over the surface already drawn on
+/// `canvas`: `paths[i]` is the path of the seed that started at vertex `i`, as points on the
+/// drawn surface, oldest first. Segments are `width` pixels wide and coloured along time by
+/// `colour(fraction)`, fraction 0 at the start and 1 at the end, where a dot marks the seed's
+/// last place; hidden segments are left out. Returns how many paths were drawn.
+pub fn draw_paths(
+    canvas: &mut Canvas,
+    camera: &Camera,
+    surface: (&[Vector3<f64>], &[[u32; 3]]),
+    paths: &[Vec<Vector3<f64>>],
+    spacing: f64,
+    width: f64,
+    colour: impl Fn(f64) -> [f64; 3],
+) -> Result<usize, RenderError> {
+    let (positions, faces) = surface;
+    check_count("paths", positions.len(), paths.len())?;
+    check_index_range(faces, positions.len())?;
+    check_positive("path spacing", spacing)?;
+    let visible = |p: &Vector3<f64>, canvas: &Canvas| {
+        let [x, y, depth] = camera.project(p)?;
+        (depth <= canvas.nearest_depth([x, y], 1) * (1.0 + DEPTH_TOLERANCE)).then_some([x, y])
+    };
+    let mut drawn = 0;
+    for vertex in glyph_vertices(canvas, camera, positions, faces, spacing) {
+        let points: Vec<Option<[f64; 2]>> =
+            paths[vertex].iter().map(|p| visible(p, canvas)).collect();
+        let last = points.len().saturating_sub(1).max(1) as f64;
+        for (k, pair) in points.windows(2).enumerate() {
+            if let [Some(from), Some(to)] = pair {
+                draw_segment(canvas, *from, *to, width, colour((k + 1) as f64 / last));
+            }
+        }
+        if let Some(Some(end)) = points.last() {
+            let r = width;
+            canvas.fill_convex(
+                &[
+                    [end[0] - r, end[1]],
+                    [end[0], end[1] - r],
+                    [end[0] + r, end[1]],
+                    [end[0], end[1] + r],
+                ],
+                colour(1.0),
+            );
+            drawn += 1;
+        }
+    }
+    Ok(drawn)
+}
+
+/// A segment `width` pixels wide (a quad).
+fn draw_segment(canvas: &mut Canvas, from: [f64; 2], to: [f64; 2], width: f64, colour: [f64; 3]) {
+    let delta = [to[0] - from[0], to[1] - from[1]];
+    let length = delta[0].hypot(delta[1]);
+    if !(length > 0.0 && length.is_finite()) {
+        return;
+    }
+    let across = [
+        -0.5 * width * delta[1] / length,
+        0.5 * width * delta[0] / length,
+    ];
+    canvas.fill_convex(
+        &[
+            [from[0] + across[0], from[1] + across[1]],
+            [to[0] + across[0], to[1] + across[1]],
+            [to[0] - across[0], to[1] - across[1]],
+            [from[0] - across[0], from[1] - across[1]],
+        ],
+        colour,
+    );
+}

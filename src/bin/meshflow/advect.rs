@@ -9,6 +9,8 @@ use meshflow::io::{
     load_sequence, read_npy_float, write_npy, write_npy_sequence, IoError, Overwrite, RunManifest,
     StagedDir,
 };
+use meshflow::render::colormap::finite_range;
+use meshflow::render::{trajectory_picture, write_png, Camera, PictureStyle, Surface, View};
 use meshflow::Error;
 use nalgebra::Vector2;
 use std::path::Path;
@@ -28,6 +30,8 @@ pub fn advect(run: &Path, out: &Path, overwrite: Overwrite) -> Result<(), Error>
     let grey = trajectories.intensities(sequence);
     write_outputs(&staged, sequence, &trajectories, &grey)
         .map_err(|e| staged.error_in_target(e))?;
+    let view = View::default().with_up(loaded.source.up());
+    draw_paths(&staged, sequence, &trajectories, view).map_err(|e| staged.error_in_target(e))?;
     staged.commit()?;
     report(sequence, &grey, &trajectories, run, out);
     Ok(())
@@ -110,6 +114,45 @@ fn write_outputs(
     )?;
     let mesh_faces = sequence.mesh().faces();
     write_npy_sequence(dir, &positions, mesh_faces, Some(grey), sequence.times())?;
+    Ok(())
+}
+
+/// `trajectories.png`: the last frame in grey with every path (mapped onto it) over it.
+fn draw_paths(
+    staged: &StagedDir,
+    sequence: &meshflow::flow::MeshSequence,
+    trajectories: &Trajectories,
+    view: View,
+) -> Result<(), Error> {
+    let last = sequence.n_frames() - 1;
+    let Some(positions) = sequence.positions(last) else {
+        return Ok(());
+    };
+    let mesh = sequence.mesh();
+    let n = trajectories.points[0].len();
+    let paths: Vec<Vec<_>> = (0..n)
+        .map(|i| {
+            trajectories
+                .points
+                .iter()
+                .map(|frame| frame[i].position(mesh, positions))
+                .collect()
+        })
+        .collect();
+    let image = sequence.intensities(last);
+    let (low, high) = finite_range(image).unwrap_or((0.0, 1.0));
+    let range = (low, high.max(low + f64::EPSILON));
+    let camera = Camera::framing(positions, view, 960, 720);
+    let surface = Surface {
+        positions,
+        faces: mesh.faces(),
+    };
+    let style = PictureStyle {
+        label: Some(format!("paths of frames 0-{last} on frame {last}")),
+        ..Default::default()
+    };
+    let picture = trajectory_picture(&camera, surface, image, range, &paths, &style)?;
+    write_png(&staged.path().join("trajectories.png"), &picture)?;
     Ok(())
 }
 
