@@ -33,18 +33,18 @@
 //! # Ok::<(), meshflow::Error>(())
 //! ```
 
-mod advect;
+pub mod advect;
 mod energy;
 mod error;
 mod params;
-mod pyramid;
+pub mod pyramid;
 mod scales;
 mod sequence;
 mod slab;
 mod solve;
 mod system;
 mod uniqueness;
-mod warp;
+pub mod warp;
 
 pub use advect::{advect, vertex_seeds, Trajectories, SUBSTEPS};
 pub use energy::EnergyTerms;

@@ -19,7 +19,7 @@ pub struct Slab {
     pub rate: Vec<f64>,
     /// The flow the data term is linearized around (vertex frames), `None` for zero: with
     /// images warped by it, `∂_t I + dI(u)` becomes `τ + G·R_a (u_a − ū_a)` at corner `a`
-    /// (see [`super::warp`]).
+    /// (see [`crate::flow::warped_slab`]).
     pub linearization: Option<Vec<Vector2<f64>>>,
 }
 
