@@ -944,9 +944,17 @@ fn large_motion_flags_choose_coarse_to_fine_warping() {
         "--out",
         &out("warped"),
         "--format",
-        "npy",
+        "npy,vtu",
         "--large-motion",
+        "--png",
+        "--slabs",
+        "0",
     ]);
+    let written = listing(&work.path().join("warped"));
+    assert!(
+        written.contains(&"residual_0000.png".to_string()),
+        "{written:?}"
+    );
     let flow = |name: &str| {
         read_npy(&work.path().join(name).join("flow.npy"))
             .unwrap()

@@ -85,6 +85,30 @@ fn large_motion_warping_recovers_a_fast_rotation() {
             .mean_angular_degrees
     };
     let (linear, warped) = (error(Warping::NONE), error(Warping::LARGE_MOTION));
+    // What warping leaves between the two frames read along the flow is a fraction of the
+    // change at rest.
+    let params = FlowParams {
+        warping: Warping::LARGE_MOTION,
+        ..FlowParams::paper(1.0, 0.0, 1e-4)
+    };
+    let residual = compute_flow(&scene.sequence, &params)
+        .unwrap()
+        .warped_residual
+        .unwrap();
+    let sequence = &scene.sequence;
+    let mean_abs =
+        |values: Vec<f64>| values.iter().map(|x| x.abs()).sum::<f64>() / values.len() as f64;
+    let left = mean_abs(residual.concat());
+    let at_rest = mean_abs(
+        (0..2)
+            .flat_map(|s| {
+                let (a, b) = (sequence.intensities(s), sequence.intensities(s + 1));
+                a.iter().zip(b).map(|(x, y)| y - x).collect::<Vec<_>>()
+            })
+            .collect(),
+    );
+    println!("warped residual {left:.2e}, at rest {at_rest:.2e}");
+    assert!(left < 0.1 * at_rest, "{left} vs {at_rest}");
     println!("linear {linear:.2}°, warped {warped:.2}°");
     assert!(linear > 30.0, "{linear}");
     assert!(warped < 2.5, "{warped}");

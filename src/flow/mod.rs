@@ -86,6 +86,10 @@ pub struct FlowResult {
     /// `vectors[s][i]`: the same in R^3, on frame `s` (`docs/discretization.md` §8); `None` for
     /// an intrinsic sequence.
     pub vectors: Option<Vec<Vec<Vector3<f64>>>>,
+    /// With coarse-to-fine warping: `warped_residual[s][i] = I⁺_i − I⁻_i`, the grey-value change
+    /// that remains between the two frames of slab `s` read halfway along the final flow
+    /// ([`warp`]); `None` for the single linear solve.
+    pub warped_residual: Option<Vec<Vec<f64>>>,
     /// `E(u)` at the solution.
     pub energy: f64,
     pub energy_terms: EnergyTerms,
@@ -274,6 +278,7 @@ impl<'a> FlowProblem<'a> {
             },
             intrinsic,
             vectors,
+            warped_residual: None,
         })
     }
 

@@ -74,6 +74,12 @@ pub(super) fn coarse_to_fine(
     }
     let mut result = result.expect("warping solves at least once");
     result.scales = *problem.scales();
+    let last = warped_slabs(sequence, &pyramid[0], &flow)?;
+    result.warped_residual = Some(
+        last.iter()
+            .map(|slab| slab.rate.iter().map(|r| r * slab.dt).collect())
+            .collect(),
+    );
     Ok(result)
 }
 

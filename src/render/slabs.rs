@@ -13,6 +13,7 @@
 //! | `flow_SSSS.png` | [`flow_picture`]: Middlebury colours of the flow's screen directions, with the wheel legend |
 //! | `arrows_SSSS.png` | [`arrow_picture`]: arrows on an even subsample of visible vertices |
 //! | `angular_error_SSSS.png` | [`scalar_picture`] of the angular error (degrees), when known |
+//! | `residual_SSSS.png` | [`scalar_picture`] of `|I⁺ − I⁻|`, the grey-value change left along the flow, with warping |
 //!
 //! labelled `slab s  t = t_s` (times with six significant digits, [`format_number`]).
 //! [`SlabSelection`] reads which slabs to draw from a list such as `0,5,10-20,last`.
@@ -43,6 +44,9 @@ pub struct SlabView<'a> {
     pub flow: &'a [Vector3<f64>],
     /// Angular error against a ground truth, degrees, one per vertex.
     pub angular_error: Option<&'a [f64]>,
+    /// With warping, the grey-value change left between the slab's frames read along the flow
+    /// ([`FlowResult::warped_residual`](crate::flow::FlowResult)).
+    pub warped_residual: Option<&'a [f64]>,
 }
 
 /// The views of slabs `slabs` of an embedded `sequence` with its R^3 flow `vectors[s]` (as in
@@ -64,6 +68,7 @@ pub fn sequence_views<'a>(
                 intensity: sequence.intensities(s),
                 flow: &vectors[s],
                 angular_error: angular_errors.map(|errors| errors[s].as_slice()),
+                warped_residual: None,
             })
         })
         .collect()
@@ -100,6 +105,7 @@ struct Shared {
     scale: f64,
     grey_range: (f64, f64),
     error_range: (f64, f64),
+    residual_range: (f64, f64),
 }
 
 impl Shared {
@@ -122,8 +128,13 @@ impl Shared {
             .iter()
             .flat_map(|v| v.angular_error.unwrap_or(&[]).iter().copied())
             .collect();
+        let residuals: Vec<f64> = slabs
+            .iter()
+            .flat_map(|v| v.warped_residual.unwrap_or(&[]).iter().map(|r| r.abs()))
+            .collect();
         Self {
             camera,
+            residual_range: (0.0, robust_max(&residuals)),
             scale: options.flow_scale.unwrap_or_else(|| robust_max(&speeds)),
             grey_range: widened(finite_range(&intensities).unwrap_or((0.0, 1.0))),
             error_range: (0.0, robust_max(&errors)),
@@ -216,6 +227,17 @@ fn write_one_slab(
         pictures.push((
             "angular_error",
             scalar_picture(camera, surface, errors, shared.error_range, &style)?,
+        ));
+    }
+    if let Some(residual) = view.warped_residual {
+        let style = PictureStyle {
+            label: Some(format!("|warped residual|, slab {}", view.slab)),
+            ..style.clone()
+        };
+        let magnitude: Vec<f64> = residual.iter().map(|r| r.abs()).collect();
+        pictures.push((
+            "residual",
+            scalar_picture(camera, surface, &magnitude, shared.residual_range, &style)?,
         ));
     }
     pictures

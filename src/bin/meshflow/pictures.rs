@@ -202,6 +202,7 @@ pub fn render_output(
             intensity: slabs[s].array("intensity").expect("checked on reading"),
             flow,
             angular_error: slabs[s].array("angular_error"),
+            warped_residual: slabs[s].array("warped_residual"),
         })
         .collect();
     let written = draw(staged.path(), &first.mesh.triangles, &views, args, view)
