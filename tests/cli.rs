@@ -1032,4 +1032,26 @@ fn advect_command_follows_the_vertices_of_a_run() {
         "--out",
         work.path().join("again").to_str().unwrap(),
     ]);
+
+    // Seeds off the surface start at their closest points; only the paths are written.
+    let seeds_file = work.path().join("seeds.npy");
+    let seeds: Vec<f64> = [start[10] * 1.02, start[300] * 0.99]
+        .iter()
+        .flat_map(|p| [p.x, p.y, p.z])
+        .collect();
+    meshflow::io::write_npy(&seeds_file, &[2, 3], &seeds).unwrap();
+    let seeded = work.path().join("seeded");
+    meshflow_ok(&[
+        "advect",
+        run.to_str().unwrap(),
+        "--seeds",
+        seeds_file.to_str().unwrap(),
+        "--out",
+        seeded.to_str().unwrap(),
+    ]);
+    let paths = read_npy(&seeded.join("trajectories.npy")).unwrap();
+    assert_eq!(paths.shape, vec![6, 2, 3]);
+    let first = nalgebra::Vector3::from_column_slice(&paths.data[0..3]);
+    assert!((first - start[10]).norm() < 1e-9, "{first:?}");
+    assert!(!seeded.join("positions.npy").exists());
 }

@@ -76,6 +76,19 @@ impl<'a> FrameSurface<'a> {
         self.sample(face as usize, Vector3::new(p.x, p.y, p.z))
     }
 
+    /// The closest point of the surface to `point` as a face and barycentric coordinates.
+    pub fn locate(&self, point: &Vector3<f64>) -> crate::geometry::SurfacePoint {
+        let (projection, (face, _)) = self
+            .bvh
+            .project_local_point_and_get_location(to_glam(point), false);
+        let p = projection.point;
+        let corners = self.faces[face as usize].map(|v| self.positions[v as usize]);
+        crate::geometry::SurfacePoint {
+            face: face as usize,
+            barycentric: barycentric(corners, &Vector3::new(p.x, p.y, p.z)),
+        }
+    }
+
     /// The grey value at `position` on face `face`: barycentric interpolation of its corners.
     fn sample(&self, face: usize, position: Vector3<f64>) -> SurfacePoint {
         let corners = self.faces[face].map(|v| v as usize);

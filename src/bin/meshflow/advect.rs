@@ -4,18 +4,25 @@
 use crate::progress::during;
 use crate::{Cli, Command};
 use clap::Parser;
-use meshflow::flow::{advect as carry, vertex_seeds, Trajectories};
+use meshflow::flow::{advect as carry, vertex_seeds, MeshSequence, Trajectories};
+use meshflow::geometry::SurfacePoint;
 use meshflow::io::{
     load_sequence, read_npy_float, write_npy, write_npy_sequence, IoError, Overwrite, RunManifest,
     StagedDir,
 };
 use meshflow::render::colormap::finite_range;
 use meshflow::render::{trajectory_picture, write_png, Camera, PictureStyle, Surface, View};
+use meshflow::track::FrameSurface;
 use meshflow::Error;
-use nalgebra::Vector2;
+use nalgebra::{Vector2, Vector3};
 use std::path::Path;
 
-pub fn advect(run: &Path, out: &Path, overwrite: Overwrite) -> Result<(), Error> {
+pub fn advect(
+    run: &Path,
+    out: &Path,
+    seeds_file: Option<&Path>,
+    overwrite: Overwrite,
+) -> Result<(), Error> {
     let args = solve_command(run)?;
     let mut staged = StagedDir::create(out, overwrite)?;
     staged.record_command(crate::command_line());
@@ -24,17 +31,53 @@ pub fn advect(run: &Path, out: &Path, overwrite: Overwrite) -> Result<(), Error>
     })?;
     let sequence = &loaded.sequence;
     let flow = read_flow(run, &loaded)?;
-    let trajectories = during("following the vertices", || {
-        carry(sequence, &flow, &vertex_seeds(sequence))
-    })?;
+    let seeds = match seeds_file {
+        Some(file) => located_seeds(file, sequence)?,
+        None => vertex_seeds(sequence),
+    };
+    let trajectories = during("following the seeds", || carry(sequence, &flow, &seeds))?;
     let grey = trajectories.intensities(sequence);
-    write_outputs(&staged, sequence, &trajectories, &grey)
-        .map_err(|e| staged.error_in_target(e))?;
-    let view = View::default().with_up(loaded.source.up());
-    draw_paths(&staged, sequence, &trajectories, view).map_err(|e| staged.error_in_target(e))?;
+    let target = |e| staged.error_in_target(e);
+    write_paths(&staged, sequence, &trajectories).map_err(target)?;
+    if seeds_file.is_none() {
+        write_reparametrized(&staged, sequence, &trajectories, &grey).map_err(target)?;
+        let view = View::default().with_up(loaded.source.up());
+        draw_paths(&staged, sequence, &trajectories, view).map_err(target)?;
+    }
     staged.commit()?;
-    report(sequence, &grey, &trajectories, run, out);
+    report(
+        sequence,
+        &grey,
+        &trajectories,
+        run,
+        out,
+        seeds_file.is_none(),
+    );
     Ok(())
+}
+
+/// The points of an (N, 3) `.npy`, each at its closest point of frame 0's surface.
+fn located_seeds(file: &Path, sequence: &MeshSequence) -> Result<Vec<SurfacePoint>, Error> {
+    let array = read_npy_float(file)?;
+    if !matches!(array.shape[..], [_, 3]) {
+        let shape = format!("shape {:?}, expected (points, 3)", array.shape);
+        return Err(IoError::format(file, shape).into());
+    }
+    if let Some(i) = array.data.iter().position(|x| !x.is_finite()) {
+        let what = format!("point {} has a non-finite coordinate", i / 3);
+        return Err(IoError::format(file, what).into());
+    }
+    let positions = sequence
+        .positions(0)
+        .ok_or_else(|| IoError::format(file, "an intrinsic sequence has no points to locate"))?;
+    let faces = sequence.mesh().faces();
+    let grey = sequence.intensities(0);
+    let surface = FrameSurface::new(0, positions, faces, grey)?;
+    Ok(array
+        .data
+        .chunks_exact(3)
+        .map(|p| surface.locate(&Vector3::new(p[0], p[1], p[2])))
+        .collect())
 }
 
 /// The `solve` arguments that made `run`, from its manifest.
@@ -83,11 +126,11 @@ fn read_flow(
         .collect())
 }
 
-fn write_outputs(
+/// `trajectories.npy` (K, N, 3), `trajectory_faces.npy` (K, N), `trajectory_barycentric.npy`.
+fn write_paths(
     staged: &StagedDir,
-    sequence: &meshflow::flow::MeshSequence,
+    sequence: &MeshSequence,
     trajectories: &Trajectories,
-    grey: &[Vec<f64>],
 ) -> Result<(), Error> {
     let dir = staged.path();
     let (k, n) = (
@@ -112,15 +155,34 @@ fn write_outputs(
         &[k, n, 3],
         &barycentric,
     )?;
-    let mesh_faces = sequence.mesh().faces();
-    write_npy_sequence(dir, &positions, mesh_faces, Some(grey), sequence.times())?;
+    Ok(())
+}
+
+/// The mesh riding on the flow (vertex seeds): an NPY sequence `solve` reads.
+fn write_reparametrized(
+    staged: &StagedDir,
+    sequence: &MeshSequence,
+    trajectories: &Trajectories,
+    grey: &[Vec<f64>],
+) -> Result<(), Error> {
+    let positions = trajectories
+        .positions(sequence)
+        .expect("written as paths already");
+    let faces = sequence.mesh().faces();
+    write_npy_sequence(
+        staged.path(),
+        &positions,
+        faces,
+        Some(grey),
+        sequence.times(),
+    )?;
     Ok(())
 }
 
 /// `trajectories.png`: the last frame in grey with every path (mapped onto it) over it.
 fn draw_paths(
     staged: &StagedDir,
-    sequence: &meshflow::flow::MeshSequence,
+    sequence: &MeshSequence,
     trajectories: &Trajectories,
     view: View,
 ) -> Result<(), Error> {
@@ -159,15 +221,16 @@ fn draw_paths(
 /// Per frame, the mean change of the image the moving vertices see, next to that of the
 /// vertices at rest.
 fn report(
-    sequence: &meshflow::flow::MeshSequence,
+    sequence: &MeshSequence,
     grey: &[Vec<f64>],
     trajectories: &Trajectories,
     run: &Path,
     out: &Path,
+    vertex_seeds: bool,
 ) {
     let stuck = trajectories.reached_boundary.iter().filter(|&&b| b).count();
     println!(
-        "{}: {} vertices followed through {} frames ({stuck} reached the boundary) -> {}",
+        "{}: {} points followed through {} frames ({stuck} reached the boundary) -> {}",
         run.display(),
         grey[0].len(),
         grey.len(),
@@ -176,7 +239,7 @@ fn report(
     let mean_change = |a: &[f64], b: &[f64]| {
         a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f64>() / a.len() as f64
     };
-    for k in 1..grey.len() {
+    for k in (1..grey.len()).filter(|_| vertex_seeds) {
         println!(
             "  frame {k:3}: mean image change along the trajectories {:.3e} (at rest {:.3e})",
             mean_change(&grey[k], &grey[0]),

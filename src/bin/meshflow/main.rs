@@ -73,6 +73,10 @@ enum Command {
         /// Output directory
         #[arg(long)]
         out: PathBuf,
+        /// Points to follow instead of the vertices: a float .npy of shape (N, 3), each taken
+        /// to its closest point on frame 0's surface (then only the paths are written)
+        #[arg(long, value_name = "FILE.npy")]
+        seeds: Option<PathBuf>,
         #[command(flatten)]
         force: ForceArg,
     },
@@ -322,7 +326,12 @@ fn main() -> ExitCode {
             force,
         } => operators::write_operators(&mesh, &out, &building.options(), force.overwrite()),
         Command::Solve(args) => solve::solve(&args),
-        Command::Advect { run, out, force } => advect::advect(&run, &out, force.overwrite()),
+        Command::Advect {
+            run,
+            out,
+            seeds,
+            force,
+        } => advect::advect(&run, &out, seeds.as_deref(), force.overwrite()),
         Command::Track(args) => track::run(track::TrackRequest {
             input: &args.input,
             out: &args.out,
