@@ -34,7 +34,7 @@ use crate::mesh::{ConnectivityError, Mesh};
 use crate::shapes::Surface;
 use nalgebra::Vector3;
 use rayon::prelude::*;
-pub use surface::{barycentric, FrameSurface, SurfacePoint};
+pub use surface::{barycentric, FrameSurface, SurfaceSample};
 
 /// One frame as read, with its own vertices and triangles.
 #[derive(Clone, Debug, Default)]
@@ -228,9 +228,9 @@ struct Step {
 
 /// Where one vertex went.
 enum Landing {
-    Hit(SurfacePoint),
-    Fallback(SurfacePoint),
-    Beyond(SurfacePoint),
+    Hit(SurfaceSample),
+    Fallback(SurfaceSample),
+    Beyond(SurfaceSample),
 }
 
 impl Tracker<'_> {

@@ -5,6 +5,7 @@
 //! points are converted at this boundary and nowhere else.
 
 use super::TrackError;
+use crate::geometry::SurfacePoint;
 use nalgebra::Vector3;
 use parry3d_f64::math::Vector;
 use parry3d_f64::query::{PointQueryWithLocation, Ray, RayCast};
@@ -18,9 +19,10 @@ pub struct FrameSurface<'a> {
     bvh: TriMesh,
 }
 
-/// A point on a frame's surface: where it is and the grey value there.
+/// A point on a frame's surface: where it is and the grey value there (the mesh-independent
+/// counterpart of [`SurfacePoint`], which names a face and barycentric coordinates).
 #[derive(Clone, Copy, Debug)]
-pub struct SurfacePoint {
+pub struct SurfaceSample {
     pub position: Vector3<f64>,
     pub intensity: f64,
 }
@@ -53,7 +55,7 @@ impl<'a> FrameSurface<'a> {
         origin: &Vector3<f64>,
         direction: &Vector3<f64>,
         max_distance: f64,
-    ) -> Option<SurfacePoint> {
+    ) -> Option<SurfaceSample> {
         [1.0, -1.0]
             .into_iter()
             .filter_map(|sign| {
@@ -68,37 +70,45 @@ impl<'a> FrameSurface<'a> {
     }
 
     /// The closest point of the surface to `point`.
-    pub fn closest_point(&self, point: &Vector3<f64>) -> SurfacePoint {
-        let (projection, (face, _)) = self
-            .bvh
-            .project_local_point_and_get_location(to_glam(point), false);
-        let p = projection.point;
-        self.sample(face as usize, Vector3::new(p.x, p.y, p.z))
+    pub fn closest_point(&self, point: &Vector3<f64>) -> SurfaceSample {
+        let (face, position) = self.project(point);
+        self.sample(face, position)
     }
 
     /// The closest point of the surface to `point` as a face and barycentric coordinates.
-    pub fn locate(&self, point: &Vector3<f64>) -> crate::geometry::SurfacePoint {
+    pub fn locate(&self, point: &Vector3<f64>) -> SurfacePoint {
+        let (face, position) = self.project(point);
+        SurfacePoint {
+            face,
+            barycentric: self.barycentric_on(face, &position),
+        }
+    }
+
+    /// The face and position of the closest point of the surface to `point`.
+    fn project(&self, point: &Vector3<f64>) -> (usize, Vector3<f64>) {
         let (projection, (face, _)) = self
             .bvh
             .project_local_point_and_get_location(to_glam(point), false);
         let p = projection.point;
-        let corners = self.faces[face as usize].map(|v| self.positions[v as usize]);
-        crate::geometry::SurfacePoint {
-            face: face as usize,
-            barycentric: barycentric(corners, &Vector3::new(p.x, p.y, p.z)),
-        }
+        (face as usize, Vector3::new(p.x, p.y, p.z))
+    }
+
+    fn barycentric_on(&self, face: usize, position: &Vector3<f64>) -> [f64; 3] {
+        barycentric(
+            self.faces[face].map(|v| self.positions[v as usize]),
+            position,
+        )
     }
 
     /// The grey value at `position` on face `face`: barycentric interpolation of its corners.
-    fn sample(&self, face: usize, position: Vector3<f64>) -> SurfacePoint {
-        let corners = self.faces[face].map(|v| v as usize);
-        let weights = barycentric(corners.map(|v| self.positions[v]), &position);
-        let intensity = corners
+    fn sample(&self, face: usize, position: Vector3<f64>) -> SurfaceSample {
+        let weights = self.barycentric_on(face, &position);
+        let intensity = self.faces[face]
             .iter()
             .zip(weights)
-            .map(|(&v, w)| w * self.intensity[v])
+            .map(|(&v, w)| w * self.intensity[v as usize])
             .sum();
-        SurfacePoint {
+        SurfaceSample {
             position,
             intensity,
         }
