@@ -188,21 +188,21 @@ impl Connection {
             let width = scale * geometry.triangle(c.face as usize).angles[c.local as usize];
             (start, width)
         };
-        // Offset of ψ into a sector, clamped to it; the corner with the least clamping wins.
-        let (corner, offset) = fan
+        // Offset of ψ into each sector, clamped to it, and how far ψ lies outside (0 inside);
+        // the corner ψ lies least outside of wins.
+        let (corner, offset, _) = fan
             .iter()
             .map(|c| {
                 let (start, width) = sector(c);
                 let offset = (psi - start).rem_euclid(2.0 * PI);
-                let clamped = match offset <= width {
-                    true => offset,
-                    false if 2.0 * PI - offset < offset - width => 0.0,
-                    false => width,
-                };
-                (*c, clamped, (offset - clamped).abs().min(2.0 * PI - offset))
+                let (before, after) = (2.0 * PI - offset, offset - width);
+                match offset <= width {
+                    true => (*c, offset, 0.0),
+                    false if before < after => (*c, 0.0, before),
+                    false => (*c, width, after),
+                }
             })
             .min_by(|a, b| a.2.total_cmp(&b.2))
-            .map(|(c, clamped, _)| (c, clamped))
             .expect("every vertex has a corner");
         let (face, local) = (corner.face as usize, corner.local as usize);
         let angle = geometry.triangle(face).first_edge_angles()[local] + offset / scale;
