@@ -42,7 +42,8 @@ pub use input::{FrameFormat, SequenceSource};
 pub use mtl::{texture_intensity, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};
 pub use npy::{
-    read_npy, read_npy_float, read_npy_indices, write_npy, write_npy_sequence, NpyArray,
+    read_npy, read_npy_float, read_npy_indices, write_npy, write_npy_sequence, write_npy_vectors,
+    NpyArray,
 };
 pub use obj::{read_obj, write_obj, ObjMesh};
 pub use prepare::{load_mesh, read_mesh_geometry, LoadedMesh};

@@ -185,12 +185,7 @@ pub fn write_npy_sequence(
         positions.len() as u64,
         positions.first().map_or(0, Vec::len) as u64,
     );
-    let coordinates: Vec<f64> = positions
-        .iter()
-        .flatten()
-        .flat_map(|p| [p.x, p.y, p.z])
-        .collect();
-    write_npy(&dir.join("positions.npy"), &[k, v, 3], &coordinates)?;
+    write_npy_vectors(&dir.join("positions.npy"), positions)?;
     let indices: Vec<i64> = faces.iter().flatten().map(|&i| i as i64).collect();
     write_npy(&dir.join("faces.npy"), &[faces.len() as u64, 3], &indices)?;
     if let Some(intensities) = intensities {
@@ -201,4 +196,15 @@ pub fn write_npy_sequence(
         use std::io::Write;
         times.iter().try_for_each(|t| writeln!(w, "{t}"))
     })
+}
+
+/// Writes `rows[k][n]` as a float64 `.npy` of shape (K, N, 3) (all rows of equal length).
+pub fn write_npy_vectors(path: &Path, rows: &[Vec<nalgebra::Vector3<f64>>]) -> Result<(), IoError> {
+    let (k, n) = (rows.len() as u64, rows.first().map_or(0, Vec::len) as u64);
+    let values: Vec<f64> = rows
+        .iter()
+        .flatten()
+        .flat_map(|p| [p.x, p.y, p.z])
+        .collect();
+    write_npy(path, &[k, n, 3], &values)
 }

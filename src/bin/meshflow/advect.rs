@@ -7,8 +7,8 @@ use clap::Parser;
 use meshflow::flow::{advect as carry, vertex_seeds, MeshSequence, Trajectories};
 use meshflow::geometry::SurfacePoint;
 use meshflow::io::{
-    load_sequence, read_npy_float, write_npy, write_npy_sequence, IoError, Overwrite, RunManifest,
-    StagedDir,
+    load_sequence, read_npy_float, write_npy, write_npy_sequence, write_npy_vectors, IoError,
+    Overwrite, RunManifest, StagedDir,
 };
 use meshflow::render::colormap::finite_range;
 use meshflow::render::{trajectory_picture, write_png, Camera, PictureStyle, Surface, View};
@@ -37,10 +37,19 @@ pub fn advect(
     };
     let trajectories = during("following the seeds", || carry(sequence, &flow, &seeds))?;
     let grey = trajectories.intensities(sequence);
+    let positions = trajectories.positions(sequence).ok_or_else(|| {
+        IoError::format(
+            &args.input,
+            "an intrinsic sequence has no positions to follow",
+        )
+    })?;
     let target = |e| staged.error_in_target(e);
-    write_paths(&staged, sequence, &trajectories).map_err(target)?;
+    write_paths(&staged, &positions, &trajectories).map_err(target)?;
     if seeds_file.is_none() {
-        write_reparametrized(&staged, sequence, &trajectories, &grey).map_err(target)?;
+        // The mesh riding on the flow: an NPY sequence `solve` reads.
+        let (faces, times) = (sequence.mesh().faces(), sequence.times());
+        write_npy_sequence(staged.path(), &positions, faces, Some(&grey), times)
+            .map_err(|e| target(e.into()))?;
         let view = View::default().with_up(loaded.source.up());
         draw_paths(&staged, sequence, &trajectories, view).map_err(target)?;
     }
@@ -126,26 +135,16 @@ fn read_flow(
         .collect())
 }
 
-/// `trajectories.npy` (K, N, 3), `trajectory_faces.npy` (K, N), `trajectory_barycentric.npy`.
+/// `trajectories.npy` (K, N, 3: `positions`), `trajectory_faces.npy` (K, N),
+/// `trajectory_barycentric.npy` (K, N, 3).
 fn write_paths(
     staged: &StagedDir,
-    sequence: &MeshSequence,
+    positions: &[Vec<Vector3<f64>>],
     trajectories: &Trajectories,
 ) -> Result<(), Error> {
     let dir = staged.path();
-    let (k, n) = (
-        trajectories.points.len() as u64,
-        trajectories.points[0].len() as u64,
-    );
-    let positions = trajectories
-        .positions(sequence)
-        .ok_or_else(|| IoError::format(dir, "an intrinsic sequence has no positions to follow"))?;
-    let flat: Vec<f64> = positions
-        .iter()
-        .flatten()
-        .flat_map(|p| [p.x, p.y, p.z])
-        .collect();
-    write_npy(&dir.join("trajectories.npy"), &[k, n, 3], &flat)?;
+    write_npy_vectors(&dir.join("trajectories.npy"), positions)?;
+    let (k, n) = (positions.len() as u64, positions[0].len() as u64);
     let points = || trajectories.points.iter().flatten();
     let faces: Vec<i64> = points().map(|p| p.face as i64).collect();
     write_npy(&dir.join("trajectory_faces.npy"), &[k, n], &faces)?;
@@ -154,27 +153,6 @@ fn write_paths(
         &dir.join("trajectory_barycentric.npy"),
         &[k, n, 3],
         &barycentric,
-    )?;
-    Ok(())
-}
-
-/// The mesh riding on the flow (vertex seeds): an NPY sequence `solve` reads.
-fn write_reparametrized(
-    staged: &StagedDir,
-    sequence: &MeshSequence,
-    trajectories: &Trajectories,
-    grey: &[Vec<f64>],
-) -> Result<(), Error> {
-    let positions = trajectories
-        .positions(sequence)
-        .expect("written as paths already");
-    let faces = sequence.mesh().faces();
-    write_npy_sequence(
-        staged.path(),
-        &positions,
-        faces,
-        Some(grey),
-        sequence.times(),
     )?;
     Ok(())
 }
