@@ -1,15 +1,42 @@
 //! Synthetic sequences, most with a known flow (measure computed flows against it with
 //! [`crate::accuracy`]).
 
+use crate::connection::{vertex_frames_in_r3, Connection};
 use crate::flow::{FlowError, MeshSequence};
 use crate::shapes::{icosphere, uv_sphere, Surface};
 use crate::track::TrackFrame;
-use nalgebra::{Rotation3, Vector3};
+use nalgebra::{Rotation3, Vector2, Vector3};
 
 /// A sequence and the flow that generated it: `flow[s][i]` in R^3 on frame `s`.
 pub struct GroundTruth {
     pub sequence: MeshSequence,
     pub flow: Vec<Vec<Vector3<f64>>>,
+}
+
+impl GroundTruth {
+    /// The true flow in the vertex frames of each slab (`docs/discretization.md` §7), as
+    /// [`crate::flow::FlowResult::intrinsic`]: `P_iᵀ u_i` with `P_i` the orthonormal frame of
+    /// vertex `i` on frame `s` (the tangential part; synthetic flows are tangent already).
+    pub fn intrinsic_flow(&self) -> Result<Vec<Vec<Vector2<f64>>>, FlowError> {
+        let mesh = self.sequence.mesh();
+        (0..self.sequence.n_slabs())
+            .map(|s| {
+                let geometry = self.sequence.slab_geometry(s)?;
+                let connection = Connection::new(mesh, &geometry);
+                let positions = self
+                    .sequence
+                    .positions(s)
+                    .expect("synthetic frames are embedded");
+                let frames = vertex_frames_in_r3(mesh, &geometry, &connection, positions)
+                    .map_err(|source| FlowError::Frame { frame: s, source })?;
+                Ok(frames
+                    .iter()
+                    .zip(&self.flow[s])
+                    .map(|(p, u)| p.transpose() * u)
+                    .collect())
+            })
+            .collect()
+    }
 }
 
 /// A smooth grey-value pattern on R^3 with features in every direction (range about [0, 1]).

@@ -13,6 +13,8 @@ pub enum FlowError {
         expected: usize,
         got: usize,
     },
+    #[error("interrupted")]
+    Interrupted,
     #[error("frame {frame}: {source}")]
     Frame {
         frame: usize,

@@ -56,7 +56,7 @@ pub use scales::DataScales;
 pub(crate) use sequence::check_finite_intensities;
 pub use sequence::MeshSequence;
 pub use slab::Slab;
-pub use solve::{SolveEvent, SolverMethod};
+pub use solve::{SolveEvent, SolveObserver, SolverMethod};
 pub use system::{LinkMatrix, SpaceTimeSystem};
 pub use warp::warped_slab;
 
@@ -244,7 +244,7 @@ impl<'a> FlowProblem<'a> {
 
     /// Minimizes the energy (coarse to fine when [`FlowParams::warping`] asks for it);
     /// `observer` receives progress reports.
-    pub fn solve(&self, observer: &(dyn Fn(SolveEvent) + Sync)) -> Result<FlowResult, FlowError> {
+    pub fn solve(&self, observer: &dyn SolveObserver) -> Result<FlowResult, FlowError> {
         if self.params.warping.is_active() {
             return warp::coarse_to_fine(self, observer);
         }

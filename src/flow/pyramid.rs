@@ -1,5 +1,6 @@
 //! The images at coarser scales, for coarse-to-fine warping: heat diffusion on each frame's
-//! own surface, by implicit steps that share one factorization per frame.
+//! own surface, by implicit steps that share one factorization per frame (and one ordering
+//! for all frames).
 //!
 //! ```text
 //! (M + τ L) I^{n+1} = M I^n        (M: P1 mass, L: cotan Laplacian of frame k)
@@ -16,8 +17,10 @@ use super::solve::cholesky::{analyze, CholeskyFactor};
 use super::{FlowError, MeshSequence};
 use crate::fem::{cotan_laplacian, scalar_mass, MassKind, SparseMatrix};
 use crate::geometry::IntrinsicGeometry;
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// `t_max / ρ²`: the coarsest heat time relative to the surface's radius squared.
 pub const COARSEST_HEAT_TIME: f64 = 0.15;
@@ -39,13 +42,28 @@ pub fn scale_pyramid(
     levels: usize,
 ) -> Result<Vec<Vec<Vec<f64>>>, FlowError> {
     let mesh = sequence.mesh();
+    let geometry = |k: usize| {
+        IntrinsicGeometry::new(mesh, sequence.edge_lengths(k).to_vec())
+            .map_err(|source| FlowError::Frame { frame: k, source })
+    };
+    // Every frame's `M + τL` has the mesh's pattern: one ordering serves them all.
+    let symbolic = match levels {
+        0 | 1 => None,
+        _ => Some(analyze(
+            heat_operator(mesh, &geometry(0)?, 1.0).1.symbolic(),
+            1,
+        )),
+    };
     let per_frame: Vec<Vec<Vec<f64>>> = (0..sequence.n_frames())
         .into_par_iter()
         .map(|k| {
-            let geometry = IntrinsicGeometry::new(mesh, sequence.edge_lengths(k).to_vec())
-                .map_err(|source| FlowError::Frame { frame: k, source })?;
+            let geometry = geometry(k)?;
             let times = heat_times(levels, geometry.total_area());
-            heat_levels(mesh, &geometry, sequence.intensities(k), &times, k)
+            let image = sequence.intensities(k);
+            match &symbolic {
+                Some(symbolic) => heat_levels(mesh, &geometry, symbolic, image, &times, k),
+                None => Ok(vec![image.to_vec()]),
+            }
         })
         .collect::<Result<_, _>>()?;
     Ok((0..levels)
@@ -53,28 +71,37 @@ pub fn scale_pyramid(
         .collect())
 }
 
-/// One image at the heat times `times` (`times[ℓ] = τ 4^{ℓ−1}`, `τ = times[1]`).
+/// The consistent mass `M` and the heat step's operator `M + τL`.
+fn heat_operator(
+    mesh: &crate::mesh::Mesh,
+    geometry: &IntrinsicGeometry,
+    step: f64,
+) -> (SparseMatrix, SparseMatrix) {
+    let mass = scalar_mass(mesh, geometry, MassKind::Consistent);
+    let operator = sum_of(&mass, &cotan_laplacian(mesh, geometry), step);
+    (mass, operator)
+}
+
+/// One image at the heat times `times` (`times[ℓ] = τ 4^{ℓ−1}`, `τ = times[1]`; at least two
+/// levels), factorized on the shared ordering `symbolic`.
 fn heat_levels(
     mesh: &crate::mesh::Mesh,
     geometry: &IntrinsicGeometry,
+    symbolic: &Arc<SymbolicCholesky<usize>>,
     image: &[f64],
     times: &[f64],
     frame: usize,
 ) -> Result<Vec<Vec<f64>>, FlowError> {
-    let mut levels = vec![image.to_vec()];
-    let Some(&step) = times.get(1) else {
-        return Ok(levels);
-    };
-    let mass = scalar_mass(mesh, geometry, MassKind::Consistent);
-    let operator = sum_of(&mass, &cotan_laplacian(mesh, geometry), step);
-    let symbolic = analyze(operator.symbolic(), 1);
+    let step = times[1];
+    let (mass, operator) = heat_operator(mesh, geometry, step);
     let factor =
-        CholeskyFactor::<f64>::new(&symbolic, operator.as_ref(), Par::Seq).map_err(|detail| {
+        CholeskyFactor::<f64>::new(symbolic, operator.as_ref(), Par::Seq).map_err(|detail| {
             FlowError::Factorization {
                 what: format!("the heat step of frame {frame}"),
                 detail,
             }
         })?;
+    let mut levels = vec![image.to_vec()];
     let mut current = image.to_vec();
     let mut steps_done = 0;
     for &t in &times[1..] {

@@ -28,7 +28,8 @@
 
 use super::pyramid::scale_pyramid;
 use super::slab::Slab;
-use super::{FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence, SolveEvent, Weight};
+use super::{FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence, SolveEvent};
+use super::{SolveObserver, Weight};
 use crate::connection::Connection;
 use crate::geometry::trace;
 use nalgebra::Vector2;
@@ -38,7 +39,7 @@ use rayon::prelude::*;
 /// original images'); the result is the last, finest solve's, with the original data scales.
 pub(super) fn coarse_to_fine(
     problem: &FlowProblem,
-    observer: &(dyn Fn(SolveEvent) + Sync),
+    observer: &dyn SolveObserver,
 ) -> Result<FlowResult, FlowError> {
     let sequence = problem.sequence();
     let warping = problem.params().warping;
@@ -59,12 +60,12 @@ pub(super) fn coarse_to_fine(
         };
         for warp in 0..warping.warps {
             solves += 1;
-            observer(SolveEvent::Warp {
+            observer.notify(SolveEvent::Warp {
                 level,
                 warp,
                 solve: solves,
                 solves: warping.solves(),
-            });
+            })?;
             let slabs = warped_slabs(sequence, &pyramid[level], &flow)?;
             let level_problem = FlowProblem::from_slabs(sequence, &params, slabs)?;
             let solved = level_problem.solve(observer)?;

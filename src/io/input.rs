@@ -52,6 +52,8 @@ pub enum SequenceSource {
     GltfAnimation(PathBuf),
     /// A directory with `positions.npy`, `faces.npy` and optionally `intensity.npy`.
     Npy(PathBuf),
+    /// Arrays in memory ([`super::sequence_from_arrays`]): no files.
+    Arrays,
 }
 
 impl SequenceSource {
@@ -84,17 +86,19 @@ impl SequenceSource {
             Self::Frames { files, .. } => files.clone(),
             Self::GltfAnimation(file) => vec![file.clone()],
             Self::Npy(dir) => vec![dir.join("positions.npy"), dir.join("faces.npy")],
+            Self::Arrays => Vec::new(),
         }
     }
 
-    /// Where a `times.txt` for this sequence would be.
-    pub fn directory(&self) -> PathBuf {
-        let first = match self {
-            Self::Npy(dir) => return dir.clone(),
-            Self::Frames { files, .. } => &files[0],
-            Self::GltfAnimation(file) => file,
+    /// Where a `times.txt` for this sequence would be: beside its files (`None` for arrays).
+    pub fn times_file(&self) -> Option<PathBuf> {
+        let directory = match self {
+            Self::Npy(dir) => dir.as_path(),
+            Self::Frames { files, .. } => files[0].parent().unwrap_or(Path::new(".")),
+            Self::GltfAnimation(file) => file.parent().unwrap_or(Path::new(".")),
+            Self::Arrays => return None,
         };
-        first.parent().unwrap_or(Path::new(".")).to_path_buf()
+        Some(directory.join("times.txt"))
     }
 
     /// The axis that is up by the input format's convention: +y for glTF (its specification
@@ -106,7 +110,7 @@ impl SequenceSource {
                 ..
             }
             | Self::GltfAnimation(_) => UpAxis::Y,
-            Self::Frames { .. } | Self::Npy(_) => UpAxis::Z,
+            Self::Frames { .. } | Self::Npy(_) | Self::Arrays => UpAxis::Z,
         }
     }
 
@@ -116,6 +120,7 @@ impl SequenceSource {
             Self::Frames { format, files } => format!("{} {} frames", files.len(), format.name()),
             Self::GltfAnimation(_) => "glTF morph animation".into(),
             Self::Npy(_) => "NPY arrays".into(),
+            Self::Arrays => "arrays in memory".into(),
         }
     }
 

@@ -284,10 +284,33 @@ pub fn load_mesh(path: &Path, options: &LoadOptions) -> Result<LoadedMesh, Error
     let FrameMesh {
         positions, faces, ..
     } = read_mesh_geometry(path)?;
+    built_mesh(path, positions, &faces, options)
+}
+
+/// A mesh from arrays in memory, built as [`load_mesh`] builds a file's (`file` is `"arrays"`).
+pub fn mesh_from_arrays(
+    positions: Vec<Vector3<f64>>,
+    faces: &[[u32; 3]],
+    options: &LoadOptions,
+) -> Result<LoadedMesh, Error> {
+    built_mesh(
+        Path::new(super::sequence::ARRAYS),
+        positions,
+        faces,
+        options,
+    )
+}
+
+fn built_mesh(
+    path: &Path,
+    positions: Vec<Vector3<f64>>,
+    faces: &[[u32; 3]],
+    options: &LoadOptions,
+) -> Result<LoadedMesh, Error> {
     crate::geometry::check_finite_positions(&positions)
         .map_err(|e| Error::from(e).in_file(path))?;
     let frames = [positions];
-    let prepared = prepare_mesh(path, &faces, &frames, options)?;
+    let prepared = prepare_mesh(path, faces, &frames, options)?;
     let [positions] = frames;
     Ok(LoadedMesh {
         positions: prepared.vertex_map.positions(&positions),

@@ -92,6 +92,46 @@ pub struct LoadedSequence {
 pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequence, Error> {
     let source = SequenceSource::detect(path)?;
     check_options(&source, options, path)?;
+    let raw = read_raw(&source, options)?;
+    build_sequence(source, raw, options, path)
+}
+
+/// A sequence from arrays in memory, through the same steps as [`load_sequence`] (welding,
+/// orientation, repair per `options`; the [`VertexMap`] relates `positions`' numbering to the
+/// mesh's). `faces` index `positions[k]`; `intensities[k][i]` is file vertex `i`'s grey value in
+/// frame `k`; `times = None` means `options.times`, else `0, 1, 2, …`. Errors name the frame,
+/// vertex or face, and the argument (`"arrays: frame 3: …"`).
+pub fn sequence_from_arrays(
+    faces: Vec<[u32; 3]>,
+    positions: Vec<Vec<Vector3<f64>>>,
+    intensities: Vec<Vec<f64>>,
+    times: Option<Vec<f64>>,
+    options: &LoadOptions,
+) -> Result<LoadedSequence, Error> {
+    let source = SequenceSource::Arrays;
+    let path = Path::new(ARRAYS);
+    check_options(&source, options, path)?;
+    let raw = RawSequence {
+        faces,
+        sources: vec![path.to_path_buf(); positions.len()],
+        positions,
+        intensities: Some(intensities),
+        times,
+        warnings: Vec::new(),
+    };
+    build_sequence(source, raw, options, path)
+}
+
+/// What errors name when the input came as arrays (the Python package, library callers).
+pub(super) const ARRAYS: &str = "arrays";
+
+/// The steps after reading (module docs): mesh, grey values, times, sequence.
+fn build_sequence(
+    source: SequenceSource,
+    raw: RawSequence,
+    options: &LoadOptions,
+    path: &Path,
+) -> Result<LoadedSequence, Error> {
     let RawSequence {
         faces,
         positions,
@@ -99,11 +139,12 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
         times,
         sources: files,
         mut warnings,
-    } = read_raw(&source, options)?;
+    } = raw;
     if positions.len() < 2 {
         return Err(FlowError::TooFewFrames(positions.len()).into());
     }
     let n_file_vertices = positions[0].len();
+    check_frame_sizes(&positions, intensities.as_deref()).map_err(|e| in_frame_file(e, &files))?;
     check_finite_positions(&positions).map_err(|e| in_frame_file(e, &files))?;
     let prepared = prepare_mesh(&files[0], &faces, &positions, options)?;
     let vertex_map = prepared.vertex_map;
@@ -119,15 +160,16 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
     // Dropped vertices' grey values are never used.
     check_finite_intensities(&intensities, |i| vertex_map.mesh_vertex(i).is_some())
         .map_err(|e| in_frame_file(e, &files))?;
-    let times_file = source.directory().join("times.txt");
-    let (times, times_from_file) = match (&options.times, times) {
-        (Some(times), _) => (Some(times.clone()), false),
-        (None, Some(times)) => (Some(times), false),
-        (None, None) => {
-            let times = read_times_file(&times_file)?;
+    let times_file = source.times_file();
+    let (times, times_from_file) = match (&options.times, times, &times_file) {
+        (Some(times), _, _) => (Some(times.clone()), false),
+        (None, Some(times), _) => (Some(times), false),
+        (None, None, Some(file)) => {
+            let times = read_times_file(file)?;
             let from_file = times.is_some();
             (times, from_file)
         }
+        (None, None, None) => (None, false),
     };
     let positions = positions.iter().map(|p| vertex_map.positions(p)).collect();
     let intensities = intensities
@@ -135,9 +177,13 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
         .map(|v| vertex_map.mean_values(v))
         .collect();
     let sequence =
-        MeshSequence::new(prepared.mesh, positions, intensities, times).map_err(|e| match e {
-            e if times_from_file && is_about_times(&e) => Error::from(e).in_file(&times_file),
-            e => in_frame_file(e, &files),
+        MeshSequence::new(prepared.mesh, positions, intensities, times).map_err(|e| {
+            match (e, &times_file) {
+                (e, Some(file)) if times_from_file && is_about_times(&e) => {
+                    Error::from(e).in_file(file)
+                }
+                (e, _) => in_frame_file(e, &files),
+            }
         })?;
     warnings.extend(prepared.warnings);
     warnings.extend(static_image_warning(&sequence, path));
@@ -148,6 +194,35 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
         frame_files: files,
         warnings,
     })
+}
+
+/// Every frame has as many positions (and grey values) as frame 0 has positions: readers
+/// ensure it, arrays from a caller may not.
+fn check_frame_sizes(
+    positions: &[Vec<Vector3<f64>>],
+    intensities: Option<&[Vec<f64>]>,
+) -> Result<(), FlowError> {
+    let expected = positions[0].len();
+    let mismatch = |what: &'static str, got: usize| FlowError::CountMismatch {
+        what,
+        expected,
+        got,
+    };
+    if let Some(frame) = positions.iter().find(|p| p.len() != expected) {
+        return Err(mismatch("positions in every frame", frame.len()));
+    }
+    match intensities {
+        Some(grey) if grey.len() != positions.len() => Err(FlowError::CountMismatch {
+            what: "frames of grey values",
+            expected: positions.len(),
+            got: grey.len(),
+        }),
+        Some(grey) => match grey.iter().find(|g| g.len() != expected) {
+            Some(frame) => Err(mismatch("grey values in every frame", frame.len())),
+            None => Ok(()),
+        },
+        None => Ok(()),
+    }
 }
 
 /// [`LoadWarning::StaticImage`] when every frame's grey values equal frame 0's (to
@@ -190,6 +265,12 @@ fn check_options(
     path: &Path,
 ) -> Result<(), IoError> {
     let is_animation = matches!(source, SequenceSource::GltfAnimation(_));
+    if options.intensity.is_some() && matches!(source, SequenceSource::Arrays) {
+        return Err(IoError::format(
+            path,
+            "--intensity (a grey-value file) applies to files; arrays carry their grey values",
+        ));
+    }
     let is_ply = matches!(
         source,
         SequenceSource::Frames {
@@ -229,6 +310,7 @@ fn read_raw(source: &SequenceSource, options: &LoadOptions) -> Result<RawSequenc
         SequenceSource::Frames { format, files } => read_frames(*format, files, options),
         SequenceSource::GltfAnimation(file) => Ok(read_gltf_animation(file, options)?),
         SequenceSource::Npy(dir) => read_npy_sequence(dir),
+        SequenceSource::Arrays => unreachable!("arrays are not read"),
     }
 }
 

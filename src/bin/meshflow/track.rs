@@ -95,7 +95,8 @@ fn read_frames(input: &Path, load: &LoadOptions) -> Result<InputFrames, Error> {
                     })
                 })
                 .collect::<Result<Vec<_>, Error>>()?;
-            let times = read_times_file(&source.directory().join("times.txt"))?;
+            let times_file = source.times_file().expect("frames are files");
+            let times = read_times_file(&times_file)?;
             Ok(InputFrames {
                 frames,
                 times,
@@ -122,6 +123,7 @@ fn read_frames(input: &Path, load: &LoadOptions) -> Result<InputFrames, Error> {
                 first_file: file.clone(),
             })
         }
+        SequenceSource::Arrays => unreachable!("detect() finds files"),
     }
 }
 

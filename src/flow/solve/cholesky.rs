@@ -44,6 +44,9 @@ fn symbolic_with(
     Arc::new(symbolic)
 }
 
+/// Held around every METIS call (see [`nested_dissection`]).
+static METIS: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// METIS's nested-dissection order of the DOFs (`forward[new] = old`), by vertex blocks of
 /// `b` DOFs; `None` for a dimension that is not a multiple of `b`, a graph too large for
 /// METIS's 32-bit indices, or a METIS error.
@@ -68,6 +71,9 @@ fn nested_dissection(pattern: SymbolicSparseColMatRef<'_, usize>, b: usize) -> O
     }
     let mut nvtxs = n_vertices as i32;
     let (mut perm, mut iperm) = (vec![0i32; n_vertices], vec![0i32; n_vertices]);
+    // METIS keeps its random generator's state in globals (GKlib's Mersenne twister): calls
+    // from two threads race on it and return orderings that differ from run to run.
+    let _one_at_a_time = METIS.lock().unwrap_or_else(|e| e.into_inner());
     // SAFETY: xadj/adjncy form a valid CSR graph of nvtxs vertices (sorted, no duplicates, no
     // self loops, symmetric because the pattern is); perm and iperm hold nvtxs entries; null
     // vertex weights and options mean METIS's defaults.

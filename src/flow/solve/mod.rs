@@ -120,6 +120,35 @@ pub enum SolveEvent {
     },
 }
 
+/// Receives a running solve's [`SolveEvent`]s, and may stop it. Any `Fn(SolveEvent) + Sync`
+/// closure is one (never stopping); the Python package's also checks for Ctrl-C.
+pub trait SolveObserver: Sync {
+    fn event(&self, event: SolveEvent);
+    /// Asked after every event: `true` ends the solve with [`FlowError::Interrupted`]. Events
+    /// come at least once per iteration, warp and factorization, so a solve stops within one
+    /// iteration (a factorization in progress runs to its end).
+    fn interrupted(&self) -> bool {
+        false
+    }
+}
+
+impl<F: Fn(SolveEvent) + Sync> SolveObserver for F {
+    fn event(&self, event: SolveEvent) {
+        self(event)
+    }
+}
+
+impl dyn SolveObserver + '_ {
+    /// Reports `event`; [`FlowError::Interrupted`] if the observer asks to stop.
+    pub(crate) fn notify(&self, event: SolveEvent) -> Result<(), FlowError> {
+        self.event(event);
+        match self.interrupted() {
+            true => Err(FlowError::Interrupted),
+            false => Ok(()),
+        }
+    }
+}
+
 /// `u` with how it was found.
 #[derive(Clone, Debug)]
 pub struct Solution {
@@ -141,7 +170,7 @@ pub struct Solution {
 pub fn solve(
     system: &SpaceTimeSystem,
     params: &FlowParams,
-    observer: &(dyn Fn(SolveEvent) + Sync),
+    observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     let b = system.rhs();
     if b.iter().all(|&v| v == 0.0) {
@@ -178,7 +207,7 @@ pub fn solve(
             slab_pcg(system, params, Preconditioning::Multigrid, observer)?
         }
         SolverChoice::PcgJacobi => {
-            let outcome = run_pcg(system, None, &Jacobi::new(system), params, 0, observer);
+            let outcome = run_pcg(system, None, &Jacobi::new(system), params, 0, observer)?;
             Solution::iterated(outcome, SolverMethod::PcgJacobi, "asked for".into())
                 .converged(params)?
         }
@@ -237,8 +266,8 @@ fn run_pcg(
     preconditioner: &dyn pcg::Preconditioner,
     params: &FlowParams,
     done: usize,
-    observer: &(dyn Fn(SolveEvent) + Sync),
-) -> pcg::CgOutcome {
+    observer: &dyn SolveObserver,
+) -> Result<pcg::CgOutcome, FlowError> {
     let stop = pcg::Stop {
         tolerance: params.tolerance,
         done,
@@ -253,8 +282,8 @@ fn run_pcg_until(
     x: Option<Vec<f64>>,
     preconditioner: &dyn pcg::Preconditioner,
     stop: pcg::Stop,
-    observer: &(dyn Fn(SolveEvent) + Sync),
-) -> pcg::CgOutcome {
+    observer: &dyn SolveObserver,
+) -> Result<pcg::CgOutcome, FlowError> {
     let x = x.unwrap_or_else(|| vec![0.0; system.dimension()]);
     pcg::pcg(system, system.rhs(), x, preconditioner, stop, observer)
 }
@@ -289,19 +318,19 @@ fn slab_pcg(
     system: &SpaceTimeSystem,
     params: &FlowParams,
     preconditioning: Preconditioning,
-    observer: &(dyn Fn(SolveEvent) + Sync),
+    observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     let start = Instant::now();
     let symbolic = analyze(system.block(0).symbolic(), 2);
     let plan = FactorPlan::new(system, &symbolic, params);
     if plan.slabs_per_factor > system.n_slabs() {
-        let outcome = run_pcg(system, None, &Jacobi::new(system), params, 0, observer);
+        let outcome = run_pcg(system, None, &Jacobi::new(system), params, 0, observer)?;
         return Solution::iterated(outcome, SolverMethod::PcgJacobi, plan.describe())
             .converged(params);
     }
-    observer(SolveEvent::Factorizing {
+    observer.notify(SolveEvent::Factorizing {
         slabs: system.n_slabs(),
-    });
+    })?;
     let job = SlabJob {
         system,
         params,
@@ -329,7 +358,7 @@ struct SlabJob<'a> {
     preconditioning: Preconditioning,
     plan: &'a FactorPlan<'a>,
     start: Instant,
-    observer: &'a (dyn Fn(SolveEvent) + Sync),
+    observer: &'a dyn SolveObserver,
 }
 
 fn slab_pcg_with<T: Precision>(
@@ -358,7 +387,7 @@ fn slab_pcg_with<T: Precision>(
                     .then_some((PROBE_ITERATIONS, SWITCH_ITERATIONS)),
             };
             let gauss_seidel = SlabGaussSeidel::new(system, &fine);
-            let outcome = run_pcg_until(system, None, &gauss_seidel, stop, observer);
+            let outcome = run_pcg_until(system, None, &gauss_seidel, stop, observer)?;
             let gave_up = !outcome.converged && outcome.iterations == PROBE_ITERATIONS;
             if !gave_up || preconditioning == Preconditioning::GaussSeidel {
                 let reason = match preconditioning {
@@ -390,16 +419,16 @@ fn slab_pcg_with<T: Precision>(
     let coarse_start = Instant::now();
     let hierarchy = TimeHierarchy::new(system);
     let coarse: Vec<&SpaceTimeSystem> = hierarchy.coarse_systems().iter().collect();
-    observer(SolveEvent::Factorizing {
+    observer.notify(SolveEvent::Factorizing {
         slabs: coarse.iter().map(|c| c.n_slabs()).sum(),
-    });
+    })?;
     let mut sweeps = vec![fine];
     sweeps.extend(plan.factor::<T>(&coarse)?);
     factor_seconds += coarse_start.elapsed().as_secs_f64();
     factor_entries = sweeps.iter().map(SlabSweeps::stored_entries).sum();
     let levels = sweeps.len();
     let multigrid = TimeMultigrid::new(system, hierarchy, sweeps);
-    let outcome = run_pcg(system, x, &multigrid, params, done, observer);
+    let outcome = run_pcg(system, x, &multigrid, params, done, observer)?;
     let mut solution = Solution::iterated(outcome, SolverMethod::PcgTimeMultigrid, reason);
     solution.factor_seconds = factor_seconds;
     solution.factor_entries = factor_entries;
@@ -507,10 +536,10 @@ impl<'a> FactorPlan<'a> {
 
 fn direct(
     system: &SpaceTimeSystem,
-    observer: &(dyn Fn(SolveEvent) + Sync),
+    observer: &dyn SolveObserver,
     reason: String,
 ) -> Result<Solution, FlowError> {
-    observer(SolveEvent::Factorizing { slabs: 0 });
+    observer.notify(SolveEvent::Factorizing { slabs: 0 })?;
     let start = Instant::now();
     let matrix = system.to_sparse();
     let symbolic = analyze(matrix.symbolic(), 2);
@@ -529,12 +558,12 @@ fn direct(
 
 fn slabwise_direct(
     system: &SpaceTimeSystem,
-    observer: &(dyn Fn(SolveEvent) + Sync),
+    observer: &dyn SolveObserver,
     reason: String,
 ) -> Result<Solution, FlowError> {
-    observer(SolveEvent::Factorizing {
+    observer.notify(SolveEvent::Factorizing {
         slabs: system.n_slabs(),
-    });
+    })?;
     let start = Instant::now();
     let symbolic = analyze(system.block(0).symbolic(), 2);
     let n = system.slab_dimension();

@@ -1,7 +1,8 @@
 //! Preconditioned conjugate gradients on the space-time system, with a rayon matvec.
 
-use super::SolveEvent;
+use super::{SolveEvent, SolveObserver};
 use crate::flow::system::{dot, SpaceTimeSystem};
+use crate::flow::FlowError;
 use rayon::prelude::*;
 
 /// `z ≈ A⁻¹ r` for a symmetric positive definite approximation of `A⁻¹`.
@@ -42,15 +43,16 @@ impl CgOutcome {
     }
 }
 
-/// Solves `A x = b` from `x` (CG restarted there) until the tolerance or the iteration limit.
+/// Solves `A x = b` from `x` (CG restarted there) until the tolerance or the iteration limit
+/// ([`FlowError::Interrupted`] when the observer stops it).
 pub fn pcg(
     system: &SpaceTimeSystem,
     b: &[f64],
     mut x: Vec<f64>,
     preconditioner: &dyn Preconditioner,
     stop: Stop,
-    observer: &(dyn Fn(SolveEvent) + Sync),
-) -> CgOutcome {
+    observer: &dyn SolveObserver,
+) -> Result<CgOutcome, FlowError> {
     let n = b.len();
     let b_norm = dot(b, b).sqrt();
     let mut r = vec![0.0; n];
@@ -74,10 +76,10 @@ pub fn pcg(
         if iteration == stop.done + 1 {
             first_residual = relative;
         }
-        observer(SolveEvent::Iteration {
+        observer.notify(SolveEvent::Iteration {
             iteration,
             relative_residual: relative,
-        });
+        })?;
         if relative <= stop.tolerance {
             break;
         }
@@ -95,13 +97,13 @@ pub fn pcg(
             .zip(&z)
             .for_each(|(p, z)| *p = z + beta * *p);
     }
-    CgOutcome {
+    Ok(CgOutcome {
         x,
         iterations: iteration,
         relative_residual: relative,
         first_residual,
         converged: relative <= stop.tolerance,
-    }
+    })
 }
 
 /// `y += a x`.

@@ -1,0 +1,366 @@
+"""Optical flow on moving surfaces.
+
+Given a triangle mesh that moves and deforms over time (frames ``k = 0..K-1`` at times
+``t_k``, one connectivity) and a grey value per vertex and frame, meshflow finds the tangent
+vector field ``u`` that moves the image along the surface. It minimizes the energy of Bauer,
+Grasmair & Kirisits, "Optical Flow on Moving Manifolds" (SIAM J. Imaging Sci. 8(1), 2015)::
+
+    E(u) = ∫∫ (∂_t I + dI(u))² + β |u|² + γ |∇u|² + (γ/α²) |∇_t u|²  dA dt
+
+with P1 tangent-field finite elements on the mesh, an intrinsic discrete connection and a
+polar-decomposition transport in time (``docs/discretization.md`` of the repository).
+
+Functions (NumPy arrays in, NumPy/SciPy out):
+
+- :func:`compute_flow` — the flow of a sequence given as arrays;
+- :func:`operators` — the finite-element operators of one mesh as ``scipy.sparse`` matrices;
+- :func:`load_sequence` — read a sequence as ``meshflow solve`` reads it (OBJ, PLY, glTF, NPY);
+- :func:`write_outputs` — write a flow as the CLI does (NPY, ParaView VTU/PVD, glTF);
+- :func:`track` — turn frames meshed each on its own into one moving mesh.
+
+Keyword names and defaults are the command line's (``meshflow solve --help``). Errors are
+``ValueError`` (bad data, broken files, bad parameters) or ``OSError`` and its subclasses
+(``FileNotFoundError``, ``PermissionError``) when the operating system refuses a file, with
+the command line's one-line message. Long computations release the GIL, report to an optional
+``progress`` callable and stop on Ctrl-C (``KeyboardInterrupt``) within one solver iteration.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from os import PathLike
+from typing import Any, Callable, Dict, List, Optional, Sequence as SequenceOf, Tuple, Union
+
+import numpy as np
+
+from . import _meshflow
+from ._meshflow import Flow
+
+__all__ = [
+    "Flow",
+    "Sequence",
+    "compute_flow",
+    "load_sequence",
+    "operators",
+    "track",
+    "write_outputs",
+    "__version__",
+]
+
+__version__: str = _meshflow.__version__
+
+#: The default relative welding distance (fraction of frame 0's bounding-box diagonal).
+DEFAULT_WELD_TOLERANCE = 1e-9
+
+Progress = Callable[[Dict[str, Any]], Any]
+
+
+def _floats(name: str, array: Any, ndim: int, last: Optional[int] = None) -> np.ndarray:
+    """``array`` as float64 (no copy when it already is), its shape checked."""
+    try:
+        values = np.asarray(array, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{name}: not an array of numbers ({error})") from None
+    if values.ndim != ndim or (last is not None and values.shape[-1] != last):
+        expected = {
+            (3, 3): "(frames, vertices, 3)",
+            (2, 3): "(vertices, 3)",
+            (2, None): "(frames, vertices)",
+            (1, None): "(frames,)",
+        }[(ndim, last)]
+        raise ValueError(f"{name} has shape {values.shape}, expected {expected}")
+    return values
+
+
+def _faces(faces: Any) -> np.ndarray:
+    """Faces as int64 (F, 3); any integer dtype, any memory order."""
+    array = np.asarray(faces)
+    if array.dtype.kind not in "iu":
+        raise ValueError(f"faces must be integers, got dtype {array.dtype}")
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise ValueError(f"faces has shape {array.shape}, expected (faces, 3)")
+    if array.dtype == np.uint64 and array.size and array.max() > np.iinfo(np.int64).max:
+        raise ValueError("faces names a vertex index beyond int64")
+    return array.astype(np.int64, copy=False)
+
+
+def _mesh_args(weld: bool, weld_tolerance: float, repair: bool) -> Dict[str, Any]:
+    return {"weld": bool(weld), "weld_tolerance": float(weld_tolerance), "repair": bool(repair)}
+
+
+def _optional_float(name: str, value: Any) -> Optional[float]:
+    if value is None:
+        return None
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+
+
+def compute_flow(
+    positions: Any,
+    faces: Any,
+    intensity: Any,
+    times: Any = None,
+    *,
+    spread: Optional[float] = None,
+    time_scale: Optional[float] = None,
+    speed_penalty: Optional[float] = None,
+    alpha: Optional[float] = None,
+    beta: Optional[float] = None,
+    gamma: Optional[float] = None,
+    boundary: str = "neumann",
+    time_coupling: str = "lumped",
+    solver: str = "auto",
+    tolerance: float = 1e-8,
+    levels: Optional[int] = None,
+    warps: Optional[int] = None,
+    large_motion: bool = False,
+    weld: bool = True,
+    weld_tolerance: float = DEFAULT_WELD_TOLERANCE,
+    repair: bool = False,
+    progress: Optional[Progress] = None,
+) -> Flow:
+    """The optical flow of a moving mesh: one tangent vector per vertex and slab.
+
+    Parameters
+    ----------
+    positions : (K, V, 3) array of float
+        Vertex positions of the ``K ≥ 2`` frames (float32 or float64, any memory order).
+    faces : (F, 3) array of int
+        Triangles indexing ``positions[k]`` (any integer dtype), the same in every frame,
+        e.g. ``trimesh.Trimesh.faces``.
+    intensity : (K, V) array of float
+        Grey value of each vertex in each frame.
+    times : (K,) array of float, optional
+        Strictly increasing frame times; default ``0, 1, 2, …``.
+    spread, time_scale, speed_penalty : float, optional
+        Unit-free weights (defaults 0.5, 1 and 0): ``γ = (spread·h̄·S)²``,
+        ``α = √γ / (S·time_scale·Δt̄)``, ``β = speed_penalty·S²`` with ``h̄`` the mean edge
+        length, ``Δt̄`` the mean frame spacing and ``S`` the image's gradient scale.
+    alpha, beta, gamma : float, optional
+        The paper's weights as numbers instead (``alpha=float("inf")``: frame by frame).
+    boundary : {"neumann", "dirichlet"}
+    time_coupling : {"lumped", "consistent"}
+    solver : {"auto", "direct", "pcg-slab-gauss-seidel", "pcg-time-multigrid", "pcg-jacobi"}
+    tolerance : float
+        Relative residual at which the iterative solvers stop.
+    levels, warps, large_motion
+        Coarse-to-fine warping for motions larger than the image's features
+        (``large_motion=True``: 4 levels × 2 warps); default the paper's single linear solve.
+    weld, weld_tolerance, repair
+        How the mesh is built from ``faces`` (as the CLI's ``--no-weld``,
+        ``--weld-tolerance``, ``--repair``). Results are in the input's vertex numbering
+        whatever welding merged (dropped vertices get NaN).
+    progress : callable, optional
+        Called with a dict per solver event: ``{"kind": "iteration", "iteration": n,
+        "relative_residual": r}``, ``{"kind": "factorizing", "slabs": n}`` or ``{"kind":
+        "warp", "level": l, "warp": w, "solve": i, "solves": n}``. An exception it raises
+        stops the solve and propagates.
+
+    Returns
+    -------
+    Flow
+        ``vectors`` (S, V, 3), ``intrinsic`` (S, V, 2), ``frames`` (S, V, 2, 3), ``energy``,
+        ``energy_terms``, ``relative_residual``, ``iterations``, ``solver``, ``seconds``,
+        ``weights`` … with ``S = K − 1`` slabs.
+    """
+    positions = _floats("positions", positions, 3, 3)
+    faces = _faces(faces)
+    intensity = _floats("intensity", intensity, 2)
+    if intensity.shape != positions.shape[:2]:
+        raise ValueError(
+            f"intensity has shape {intensity.shape}, expected {positions.shape[:2]} "
+            "(frames, vertices) to match positions"
+        )
+    if times is not None:
+        times = _floats("times", times, 1)
+        if times.shape[0] != positions.shape[0]:
+            raise ValueError(f"{times.shape[0]} times for {positions.shape[0]} frames")
+    if progress is not None and not callable(progress):
+        raise ValueError(f"progress must be callable, got {type(progress).__name__}")
+    params = {
+        "spread": _optional_float("spread", spread),
+        "time_scale": _optional_float("time_scale", time_scale),
+        "speed_penalty": _optional_float("speed_penalty", speed_penalty),
+        "alpha": _optional_float("alpha", alpha),
+        "beta": _optional_float("beta", beta),
+        "gamma": _optional_float("gamma", gamma),
+        "boundary": str(boundary),
+        "time_coupling": str(time_coupling),
+        "solver": str(solver),
+        "tolerance": float(tolerance),
+        "levels": None if levels is None else int(levels),
+        "warps": None if warps is None else int(warps),
+        "large_motion": bool(large_motion),
+    }
+    return _meshflow.compute_flow(
+        positions,
+        faces,
+        intensity,
+        times,
+        params,
+        _mesh_args(weld, weld_tolerance, repair),
+        progress,
+    )
+
+
+def operators(
+    positions: Any,
+    faces: Any,
+    *,
+    weld: bool = True,
+    weld_tolerance: float = DEFAULT_WELD_TOLERANCE,
+    repair: bool = False,
+) -> Dict[str, Any]:
+    """The finite-element operators of a mesh, as ``meshflow operators`` writes them.
+
+    Returns a dict with ``scipy.sparse.csc_matrix`` values
+
+    - ``cotan`` (V×V): the cotan Laplacian ``L``, positive semi-definite, ``uᵀLu = ∫|∇u|²``;
+    - ``mass_scalar`` (V×V): the consistent P1 mass ``m``;
+    - ``stiffness`` (2V×2V): the connection (Bochner) Laplacian ``K``, ``uᵀKu = ∫|∇u|²`` for
+      tangent fields with DOFs ``(2i, 2i+1)`` in vertex ``i``'s frame;
+    - ``mass`` (2V×2V): the vector mass ``M``, ``uᵀMu = ∫|u|²``;
+
+    and arrays ``frames`` (V, 2, 3), the orthonormal vertex frames in R³ (a tangent field
+    ``u`` (V, 2) is ``np.einsum("ik,ikj->ij", u, frames)`` in R³), and ``vertex_map``
+    (V_input,), the mesh vertex of each input vertex (−1 if dropped). Matrices are over the
+    mesh's vertices (welded, unused ones dropped; the identity for a clean mesh).
+    """
+    import scipy.sparse
+
+    positions = _floats("positions", positions, 2, 3)
+    parts = _meshflow.operators(positions, _faces(faces), _mesh_args(weld, weld_tolerance, repair))
+    out: Dict[str, Any] = {}
+    for name, value in parts.items():
+        if isinstance(value, tuple):
+            data, indices, indptr, shape = value
+            out[name] = scipy.sparse.csc_matrix((data, indices, indptr), shape=shape)
+        else:
+            out[name] = value
+    return out
+
+
+@dataclass
+class Sequence:
+    """A moving mesh with grey values, as :func:`load_sequence` or :func:`track` return it.
+
+    ``positions`` (K, V, 3), ``faces`` (F, 3) int64, ``intensity`` (K, V), ``times`` (K,).
+    ``vertex_map`` (V_file,) int64 is the mesh vertex of each vertex of the files (−1 if
+    dropped), ``warnings`` what the loader noticed, ``source`` what was read, ``report``
+    tracking's per-frame report (``None`` when not tracked).
+    """
+
+    positions: np.ndarray
+    faces: np.ndarray
+    intensity: np.ndarray
+    times: np.ndarray
+    vertex_map: Optional[np.ndarray] = None
+    warnings: List[str] = field(default_factory=list)
+    source: str = ""
+    report: Optional[Dict[str, Any]] = None
+
+    def compute_flow(self, **options: Any) -> Flow:
+        """:func:`compute_flow` of this sequence (keywords as there)."""
+        return compute_flow(self.positions, self.faces, self.intensity, self.times, **options)
+
+
+def load_sequence(
+    path: Union[str, PathLike],
+    *,
+    intensity: Optional[Union[str, PathLike]] = None,
+    intensity_attribute: Optional[str] = None,
+    times: Optional[SequenceOf[float]] = None,
+    fps: Optional[float] = None,
+    animation: Optional[Union[str, int]] = None,
+    weld: bool = True,
+    weld_tolerance: float = DEFAULT_WELD_TOLERANCE,
+    repair: bool = False,
+) -> Sequence:
+    """Reads a sequence as ``meshflow solve PATH`` does.
+
+    ``path`` is a directory of .obj/.ply/.gltf/.glb frames, a glob (``"dir/frame_*.ply"``),
+    one .gltf/.glb morph animation, or a directory with positions.npy, faces.npy and
+    intensity.npy. Grey values come from vertex colours, textures, a PLY property
+    (``intensity_attribute``) or ``intensity`` (a (K, V_file) .npy); times from ``times``,
+    the animation (resampled at ``fps``), a times.txt beside the frames, or 0, 1, 2, ….
+    The arrays are the mesh's (welded); ``vertex_map`` relates them to the files' vertices.
+    """
+    loaded = _meshflow.load_sequence(
+        _path(path),
+        None if intensity is None else _path(intensity),
+        intensity_attribute,
+        None if times is None else [float(t) for t in times],
+        _optional_float("fps", fps),
+        None if animation is None else str(animation),
+        _mesh_args(weld, weld_tolerance, repair),
+    )
+    positions, faces, grey, frame_times, vertex_map, warnings, source = loaded
+    return Sequence(positions, faces, grey, frame_times, vertex_map, warnings, source)
+
+
+def write_outputs(
+    flow: Flow,
+    out: Union[str, PathLike],
+    *,
+    formats: SequenceOf[str] = ("npy", "vtu", "glb"),
+    force: bool = False,
+) -> None:
+    """Writes ``flow`` as ``meshflow solve --out OUT`` does: flow.npy, flow_intrinsic.npy,
+    flow_SSSS.vtu + flow.pvd (ParaView), flow.glb and summary.json, staged and renamed into
+    place whole. A directory holding files meshflow did not write is refused unless
+    ``force``; an earlier meshflow output there is replaced."""
+    if isinstance(formats, str):
+        formats = [formats]
+    flow.write(_path(out), [str(f) for f in formats], bool(force))
+
+
+def track(
+    frames: SequenceOf[Tuple[Any, ...]],
+    times: Optional[SequenceOf[float]] = None,
+    *,
+    max_step: Optional[float] = None,
+    keep_going: bool = False,
+    reference: Optional[Tuple[Any, Any]] = None,
+) -> Sequence:
+    """One moving mesh from frames meshed each on its own (``meshflow track``).
+
+    ``frames`` is a list of ``(positions (V_k, 3), faces (F_k, 3), intensity (V_k,) or
+    None)``. From frame to frame every vertex of the reference mesh (``reference =
+    (positions, faces)``, default frame 0's) moves along its normal to the next frame's
+    surface and takes that frame's grey value there. ``max_step`` bounds a step (default 10 %
+    of frame 0's bounding-box diagonal); ``keep_going`` counts vertices beyond it instead of
+    failing. Returns the :class:`Sequence`, with the per-frame ``report``.
+    """
+    converted = []
+    for k, frame in enumerate(frames):
+        if len(frame) not in (2, 3):
+            raise ValueError(f"frames[{k}]: expected (positions, faces[, intensity])")
+        positions = _floats(f"frames[{k}] positions", frame[0], 2, 3)
+        grey = None
+        if len(frame) == 3 and frame[2] is not None:
+            grey = _floats(f"frames[{k}] intensity", frame[2], 1)
+            if grey.shape[0] != positions.shape[0]:
+                raise ValueError(
+                    f"frames[{k}]: {grey.shape[0]} grey values for {positions.shape[0]} vertices"
+                )
+        converted.append((positions, _faces(frame[1]), grey))
+    if reference is not None:
+        reference = (_floats("reference positions", reference[0], 2, 3), _faces(reference[1]))
+    result = _meshflow.track(
+        converted,
+        None if times is None else [float(t) for t in times],
+        _optional_float("max_step", max_step),
+        bool(keep_going),
+        reference,
+    )
+    positions, faces, grey, frame_times, report = result
+    return Sequence(positions, faces, grey, frame_times, source="tracked", report=json.loads(report))
+
+
+def _path(path: Union[str, PathLike]) -> str:
+    import os
+
+    return os.fspath(path)

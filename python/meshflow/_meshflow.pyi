@@ -1,0 +1,86 @@
+"""Type stubs of the compiled half of meshflow (see ``meshflow/__init__.py`` for the API)."""
+
+from os import PathLike
+from typing import Any, Callable, Dict, List, Optional, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+class Flow:
+    """A computed flow, in the input's vertex numbering (NaN at dropped vertices).
+
+    ``S = K − 1`` slabs; slab ``s`` is the motion from frame ``s`` to ``s + 1``.
+    """
+
+    @property
+    def vectors(self) -> Optional[npt.NDArray[np.float64]]:
+        """(S, V, 3): the flow of slab ``s`` in R³ at the vertices of frame ``s``."""
+    @property
+    def intrinsic(self) -> npt.NDArray[np.float64]:
+        """(S, V, 2): the same in the vertex frames."""
+    @property
+    def frames(self) -> npt.NDArray[np.float64]:
+        """(S, V, 2, 3): ``vectors[s, i] = intrinsic[s, i] @ frames[s, i]``."""
+    @property
+    def warped_residual(self) -> Optional[npt.NDArray[np.float64]]:
+        """(S, V): ``I⁺ − I⁻`` along the final flow with coarse-to-fine warping, else None."""
+    @property
+    def vertex_map(self) -> npt.NDArray[np.int64]:
+        """(V_input,): the mesh vertex of each input vertex, −1 if dropped."""
+    @property
+    def energy(self) -> float: ...
+    @property
+    def energy_at_zero(self) -> float: ...
+    @property
+    def energy_terms(self) -> Dict[str, float]:
+        """``data``, ``speed``, ``spatial``, ``temporal``."""
+    @property
+    def relative_residual(self) -> float: ...
+    @property
+    def iterations(self) -> int: ...
+    @property
+    def solver(self) -> str: ...
+    @property
+    def solver_reason(self) -> str: ...
+    @property
+    def seconds(self) -> Dict[str, float]:
+        """``assembly``, ``factorization``, ``solve``, ``total``."""
+    @property
+    def weights(self) -> Dict[str, float]:
+        """``alpha``, ``beta``, ``gamma`` as used, in the data's units."""
+    def summary_json(self) -> str:
+        """The CLI's summary.json as a string."""
+    def write(self, out: Union[str, PathLike[str]], formats: List[str], force: bool) -> None: ...
+
+def compute_flow(
+    positions: npt.NDArray[np.float64],
+    faces: npt.NDArray[np.int64],
+    intensity: npt.NDArray[np.float64],
+    times: Optional[npt.NDArray[np.float64]],
+    params: Dict[str, Any],
+    mesh: Dict[str, Any],
+    progress: Optional[Callable[[Dict[str, Any]], Any]],
+) -> Flow: ...
+def operators(
+    positions: npt.NDArray[np.float64],
+    faces: npt.NDArray[np.int64],
+    mesh: Dict[str, Any],
+) -> Dict[str, Any]: ...
+def load_sequence(
+    path: str,
+    intensity: Optional[str],
+    intensity_attribute: Optional[str],
+    times: Optional[List[float]],
+    fps: Optional[float],
+    animation: Optional[str],
+    mesh: Dict[str, Any],
+) -> Tuple[Any, ...]: ...
+def track(
+    frames: List[Tuple[Any, Any, Any]],
+    times: Optional[List[float]],
+    max_step: Optional[float],
+    keep_going: bool,
+    reference: Optional[Tuple[Any, Any]],
+) -> Tuple[Any, ...]: ...

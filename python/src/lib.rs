@@ -1,0 +1,815 @@
+//! `meshflow._meshflow`: the Rust half of the Python package (the NumPy-facing wrappers,
+//! docstrings and argument checks are in `meshflow/__init__.py`).
+//!
+//! Every function takes arrays the Python half has already given their dtype (float64
+//! positions and grey values, int64 faces) and checked for shape; it copies them into the
+//! library's types with the GIL held, then releases the GIL (`Python::detach`) for everything
+//! long. Library errors become Python exceptions carrying the library's one-line message
+//! ([`to_py_err`]); nothing here panics on user input.
+//!
+//! A running solve reacquires the GIL once per event (iteration, warp, factorization) to call
+//! the `progress` callback and to check for Ctrl-C (`PyErr_CheckSignals`); either raising stops
+//! the solve within one iteration, and the exception is re-raised ([`PythonObserver`]).
+
+use meshflow::connection::{vertex_frames_in_r3, Connection};
+use meshflow::flow::{
+    Boundary, FlowError, FlowParams, FlowProblem, FlowResult, SolveEvent, SolveObserver,
+    SolverChoice, TimeCoupling, Warping, Weight,
+};
+use meshflow::geometry::IntrinsicGeometry;
+use meshflow::io::{
+    load_sequence as load_files, mesh_from_arrays, sequence_from_arrays, write_flow_outputs,
+    IoError, LoadOptions, LoadedSequence, OutputFormat, Overwrite, StagedDir, VertexMap,
+};
+use meshflow::render::View;
+use meshflow::{fem, shapes, track as tracking, Error};
+use nalgebra::{Matrix3x2, Vector2, Vector3};
+use numpy::ndarray::{Array1, Array2, Array3, Array4};
+use numpy::{IntoPyArray, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
+use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyPermissionError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+/// The exception for a library error: `FileNotFoundError`, `PermissionError` or `OSError`
+/// when the operating system refused a file, `ValueError` for everything else (bad data,
+/// broken files, bad parameters). The message is the library's one line.
+fn to_py_err(error: Error) -> PyErr {
+    let message = error.to_string();
+    match os_error(&error).map(std::io::Error::kind) {
+        Some(std::io::ErrorKind::NotFound) => PyFileNotFoundError::new_err(message),
+        Some(std::io::ErrorKind::PermissionDenied) => PyPermissionError::new_err(message),
+        Some(_) => PyOSError::new_err(message),
+        None => PyValueError::new_err(message),
+    }
+}
+
+/// The operating-system error at the root of `error`, if that is what it is.
+fn os_error(error: &Error) -> Option<&std::io::Error> {
+    fn in_io(error: &IoError) -> Option<&std::io::Error> {
+        match error {
+            IoError::File { source, .. } => Some(source),
+            IoError::Referenced { source, .. } => in_io(source),
+            _ => None,
+        }
+    }
+    match error {
+        Error::Io(io) => in_io(io),
+        Error::InFile { source, .. } => os_error(source),
+        _ => None,
+    }
+}
+
+fn value_error(message: impl Into<String>) -> PyErr {
+    PyValueError::new_err(message.into())
+}
+
+// ---------------------------------------------------------------------------------------------
+// Arrays in, arrays out.
+
+fn read_positions(array: &PyReadonlyArray3<f64>) -> Vec<Vec<Vector3<f64>>> {
+    array
+        .as_array()
+        .outer_iter()
+        .map(read_points_view)
+        .collect()
+}
+
+fn read_points(array: &PyReadonlyArray2<f64>) -> Vec<Vector3<f64>> {
+    read_points_view(array.as_array())
+}
+
+fn read_points_view(frame: numpy::ndarray::ArrayView2<f64>) -> Vec<Vector3<f64>> {
+    frame
+        .outer_iter()
+        .map(|p| Vector3::new(p[0], p[1], p[2]))
+        .collect()
+}
+
+fn read_rows(array: &PyReadonlyArray2<f64>) -> Vec<Vec<f64>> {
+    array
+        .as_array()
+        .outer_iter()
+        .map(|row| row.to_vec())
+        .collect()
+}
+
+/// Faces as the library's `u32` triples; an index below 0 or beyond `u32` is named.
+fn read_faces(array: &PyReadonlyArray2<i64>) -> PyResult<Vec<[u32; 3]>> {
+    array
+        .as_array()
+        .outer_iter()
+        .enumerate()
+        .map(|(f, face)| {
+            let index = |c: usize| {
+                u32::try_from(face[c]).map_err(|_| {
+                    value_error(format!(
+                        "faces[{f}] names vertex {}, not a vertex index",
+                        face[c]
+                    ))
+                })
+            };
+            Ok([index(0)?, index(1)?, index(2)?])
+        })
+        .collect()
+}
+
+/// `rows[s][i]` (per mesh vertex) as an (S, V_file, 3) array in the input numbering, NaN for
+/// dropped vertices (as `flow.npy`).
+fn file_vectors(map: &VertexMap, rows: &[Vec<Vector3<f64>>]) -> Array3<f64> {
+    let v = map.n_file_vertices();
+    let values = rows
+        .iter()
+        .flat_map(|slab| map.file_rows(slab, Vector3::repeat(f64::NAN)))
+        .flat_map(|u| [u.x, u.y, u.z])
+        .collect();
+    Array3::from_shape_vec((rows.len(), v, 3), values).expect("S × V × 3 values")
+}
+
+fn file_intrinsic(map: &VertexMap, rows: &[Vec<Vector2<f64>>]) -> Array3<f64> {
+    let v = map.n_file_vertices();
+    let values = rows
+        .iter()
+        .flat_map(|slab| map.file_rows(slab, Vector2::repeat(f64::NAN)))
+        .flat_map(|u| [u.x, u.y])
+        .collect();
+    Array3::from_shape_vec((rows.len(), v, 2), values).expect("S × V × 2 values")
+}
+
+fn file_scalars(map: &VertexMap, rows: &[Vec<f64>]) -> Array2<f64> {
+    let v = map.n_file_vertices();
+    let values = rows
+        .iter()
+        .flat_map(|slab| map.file_rows(slab, f64::NAN))
+        .collect();
+    Array2::from_shape_vec((rows.len(), v), values).expect("S × V values")
+}
+
+/// Frames `P_i = [e1, e2]` as rows: `frames[i][k]` is basis vector `k` of vertex `i` in R^3
+/// (as `frames.npy`).
+fn frame_rows(frames: &[Matrix3x2<f64>]) -> Vec<[f64; 6]> {
+    frames
+        .iter()
+        .map(|p| {
+            [
+                p[(0, 0)],
+                p[(1, 0)],
+                p[(2, 0)],
+                p[(0, 1)],
+                p[(1, 1)],
+                p[(2, 1)],
+            ]
+        })
+        .collect()
+}
+
+fn points_array(points: &[Vector3<f64>]) -> Array2<f64> {
+    let values = points.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
+    Array2::from_shape_vec((points.len(), 3), values).expect("N × 3 values")
+}
+
+fn faces_array(faces: &[[u32; 3]]) -> Array2<i64> {
+    let values = faces.iter().flatten().map(|&i| i as i64).collect();
+    Array2::from_shape_vec((faces.len(), 3), values).expect("F × 3 indices")
+}
+
+// ---------------------------------------------------------------------------------------------
+// Progress and Ctrl-C.
+
+/// Calls the Python `progress` callback with each [`SolveEvent`] as a dict, and checks for
+/// signals (Ctrl-C); the first exception either raises stops the solve and is kept for
+/// re-raising.
+struct PythonObserver {
+    callback: Option<Py<PyAny>>,
+    failure: Mutex<Option<PyErr>>,
+}
+
+impl PythonObserver {
+    fn keep(&self, error: PyErr) {
+        let mut failure = self.failure.lock().unwrap_or_else(|e| e.into_inner());
+        failure.get_or_insert(error);
+    }
+
+    /// The exception that stopped the solve, if one did.
+    fn take_failure(&self) -> Option<PyErr> {
+        self.failure
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take()
+    }
+}
+
+fn event_dict<'py>(py: Python<'py>, event: SolveEvent) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    match event {
+        SolveEvent::Factorizing { slabs } => {
+            dict.set_item("kind", "factorizing")?;
+            dict.set_item("slabs", slabs)?;
+        }
+        SolveEvent::Iteration {
+            iteration,
+            relative_residual,
+        } => {
+            dict.set_item("kind", "iteration")?;
+            dict.set_item("iteration", iteration)?;
+            dict.set_item("relative_residual", relative_residual)?;
+        }
+        SolveEvent::Warp {
+            level,
+            warp,
+            solve,
+            solves,
+        } => {
+            dict.set_item("kind", "warp")?;
+            dict.set_item("level", level)?;
+            dict.set_item("warp", warp)?;
+            dict.set_item("solve", solve)?;
+            dict.set_item("solves", solves)?;
+        }
+    }
+    Ok(dict)
+}
+
+impl SolveObserver for PythonObserver {
+    fn event(&self, event: SolveEvent) {
+        let Some(callback) = &self.callback else {
+            return;
+        };
+        Python::attach(|py| {
+            let called = event_dict(py, event).and_then(|d| callback.call1(py, (d,)));
+            if let Err(error) = called {
+                self.keep(error);
+            }
+        });
+    }
+
+    fn interrupted(&self) -> bool {
+        Python::attach(|py| {
+            if let Err(error) = py.check_signals() {
+                self.keep(error);
+            }
+        });
+        self.failure
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .is_some()
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The flow.
+
+/// The weights and choices of `compute_flow`, as the CLI's flags.
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct ParamArgs {
+    spread: Option<f64>,
+    time_scale: Option<f64>,
+    speed_penalty: Option<f64>,
+    alpha: Option<f64>,
+    beta: Option<f64>,
+    gamma: Option<f64>,
+    boundary: String,
+    time_coupling: String,
+    solver: String,
+    tolerance: f64,
+    levels: Option<usize>,
+    warps: Option<usize>,
+    large_motion: bool,
+}
+
+impl ParamArgs {
+    fn params(&self) -> PyResult<FlowParams> {
+        let defaults = FlowParams::default();
+        let weight =
+            |value: Option<f64>, relative: Option<f64>, default: Weight, names: &str| match (
+                value, relative,
+            ) {
+                (Some(_), Some(_)) => Err(value_error(format!("give one of {names}, not both"))),
+                (Some(v), None) => Ok(Weight::Value(v)),
+                (None, Some(r)) => Ok(Weight::Relative(r)),
+                (None, None) => Ok(default),
+            };
+        let params = FlowParams {
+            alpha: weight(
+                self.alpha,
+                self.time_scale,
+                defaults.alpha,
+                "alpha and time_scale",
+            )?,
+            beta: weight(
+                self.beta,
+                self.speed_penalty,
+                defaults.beta,
+                "beta and speed_penalty",
+            )?,
+            gamma: weight(self.gamma, self.spread, defaults.gamma, "gamma and spread")?,
+            boundary: parse::<Boundary>(&self.boundary, "boundary")?,
+            time_coupling: parse::<TimeCoupling>(&self.time_coupling, "time_coupling")?,
+            solver: parse::<SolverChoice>(&self.solver, "solver")?,
+            tolerance: self.tolerance,
+            warping: self.warping(),
+            ..defaults
+        };
+        params.validate().map_err(|e| to_py_err(Error::from(e)))?;
+        Ok(params)
+    }
+
+    /// `levels`, `warps` and `large_motion` as the CLI combines them.
+    fn warping(&self) -> Warping {
+        let preset = match self.large_motion {
+            true => Warping::LARGE_MOTION,
+            false => Warping::NONE,
+        };
+        let levels = self.levels.unwrap_or(preset.levels);
+        let default_warps = match (self.large_motion, levels) {
+            (true, _) => preset.warps,
+            (false, 1) => 0,
+            (false, _) => 1,
+        };
+        Warping {
+            levels,
+            warps: self.warps.unwrap_or(default_warps),
+        }
+    }
+}
+
+fn parse<T: std::str::FromStr>(text: &str, name: &str) -> PyResult<T>
+where
+    T::Err: std::fmt::Display,
+{
+    text.parse()
+        .map_err(|e| value_error(format!("{name}: {e}")))
+}
+
+/// How meshes are built from faces (the CLI's `--no-weld`, `--weld-tolerance`, `--repair`).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct MeshArgs {
+    weld: bool,
+    weld_tolerance: f64,
+    repair: bool,
+}
+
+impl MeshArgs {
+    fn options(&self) -> LoadOptions {
+        LoadOptions {
+            weld: self.weld,
+            weld_tolerance: self.weld_tolerance,
+            repair: self.repair,
+            ..LoadOptions::default()
+        }
+    }
+}
+
+/// A computed flow: arrays in the input's vertex numbering, and what `write` needs.
+#[pyclass(module = "meshflow._meshflow", frozen)]
+struct Flow {
+    loaded: LoadedSequence,
+    params: FlowParams,
+    result: FlowResult,
+}
+
+#[pymethods]
+impl Flow {
+    fn __repr__(&self) -> String {
+        let sequence = &self.loaded.sequence;
+        format!(
+            "<meshflow.Flow: {} slabs × {} vertices, {} solver, {} iterations, energy {:.4e}>",
+            sequence.n_slabs(),
+            self.loaded.vertex_map.n_file_vertices(),
+            self.result.method,
+            self.result.iterations,
+            self.result.energy
+        )
+    }
+
+    /// (S, V, 3) float64: the flow of slab `s` in R^3 at the vertices of frame `s`.
+    #[getter]
+    fn vectors<'py>(&self, py: Python<'py>) -> Option<Bound<'py, numpy::PyArray3<f64>>> {
+        let vectors = self.result.vectors.as_ref()?;
+        Some(file_vectors(&self.loaded.vertex_map, vectors).into_pyarray(py))
+    }
+
+    /// (S, V, 2) float64: the same in the vertex frames.
+    #[getter]
+    fn intrinsic<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray3<f64>> {
+        file_intrinsic(&self.loaded.vertex_map, &self.result.intrinsic).into_pyarray(py)
+    }
+
+    /// (S, V, 2, 3) float64: `frames[s, i, k]` is basis vector `k` of vertex `i`'s frame in
+    /// R^3 on frame `s`, so `vectors[s, i] = intrinsic[s, i] @ frames[s, i]`.
+    #[getter]
+    fn frames<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray4<f64>>> {
+        let sequence = &self.loaded.sequence;
+        let map = &self.loaded.vertex_map;
+        let mesh = sequence.mesh();
+        let mut values = Vec::with_capacity(sequence.n_slabs() * map.n_file_vertices() * 6);
+        for s in 0..sequence.n_slabs() {
+            let geometry = sequence.slab_geometry(s).map_err(|e| to_py_err(e.into()))?;
+            let connection = Connection::new(mesh, &geometry);
+            let positions = sequence.positions(s).expect("arrays are embedded");
+            let frames = vertex_frames_in_r3(mesh, &geometry, &connection, positions)
+                .map_err(|e| to_py_err(e.into()))?;
+            values.extend(
+                map.file_rows(&frame_rows(&frames), [f64::NAN; 6])
+                    .into_iter()
+                    .flatten(),
+            );
+        }
+        let shape = (sequence.n_slabs(), map.n_file_vertices(), 2, 3);
+        Ok(Array4::from_shape_vec(shape, values)
+            .expect("S × V × 2 × 3 values")
+            .into_pyarray(py))
+    }
+
+    /// (S, V) float64 with coarse-to-fine warping: `I⁺ − I⁻` along the final flow; else None.
+    #[getter]
+    fn warped_residual<'py>(&self, py: Python<'py>) -> Option<Bound<'py, numpy::PyArray2<f64>>> {
+        let residual = self.result.warped_residual.as_ref()?;
+        Some(file_scalars(&self.loaded.vertex_map, residual).into_pyarray(py))
+    }
+
+    /// (V_input,) int64: the mesh vertex of each input vertex, −1 if dropped.
+    #[getter]
+    fn vertex_map<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray1<i64>> {
+        Array1::from(self.loaded.vertex_map.to_npy()).into_pyarray(py)
+    }
+
+    /// `E(u)` at the solution.
+    #[getter]
+    fn energy(&self) -> f64 {
+        self.result.energy
+    }
+
+    /// `E(0)`: the data term of the zero flow.
+    #[getter]
+    fn energy_at_zero(&self) -> f64 {
+        self.result.energy_at_zero
+    }
+
+    /// `‖b − Au‖ / ‖b‖` of the solution.
+    #[getter]
+    fn relative_residual(&self) -> f64 {
+        self.result.relative_residual
+    }
+
+    /// Solver iterations (0 for a direct solve).
+    #[getter]
+    fn iterations(&self) -> usize {
+        self.result.iterations
+    }
+
+    /// The method used, e.g. "PCG (multigrid in time)".
+    #[getter]
+    fn solver(&self) -> String {
+        self.result.method.to_string()
+    }
+
+    /// Why the method: the rule `solver="auto"` applied, with its figures.
+    #[getter]
+    fn solver_reason(&self) -> String {
+        self.result.solver_reason.clone()
+    }
+
+    /// `{"data", "speed", "spatial", "temporal"}`: the energy's terms at the solution.
+    #[getter]
+    fn energy_terms<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let terms = &self.result.energy_terms;
+        let dict = PyDict::new(py);
+        dict.set_item("data", terms.data)?;
+        dict.set_item("speed", terms.speed)?;
+        dict.set_item("spatial", terms.spatial)?;
+        dict.set_item("temporal", terms.temporal)?;
+        Ok(dict)
+    }
+
+    /// Wall-clock seconds: `assembly`, `factorization` (within `solve`), `solve`, `total`.
+    #[getter]
+    fn seconds<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let timings = &self.result.timings;
+        let dict = PyDict::new(py);
+        dict.set_item("assembly", timings.assembly)?;
+        dict.set_item("factorization", timings.factorization)?;
+        dict.set_item("solve", timings.solve)?;
+        dict.set_item("total", timings.total)?;
+        Ok(dict)
+    }
+
+    /// `alpha`, `beta`, `gamma` as used, in the data's units (relative weights resolved;
+    /// `alpha` may be `inf`).
+    #[getter]
+    fn weights<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let weights = &self.result.weights;
+        let dict = PyDict::new(py);
+        dict.set_item("alpha", weights.alpha)?;
+        dict.set_item("beta", weights.beta)?;
+        dict.set_item("gamma", weights.gamma)?;
+        Ok(dict)
+    }
+
+    /// `summary.json` of the CLI, as a JSON string.
+    fn summary_json(&self) -> String {
+        meshflow::io::summary_json(&self.loaded, &self.params, &self.result, None).to_string()
+    }
+
+    /// Writes the CLI's outputs (`formats` of npy, vtu, glb; summary.json always) into `out`,
+    /// staged and renamed into place whole.
+    fn write(
+        &self,
+        py: Python<'_>,
+        out: PathBuf,
+        formats: Vec<String>,
+        force: bool,
+    ) -> PyResult<()> {
+        let formats = formats
+            .iter()
+            .map(|f| parse::<OutputFormat>(f, "formats"))
+            .collect::<PyResult<Vec<_>>>()?;
+        let overwrite = match force {
+            true => Overwrite::Force,
+            false => Overwrite::EarlierRun,
+        };
+        py.detach(|| -> Result<(), Error> {
+            let mut staged = StagedDir::create(&out, overwrite)?;
+            staged.record_command(["python", "-c", "meshflow.write_outputs(...)"]);
+            let view = View::default().with_up(self.loaded.source.up());
+            write_flow_outputs(
+                &staged,
+                &self.loaded,
+                &self.params,
+                &self.result,
+                &formats,
+                None,
+                &view,
+            )?;
+            staged.commit()?;
+            Ok(())
+        })
+        .map_err(to_py_err)
+    }
+}
+
+/// Builds the sequence, solves, and returns the [`Flow`]; the GIL is released throughout.
+#[pyfunction]
+#[pyo3(signature = (positions, faces, intensity, times, params, mesh, progress))]
+#[allow(clippy::too_many_arguments)] // the Python signature, one argument per array
+fn compute_flow(
+    py: Python<'_>,
+    positions: PyReadonlyArray3<f64>,
+    faces: PyReadonlyArray2<i64>,
+    intensity: PyReadonlyArray2<f64>,
+    times: Option<PyReadonlyArray1<f64>>,
+    params: ParamArgs,
+    mesh: MeshArgs,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Flow> {
+    let params = params.params()?;
+    let faces = read_faces(&faces)?;
+    let positions = read_positions(&positions);
+    let intensities = read_rows(&intensity);
+    let times = times.map(|t| t.as_array().to_vec());
+    let options = mesh.options();
+    let observer = PythonObserver {
+        callback: progress,
+        failure: Mutex::new(None),
+    };
+    let solved = py.detach(|| -> Result<(LoadedSequence, FlowResult), Error> {
+        let loaded = sequence_from_arrays(faces, positions, intensities, times, &options)?;
+        let problem = FlowProblem::new(&loaded.sequence, &params)?;
+        let result = problem.solve(&observer)?;
+        Ok((loaded, result))
+    });
+    match solved {
+        Ok((loaded, result)) => Ok(Flow {
+            loaded,
+            params,
+            result,
+        }),
+        Err(Error::Flow(FlowError::Interrupted)) => Err(observer
+            .take_failure()
+            .unwrap_or_else(|| value_error("interrupted"))),
+        Err(error) => Err(to_py_err(error)),
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Operators, files, tracking.
+
+/// `(data, indices, indptr, shape)` of a CSC matrix, for `scipy.sparse.csc_matrix`.
+type Csc<'py> = (
+    Bound<'py, numpy::PyArray1<f64>>,
+    Bound<'py, numpy::PyArray1<i64>>,
+    Bound<'py, numpy::PyArray1<i64>>,
+    (usize, usize),
+);
+
+fn csc<'py>(py: Python<'py>, matrix: &fem::SparseMatrix) -> Csc<'py> {
+    let (symbolic, values) = matrix.parts();
+    let indices: Vec<i64> = symbolic.row_idx().iter().map(|&i| i as i64).collect();
+    let indptr: Vec<i64> = symbolic.col_ptr().iter().map(|&i| i as i64).collect();
+    (
+        values.to_vec().into_pyarray(py),
+        indices.into_pyarray(py),
+        indptr.into_pyarray(py),
+        (matrix.nrows(), matrix.ncols()),
+    )
+}
+
+/// The operators of `meshflow operators` for one mesh: a dict of CSC parts (`cotan`,
+/// `mass_scalar`, `stiffness`, `mass`), `frames` (V, 2, 3), `vertex_map` (V_input,).
+#[pyfunction]
+#[pyo3(signature = (positions, faces, mesh))]
+fn operators<'py>(
+    py: Python<'py>,
+    positions: PyReadonlyArray2<f64>,
+    faces: PyReadonlyArray2<i64>,
+    mesh: MeshArgs,
+) -> PyResult<Bound<'py, PyDict>> {
+    let faces = read_faces(&faces)?;
+    let positions = read_points(&positions);
+    let options = mesh.options();
+    let built = py.detach(|| -> Result<_, Error> {
+        let loaded = mesh_from_arrays(positions, &faces, &options)?;
+        let (mesh, positions) = (&loaded.mesh, &loaded.positions);
+        let geometry = IntrinsicGeometry::from_positions(mesh, positions)?;
+        let connection = Connection::new(mesh, &geometry);
+        let frames = vertex_frames_in_r3(mesh, &geometry, &connection, positions)?;
+        let matrices = fem::exported_operators(mesh, &geometry, &connection);
+        Ok((loaded.vertex_map, frames, matrices))
+    });
+    let (map, frames, matrices) = built.map_err(to_py_err)?;
+    let out = PyDict::new(py);
+    for (name, matrix) in &matrices {
+        out.set_item(*name, csc(py, matrix))?;
+    }
+    let rows: Vec<f64> = frame_rows(&frames).into_iter().flatten().collect();
+    let frames = Array3::from_shape_vec((frames.len(), 2, 3), rows).expect("V × 2 × 3 values");
+    out.set_item("frames", frames.into_pyarray(py))?;
+    out.set_item("vertex_map", Array1::from(map.to_npy()).into_pyarray(py))?;
+    Ok(out)
+}
+
+/// A sequence as `meshflow solve` reads it: mesh arrays (welded numbering), grey values,
+/// times, the vertex map, the loader's warnings and a description of the source.
+type SequenceArrays<'py> = (
+    Bound<'py, numpy::PyArray3<f64>>,
+    Bound<'py, numpy::PyArray2<i64>>,
+    Bound<'py, numpy::PyArray2<f64>>,
+    Bound<'py, numpy::PyArray1<f64>>,
+    Bound<'py, numpy::PyArray1<i64>>,
+    Vec<String>,
+    String,
+);
+
+fn sequence_arrays<'py>(py: Python<'py>, loaded: &LoadedSequence) -> SequenceArrays<'py> {
+    let sequence = &loaded.sequence;
+    let (k, v) = (sequence.n_frames(), sequence.mesh().n_vertices());
+    let positions: Vec<f64> = (0..k)
+        .flat_map(|f| {
+            sequence
+                .positions(f)
+                .expect("sequences from files are embedded")
+        })
+        .flat_map(|p| [p.x, p.y, p.z])
+        .collect();
+    let grey: Vec<f64> = (0..k)
+        .flat_map(|f| sequence.intensities(f).to_vec())
+        .collect();
+    (
+        Array3::from_shape_vec((k, v, 3), positions)
+            .expect("K × V × 3")
+            .into_pyarray(py),
+        faces_array(sequence.mesh().faces()).into_pyarray(py),
+        Array2::from_shape_vec((k, v), grey)
+            .expect("K × V")
+            .into_pyarray(py),
+        sequence.times().to_vec().into_pyarray(py),
+        Array1::from(loaded.vertex_map.to_npy()).into_pyarray(py),
+        loaded.warnings.iter().map(ToString::to_string).collect(),
+        loaded.source.describe(),
+    )
+}
+
+/// Reads what `meshflow solve INPUT` reads.
+#[pyfunction]
+#[pyo3(signature = (path, intensity, intensity_attribute, times, fps, animation, mesh))]
+#[allow(clippy::too_many_arguments)]
+fn load_sequence<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    intensity: Option<PathBuf>,
+    intensity_attribute: Option<String>,
+    times: Option<Vec<f64>>,
+    fps: Option<f64>,
+    animation: Option<String>,
+    mesh: MeshArgs,
+) -> PyResult<SequenceArrays<'py>> {
+    let options = LoadOptions {
+        intensity,
+        intensity_attribute,
+        times,
+        fps,
+        animation,
+        ..mesh.options()
+    };
+    let loaded = py
+        .detach(|| load_files(&path, &options))
+        .map_err(to_py_err)?;
+    Ok(sequence_arrays(py, &loaded))
+}
+
+/// One frame for `track`: its own positions (V_k, 3), faces (F_k, 3) and grey values (V_k,).
+type TrackFrameArgs<'py> = (
+    PyReadonlyArray2<'py, f64>,
+    PyReadonlyArray2<'py, i64>,
+    Option<PyReadonlyArray1<'py, f64>>,
+);
+
+/// positions (K, V, 3), faces (F, 3), grey values (K, V), times (K,), the report as JSON.
+type TrackedArrays<'py> = (
+    Bound<'py, numpy::PyArray3<f64>>,
+    Bound<'py, numpy::PyArray2<i64>>,
+    Bound<'py, numpy::PyArray2<f64>>,
+    Bound<'py, numpy::PyArray1<f64>>,
+    String,
+);
+
+/// `meshflow track` on frames in memory: the tracked sequence (positions, faces, grey values,
+/// times) and the report as JSON.
+#[pyfunction]
+#[pyo3(signature = (frames, times, max_step, keep_going, reference))]
+fn track<'py>(
+    py: Python<'py>,
+    frames: Vec<TrackFrameArgs<'py>>,
+    times: Option<Vec<f64>>,
+    max_step: Option<f64>,
+    keep_going: bool,
+    reference: Option<(PyReadonlyArray2<'py, f64>, PyReadonlyArray2<'py, i64>)>,
+) -> PyResult<TrackedArrays<'py>> {
+    let frames = frames
+        .iter()
+        .map(|(positions, faces, grey)| -> PyResult<_> {
+            let positions = read_points(positions);
+            let intensity = match grey {
+                Some(grey) => grey.as_array().to_vec(),
+                None => vec![0.0; positions.len()],
+            };
+            Ok(tracking::TrackFrame {
+                faces: read_faces(faces)?,
+                positions,
+                intensity,
+            })
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let reference = reference
+        .map(|(positions, faces)| -> PyResult<_> {
+            Ok(shapes::Surface {
+                positions: read_points(&positions),
+                faces: read_faces(&faces)?,
+            })
+        })
+        .transpose()?;
+    let options = tracking::TrackOptions {
+        max_step,
+        keep_going,
+        reference,
+    };
+    let tracked = py
+        .detach(|| tracking::track(&frames, times, &options))
+        .map_err(|e| to_py_err(e.into()))?;
+    let sequence = &tracked.sequence;
+    let k = sequence.n_frames();
+    let all: Vec<Vector3<f64>> = (0..k)
+        .flat_map(|f| sequence.positions(f).expect("tracked in R^3").to_vec())
+        .collect();
+    let v = sequence.mesh().n_vertices();
+    let positions = points_array(&all)
+        .into_shape_with_order((k, v, 3))
+        .expect("K × V × 3");
+    let grey: Vec<f64> = (0..k)
+        .flat_map(|f| sequence.intensities(f).to_vec())
+        .collect();
+    let report = serde_json::to_string(&tracked.report).expect("reports serialize");
+    Ok((
+        positions.into_pyarray(py),
+        faces_array(sequence.mesh().faces()).into_pyarray(py),
+        Array2::from_shape_vec((k, v), grey)
+            .expect("K × V")
+            .into_pyarray(py),
+        sequence.times().to_vec().into_pyarray(py),
+        report,
+    ))
+}
+
+#[pymodule]
+fn _meshflow(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Flow>()?;
+    m.add_function(wrap_pyfunction!(compute_flow, m)?)?;
+    m.add_function(wrap_pyfunction!(operators, m)?)?;
+    m.add_function(wrap_pyfunction!(load_sequence, m)?)?;
+    m.add_function(wrap_pyfunction!(track, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -1,0 +1,75 @@
+"""Inputs as users have them: dtypes, memory orders, views; the caller's arrays untouched."""
+
+import numpy as np
+import pytest
+
+import meshflow
+
+
+@pytest.fixture(scope="module")
+def reference(sample):
+    return sample.compute_flow(gamma=1e-3)
+
+
+@pytest.mark.parametrize("face_dtype", [np.int32, np.int64, np.uint32, np.uint64])
+def test_any_integer_faces(sample, reference, face_dtype):
+    flow = meshflow.compute_flow(sample.positions, sample.faces.astype(face_dtype),
+                                 sample.intensity, gamma=1e-3)
+    assert np.array_equal(flow.vectors, reference.vectors)
+
+
+def test_fortran_order_and_strided_views(sample, reference):
+    positions = np.asfortranarray(sample.positions)
+    faces = np.asfortranarray(sample.faces)
+    padded = np.zeros((sample.intensity.shape[0], 2 * sample.intensity.shape[1]))
+    padded[:, ::2] = sample.intensity
+    intensity = padded[:, ::2]  # a non-contiguous view
+    assert not intensity.flags.c_contiguous and not positions.flags.c_contiguous
+    flow = meshflow.compute_flow(positions, faces, intensity, sample.times, gamma=1e-3)
+    assert np.array_equal(flow.vectors, reference.vectors)
+
+
+def test_float32_is_widened_exactly(sample):
+    positions = sample.positions.astype(np.float32)
+    intensity = sample.intensity.astype(np.float32)
+    narrow = meshflow.compute_flow(positions, sample.faces, intensity, gamma=1e-3)
+    wide = meshflow.compute_flow(positions.astype(np.float64), sample.faces,
+                                 intensity.astype(np.float64), gamma=1e-3)
+    assert np.array_equal(narrow.vectors, wide.vectors)
+
+
+def test_lists_work_too(sample, reference):
+    flow = meshflow.compute_flow(sample.positions.tolist(), sample.faces.tolist(),
+                                 sample.intensity.tolist(), list(sample.times), gamma=1e-3)
+    assert np.array_equal(flow.vectors, reference.vectors)
+
+
+def test_the_callers_arrays_are_not_changed(sample):
+    arrays = [sample.positions.copy(), sample.faces.astype(np.int32), sample.intensity.copy()]
+    before = [a.copy() for a in arrays]
+    for a in arrays:
+        a.setflags(write=False)  # a write would raise
+    meshflow.compute_flow(*arrays, gamma=1e-3)
+    meshflow.operators(arrays[0][0], arrays[1])
+    assert all(np.array_equal(a, b) for a, b in zip(arrays, before))
+
+
+def test_results_are_in_the_input_numbering_when_welding_merges(sample):
+    # Duplicate vertex 0 as a seam copy used by one face: welding merges it back.
+    positions = np.concatenate([sample.positions, sample.positions[:, :1]], axis=1)
+    intensity = np.concatenate([sample.intensity, sample.intensity[:, :1]], axis=1)
+    faces = sample.faces.copy()
+    face = np.nonzero((faces == 0).any(axis=1))[0][0]
+    faces[face][faces[face] == 0] = len(sample.positions[0])
+    flow = meshflow.compute_flow(positions, faces, intensity, gamma=1e-3)
+    assert flow.vectors.shape == (5, 643, 3)
+    assert np.array_equal(flow.vectors[:, -1], flow.vectors[:, 0])
+    assert flow.vertex_map[-1] == flow.vertex_map[0] == 0
+    unwelded = meshflow.compute_flow(positions, faces, intensity, gamma=1e-3, weld=False)
+    assert np.array_equal(unwelded.vertex_map, np.arange(643))
+
+
+def test_a_mesh_from_trimesh_style_arrays(sample):
+    # trimesh.Trimesh.faces is int64 (F, 3) and vertices float64 (V, 3), C order.
+    ops = meshflow.operators(np.ascontiguousarray(sample.positions[0]), sample.faces.astype(np.int64))
+    assert ops["stiffness"].shape == (2 * 642, 2 * 642)
