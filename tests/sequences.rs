@@ -743,3 +743,70 @@ fn float32_arrays_are_accepted_and_a_ply_without_colours_names_its_properties() 
         "{message}"
     );
 }
+
+/// Every row with its first entry appended (a seam copy of vertex 0).
+fn with_copy<T: Clone>(rows: &[Vec<T>]) -> Vec<Vec<T>> {
+    rows.iter()
+        .map(|r| [r.clone(), vec![r[0].clone()]].concat())
+        .collect()
+}
+
+/// Arrays in memory go through the loaders' steps: the shipped sequence's own arrays give its
+/// sequence back to the last bit, a seam copy is welded (and mapped), and errors name the
+/// arrays, the frame and the vertex.
+#[test]
+fn arrays_are_built_like_files() {
+    use meshflow::io::sequence_from_arrays;
+    let loaded = load_sequence(&shipped_sphere(), &LoadOptions::default()).unwrap();
+    let sequence = &loaded.sequence;
+    let frames = 0..sequence.n_frames();
+    let positions: Vec<Vec<Vector3<f64>>> = frames
+        .clone()
+        .map(|k| sequence.positions(k).unwrap().to_vec())
+        .collect();
+    let grey: Vec<Vec<f64>> = frames.map(|k| sequence.intensities(k).to_vec()).collect();
+    let faces = sequence.mesh().faces().to_vec();
+    let times = Some(sequence.times().to_vec());
+    let from_arrays = |faces, positions, grey| {
+        sequence_from_arrays(
+            faces,
+            positions,
+            grey,
+            times.clone(),
+            &LoadOptions::default(),
+        )
+    };
+    let again = from_arrays(faces.clone(), positions.clone(), grey.clone()).unwrap();
+    assert_eq!(again.sequence.mesh().faces(), sequence.mesh().faces());
+    for k in 0..sequence.n_frames() {
+        assert_eq!(again.sequence.positions(k), sequence.positions(k));
+        assert_eq!(again.sequence.intensities(k), sequence.intensities(k));
+    }
+    assert_eq!(again.source.describe(), "arrays in memory");
+
+    // Vertex 0 copied as vertex V and used by one face in its place: welded back.
+    let n = positions[0].len();
+    let mut seam_faces = faces.clone();
+    let face = seam_faces.iter().position(|f| f.contains(&0)).unwrap();
+    seam_faces[face]
+        .iter_mut()
+        .filter(|v| **v == 0)
+        .for_each(|v| *v = n as u32);
+    let welded = from_arrays(seam_faces, with_copy(&positions), with_copy(&grey)).unwrap();
+    assert_eq!(welded.vertex_map.mesh_vertex(n), Some(0));
+    assert_eq!(welded.sequence.mesh().n_vertices(), n);
+
+    let mut bad = grey.clone();
+    bad[2][7] = f64::NAN;
+    let error = from_arrays(faces.clone(), positions.clone(), bad).unwrap_err();
+    assert!(
+        error
+            .to_string()
+            .starts_with("arrays: frame 2: intensity at vertex 7 is NaN"),
+        "{error}"
+    );
+    let mut short = positions.clone();
+    short[3].pop();
+    let error = from_arrays(faces, short, grey).unwrap_err().to_string();
+    assert_eq!(error, "arrays: frame 3 has 641 vertices, frame 0 has 642");
+}

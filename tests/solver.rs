@@ -237,3 +237,38 @@ fn forced_iterative_solvers_on_uncoupled_slabs_are_exact_slab_solves() {
         assert_same_intrinsic_flow(&slabwise, &iterative);
     }
 }
+
+/// An observer that asks to stop ends the solve with `FlowError::Interrupted` right after the
+/// event it was asked at; a closure observer never stops.
+#[test]
+fn an_observer_can_interrupt_the_solve() {
+    use meshflow::flow::{FlowError, FlowProblem, SolveEvent, SolveObserver};
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    struct StopAfter(usize, AtomicUsize);
+    impl SolveObserver for StopAfter {
+        fn event(&self, event: SolveEvent) {
+            if let SolveEvent::Iteration { .. } = event {
+                self.1.fetch_add(1, Ordering::SeqCst);
+            }
+        }
+        fn interrupted(&self) -> bool {
+            self.1.load(Ordering::SeqCst) >= self.0
+        }
+    }
+    let sequence = rotating_sphere(3, 4, 1.0, 0.05).unwrap().sequence;
+    let params = FlowParams {
+        solver: SolverChoice::PcgJacobi,
+        tolerance: 1e-12,
+        ..FlowParams::paper(1.0, 0.0, 1e-4)
+    };
+    let problem = FlowProblem::new(&sequence, &params).unwrap();
+    let observer = StopAfter(3, AtomicUsize::new(0));
+    assert_eq!(
+        problem.solve(&observer).unwrap_err(),
+        FlowError::Interrupted
+    );
+    assert_eq!(observer.1.load(Ordering::SeqCst), 3);
+    let finished = problem.solve(&|_| {}).unwrap();
+    assert!(finished.iterations > 3 && finished.relative_residual <= 1e-12);
+}

@@ -309,29 +309,11 @@ impl ParamArgs {
             time_coupling: parse::<TimeCoupling>(&self.time_coupling, "time_coupling")?,
             solver: parse::<SolverChoice>(&self.solver, "solver")?,
             tolerance: self.tolerance,
-            warping: self.warping(),
+            warping: Warping::from_options(self.levels, self.warps, self.large_motion),
             ..defaults
         };
         params.validate().map_err(|e| to_py_err(Error::from(e)))?;
         Ok(params)
-    }
-
-    /// `levels`, `warps` and `large_motion` as the CLI combines them.
-    fn warping(&self) -> Warping {
-        let preset = match self.large_motion {
-            true => Warping::LARGE_MOTION,
-            false => Warping::NONE,
-        };
-        let levels = self.levels.unwrap_or(preset.levels);
-        let default_warps = match (self.large_motion, levels) {
-            (true, _) => preset.warps,
-            (false, 1) => 0,
-            (false, _) => 1,
-        };
-        Warping {
-            levels,
-            warps: self.warps.unwrap_or(default_warps),
-        }
     }
 }
 

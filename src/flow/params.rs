@@ -187,6 +187,26 @@ impl Warping {
         warps: 2,
     };
 
+    /// The CLI's `--levels`, `--warps` and `--large-motion` (and the Python keywords) as one
+    /// setting: the preset's values unless given; without the preset, one warp per level once
+    /// there are several levels.
+    pub fn from_options(levels: Option<usize>, warps: Option<usize>, large_motion: bool) -> Self {
+        let preset = match large_motion {
+            true => Self::LARGE_MOTION,
+            false => Self::NONE,
+        };
+        let levels = levels.unwrap_or(preset.levels);
+        let default_warps = match (large_motion, levels) {
+            (true, _) => preset.warps,
+            (false, 1) => 0,
+            (false, _) => 1,
+        };
+        Self {
+            levels,
+            warps: warps.unwrap_or(default_warps),
+        }
+    }
+
     /// Whether anything is warped.
     pub fn is_active(&self) -> bool {
         self.warps > 0

@@ -144,7 +144,7 @@ fn build_sequence(
         return Err(FlowError::TooFewFrames(positions.len()).into());
     }
     let n_file_vertices = positions[0].len();
-    check_frame_sizes(&positions, intensities.as_deref()).map_err(|e| in_frame_file(e, &files))?;
+    check_frame_sizes(&positions, intensities.as_deref(), &files)?;
     check_finite_positions(&positions).map_err(|e| in_frame_file(e, &files))?;
     let prepared = prepare_mesh(&files[0], &faces, &positions, options)?;
     let vertex_map = prepared.vertex_map;
@@ -201,26 +201,35 @@ fn build_sequence(
 fn check_frame_sizes(
     positions: &[Vec<Vector3<f64>>],
     intensities: Option<&[Vec<f64>]>,
-) -> Result<(), FlowError> {
+    files: &[PathBuf],
+) -> Result<(), IoError> {
     let expected = positions[0].len();
-    let mismatch = |what: &'static str, got: usize| FlowError::CountMismatch {
-        what,
-        expected,
-        got,
-    };
-    if let Some(frame) = positions.iter().find(|p| p.len() != expected) {
-        return Err(mismatch("positions in every frame", frame.len()));
+    let wrong = |k: usize, message: String| Err(IoError::format(&files[k], message));
+    if let Some(k) = positions.iter().position(|p| p.len() != expected) {
+        let got = positions[k].len();
+        return wrong(
+            k,
+            format!("frame {k} has {got} vertices, frame 0 has {expected}"),
+        );
     }
-    match intensities {
-        Some(grey) if grey.len() != positions.len() => Err(FlowError::CountMismatch {
-            what: "frames of grey values",
-            expected: positions.len(),
-            got: grey.len(),
-        }),
-        Some(grey) => match grey.iter().find(|g| g.len() != expected) {
-            Some(frame) => Err(mismatch("grey values in every frame", frame.len())),
-            None => Ok(()),
-        },
+    let Some(grey) = intensities else {
+        return Ok(());
+    };
+    if grey.len() != positions.len() {
+        let (got, frames) = (grey.len(), positions.len());
+        return wrong(
+            0,
+            format!("{got} frames of grey values for {frames} frames"),
+        );
+    }
+    match grey.iter().position(|g| g.len() != expected) {
+        Some(k) => {
+            let got = grey[k].len();
+            wrong(
+                k,
+                format!("frame {k} has {got} grey values for {expected} vertices"),
+            )
+        }
         None => Ok(()),
     }
 }

@@ -266,21 +266,7 @@ impl SolveArgs {
 
     /// `--levels`, `--warps` and `--large-motion` as one setting.
     fn warping(&self) -> meshflow::flow::Warping {
-        use meshflow::flow::Warping;
-        let preset = match self.large_motion {
-            true => Warping::LARGE_MOTION,
-            false => Warping::NONE,
-        };
-        let levels = self.levels.unwrap_or(preset.levels);
-        let default_warps = match (self.large_motion, levels) {
-            (true, _) => preset.warps,
-            (false, 1) => 0,
-            (false, _) => 1,
-        };
-        Warping {
-            levels,
-            warps: self.warps.unwrap_or(default_warps),
-        }
+        meshflow::flow::Warping::from_options(self.levels, self.warps, self.large_motion)
     }
 }
 
