@@ -110,6 +110,8 @@ def compute_flow(
     alpha: Optional[float] = None,
     beta: Optional[float] = None,
     gamma: Optional[float] = None,
+    regularizer: str = "covariant",
+    dirichlet_mix: Optional[float] = None,
     boundary: str = "neumann",
     time_coupling: str = "lumped",
     solver: str = "auto",
@@ -141,6 +143,11 @@ def compute_flow(
         length, ``Δt̄`` the mean frame spacing and ``S`` the image's gradient scale.
     alpha, beta, gamma : float, optional
         The paper's weights as numbers instead (``alpha=float("inf")``: frame by frame).
+    regularizer : {"covariant", "strain"}
+        What ``γ`` weighs: the paper's ``|∇u|²``, or the strain ``|Sym ∇u|²``, which is zero
+        on rigid motions of the surface (a texture turning with it is not pulled to rest).
+    dirichlet_mix : float, optional
+        With ``regularizer="strain"``: add ``dirichlet_mix·|∇u|²`` (default 0).
     boundary : {"neumann", "dirichlet"}
     time_coupling : {"lumped", "consistent"}
     solver : {"auto", "direct", "pcg-slab-gauss-seidel", "pcg-time-multigrid", "pcg-jacobi"}
@@ -187,6 +194,8 @@ def compute_flow(
         "alpha": _optional_float("alpha", alpha),
         "beta": _optional_float("beta", beta),
         "gamma": _optional_float("gamma", gamma),
+        "regularizer": str(regularizer),
+        "dirichlet_mix": _optional_float("dirichlet_mix", dirichlet_mix),
         "boundary": str(boundary),
         "time_coupling": str(time_coupling),
         "solver": str(solver),

@@ -13,8 +13,8 @@
 
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::flow::{
-    Boundary, FlowError, FlowParams, FlowProblem, FlowResult, SolveEvent, SolveObserver,
-    SolverChoice, TimeCoupling, Warping, Weight,
+    Boundary, FlowError, FlowParams, FlowProblem, FlowResult, Regularizer, SolveEvent,
+    SolveObserver, SolverChoice, TimeCoupling, Warping, Weight,
 };
 use meshflow::geometry::IntrinsicGeometry;
 use meshflow::io::{
@@ -270,6 +270,8 @@ struct ParamArgs {
     alpha: Option<f64>,
     beta: Option<f64>,
     gamma: Option<f64>,
+    regularizer: String,
+    dirichlet_mix: Option<f64>,
     boundary: String,
     time_coupling: String,
     solver: String,
@@ -305,6 +307,11 @@ impl ParamArgs {
                 "beta and speed_penalty",
             )?,
             gamma: weight(self.gamma, self.spread, defaults.gamma, "gamma and spread")?,
+            regularizer: Regularizer::with_mix(
+                parse(&self.regularizer, "regularizer")?,
+                self.dirichlet_mix,
+            )
+            .map_err(|e| to_py_err(e.into()))?,
             boundary: parse::<Boundary>(&self.boundary, "boundary")?,
             time_coupling: parse::<TimeCoupling>(&self.time_coupling, "time_coupling")?,
             solver: parse::<SolverChoice>(&self.solver, "solver")?,

@@ -108,3 +108,22 @@ pub fn face_gradient(triangle: &Triangle, values: [f64; 3]) -> Vector2<f64> {
     let grads = triangle.hat_gradients();
     grads[0] * values[0] + grads[1] * values[1] + grads[2] * values[2]
 }
+
+/// Strain (symmetric-gradient) element `∫_T |Sym ∇u|²` in the corners' vertex-frame DOFs.
+///
+/// On the face, `∇u = Σ_a v_a g_aᵀ` with `v_a = R_a u_a` (face frame) and `g_a = ∇φ_a`, so
+/// `|Sym ∇u|² = ½ |∇u|² + ½ tr(∇u ∇u) = ½ Σ_ab [(v_a·v_b)(g_a·g_b) + (v_a·g_b)(v_b·g_a)]`:
+/// block `(a, b) = A/2 · R_aᵀ [(g_a·g_b) I + g_b g_aᵀ] R_b`. Positive semi-definite; zero on
+/// infinitesimal rigid motions of the face (`v_a = ω J x_a + c`), the discrete Killing fields.
+pub fn strain_element(triangle: &Triangle, rotations: &[Matrix2<f64>; 3]) -> Matrix6<f64> {
+    let g = triangle.hat_gradients();
+    let mut out = Matrix6::zeros();
+    for a in 0..3 {
+        for b in 0..3 {
+            let face = Matrix2::identity() * g[a].dot(&g[b]) + g[b] * g[a].transpose();
+            let block = rotations[a].transpose() * face * rotations[b] * (0.5 * triangle.area);
+            out.fixed_view_mut::<2, 2>(2 * a, 2 * b).copy_from(&block);
+        }
+    }
+    out
+}

@@ -45,7 +45,8 @@ pub fn energy_terms<'a>(
         .into_par_iter()
         .map(|s| {
             let this = slab(s);
-            let mut terms = spatial_terms(mesh, &this, weights, |face| corner_values(s, face));
+            let mut terms =
+                spatial_terms(mesh, &this, params, weights, |face| corner_values(s, face));
             if weights.is_coupled() && s + 1 < n_slabs {
                 let next = slab(s + 1);
                 let link = TimeLink::new(&this, &next, weights);
@@ -79,12 +80,13 @@ pub fn energy_terms<'a>(
 fn spatial_terms(
     mesh: &Mesh,
     slab: &Slab,
+    params: &FlowParams,
     weights: &Weights,
     x: impl Fn(&[u32; 3]) -> Vector6<f64>,
 ) -> EnergyTerms {
     let mut terms = EnergyTerms::default();
     for (f, face) in mesh.faces().iter().enumerate() {
-        let e = slab.face_elements(face, f);
+        let e = slab.face_elements(face, f, &params.regularizer);
         let x = x(face);
         terms.data += slab.dt
             * (x.dot(&(e.data.quadratic * x)) + 2.0 * e.data.linear.dot(&x) + e.data.constant);

@@ -37,7 +37,7 @@
 //! (the plain root mean square is diluted by empty background and gave best spreads 2.5 times
 //! apart).
 
-use super::{DataScales, FlowError};
+use super::{DataScales, FlowError, Regularizer};
 
 /// Boundary condition in space (time always has natural conditions).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -152,6 +152,9 @@ pub struct FlowParams {
     /// Spatial smoothness `|∇u|²`. `Value`: the paper's `γ > 0`. `Relative(λ)`: the spread in
     /// mean edge lengths, `γ = (λ h̄ S)²`.
     pub gamma: Weight,
+    /// What `γ` weighs: the paper's covariant `|∇u|²` or the strain `|Sym ∇u|²`
+    /// ([`super::regularizer`]).
+    pub regularizer: Regularizer,
     pub boundary: Boundary,
     pub time_coupling: TimeCoupling,
     pub solver: SolverChoice,
@@ -236,6 +239,7 @@ impl Default for FlowParams {
             alpha: Weight::Relative(DEFAULT_TIME_SCALE),
             beta: Weight::Value(0.0),
             gamma: Weight::Relative(DEFAULT_SPREAD),
+            regularizer: Regularizer::Covariant,
             boundary: Boundary::Neumann,
             time_coupling: TimeCoupling::Lumped,
             solver: SolverChoice::Auto,
@@ -296,6 +300,14 @@ impl FlowParams {
             gamma_ok,
             gamma_requirement,
         )?;
+        if let Regularizer::Strain { dirichlet } = self.regularizer {
+            check(
+                "dirichlet (the covariant part of the strain regularizer)",
+                dirichlet,
+                dirichlet >= 0.0 && dirichlet.is_finite(),
+                "finite and ≥ 0",
+            )?;
+        }
         check(
             "tolerance",
             self.tolerance,

@@ -1,7 +1,7 @@
 //! Slabs: the time interval between two frames, with its mean geometry and image rates
 //! (`docs/discretization.md` §3).
 
-use super::{FlowError, MeshSequence, TimeCoupling, Weights};
+use super::{FlowError, MeshSequence, Regularizer, TimeCoupling, Weights};
 use crate::connection::{polar_rotation_angles, rotation, Connection};
 use crate::fem::element::{self, DataElement};
 use crate::geometry::IntrinsicGeometry;
@@ -23,7 +23,8 @@ pub struct Slab {
     pub linearization: Option<Vec<Vector2<f64>>>,
 }
 
-/// The element matrices of one face of one slab, before weighting by `Δt`, `β`, `γ`.
+/// The element matrices of one face of one slab, before weighting by `Δt`, `β`, `γ`
+/// (`stiffness`: the spatial regularizer's).
 pub struct FaceElements {
     pub data: DataElement,
     pub mass: Matrix6<f64>,
@@ -54,8 +55,14 @@ impl Slab {
         })
     }
 
-    /// Data, vector mass and connection stiffness of face `f` of this slab.
-    pub fn face_elements(&self, face: &[u32; 3], f: usize) -> FaceElements {
+    /// Data, vector mass and regularizer (`regularizer`'s element: the connection stiffness
+    /// for the paper's covariant term) of face `f` of this slab.
+    pub fn face_elements(
+        &self,
+        face: &[u32; 3],
+        f: usize,
+        regularizer: &Regularizer,
+    ) -> FaceElements {
         let triangle = self.geometry.triangle(f);
         let rotations = self.connection.face_rotations(f);
         let at = |values: &[f64]| face.map(|v| values[v as usize]);
@@ -70,7 +77,7 @@ impl Slab {
         FaceElements {
             data: element::data_element(triangle, rotations, intensity, rate),
             mass: element::vector_element(&element::consistent_mass(triangle), rotations),
-            stiffness: element::vector_element(&element::cotan_stiffness(triangle), rotations),
+            stiffness: regularizer.element(triangle, rotations),
         }
     }
 }

@@ -55,7 +55,7 @@ impl SpaceTimeSystem {
                 let link_before = (coupled && s > 0).then(|| (&links[s - 1], &slabs[s - 1]));
                 let link_after = (coupled && s + 1 < n_slabs).then(|| (&links[s], &slabs[s + 1]));
                 let links = (link_before, link_after);
-                assemble_slab(mesh, &pattern, &slabs[s], links, weights, coupling)
+                assemble_slab(mesh, &pattern, &slabs[s], links, params, weights)
             })
             .collect();
         let links = (0..links.len())
@@ -279,14 +279,15 @@ fn assemble_slab(
     pattern: &VertexPattern,
     slab: &Slab,
     (link_before, link_after): (Neighbour, Neighbour),
+    params: &FlowParams,
     weights: &Weights,
-    coupling: TimeCoupling,
 ) -> (Vec<f64>, Vec<f64>, f64) {
+    let coupling = params.time_coupling;
     let mut values = vec![0.0; pattern.nnz()];
     let mut rhs = vec![0.0; pattern.dimension()];
     let mut constant = 0.0;
     for (f, face) in mesh.faces().iter().enumerate() {
-        let e = slab.face_elements(face, f);
+        let e = slab.face_elements(face, f, &params.regularizer);
         let mut a: Matrix6<f64> =
             (e.data.quadratic + e.mass * weights.beta + e.stiffness * weights.gamma) * slab.dt;
         if let Some((link, previous)) = link_before {

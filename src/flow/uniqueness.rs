@@ -1,5 +1,12 @@
 //! Does the energy have a unique minimizer? Only a question when `β = 0`.
 //!
+//! The analysis below is the covariant regularizer's. It holds for the strain regularizer
+//! too as far as it goes: a parallel field is a Killing field (`∇u = 0` makes `Sym ∇u = 0`),
+//! so every kernel found here is one of the strain energy as well; rotations the image leaves
+//! free (a pattern symmetric about an axis) are a kernel of the pure strain energy only, which
+//! this check does not look for (the factorization or the solver then reports the singular
+//! system, and `β > 0` removes it).
+//!
 //! Every term of `E` is a non-negative quadratic, so `A u = 0` iff every term vanishes at `u`:
 //! `K_s u_s = 0` makes `u_s` covariantly constant on each slab (on every face the three
 //! transported corner vectors coincide, since the cotan stiffness of a triangle only

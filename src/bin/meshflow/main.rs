@@ -164,6 +164,13 @@ struct SolveArgs {
     /// --spread
     #[arg(long, allow_negative_numbers = true)]
     gamma: Option<f64>,
+    /// What γ weighs: covariant (the paper's |∇u|²) or strain (|Sym ∇u|², zero on rigid
+    /// motions of the surface: a texture turning with it is not pulled towards rest)
+    #[arg(long, default_value = "covariant")]
+    regularizer: meshflow::flow::Regularizer,
+    /// With --regularizer strain: add D·|∇u|² (the covariant term, relative to γ) [default: 0]
+    #[arg(long, value_name = "D", allow_negative_numbers = true)]
+    dirichlet_mix: Option<f64>,
     /// neumann or dirichlet (u = 0 on the boundary)
     #[arg(long, default_value = "neumann")]
     boundary: Boundary,
@@ -262,6 +269,11 @@ impl SolveArgs {
             animation: self.animation.clone(),
             ..self.building.options()
         }
+    }
+
+    /// `--regularizer` with `--dirichlet-mix`.
+    fn regularizer(&self) -> Result<meshflow::flow::Regularizer, meshflow::flow::FlowError> {
+        meshflow::flow::Regularizer::with_mix(self.regularizer, self.dirichlet_mix)
     }
 
     /// `--levels`, `--warps` and `--large-motion` as one setting.

@@ -24,6 +24,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         alpha: weight(args.alpha, args.time_scale, defaults.alpha),
         beta: weight(args.beta, args.speed_penalty, defaults.beta),
         gamma: weight(args.gamma, args.spread, defaults.gamma),
+        regularizer: args.regularizer()?,
         boundary: args.boundary,
         time_coupling: args.time_coupling,
         solver: args.solver,
