@@ -152,3 +152,94 @@ fn strain_with_a_free_translation_is_refused() {
     assert!(message.contains("dirichlet"), "{message}");
     assert!(Regularizer::with_mix(Regularizer::Covariant, Some(0.5)).is_err());
 }
+
+/// Charbonnier smoothness with ε → ∞ is the quadratic model.
+#[test]
+fn robust_smoothness_with_a_huge_scale_is_the_quadratic_model() {
+    let scene = rotating_sphere(3, 3, 1.0, 0.05).unwrap();
+    let params = |robust_smoothness| FlowParams {
+        robust_smoothness,
+        ..FlowParams::paper(1.0, 0.0, 1e-3)
+    };
+    let quadratic = compute_flow(&scene.sequence, &params(None)).unwrap();
+    let robust = compute_flow(&scene.sequence, &params(Some(1e8))).unwrap();
+    let difference: f64 = quadratic
+        .intrinsic
+        .concat()
+        .iter()
+        .zip(robust.intrinsic.concat())
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    let size = quadratic
+        .intrinsic
+        .concat()
+        .iter()
+        .map(|u| u.norm())
+        .fold(0.0, f64::max);
+    assert!(difference < 1e-9 * size, "{difference} vs {size}");
+    assert_eq!(robust.reweightings, 1);
+    assert!((robust.energy - quadratic.energy).abs() < 1e-9 * quadratic.energy);
+    assert_eq!(quadratic.reweightings, 0);
+}
+
+/// A bright cell moving over a still background of cells: the quadratic smoothness drags the
+/// still cells along; the robust one keeps the motion where it is.
+#[test]
+fn robust_smoothness_keeps_a_moving_cell_from_dragging_its_neighbours() {
+    let sphere = icosphere(4);
+    let cell = |p: &Vector3<f64>, c: Vector3<f64>| {
+        (-(p - c).norm_squared() / (2.0 * 0.15f64.powi(2))).exp()
+    };
+    let still = [
+        Vector3::new(0.0, 0.6, 0.8),
+        Vector3::new(0.0, -0.6, 0.8),
+        Vector3::new(-0.8, 0.0, 0.6),
+    ];
+    let moving = |k: usize| {
+        let angle = 0.08 * k as f64;
+        Vector3::new(angle.cos(), angle.sin(), 0.0)
+    };
+    let grey: Vec<Vec<f64>> = (0..3)
+        .map(|k| {
+            sphere
+                .positions
+                .iter()
+                .map(|p| {
+                    0.1 + 0.8 * cell(p, moving(k))
+                        + still.iter().map(|&c| 0.8 * cell(p, c)).sum::<f64>()
+                })
+                .collect()
+        })
+        .collect();
+    let frames = vec![sphere.positions.clone(); 3];
+    let sequence = MeshSequence::new(sphere.mesh().unwrap(), frames, grey, None).unwrap();
+    // Mean speed at the still cells' centres (where their image gradient is weak) and around them.
+    let near_still: Vec<usize> = (0..sphere.positions.len())
+        .filter(|&i| still.iter().any(|c| (sphere.positions[i] - c).norm() < 0.3))
+        .collect();
+    let drift = |robust_smoothness| {
+        let params = FlowParams {
+            robust_smoothness,
+            ..FlowParams::paper(1.0, 1e-4, 1e-3)
+        };
+        let result = compute_flow(&sequence, &params).unwrap();
+        let vectors = result.vectors.unwrap();
+        let mean = near_still
+            .iter()
+            .map(|&i| vectors[0][i].norm())
+            .sum::<f64>()
+            / near_still.len() as f64;
+        let peak = vectors[0].iter().map(|v| v.norm()).fold(0.0, f64::max);
+        (mean, peak, result.reweightings)
+    };
+    let (quadratic, quadratic_peak, _) = drift(None);
+    let (robust, robust_peak, reweightings) = drift(Some(0.01));
+    println!("drift at the still cells: {quadratic:.3e} quadratic, {robust:.3e} robust ({reweightings} reweightings); peaks {quadratic_peak:.3e} / {robust_peak:.3e}");
+    assert!(robust < 0.2 * quadratic);
+    assert!(robust_peak > 0.8 * quadratic_peak);
+    assert!((2..crate_max()).contains(&reweightings));
+}
+
+fn crate_max() -> usize {
+    meshflow::flow::robust::MAX_REWEIGHTINGS
+}

@@ -112,6 +112,7 @@ def compute_flow(
     gamma: Optional[float] = None,
     regularizer: str = "covariant",
     dirichlet_mix: Optional[float] = None,
+    robust_smoothness: Optional[float] = None,
     boundary: str = "neumann",
     time_coupling: str = "lumped",
     solver: str = "auto",
@@ -148,6 +149,9 @@ def compute_flow(
         on rigid motions of the surface (a texture turning with it is not pulled to rest).
     dirichlet_mix : float, optional
         With ``regularizer="strain"``: add ``dirichlet_mix·|∇u|²`` (default 0).
+    robust_smoothness : float, optional
+        ``ε``: the Charbonnier penalty ``2ε(√(r + ε²) − ε)`` of the regularizer's density
+        ``r`` (linear growth beyond ``|∇u| = ε``, for flows with jumps), by reweighted solves.
     boundary : {"neumann", "dirichlet"}
     time_coupling : {"lumped", "consistent"}
     solver : {"auto", "direct", "pcg-slab-gauss-seidel", "pcg-time-multigrid", "pcg-jacobi"}
@@ -196,6 +200,7 @@ def compute_flow(
         "gamma": _optional_float("gamma", gamma),
         "regularizer": str(regularizer),
         "dirichlet_mix": _optional_float("dirichlet_mix", dirichlet_mix),
+        "robust_smoothness": _optional_float("robust_smoothness", robust_smoothness),
         "boundary": str(boundary),
         "time_coupling": str(time_coupling),
         "solver": str(solver),

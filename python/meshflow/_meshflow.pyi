@@ -41,6 +41,9 @@ class Flow:
     @property
     def iterations(self) -> int: ...
     @property
+    def reweightings(self) -> int:
+        """Reweighted solves of the robust smoothness (0 for the quadratic model)."""
+    @property
     def solver(self) -> str: ...
     @property
     def solver_reason(self) -> str: ...

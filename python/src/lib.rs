@@ -272,6 +272,7 @@ struct ParamArgs {
     gamma: Option<f64>,
     regularizer: String,
     dirichlet_mix: Option<f64>,
+    robust_smoothness: Option<f64>,
     boundary: String,
     time_coupling: String,
     solver: String,
@@ -312,6 +313,7 @@ impl ParamArgs {
                 self.dirichlet_mix,
             )
             .map_err(|e| to_py_err(e.into()))?,
+            robust_smoothness: self.robust_smoothness,
             boundary: parse::<Boundary>(&self.boundary, "boundary")?,
             time_coupling: parse::<TimeCoupling>(&self.time_coupling, "time_coupling")?,
             solver: parse::<SolverChoice>(&self.solver, "solver")?,
@@ -442,6 +444,12 @@ impl Flow {
     #[getter]
     fn relative_residual(&self) -> f64 {
         self.result.relative_residual
+    }
+
+    /// Reweighted solves of the robust smoothness (0 for the quadratic model).
+    #[getter]
+    fn reweightings(&self) -> usize {
+        self.result.reweightings
     }
 
     /// Solver iterations (0 for a direct solve).

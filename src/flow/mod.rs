@@ -39,6 +39,7 @@ mod error;
 mod params;
 pub mod pyramid;
 pub mod regularizer;
+pub mod robust;
 mod scales;
 mod sequence;
 mod slab;
@@ -92,7 +93,11 @@ pub struct FlowResult {
     /// that remains between the two frames of slab `s` read halfway along the final flow
     /// ([`warp`]); `None` for the single linear solve.
     pub warped_residual: Option<Vec<Vec<f64>>>,
-    /// `E(u)` at the solution.
+    /// Reweighted solves of the robust smoothness (0 for the quadratic model; with warping,
+    /// those of the last warp).
+    pub reweightings: usize,
+    /// `E(u)` at the solution (with robust smoothness: of the last quadratic model, its
+    /// weights lagged).
     pub energy: f64,
     pub energy_terms: EnergyTerms,
     /// `E(0)`: the data term of the zero flow.
@@ -250,6 +255,9 @@ impl<'a> FlowProblem<'a> {
         if self.params.warping.is_active() {
             return warp::coarse_to_fine(self, observer);
         }
+        if let Some(epsilon) = self.params.robust_smoothness {
+            return robust::reweighted(self, epsilon, observer);
+        }
         let start = Instant::now();
         let solution = solve::solve(&self.system, &self.params, observer)?;
         let solve_seconds = start.elapsed().as_secs_f64();
@@ -281,6 +289,7 @@ impl<'a> FlowProblem<'a> {
             intrinsic,
             vectors,
             warped_residual: None,
+            reweightings: 0,
         })
     }
 

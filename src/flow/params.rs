@@ -155,6 +155,10 @@ pub struct FlowParams {
     /// What `γ` weighs: the paper's covariant `|∇u|²` or the strain `|Sym ∇u|²`
     /// ([`super::regularizer`]).
     pub regularizer: Regularizer,
+    /// `Some(ε)`: robust (Charbonnier) spatial smoothness `2ε(√(r(u) + ε²) − ε)` in place of
+    /// the quadratic `r(u)` of the regularizer, by reweighted solves ([`super::robust`]);
+    /// `ε` in the units of `|∇u|` (1/time). `None`: the quadratic model.
+    pub robust_smoothness: Option<f64>,
     pub boundary: Boundary,
     pub time_coupling: TimeCoupling,
     pub solver: SolverChoice,
@@ -240,6 +244,7 @@ impl Default for FlowParams {
             beta: Weight::Value(0.0),
             gamma: Weight::Relative(DEFAULT_SPREAD),
             regularizer: Regularizer::Covariant,
+            robust_smoothness: None,
             boundary: Boundary::Neumann,
             time_coupling: TimeCoupling::Lumped,
             solver: SolverChoice::Auto,
@@ -300,6 +305,14 @@ impl FlowParams {
             gamma_ok,
             gamma_requirement,
         )?;
+        if let Some(epsilon) = self.robust_smoothness {
+            check(
+                "robust_smoothness",
+                epsilon,
+                epsilon > 0.0 && epsilon.is_finite(),
+                "a positive number (the |∇u| where the penalty turns from quadratic to linear)",
+            )?;
+        }
         if let Regularizer::Strain { dirichlet } = self.regularizer {
             check(
                 "dirichlet (the covariant part of the strain regularizer)",

@@ -21,6 +21,9 @@ pub struct Slab {
     /// images warped by it, `∂_t I + dI(u)` becomes `τ + G·R_a (u_a − ū_a)` at corner `a`
     /// (see [`crate::flow::warped_slab`]).
     pub linearization: Option<Vec<Vector2<f64>>>,
+    /// Per face, the weight of the regularizer (robust smoothness, [`crate::flow::robust`]);
+    /// `None` for 1 everywhere.
+    pub smoothness_weights: Option<Vec<f64>>,
 }
 
 /// The element matrices of one face of one slab, before weighting by `Δt`, `β`, `γ`
@@ -52,6 +55,7 @@ impl Slab {
                 .map(|(a, b)| (b - a) / dt)
                 .collect(),
             linearization: None,
+            smoothness_weights: None,
         })
     }
 
@@ -77,7 +81,8 @@ impl Slab {
         FaceElements {
             data: element::data_element(triangle, rotations, intensity, rate),
             mass: element::vector_element(&element::consistent_mass(triangle), rotations),
-            stiffness: regularizer.element(triangle, rotations),
+            stiffness: regularizer.element(triangle, rotations)
+                * self.smoothness_weights.as_ref().map_or(1.0, |w| w[f]),
         }
     }
 }

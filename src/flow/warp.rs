@@ -127,6 +127,7 @@ pub fn warped_slab(
             .collect(),
         rate: minus.iter().zip(&plus).map(|(a, b)| (b - a) / dt).collect(),
         linearization: Some(u.to_vec()),
+        smoothness_weights: None,
         geometry,
         connection,
         dt,

@@ -302,6 +302,7 @@ pub fn summary_json(
         "energy_at_zero": result.energy_at_zero,
         "relative_residual": result.relative_residual,
         "iterations": result.iterations,
+        "reweightings": result.reweightings,
         "solver": result.method,
         "solver_reason": result.solver_reason,
         "time_levels": result.time_levels,

@@ -171,6 +171,11 @@ struct SolveArgs {
     /// With --regularizer strain: add D·|∇u|² (the covariant term, relative to γ) [default: 0]
     #[arg(long, value_name = "D", allow_negative_numbers = true)]
     dirichlet_mix: Option<f64>,
+    /// Robust (Charbonnier) smoothness for flows with discontinuities (cells moving on a
+    /// still background): the smoothness grows like 2·EPS·|∇u| beyond |∇u| = EPS instead of
+    /// quadratically (EPS in 1/time units; reweighted solves until the energy settles)
+    #[arg(long, value_name = "EPS", allow_negative_numbers = true)]
+    robust_smoothness: Option<f64>,
     /// neumann or dirichlet (u = 0 on the boundary)
     #[arg(long, default_value = "neumann")]
     boundary: Boundary,

@@ -25,6 +25,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         beta: weight(args.beta, args.speed_penalty, defaults.beta),
         gamma: weight(args.gamma, args.spread, defaults.gamma),
         regularizer: args.regularizer()?,
+        robust_smoothness: args.robust_smoothness,
         boundary: args.boundary,
         time_coupling: args.time_coupling,
         solver: args.solver,
@@ -142,6 +143,12 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
     );
     println!("{}", describe_weights(&result.weights, &params));
     println!("solver: {}", describe_solver(&result));
+    if result.reweightings > 0 {
+        println!(
+            "robust smoothness: {} reweighted solves until the energy settled",
+            result.reweightings
+        );
+    }
     if let Some(report) = &report {
         println!("{}", describe_errors("ground truth: flow", &report.errors));
         println!(
