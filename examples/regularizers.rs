@@ -1,6 +1,6 @@
 //! The spatial regularizers side by side (issue 15's comparison, the parts built so far):
 //! the paper's covariant `|∇u|²` against the strain `|Sym ∇u|²` (with and without a small
-//! speed penalty), on a texture turning rigidly and on one shearing (the equator turning, the
+//! speed penalty) and the embedded `|∇^{R³}u|²` of Kirisits, Lang & Scherzer, on a texture turning rigidly and on one shearing (the equator turning, the
 //! poles still), with coarse-to-fine warping (`--large-motion`).
 //!
 //! `cargo run --release --example regularizers [-- LEVEL FRAMES]` (default: the 2562-vertex
@@ -27,6 +27,7 @@ fn main() -> Result<(), meshflow::Error> {
         ("covariant", Regularizer::Covariant, 0.0),
         ("strain", STRAIN, 0.0),
         ("strain, β 1e-4", STRAIN, 1e-4),
+        ("embedded (KLS)", Regularizer::Embedded, 0.0),
     ];
     println!(
         "level-{level} icosphere, {frames} frames, --large-motion; mean angular error (best γ)"

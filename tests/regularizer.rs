@@ -34,7 +34,12 @@ fn energy(
         .iter()
         .enumerate()
         .map(|(f, face)| {
-            let e = regularizer.element(geometry.triangle(f), connection.face_rotations(f));
+            let corner = face.map(|v| &frames[v as usize]);
+            let e = regularizer.element(
+                geometry.triangle(f),
+                connection.face_rotations(f),
+                Some(corner),
+            );
             let x = Vector6::from_fn(|k, _| u[face[k / 2] as usize][k % 2]);
             x.dot(&(e * x))
         })
@@ -242,4 +247,41 @@ fn robust_smoothness_keeps_a_moving_cell_from_dragging_its_neighbours() {
 
 fn crate_max() -> usize {
     meshflow::flow::robust::MAX_REWEIGHTINGS
+}
+
+/// Kirisits–Lang–Scherzer's embedded term equals the covariant one on a flat mesh to round-off
+/// (whatever the field), and adds `∫|II(u,·)|² = ∫|u|²` on the unit sphere: the rotation's
+/// `8π/3 + 8π/3`.
+#[test]
+fn embedded_regularizer_is_covariant_when_flat_and_adds_the_second_fundamental_form() {
+    let plane = grid(7, 5, 2.0, 1.0);
+    let field = |x: &Vector3<f64>| Vector3::new((3.0 * x.y).sin(), x.x * x.x - x.y, 0.0);
+    let (flat_embedded, flat_covariant) = (
+        energy(&plane, Regularizer::Embedded, field),
+        energy(&plane, Regularizer::Covariant, field),
+    );
+    assert!((flat_embedded - flat_covariant).abs() < 1e-12 * flat_covariant);
+    let killing = |x: &Vector3<f64>| Vector3::z().cross(x);
+    let errors: Vec<f64> = (2..=5)
+        .map(|level| {
+            (energy(&icosphere(level), Regularizer::Embedded, killing) - 16.0 * PI / 3.0).abs()
+        })
+        .collect();
+    println!("embedded energy of the rotation, error per level: {errors:?}");
+    assert!(errors[3] < 0.01 * 16.0 * PI / 3.0, "{errors:?}");
+    assert!(errors.windows(2).all(|e| e[1] < 0.5 * e[0]), "{errors:?}");
+    // Edge lengths alone do not say how the surface bends.
+    let sphere = icosphere(2);
+    let mesh = sphere.mesh().unwrap();
+    let lengths = meshflow::geometry::edge_lengths(&mesh, &sphere.positions).unwrap();
+    let grey: Vec<f64> = sphere.positions.iter().map(|p| p.x).collect();
+    let intrinsic =
+        MeshSequence::from_edge_lengths(mesh, vec![lengths; 2], vec![grey.clone(), grey], None)
+            .unwrap();
+    let params = FlowParams {
+        regularizer: Regularizer::Embedded,
+        ..FlowParams::paper(1.0, 0.0, 1e-3)
+    };
+    let error = compute_flow(&intrinsic, &params).unwrap_err();
+    assert_eq!(error, FlowError::NeedsEmbedding);
 }

@@ -144,9 +144,10 @@ def compute_flow(
         length, ``Δt̄`` the mean frame spacing and ``S`` the image's gradient scale.
     alpha, beta, gamma : float, optional
         The paper's weights as numbers instead (``alpha=float("inf")``: frame by frame).
-    regularizer : {"covariant", "strain"}
-        What ``γ`` weighs: the paper's ``|∇u|²``, or the strain ``|Sym ∇u|²``, which is zero
-        on rigid motions of the surface (a texture turning with it is not pulled to rest).
+    regularizer : {"covariant", "strain", "embedded"}
+        What ``γ`` weighs: the paper's ``|∇u|²``; the strain ``|Sym ∇u|²``, which is zero
+        on rigid motions of the surface (a texture turning with it is not pulled to rest); or
+        Kirisits–Lang–Scherzer's ``|∇^{R³}u|² = |∇u|² + |II(u,·)|²``.
     dirichlet_mix : float, optional
         With ``regularizer="strain"``: add ``dirichlet_mix·|∇u|²`` (default 0).
     robust_smoothness : float, optional

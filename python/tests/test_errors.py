@@ -65,7 +65,7 @@ def test_non_manifold_input_is_refused_and_repaired_on_request():
     (dict(solver="cholmod"), "solver: "),
     (dict(boundary="periodic"), "boundary: 'periodic' is not one of: neumann, dirichlet"),
     (dict(tolerance=0.0), "tolerance"),
-    (dict(regularizer="tv"), "regularizer: 'tv' is not one of: covariant, strain"),
+    (dict(regularizer="tv"), "regularizer: 'tv' is not one of: covariant, strain, embedded"),
     (dict(dirichlet_mix=0.5), "only with the strain regularizer"),
     (dict(robust_smoothness=0.0), "robust_smoothness"),
     (dict(levels=0), "level"),

@@ -15,6 +15,8 @@ pub enum FlowError {
     },
     #[error("interrupted")]
     Interrupted,
+    #[error("the embedded regularizer differentiates the flow in R^3 and needs vertex positions; this sequence has edge lengths only (use the covariant or strain regularizer)")]
+    NeedsEmbedding,
     #[error("frame {frame}: {source}")]
     Frame {
         frame: usize,

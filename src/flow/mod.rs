@@ -168,6 +168,11 @@ impl<'a> FlowProblem<'a> {
         rebuildable: bool,
     ) -> Result<Self, FlowError> {
         params.validate()?;
+        if params.regularizer == Regularizer::Embedded
+            && slabs.iter().any(|s| s.embedding_frames.is_none())
+        {
+            return Err(FlowError::NeedsEmbedding);
+        }
         let start = Instant::now();
         let scales = DataScales::measure(sequence.mesh(), &slabs);
         let weights = params.weights(&scales)?;

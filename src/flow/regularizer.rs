@@ -3,7 +3,15 @@
 //! ```text
 //! covariant (the paper's):  γ ∫ |∇u|²                       (Bochner / connection Laplacian)
 //! strain:                   γ ∫ |Sym ∇u|² + δ γ ∫ |∇u|²      (Sym ∇u = (∇u + ∇uᵀ)/2)
+//! embedded (KLS):           γ ∫ |∇^{R³} u|² = γ ∫ |∇u|² + |II(u, ·)|²
 //! ```
+//!
+//! The embedded regularizer of Kirisits, Lang & Scherzer (2013) differentiates the flow as an
+//! R³-valued field: its normal part adds the second fundamental form term. Discretely, with
+//! `P_a` the orthonormal R³ frame of corner `a` (`docs/discretization.md` §8) and `S` the
+//! cotan stiffness, the P1 interpolant of the R³ vectors `P_a u_a` has the element block
+//! `(a, b) = S_ab P_aᵀ P_b`; on a flat mesh `P_aᵀ P_b = R_aᵀ R_b` and it equals the covariant
+//! element to round-off. It needs the embedding (vertex positions), not only edge lengths.
 //!
 //! The covariant Dirichlet energy is not zero on a rigid rotation of a surface: a Killing field
 //! has `∫|∇u|² = ∫ K |u|²` (Bochner), so on a sphere it pulls a turning texture's flow towards
@@ -27,7 +35,7 @@
 use super::FlowError;
 use crate::fem::element::{cotan_stiffness, strain_element, vector_element};
 use crate::geometry::Triangle;
-use nalgebra::{Matrix2, Matrix6};
+use nalgebra::{Matrix2, Matrix3, Matrix3x2, Matrix6};
 
 /// The spatial smoothness term of the energy (module docs).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -38,15 +46,28 @@ pub enum Regularizer {
     Covariant,
     /// `|Sym ∇u|² + δ |∇u|²`.
     Strain { dirichlet: f64 },
+    /// `|∇^{R³} u|²` (Kirisits, Lang & Scherzer).
+    Embedded,
 }
 
 impl Regularizer {
     /// The 6×6 element matrix of one face (vertex-frame DOFs of its corners, `rotations` the
-    /// vertex → face rotations), before the weight `γ Δt`.
-    pub fn element(&self, triangle: &Triangle, rotations: &[Matrix2<f64>; 3]) -> Matrix6<f64> {
+    /// vertex → face rotations, `frames` the corners' R³ frames, which only
+    /// [`Regularizer::Embedded`] uses and [`super::Slab`] provides for embedded sequences),
+    /// before the weight `γ Δt`.
+    pub fn element(
+        &self,
+        triangle: &Triangle,
+        rotations: &[Matrix2<f64>; 3],
+        frames: Option<[&Matrix3x2<f64>; 3]>,
+    ) -> Matrix6<f64> {
         let covariant = || vector_element(&cotan_stiffness(triangle), rotations);
         match *self {
             Regularizer::Covariant => covariant(),
+            Regularizer::Embedded => {
+                let frames = frames.expect("embedded regularizer checked for positions");
+                embedded_element(&cotan_stiffness(triangle), frames)
+            }
             Regularizer::Strain { dirichlet: 0.0 } => strain_element(triangle, rotations),
             Regularizer::Strain { dirichlet } => {
                 strain_element(triangle, rotations) + covariant() * dirichlet
@@ -60,7 +81,7 @@ impl Regularizer {
         match (base, dirichlet) {
             (base, None) => Ok(base),
             (Regularizer::Strain { .. }, Some(dirichlet)) => Ok(Regularizer::Strain { dirichlet }),
-            (Regularizer::Covariant, Some(_)) => Err(FlowError::InvalidParameter {
+            (_, Some(_)) => Err(FlowError::InvalidParameter {
                 name: "dirichlet_mix",
                 value: dirichlet.unwrap_or_default(),
                 requirement:
@@ -70,15 +91,30 @@ impl Regularizer {
     }
 }
 
+/// Block `(a, b) = S_ab P_aᵀ P_b`: the cotan form of the R³ vectors `P_a u_a`.
+fn embedded_element(stiffness: &Matrix3<f64>, frames: [&Matrix3x2<f64>; 3]) -> Matrix6<f64> {
+    let mut out = Matrix6::zeros();
+    for a in 0..3 {
+        for b in 0..3 {
+            let block = frames[a].transpose() * frames[b] * stiffness[(a, b)];
+            out.fixed_view_mut::<2, 2>(2 * a, 2 * b).copy_from(&block);
+        }
+    }
+    out
+}
+
 impl std::str::FromStr for Regularizer {
     type Err = String;
 
-    /// `covariant` or `strain` (pure strain; set `dirichlet` afterwards for a mix).
+    /// `covariant`, `strain` (pure strain; see [`Regularizer::with_mix`]) or `embedded`.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "covariant" => Ok(Regularizer::Covariant),
             "strain" => Ok(Regularizer::Strain { dirichlet: 0.0 }),
-            other => Err(format!("'{other}' is not one of: covariant, strain")),
+            "embedded" => Ok(Regularizer::Embedded),
+            other => Err(format!(
+                "'{other}' is not one of: covariant, strain, embedded"
+            )),
         }
     }
 }

@@ -109,10 +109,9 @@ impl Charbonnier<'_> {
             .enumerate()
             .map(|(f, face)| {
                 let triangle = slab.geometry.triangle(f);
-                let e = self
-                    .params
-                    .regularizer
-                    .element(triangle, slab.connection.face_rotations(f));
+                let rotations = slab.connection.face_rotations(f);
+                let frames = slab.corner_frames(face);
+                let e = self.params.regularizer.element(triangle, rotations, frames);
                 let x = Vector6::from_fn(|k, _| u[face[k / 2] as usize][k % 2]);
                 x.dot(&(e * x)) / triangle.area
             })

@@ -2,10 +2,10 @@
 //! (`docs/discretization.md` §3).
 
 use super::{FlowError, MeshSequence, Regularizer, TimeCoupling, Weights};
-use crate::connection::{polar_rotation_angles, rotation, Connection};
+use crate::connection::{polar_rotation_angles, rotation, vertex_frames_in_r3, Connection};
 use crate::fem::element::{self, DataElement};
 use crate::geometry::IntrinsicGeometry;
-use nalgebra::{Matrix2, Matrix3, Matrix6, Vector2};
+use nalgebra::{Matrix2, Matrix3, Matrix3x2, Matrix6, Vector2};
 use rayon::prelude::*;
 
 /// Slab `s = [t_s, t_{s+1}]`: lengths are the mean of the two frames' lengths;
@@ -24,6 +24,9 @@ pub struct Slab {
     /// Per face, the weight of the regularizer (robust smoothness, [`crate::flow::robust`]);
     /// `None` for 1 everywhere.
     pub smoothness_weights: Option<Vec<f64>>,
+    /// The vertex frames `P_i` in R³ on frame `s` (embedded sequences; the embedded
+    /// regularizer uses them), `None` for intrinsic ones.
+    pub embedding_frames: Option<Vec<Matrix3x2<f64>>>,
 }
 
 /// The element matrices of one face of one slab, before weighting by `Δt`, `β`, `γ`
@@ -41,8 +44,6 @@ impl Slab {
         let dt = sequence.slab_duration(s);
         let (before, after) = (sequence.intensities(s), sequence.intensities(s + 1));
         Ok(Self {
-            geometry,
-            connection,
             dt,
             intensity_mid: before
                 .iter()
@@ -56,6 +57,9 @@ impl Slab {
                 .collect(),
             linearization: None,
             smoothness_weights: None,
+            embedding_frames: embedding_frames(sequence, s, &geometry, &connection),
+            geometry,
+            connection,
         })
     }
 
@@ -81,10 +85,29 @@ impl Slab {
         FaceElements {
             data: element::data_element(triangle, rotations, intensity, rate),
             mass: element::vector_element(&element::consistent_mass(triangle), rotations),
-            stiffness: regularizer.element(triangle, rotations)
+            stiffness: regularizer.element(triangle, rotations, self.corner_frames(face))
                 * self.smoothness_weights.as_ref().map_or(1.0, |w| w[f]),
         }
     }
+}
+
+impl Slab {
+    /// The R³ frames of `face`'s corners, for embedded sequences.
+    pub fn corner_frames(&self, face: &[u32; 3]) -> Option<[&Matrix3x2<f64>; 3]> {
+        let frames = self.embedding_frames.as_ref()?;
+        Some(face.map(|v| &frames[v as usize]))
+    }
+}
+
+/// `P_i` of every vertex on frame `s` with the slab's polar angles (`None`: intrinsic).
+pub(crate) fn embedding_frames(
+    sequence: &MeshSequence,
+    s: usize,
+    geometry: &IntrinsicGeometry,
+    connection: &Connection,
+) -> Option<Vec<Matrix3x2<f64>>> {
+    let positions = sequence.positions(s)?;
+    vertex_frames_in_r3(sequence.mesh(), geometry, connection, positions).ok()
 }
 
 /// All slabs of a sequence, built in parallel.

@@ -164,8 +164,9 @@ struct SolveArgs {
     /// --spread
     #[arg(long, allow_negative_numbers = true)]
     gamma: Option<f64>,
-    /// What γ weighs: covariant (the paper's |∇u|²) or strain (|Sym ∇u|², zero on rigid
-    /// motions of the surface: a texture turning with it is not pulled towards rest)
+    /// What γ weighs: covariant (the paper's |∇u|²), strain (|Sym ∇u|², zero on rigid
+    /// motions of the surface: a texture turning with it is not pulled towards rest) or
+    /// embedded (|∇u|² of u as an R^3 field, Kirisits–Lang–Scherzer: adds |II(u,·)|²)
     #[arg(long, default_value = "covariant")]
     regularizer: meshflow::flow::Regularizer,
     /// With --regularizer strain: add D·|∇u|² (the covariant term, relative to γ) [default: 0]
