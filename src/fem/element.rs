@@ -51,11 +51,16 @@ pub fn rotated_element(
     q: &Matrix2<f64>,
 ) -> Matrix6<f64> {
     let cols = col_rotations.map(|c| q * c);
+    from_blocks(|a, b| row_rotations[a].transpose() * cols[b] * m[(a, b)])
+}
+
+/// The 6×6 matrix with 2×2 block `(a, b) = block(a, b)` for corners `a, b ∈ {0, 1, 2}`.
+pub fn from_blocks(block: impl Fn(usize, usize) -> Matrix2<f64>) -> Matrix6<f64> {
     let mut out = Matrix6::zeros();
     for a in 0..3 {
         for b in 0..3 {
-            let block = row_rotations[a].transpose() * cols[b] * m[(a, b)];
-            out.fixed_view_mut::<2, 2>(2 * a, 2 * b).copy_from(&block);
+            out.fixed_view_mut::<2, 2>(2 * a, 2 * b)
+                .copy_from(&block(a, b));
         }
     }
     out
@@ -117,13 +122,8 @@ pub fn face_gradient(triangle: &Triangle, values: [f64; 3]) -> Vector2<f64> {
 /// infinitesimal rigid motions of the face (`v_a = ω J x_a + c`), the discrete Killing fields.
 pub fn strain_element(triangle: &Triangle, rotations: &[Matrix2<f64>; 3]) -> Matrix6<f64> {
     let g = triangle.hat_gradients();
-    let mut out = Matrix6::zeros();
-    for a in 0..3 {
-        for b in 0..3 {
-            let face = Matrix2::identity() * g[a].dot(&g[b]) + g[b] * g[a].transpose();
-            let block = rotations[a].transpose() * face * rotations[b] * (0.5 * triangle.area);
-            out.fixed_view_mut::<2, 2>(2 * a, 2 * b).copy_from(&block);
-        }
-    }
-    out
+    from_blocks(|a, b| {
+        let face = Matrix2::identity() * g[a].dot(&g[b]) + g[b] * g[a].transpose();
+        rotations[a].transpose() * face * rotations[b] * (0.5 * triangle.area)
+    })
 }

@@ -33,7 +33,7 @@
 //! solvers take the element from [`Regularizer::element`].
 
 use super::FlowError;
-use crate::fem::element::{cotan_stiffness, strain_element, vector_element};
+use crate::fem::element::{cotan_stiffness, from_blocks, strain_element, vector_element};
 use crate::geometry::Triangle;
 use nalgebra::{Matrix2, Matrix3, Matrix3x2, Matrix6};
 
@@ -93,14 +93,7 @@ impl Regularizer {
 
 /// Block `(a, b) = S_ab P_aᵀ P_b`: the cotan form of the R³ vectors `P_a u_a`.
 fn embedded_element(stiffness: &Matrix3<f64>, frames: [&Matrix3x2<f64>; 3]) -> Matrix6<f64> {
-    let mut out = Matrix6::zeros();
-    for a in 0..3 {
-        for b in 0..3 {
-            let block = frames[a].transpose() * frames[b] * stiffness[(a, b)];
-            out.fixed_view_mut::<2, 2>(2 * a, 2 * b).copy_from(&block);
-        }
-    }
-    out
+    from_blocks(|a, b| frames[a].transpose() * frames[b] * stiffness[(a, b)])
 }
 
 impl std::str::FromStr for Regularizer {
