@@ -1,7 +1,6 @@
 //! Synthetic sequences, most with a known flow (measure computed flows against it with
 //! [`crate::accuracy`]).
 
-use crate::connection::{vertex_frames_in_r3, Connection};
 use crate::flow::{FlowError, MeshSequence};
 use crate::shapes::{icosphere, uv_sphere, Surface};
 use crate::track::TrackFrame;
@@ -18,17 +17,12 @@ impl GroundTruth {
     /// [`crate::flow::FlowResult::intrinsic`]: `P_iᵀ u_i` with `P_i` the orthonormal frame of
     /// vertex `i` on frame `s` (the tangential part; synthetic flows are tangent already).
     pub fn intrinsic_flow(&self) -> Result<Vec<Vec<Vector2<f64>>>, FlowError> {
-        let mesh = self.sequence.mesh();
         (0..self.sequence.n_slabs())
             .map(|s| {
-                let geometry = self.sequence.slab_geometry(s)?;
-                let connection = Connection::new(mesh, &geometry);
-                let positions = self
+                let frames = self
                     .sequence
-                    .positions(s)
+                    .slab_frames(s)?
                     .expect("synthetic frames are embedded");
-                let frames = vertex_frames_in_r3(mesh, &geometry, &connection, positions)
-                    .map_err(|source| FlowError::Frame { frame: s, source })?;
                 Ok(frames
                     .iter()
                     .zip(&self.flow[s])

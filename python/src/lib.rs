@@ -395,14 +395,12 @@ impl Flow {
     fn frames<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray4<f64>>> {
         let sequence = &self.loaded.sequence;
         let map = &self.loaded.vertex_map;
-        let mesh = sequence.mesh();
         let mut values = Vec::with_capacity(sequence.n_slabs() * map.n_file_vertices() * 6);
         for s in 0..sequence.n_slabs() {
-            let geometry = sequence.slab_geometry(s).map_err(|e| to_py_err(e.into()))?;
-            let connection = Connection::new(mesh, &geometry);
-            let positions = sequence.positions(s).expect("arrays are embedded");
-            let frames = vertex_frames_in_r3(mesh, &geometry, &connection, positions)
-                .map_err(|e| to_py_err(e.into()))?;
+            let frames = sequence
+                .slab_frames(s)
+                .map_err(|e| to_py_err(e.into()))?
+                .expect("sequences from arrays are embedded");
             values.extend(
                 map.file_rows(&frame_rows(&frames), [f64::NAN; 6])
                     .into_iter()

@@ -164,14 +164,14 @@ impl<'a> FlowProblem<'a> {
     fn with_slabs(
         sequence: &'a MeshSequence,
         params: &FlowParams,
-        slabs: Vec<Slab>,
+        mut slabs: Vec<Slab>,
         rebuildable: bool,
     ) -> Result<Self, FlowError> {
         params.validate()?;
-        if params.regularizer == Regularizer::Embedded
-            && slabs.iter().any(|s| s.embedding_frames.is_none())
-        {
-            return Err(FlowError::NeedsEmbedding);
+        if params.regularizer.needs_embedding() {
+            for (s, slab) in slabs.iter_mut().enumerate() {
+                slab.embed(sequence, s)?;
+            }
         }
         let start = Instant::now();
         let scales = DataScales::measure(sequence.mesh(), &slabs);
@@ -220,7 +220,12 @@ impl<'a> FlowProblem<'a> {
         match &self.slabs {
             Some(slabs) => Cow::Borrowed(&slabs[s]),
             None => {
-                Cow::Owned(Slab::new(self.sequence, s).expect("the slabs were built once already"))
+                let mut slab =
+                    Slab::new(self.sequence, s).expect("the slabs were built once already");
+                if self.params.regularizer.needs_embedding() {
+                    slab.embed(self.sequence, s).expect("embedded once already");
+                }
+                Cow::Owned(slab)
             }
         }
     }

@@ -75,6 +75,11 @@ impl Regularizer {
         }
     }
 
+    /// Whether its element needs the slabs' R³ frames ([`super::Slab::embed`]).
+    pub fn needs_embedding(&self) -> bool {
+        *self == Regularizer::Embedded
+    }
+
     /// `base` (parsed from its name) with the covariant share `dirichlet` of the strain
     /// regularizer, as the CLI's `--dirichlet-mix` and the Python keyword give it.
     pub fn with_mix(base: Regularizer, dirichlet: Option<f64>) -> Result<Self, FlowError> {

@@ -53,16 +53,18 @@ pub(super) fn reweighted(
         gamma: weights.gamma,
     };
     let mut result = problem_solve(sequence, &params, slabs.clone(), observer)?;
-    let mut energy = penalty.robust_energy(mesh, &slabs, &mut result);
+    // `densities[s][T] = r_T` of the current flow: its energy, and the next solve's weights.
+    let mut densities = penalty.densities(mesh, &slabs, &result);
+    let mut energy = penalty.robust_energy(&slabs, &densities, &mut result);
     let mut reweightings = 0;
     while reweightings < MAX_REWEIGHTINGS {
-        for (slab, u) in slabs.iter_mut().zip(&result.intrinsic) {
-            let densities = penalty.densities(mesh, slab, u);
-            slab.smoothness_weights = Some(densities.iter().map(|&r| penalty.weight(r)).collect());
+        for (slab, r) in slabs.iter_mut().zip(&densities) {
+            slab.smoothness_weights = Some(r.iter().map(|&r| penalty.weight(r)).collect());
         }
         result = problem_solve(sequence, &params, slabs.clone(), observer)?;
         reweightings += 1;
-        let next = penalty.robust_energy(mesh, &slabs, &mut result);
+        densities = penalty.densities(mesh, &slabs, &result);
+        let next = penalty.robust_energy(&slabs, &densities, &mut result);
         let change = (energy - next).abs() / next.abs().max(f64::MIN_POSITIVE);
         energy = next;
         if change <= ENERGY_CHANGE {
@@ -102,8 +104,17 @@ impl Charbonnier<'_> {
         self.epsilon / (r + self.epsilon * self.epsilon).sqrt()
     }
 
-    /// `r_T(u) = u_Tᵀ E_T u_T / A_T` per face of one slab (unweighted element).
-    fn densities(&self, mesh: &Mesh, slab: &super::Slab, u: &[Vector2<f64>]) -> Vec<f64> {
+    /// `r_T(u) = u_Tᵀ E_T u_T / A_T` per slab and face of `result`'s flow.
+    fn densities(&self, mesh: &Mesh, slabs: &[super::Slab], result: &FlowResult) -> Vec<Vec<f64>> {
+        slabs
+            .iter()
+            .zip(&result.intrinsic)
+            .map(|(slab, u)| self.slab_densities(mesh, slab, u))
+            .collect()
+    }
+
+    /// `r_T(u)` per face of one slab (unweighted element).
+    fn slab_densities(&self, mesh: &Mesh, slab: &super::Slab, u: &[Vector2<f64>]) -> Vec<f64> {
         mesh.faces()
             .iter()
             .enumerate()
@@ -118,19 +129,23 @@ impl Charbonnier<'_> {
             .collect()
     }
 
-    /// Puts the robust energy into `result` and returns it: the data, speed and temporal terms
+    /// Puts the robust energy of `result` (its `densities`) into it and returns it: the data, speed and temporal terms
     /// (which the weights do not touch) stay, the spatial term becomes the Charbonnier one.
-    fn robust_energy(&self, mesh: &Mesh, slabs: &[super::Slab], result: &mut FlowResult) -> f64 {
+    fn robust_energy(
+        &self,
+        slabs: &[super::Slab],
+        densities: &[Vec<f64>],
+        result: &mut FlowResult,
+    ) -> f64 {
         let spatial: f64 = slabs
             .iter()
-            .zip(&result.intrinsic)
-            .map(|(slab, u)| {
+            .zip(densities)
+            .map(|(slab, densities)| {
                 let areas = slab.geometry.triangles().iter().map(|t| t.area);
-                let densities = self.densities(mesh, slab, u);
                 slab.dt
                     * areas
                         .zip(densities)
-                        .map(|(a, r)| a * self.psi(r))
+                        .map(|(a, &r)| a * self.psi(r))
                         .sum::<f64>()
             })
             .sum();

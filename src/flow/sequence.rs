@@ -1,9 +1,10 @@
 //! A deforming surface with an image on it: the input of the flow.
 
 use super::FlowError;
+use crate::connection::{vertex_frames_in_r3, Connection};
 use crate::geometry::{edge_lengths, IntrinsicGeometry};
 use crate::mesh::Mesh;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3x2, Vector3};
 
 /// Frames `k = 0..K−1` of one mesh connectivity: geometry per frame (positions, or edge lengths
 /// for an intrinsic sequence), a grey value per vertex and frame, and strictly increasing times.
@@ -102,6 +103,20 @@ impl MeshSequence {
             .map(|(a, b)| 0.5 * (a + b))
             .collect();
         IntrinsicGeometry::new(&self.mesh, mean)
+            .map_err(|source| FlowError::Slab { slab: s, source })
+    }
+
+    /// The orthonormal vertex frames `P_i` in R³ of slab `s` on frame `s`
+    /// (`docs/discretization.md` §8): the frames of [`crate::flow::FlowResult::vectors`].
+    /// `None` for an intrinsic sequence.
+    pub fn slab_frames(&self, s: usize) -> Result<Option<Vec<Matrix3x2<f64>>>, FlowError> {
+        let Some(positions) = self.positions(s) else {
+            return Ok(None);
+        };
+        let geometry = self.slab_geometry(s)?;
+        let connection = Connection::new(&self.mesh, &geometry);
+        vertex_frames_in_r3(&self.mesh, &geometry, &connection, positions)
+            .map(Some)
             .map_err(|source| FlowError::Slab { slab: s, source })
     }
 

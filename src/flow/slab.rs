@@ -44,6 +44,8 @@ impl Slab {
         let dt = sequence.slab_duration(s);
         let (before, after) = (sequence.intensities(s), sequence.intensities(s + 1));
         Ok(Self {
+            geometry,
+            connection,
             dt,
             intensity_mid: before
                 .iter()
@@ -57,9 +59,7 @@ impl Slab {
                 .collect(),
             linearization: None,
             smoothness_weights: None,
-            embedding_frames: embedding_frames(sequence, s, &geometry, &connection),
-            geometry,
-            connection,
+            embedding_frames: None,
         })
     }
 
@@ -89,25 +89,26 @@ impl Slab {
                 * self.smoothness_weights.as_ref().map_or(1.0, |w| w[f]),
         }
     }
-}
 
-impl Slab {
-    /// The R³ frames of `face`'s corners, for embedded sequences.
+    /// The R³ frames of `face`'s corners, once [`Slab::embed`] has set them.
     pub fn corner_frames(&self, face: &[u32; 3]) -> Option<[&Matrix3x2<f64>; 3]> {
         let frames = self.embedding_frames.as_ref()?;
         Some(face.map(|v| &frames[v as usize]))
     }
-}
 
-/// `P_i` of every vertex on frame `s` with the slab's polar angles (`None`: intrinsic).
-pub(crate) fn embedding_frames(
-    sequence: &MeshSequence,
-    s: usize,
-    geometry: &IntrinsicGeometry,
-    connection: &Connection,
-) -> Option<Vec<Matrix3x2<f64>>> {
-    let positions = sequence.positions(s)?;
-    vertex_frames_in_r3(sequence.mesh(), geometry, connection, positions).ok()
+    /// Sets [`Slab::embedding_frames`] (if not yet set): `P_i` of every vertex on frame `s`,
+    /// with this slab's polar angles. Only regularizers that differentiate in R³ need them.
+    pub(crate) fn embed(&mut self, sequence: &MeshSequence, s: usize) -> Result<(), FlowError> {
+        if self.embedding_frames.is_some() {
+            return Ok(());
+        }
+        let positions = sequence.positions(s).ok_or(FlowError::NeedsEmbedding)?;
+        let frames =
+            vertex_frames_in_r3(sequence.mesh(), &self.geometry, &self.connection, positions)
+                .map_err(|source| FlowError::Slab { slab: s, source })?;
+        self.embedding_frames = Some(frames);
+        Ok(())
+    }
 }
 
 /// All slabs of a sequence, built in parallel.

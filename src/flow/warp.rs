@@ -128,7 +128,7 @@ pub fn warped_slab(
         rate: minus.iter().zip(&plus).map(|(a, b)| (b - a) / dt).collect(),
         linearization: Some(u.to_vec()),
         smoothness_weights: None,
-        embedding_frames: super::slab::embedding_frames(sequence, s, &geometry, &connection),
+        embedding_frames: None,
         geometry,
         connection,
         dt,
