@@ -8,7 +8,7 @@
 //! Prints one JSON line: the median and all run times in seconds.
 
 use meshflow::flow::{compute_flow, FlowParams};
-use meshflow::io::{sequence_from_arrays, write_npy_sequence, LoadOptions};
+use meshflow::io::{sequence_from_arrays, write_npy_sequence, LoadOptions, VertexValues};
 use meshflow::synth::rotating_sphere;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -35,6 +35,7 @@ fn main() -> Result<(), meshflow::Error> {
             let (faces, positions, grey) = (faces.clone(), positions.clone(), grey.clone());
             let start = Instant::now();
             let times = Some(sequence.times().to_vec());
+            let grey = grey.into_iter().map(VertexValues::Grey).collect();
             let loaded =
                 sequence_from_arrays(faces, positions, grey, times, &LoadOptions::default())?;
             let result = compute_flow(&loaded.sequence, &FlowParams::default())?;

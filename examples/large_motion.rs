@@ -104,12 +104,12 @@ fn minimizer_error(
         regularizer,
         ..FlowParams::default()
     };
-    let images = |s: usize| (sequence.intensities(s), sequence.intensities(s + 1));
+    let images = |s: usize| (sequence.channels(s), sequence.channels(s + 1));
     let mut flow = scene.intrinsic_flow()?;
     let mut error = f64::NAN;
     for _ in 0..WARPS {
         let slabs = (0..sequence.n_slabs())
-            .map(|s| warped_slab(sequence, s, images(s), &flow[s]))
+            .map(|s| warped_slab(sequence, s, images(s), &flow[s], &[1.0]))
             .collect::<Result<Vec<_>, _>>()?;
         let result = FlowProblem::from_slabs(sequence, &params, slabs)?.solve(&|_| {})?;
         error = compare_result(sequence, &result, &scene.flow)?.mean_angular_degrees;

@@ -1,7 +1,7 @@
 //! Synthetic sequences, most with a known flow (measure computed flows against it with
 //! [`crate::accuracy`]).
 
-use crate::flow::{FlowError, MeshSequence};
+use crate::flow::{FlowError, Images, MeshSequence};
 use crate::shapes::{icosphere, uv_sphere, Surface};
 use crate::track::TrackFrame;
 use nalgebra::{Rotation3, Vector2, Vector3};
@@ -119,7 +119,35 @@ fn textured_deforming_sphere(
     omega: f64,
     strain: f64,
 ) -> Result<GroundTruth, FlowError> {
-    textured_sphere(image, level, n_frames, dt, |_| omega, strain)
+    textured_sphere(|p| vec![image(p)], level, n_frames, dt, |_| omega, strain)
+}
+
+/// [`rotating_sphere`] with an image of several channels: `image(p)[c]` is channel `c`, e.g.
+/// [`isoluminant`].
+pub fn rotating_sphere_in_channels(
+    image: impl Fn(&Vector3<f64>) -> Vec<f64>,
+    level: u32,
+    n_frames: usize,
+    dt: f64,
+    omega: f64,
+) -> Result<GroundTruth, FlowError> {
+    textured_sphere(image, level, n_frames, dt, |_| omega, 0.0)
+}
+
+/// An isoluminant colour pattern (R, G, B in about `[0.2, 0.8]`): the hue varies with two
+/// smooth patterns while the Rec. 709 luma `0.2126 R + 0.7152 G + 0.0722 B` is `0.5`
+/// everywhere, so a grey (luma) image of it is blank and only colour shows the motion.
+pub fn isoluminant(p: &Vector3<f64>) -> Vec<f64> {
+    let luma = Vector3::new(0.2126, 0.7152, 0.0722);
+    // Two orthonormal colour directions of zero luma.
+    let first = Vector3::new(1.0, 0.0, 0.0).cross(&luma).normalize();
+    let second = luma.cross(&first).normalize();
+    let hue = (
+        (3.0 * p.x + 1.0).sin() * (2.0 * p.y).cos() + 0.5 * (2.5 * p.y + 3.0 * p.z).cos(),
+        (4.0 * p.z - p.x).sin() + 0.5 * (2.0 * p.x + 3.0 * p.y).sin(),
+    );
+    let colour = Vector3::repeat(0.5) + 0.15 * (hue.0 * first + hue.1 * second);
+    colour.iter().copied().collect()
 }
 
 /// The icosphere stretched by `D(t)` ([`deforming_sphere`]) with `image` turning about the
@@ -127,7 +155,7 @@ fn textured_deforming_sphere(
 /// image(R_z(−rate(p) t) p)`, true flow `D(t_s) (rate(p) ẑ × p)`. A rate constant on circles of
 /// latitude keeps every texture point on its circle.
 fn textured_sphere(
-    image: impl Fn(&Vector3<f64>) -> f64,
+    image: impl Fn(&Vector3<f64>) -> Vec<f64>,
     level: u32,
     n_frames: usize,
     dt: f64,
@@ -139,13 +167,16 @@ fn textured_sphere(
     let times: Vec<f64> = (0..n_frames).map(|k| k as f64 * dt).collect();
     let turned_back =
         |t: f64, p: &Vector3<f64>| Rotation3::from_axis_angle(&Vector3::z_axis(), -rate(p) * t) * p;
-    let intensities = times
+    let images = times
         .iter()
         .map(|&t| {
-            sphere
+            let values: Vec<Vec<f64>> = sphere
                 .positions
                 .iter()
                 .map(|p| image(&turned_back(t, p)))
+                .collect();
+            (0..values[0].len())
+                .map(|c| values.iter().map(|v| v[c]).collect())
                 .collect()
         })
         .collect();
@@ -164,7 +195,8 @@ fn textured_sphere(
                 .collect()
         })
         .collect();
-    let sequence = MeshSequence::new(mesh, frames, intensities, Some(times))?;
+    let images = Images::from_channels(images);
+    let sequence = MeshSequence::with_images(mesh, frames, images, Some(times))?;
     Ok(GroundTruth { sequence, flow })
 }
 
@@ -395,7 +427,7 @@ pub fn shearing_sphere(
     omega: f64,
 ) -> Result<GroundTruth, FlowError> {
     textured_sphere(
-        texture,
+        |p| vec![texture(p)],
         level,
         n_frames,
         dt,

@@ -96,13 +96,13 @@ fn written_animation_reads_back_bit_identically() {
     let sequence = read_gltf_animation(&path, &LoadOptions::default()).unwrap();
     assert_eq!(sequence.faces, animation.faces);
     assert_eq!(sequence.positions, animation.positions);
-    assert_eq!(sequence.intensities.unwrap(), animation.greys);
+    assert_eq!(greys(sequence.images.unwrap()), animation.greys);
     assert_eq!(sequence.times.unwrap(), TIMES);
     assert_eq!(sequence.sources, vec![path.clone(); TIMES.len()]);
     // The static reader sees frame 0.
     let frame = read_gltf_frame(&path).unwrap();
     assert_eq!(frame.positions, animation.positions[0]);
-    assert_eq!(frame.intensity.unwrap(), animation.greys[0]);
+    assert_eq!(frame.image.unwrap().to_grey(), animation.greys[0]);
 }
 
 #[test]
@@ -148,7 +148,7 @@ fn resampling_interpolates_the_frames_linearly() {
     let sequence = read_gltf_animation(&written(dir.path(), &animation), &at_fps(4.0)).unwrap();
     let times = sequence.times.unwrap();
     assert_eq!(times, (0..=8).map(|i| i as f64 / 4.0).collect::<Vec<_>>());
-    let intensities = sequence.intensities.unwrap();
+    let intensities = greys(sequence.images.unwrap());
     for (f, &t) in times.iter().enumerate() {
         let k = TIMES
             .partition_point(|&tk| tk <= t)
@@ -407,14 +407,14 @@ fn node_transforms_of_the_node_and_its_parents_are_applied() {
     let frame = read_gltf_frame(&path).unwrap();
     assert_close(&frame.positions, &base);
     assert_eq!(frame.faces, vec![[0, 1, 2]]);
-    assert!(frame.intensity.is_none());
+    assert!(frame.image.is_none());
     let sequence = read_gltf_animation(&path, &LoadOptions::default()).unwrap();
     assert_eq!(sequence.times.unwrap(), [0.0, 1.0]);
     assert_close(&sequence.positions[0], &base);
     // The lift (0, 0, 1) is scaled by 4 in z.
     let lifted = [[10.0, 21.0, 34.0], base[1], base[2]];
     assert_close(&sequence.positions[1], &lifted);
-    assert!(sequence.intensities.is_none());
+    assert!(sequence.images.is_none());
 }
 
 /// A sampler's interpolation, its outputs and the weight they give at time `s`.
@@ -480,11 +480,11 @@ fn primitives_are_merged_in_order() {
     assert_eq!(frame.faces, vec![[0, 1, 2], [3, 4, 5]]);
     assert_eq!(frame.positions[3], Vector3::new(2.0, 0.0, 0.0));
     // Normalized u8: c / 255, alpha ignored.
-    assert_eq!(frame.intensity.unwrap(), [0.25, 0.25, 0.25, 1.0, 0.2, 0.0]);
+    assert_eq!(frame.image.unwrap().to_grey(), [0.25, 0.25, 0.25, 1.0, 0.2, 0.0]);
     // Grey values only if every primitive has them.
     let frame = read_gltf_frame(&two_primitives(dir.path(), false)).unwrap();
     assert_eq!(frame.positions.len(), 6);
-    assert!(frame.intensity.is_none());
+    assert!(frame.image.is_none());
 }
 
 #[test]
@@ -614,10 +614,11 @@ fn textured_meshes_sample_the_base_colour_texture_bilinearly() {
     ]);
     let frame = read_gltf_frame(&path).unwrap();
     assert_eq!(frame.faces, vec![[0, 1, 2], [3, 4, 5]]);
-    assert_all_close(&frame.intensity.unwrap(), &base);
+    assert_all_close(&frame.image.unwrap().to_grey(), &base);
     let intensities = read_gltf_animation(&path, &LoadOptions::default())
         .unwrap()
-        .intensities
+        .images
+        .map(greys)
         .unwrap();
     assert_all_close(&intensities[0], &base);
     assert_all_close(&intensities[1], &shifted);
@@ -880,4 +881,9 @@ fn animations_are_chosen_by_name_or_index_else_the_first_that_moves_the_mesh() {
         .unwrap()
         .warnings
         .is_empty());
+}
+
+/// The grey value (luma) of every frame's colours.
+fn greys(images: Vec<meshflow::io::VertexValues>) -> Vec<Vec<f64>> {
+    images.iter().map(|v| v.to_grey()).collect()
 }

@@ -3,7 +3,8 @@
 //! last bit, textures are sampled where they should be, seams are welded.
 
 use meshflow::io::ply::{write_ply, PlyEncoding};
-use meshflow::io::{load_sequence, read_npy, read_obj, write_npy, write_obj, LoadOptions};
+use meshflow::io::{load_sequence, read_npy, read_obj, write_npy, write_obj, LoadOptions, VertexValues};
+use meshflow::io::Channels;
 use meshflow::render::UpAxis;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
@@ -342,34 +343,44 @@ fn textured_obj_frames_are_sampled_bilinearly_and_welded() {
         "one disc, not loose triangles"
     );
 
-    let grey = |t: [u8; 3]| {
+    let luma = |t: [u8; 3]| {
         let [r, g, b] = t.map(|c| c as f64 / 255.0);
-        if r == g && g == b {
-            r
-        } else {
-            0.2126 * r + 0.7152 * g + 0.0722 * b
-        }
+        0.2126 * r + 0.7152 * g + 0.0722 * b
     };
     // Bilinear sampling by hand at (u, 1 − v), texel centres at ((x + ½)/4, (y + ½)/2), repeat.
-    let sample = |u: f64, v: f64| {
+    let sample = |u: f64, v: f64, value: &dyn Fn([u8; 3]) -> f64| {
         let (x, y) = (u * 4.0 - 0.5, (1.0 - v) * 2.0 - 0.5);
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
         let at = |i: f64, j: f64| {
             let (i, j) = ((i as i64).rem_euclid(4), (j as i64).rem_euclid(2));
-            grey(texels[(j * 4 + i) as usize])
+            value(texels[(j * 4 + i) as usize])
         };
         (at(x0, y0) * (1.0 - fx) + at(x0 + 1.0, y0) * fx) * (1.0 - fy)
             + (at(x0, y0 + 1.0) * (1.0 - fx) + at(x0 + 1.0, y0 + 1.0) * fx) * fy
     };
+    // By default the three colour channels, each sampled bilinearly.
+    assert_eq!(sequence.n_channels(), 3);
     for k in 0..2 {
-        for (p, &value) in sequence
-            .positions(k)
-            .unwrap()
-            .iter()
-            .zip(sequence.intensities(k))
-        {
-            assert!((value - sample(p.x, p.y)).abs() < 1e-6, "at {p:?}: {value}");
+        let positions = sequence.positions(k).unwrap();
+        for (c, channel) in sequence.channels(k).iter().enumerate() {
+            let value = |t: [u8; 3]| t[c] as f64 / 255.0;
+            for (p, &got) in positions.iter().zip(channel) {
+                assert!((got - sample(p.x, p.y, &value)).abs() < 1e-6, "at {p:?}: {got}");
+            }
+        }
+    }
+    // `--channels luma`: the luma of the colours (sampling is linear, so either order).
+    let options = LoadOptions {
+        channels: Channels::Luma,
+        ..Default::default()
+    };
+    let luma_sequence = load_sequence(dir.path(), &options).unwrap().sequence;
+    assert_eq!(luma_sequence.n_channels(), 1);
+    for k in 0..2 {
+        let positions = luma_sequence.positions(k).unwrap();
+        for (p, &got) in positions.iter().zip(luma_sequence.intensities(k)) {
+            assert!((got - sample(p.x, p.y, &luma)).abs() < 1e-6, "at {p:?}: {got}");
         }
     }
     // Unwelded, the split copies stay apart and every triangle is its own component.
@@ -539,8 +550,8 @@ fn check_flow_glb(input: &Path, out: &Path, up: UpAxis) {
         &vectors[..sequence.mesh().n_vertices()],
         robust_max(&speeds),
     );
-    let grey = replay.intensities.unwrap();
-    for (g, c) in grey[0].iter().zip(&colors) {
+    let grey = replay.images.unwrap()[0].to_grey();
+    for (g, c) in grey.iter().zip(&colors) {
         assert!((g - meshflow::io::grey_value(*c)).abs() < 1e-6);
     }
     assert!(
@@ -767,11 +778,11 @@ fn arrays_are_built_like_files() {
     let grey: Vec<Vec<f64>> = frames.map(|k| sequence.intensities(k).to_vec()).collect();
     let faces = sequence.mesh().faces().to_vec();
     let times = Some(sequence.times().to_vec());
-    let from_arrays = |faces, positions, grey| {
+    let from_arrays = |faces, positions, grey: Vec<Vec<f64>>| {
         sequence_from_arrays(
             faces,
             positions,
-            grey,
+            grey.into_iter().map(VertexValues::Grey).collect(),
             times.clone(),
             &LoadOptions::default(),
         )

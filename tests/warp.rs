@@ -15,11 +15,13 @@ fn a_zero_flow_warps_nothing() {
     let sequence = &scene.sequence;
     let zero = vec![Vector2::zeros(); sequence.mesh().n_vertices()];
     for s in 0..2 {
+        let frames = (sequence.channels(s), sequence.channels(s + 1));
+        let slab = warped_slab(sequence, s, frames, &zero, &[1.0]).unwrap();
         let (before, after) = (sequence.intensities(s), sequence.intensities(s + 1));
-        let slab = warped_slab(sequence, s, (before, after), &zero).unwrap();
+        let channel = &slab.channels[0];
         for i in 0..zero.len() {
-            assert!((slab.intensity_mid[i] - 0.5 * (before[i] + after[i])).abs() < 1e-15);
-            assert!((slab.rate[i] - (after[i] - before[i])).abs() < 1e-15);
+            assert!((channel.mid[i] - 0.5 * (before[i] + after[i])).abs() < 1e-15);
+            assert!((channel.rate[i] - (after[i] - before[i])).abs() < 1e-15);
         }
     }
 }
@@ -55,7 +57,7 @@ fn pyramid_smoothing_decays_sphere_harmonics_as_the_heat_equation() {
     for (level, t) in times.iter().enumerate() {
         let steps = (t / step).round() as i32;
         let expected = (1.0 + 6.0 * step).powi(-steps);
-        let smoothed = &pyramid[level][0];
+        let smoothed = &pyramid[level].frame(0)[0];
         let ratio = smoothed
             .iter()
             .zip(&harmonic)

@@ -75,6 +75,24 @@ pub struct DataElement {
     pub constant: f64,
 }
 
+impl DataElement {
+    /// The element of no data (the sum over no channels).
+    pub fn zero() -> Self {
+        Self {
+            quadratic: Matrix6::zeros(),
+            linear: Vector6::zeros(),
+            constant: 0.0,
+        }
+    }
+
+    /// `self += w · other`: the elements of several image channels add up, each with its weight.
+    pub fn add_scaled(&mut self, other: &DataElement, w: f64) {
+        self.quadratic += other.quadratic * w;
+        self.linear += other.linear * w;
+        self.constant += other.constant * w;
+    }
+}
+
 /// The data element for P1 intensity `intensity` (face gradient `G`) and P1 temporal rate
 /// `rate` (τ) on `triangle`: with `g_a = R_aᵀ G`, block `(a, b) = m_ab g_a g_bᵀ`,
 /// `l_a = Σ_b m_ab τ_b g_a`, `c = τᵀ m τ` (`m` the consistent mass). This is the exact integral

@@ -29,11 +29,19 @@ pub enum FlowError {
         #[source]
         source: GeometryError,
     },
-    #[error("frame {frame}: intensity at vertex {vertex} is {value}, not a finite number")]
+    #[error("frame {frame}: intensity at vertex {vertex}{} is {value}, not a finite number", channel.map_or(String::new(), |c| format!(", channel {c}")))]
     NonFiniteIntensity {
         frame: usize,
         vertex: usize,
+        /// `None` for a grey (one-channel) image.
+        channel: Option<usize>,
         value: f64,
+    },
+    #[error("frame {frame} has {got} image channels, frame 0 has {expected}")]
+    ChannelMismatch {
+        frame: usize,
+        expected: usize,
+        got: usize,
     },
     #[error("frame times must be finite and strictly increasing, but t[{frame}] = {value} follows t[{}] = {previous}", frame - 1)]
     NonIncreasingTimes {

@@ -56,9 +56,9 @@ pub use params::{Warping, DEFAULT_SPREAD, DEFAULT_TIME_SCALE};
 pub use pyramid::{heat_times, scale_pyramid, COARSEST_HEAT_TIME};
 pub use regularizer::Regularizer;
 pub use scales::DataScales;
-pub(crate) use sequence::check_finite_intensities;
-pub use sequence::MeshSequence;
-pub use slab::Slab;
+pub(crate) use sequence::{channel_mean, check_finite_intensities};
+pub use sequence::{Images, MeshSequence};
+pub use slab::{Slab, SlabChannel};
 pub use solve::{SolveEvent, SolveObserver, SolverMethod};
 pub use system::{LinkMatrix, SpaceTimeSystem};
 pub use warp::warped_slab;
@@ -91,7 +91,8 @@ pub struct FlowResult {
     pub vectors: Option<Vec<Vec<Vector3<f64>>>>,
     /// With coarse-to-fine warping: `warped_residual[s][i] = I⁺_i − I⁻_i`, the grey-value change
     /// that remains between the two frames of slab `s` read halfway along the final flow
-    /// ([`warp`]); `None` for the single linear solve.
+    /// ([`warp`]; with several channels, the weighted root mean square over them); `None` for
+    /// the single linear solve.
     pub warped_residual: Option<Vec<Vec<f64>>>,
     /// Reweighted solves of the robust smoothness (0 for the quadratic model; with warping,
     /// those of the last warp).
@@ -140,7 +141,10 @@ impl<'a> FlowProblem<'a> {
     /// Validates the parameters, builds the slabs, resolves the weights with the data's scales,
     /// assembles the space-time system, and checks that the minimizer is unique.
     pub fn new(sequence: &'a MeshSequence, params: &FlowParams) -> Result<Self, FlowError> {
-        Self::with_slabs(sequence, params, slab::build_slabs(sequence)?, true)
+        params.validate()?;
+        let channel_weights = params.channel_weights_for(sequence.n_channels())?;
+        let slabs = slab::build_slabs(sequence, &channel_weights)?;
+        Self::with_slabs(sequence, params, slabs, true)
     }
 
     /// The problem with given slabs (e.g. warped ones, [`warped_slab`]), which it keeps.
@@ -220,8 +224,9 @@ impl<'a> FlowProblem<'a> {
         match &self.slabs {
             Some(slabs) => Cow::Borrowed(&slabs[s]),
             None => {
-                let mut slab =
-                    Slab::new(self.sequence, s).expect("the slabs were built once already");
+                let weights = self.params.channel_weights_for(self.sequence.n_channels());
+                let mut slab = Slab::new(self.sequence, s, &weights.expect("checked in new"))
+                    .expect("the slabs were built once already");
                 if self.params.regularizer.needs_embedding() {
                     slab.embed(self.sequence, s).expect("embedded once already");
                 }

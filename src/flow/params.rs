@@ -159,6 +159,9 @@ pub struct FlowParams {
     /// the quadratic `r(u)` of the regularizer, by reweighted solves ([`super::robust`]);
     /// `ε` in the units of `|∇u|` (1/time). `None`: the quadratic model.
     pub robust_smoothness: Option<f64>,
+    /// The weight `w_c` of each image channel in the data term `Σ_c w_c (∂_t I_c + dI_c(u))²`,
+    /// one per channel of the sequence; `None`: 1 for every channel.
+    pub channel_weights: Option<Vec<f64>>,
     pub boundary: Boundary,
     pub time_coupling: TimeCoupling,
     pub solver: SolverChoice,
@@ -245,6 +248,7 @@ impl Default for FlowParams {
             gamma: Weight::Relative(DEFAULT_SPREAD),
             regularizer: Regularizer::Covariant,
             robust_smoothness: None,
+            channel_weights: None,
             boundary: Boundary::Neumann,
             time_coupling: TimeCoupling::Lumped,
             solver: SolverChoice::Auto,
@@ -313,6 +317,17 @@ impl FlowParams {
                 "a positive number (the |∇u| where the penalty turns from quadratic to linear)",
             )?;
         }
+        if let Some(weights) = &self.channel_weights {
+            if let Some(&w) = weights.iter().find(|w| !(w.is_finite() && **w >= 0.0)) {
+                check("channel_weights", w, false, "finite and ≥ 0 for every channel")?;
+            }
+            check(
+                "channel_weights (their sum)",
+                weights.iter().sum(),
+                weights.iter().any(|&w| w > 0.0),
+                "positive: some channel must count",
+            )?;
+        }
         if let Regularizer::Strain { dirichlet } = self.regularizer {
             check(
                 "dirichlet (the covariant part of the strain regularizer)",
@@ -345,6 +360,19 @@ impl FlowParams {
             self.warping.warps > 0 || self.warping.levels == 1,
             "at least 1 with more than one level (coarse levels are only used by warping)",
         )
+    }
+
+    /// The weight of each of `n_channels` image channels: [`Self::channel_weights`], or 1 each.
+    pub fn channel_weights_for(&self, n_channels: usize) -> Result<Vec<f64>, FlowError> {
+        match &self.channel_weights {
+            None => Ok(vec![1.0; n_channels]),
+            Some(w) if w.len() == n_channels => Ok(w.clone()),
+            Some(w) => Err(FlowError::CountMismatch {
+                what: "channel weights (one per image channel)",
+                expected: n_channels,
+                got: w.len(),
+            }),
+        }
     }
 
     /// The weights as numbers for data with the given scales (relative weights resolved as in

@@ -14,7 +14,7 @@
 //! Scales come from the surface's size, not from the data's units.
 
 use super::solve::cholesky::{analyze, CholeskyFactor};
-use super::{FlowError, MeshSequence};
+use super::{FlowError, Images, MeshSequence};
 use crate::fem::{cotan_laplacian, scalar_mass, MassKind, SparseMatrix};
 use crate::geometry::IntrinsicGeometry;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
@@ -36,11 +36,9 @@ pub fn heat_times(levels: usize, area: f64) -> Vec<f64> {
         .collect()
 }
 
-/// `images[ℓ][k]`: frame `k`'s grey values smoothed to level `ℓ` (`images[0]` the originals).
-pub fn scale_pyramid(
-    sequence: &MeshSequence,
-    levels: usize,
-) -> Result<Vec<Vec<Vec<f64>>>, FlowError> {
+/// `pyramid[ℓ]`: the sequence's images (every channel) smoothed to level `ℓ` (`pyramid[0]` the
+/// originals).
+pub fn scale_pyramid(sequence: &MeshSequence, levels: usize) -> Result<Vec<Images>, FlowError> {
     let mesh = sequence.mesh();
     let geometry = |k: usize| {
         IntrinsicGeometry::new(mesh, sequence.edge_lengths(k).to_vec())
@@ -54,20 +52,21 @@ pub fn scale_pyramid(
             1,
         )),
     };
-    let per_frame: Vec<Vec<Vec<f64>>> = (0..sequence.n_frames())
+    // per_frame[k][ℓ][c]
+    let per_frame: Vec<Vec<Vec<Vec<f64>>>> = (0..sequence.n_frames())
         .into_par_iter()
         .map(|k| {
             let geometry = geometry(k)?;
             let times = heat_times(levels, geometry.total_area());
-            let image = sequence.intensities(k);
+            let channels = sequence.channels(k);
             match &symbolic {
-                Some(symbolic) => heat_levels(mesh, &geometry, symbolic, image, &times, k),
-                None => Ok(vec![image.to_vec()]),
+                Some(symbolic) => heat_levels(mesh, &geometry, symbolic, channels, &times, k),
+                None => Ok(vec![channels.to_vec()]),
             }
         })
         .collect::<Result<_, _>>()?;
     Ok((0..levels)
-        .map(|l| per_frame.iter().map(|frame| frame[l].clone()).collect())
+        .map(|l| Images::from_channels(per_frame.iter().map(|frame| frame[l].clone()).collect()))
         .collect())
 }
 
@@ -82,16 +81,16 @@ fn heat_operator(
     (mass, operator)
 }
 
-/// One image at the heat times `times` (`times[ℓ] = τ 4^{ℓ−1}`, `τ = times[1]`; at least two
-/// levels), factorized on the shared ordering `symbolic`.
+/// One frame's channels at the heat times `times` (`times[ℓ] = τ 4^{ℓ−1}`, `τ = times[1]`; at
+/// least two levels), factorized once on the shared ordering `symbolic`: `levels[ℓ][c]`.
 fn heat_levels(
     mesh: &crate::mesh::Mesh,
     geometry: &IntrinsicGeometry,
     symbolic: &Arc<SymbolicCholesky<usize>>,
-    image: &[f64],
+    channels: &[Vec<f64>],
     times: &[f64],
     frame: usize,
-) -> Result<Vec<Vec<f64>>, FlowError> {
+) -> Result<Vec<Vec<Vec<f64>>>, FlowError> {
     let step = times[1];
     let (mass, operator) = heat_operator(mesh, geometry, step);
     let factor =
@@ -101,14 +100,16 @@ fn heat_levels(
                 detail,
             }
         })?;
-    let mut levels = vec![image.to_vec()];
-    let mut current = image.to_vec();
+    let mut levels = vec![channels.to_vec()];
+    let mut current = channels.to_vec();
     let mut steps_done = 0;
     for &t in &times[1..] {
         let steps = (t / step).round() as usize;
-        for _ in steps_done..steps {
-            current = mass_times(&mass, &current);
-            factor.solve_in_place(&mut current, Par::Seq);
+        for channel in &mut current {
+            for _ in steps_done..steps {
+                *channel = mass_times(&mass, channel);
+                factor.solve_in_place(channel, Par::Seq);
+            }
         }
         steps_done = steps;
         levels.push(current.clone());

@@ -2,6 +2,7 @@
 //!
 //! ```text
 //! S²  = Σ_s Δt_s Σ_T A_T |∇I_T|⁴ / Σ_s Δt_s Σ_T A_T |∇I_T|²     (∇I_T: P1 gradient of I_mid on T)
+//! |∇I_T|² = Σ_c w_c |∇I_{c,T}|²                                     (several channels)
 //! h̄   = mean over slabs of the mean edge length of the slab geometry
 //! Δt̄  = (t_{K−1} − t_0) / (K − 1)
 //! ```
@@ -11,12 +12,15 @@
 //! them (see [`crate::flow::FlowParams`] for why that matters). An image whose mid-slab grey
 //! values are all equal, to `1e-12` of their magnitude, in every slab has `S = 0` (its P1
 //! gradient is round-off).
+//!
+//! With several channels `|∇I|²` is the trace of the data term's structure tensor
+//! `Σ_c w_c ∇I_c ∇I_cᵀ`, so `C` equal channels have `S² = C S²_grey`, the relative weights grow
+//! with the data term, and the flow is the grey image's.
 
 //!
 //! [`FlowParams`]: super::FlowParams
 
 use super::Slab;
-use crate::fem::element::face_gradient;
 use crate::mesh::Mesh;
 
 /// Grey values closer than this, relative to their magnitude, count as equal.
@@ -38,9 +42,8 @@ impl DataScales {
     pub fn measure(mesh: &Mesh, slabs: &[Slab]) -> Self {
         let (mut second, mut fourth) = (0.0, 0.0);
         for slab in slabs {
-            for (face, triangle) in mesh.faces().iter().zip(slab.geometry.triangles()) {
-                let values = face.map(|v| slab.intensity_mid[v as usize]);
-                let squared = face_gradient(triangle, values).norm_squared();
+            for (f, (face, triangle)) in mesh.faces().iter().zip(slab.geometry.triangles()).enumerate() {
+                let squared = slab.structure_tensor(face, f).trace();
                 second += slab.dt * triangle.area * squared;
                 fourth += slab.dt * triangle.area * squared * squared;
             }
@@ -51,7 +54,11 @@ impl DataScales {
             .sum::<f64>()
             / slabs.len() as f64;
         Self {
-            gradient: match slabs.iter().all(|slab| is_constant(&slab.intensity_mid)) {
+            gradient: match slabs
+                .iter()
+                .flat_map(|slab| &slab.channels)
+                .all(|channel| channel.weight == 0.0 || is_constant(&channel.mid))
+            {
                 true => 0.0,
                 false => (fourth / second).sqrt(),
             },

@@ -6,26 +6,81 @@ use crate::geometry::{edge_lengths, IntrinsicGeometry};
 use crate::mesh::Mesh;
 use nalgebra::{Matrix3x2, Vector3};
 
+/// The image on a sequence: `C ≥ 1` channels (grey, RGB, any stack of stains), one value per
+/// channel, vertex and frame. `frames[k][c][i]` is channel `c` at vertex `i` in frame `k`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Images {
+    frames: Vec<Vec<Vec<f64>>>,
+}
+
+impl Images {
+    /// Several channels per frame: `frames[k][c][i]`.
+    pub fn from_channels(frames: Vec<Vec<Vec<f64>>>) -> Self {
+        Self { frames }
+    }
+
+    /// One grey channel per frame: `frames[k][i]`.
+    pub fn grey(frames: Vec<Vec<f64>>) -> Self {
+        Self {
+            frames: frames.into_iter().map(|grey| vec![grey]).collect(),
+        }
+    }
+
+    pub fn n_frames(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// The channels of frame `k`.
+    pub fn frame(&self, k: usize) -> &[Vec<f64>] {
+        &self.frames[k]
+    }
+
+    pub fn into_frames(self) -> Vec<Vec<Vec<f64>>> {
+        self.frames
+    }
+}
+
+impl From<Vec<Vec<f64>>> for Images {
+    fn from(grey: Vec<Vec<f64>>) -> Self {
+        Self::grey(grey)
+    }
+}
+
 /// Frames `k = 0..K−1` of one mesh connectivity: geometry per frame (positions, or edge lengths
-/// for an intrinsic sequence), a grey value per vertex and frame, and strictly increasing times.
+/// for an intrinsic sequence), an image of `C ≥ 1` channels per vertex and frame ([`Images`]),
+/// and strictly increasing times.
 ///
-/// Validated on construction: at least two frames, matching counts, finite values, no
-/// degenerate face in any frame.
+/// Validated on construction: at least two frames, matching counts (the same number of
+/// channels in every frame), finite values, no degenerate face in any frame.
 #[derive(Clone, Debug)]
 pub struct MeshSequence {
     mesh: Mesh,
     positions: Option<Vec<Vec<Vector3<f64>>>>,
     edge_lengths: Vec<Vec<f64>>,
-    intensities: Vec<Vec<f64>>,
+    images: Images,
+    /// The mean of the channels per frame when there are several (what [`Self::intensities`]
+    /// shows), `None` for one channel.
+    channel_means: Option<Vec<Vec<f64>>>,
     times: Vec<f64>,
 }
 
 impl MeshSequence {
-    /// A sequence of embedded frames. `times = None` means `0, 1, 2, …`.
+    /// A sequence of embedded frames with a grey value per vertex and frame (`intensities[k][i]`).
+    /// `times = None` means `0, 1, 2, …`.
     pub fn new(
         mesh: Mesh,
         positions: Vec<Vec<Vector3<f64>>>,
         intensities: Vec<Vec<f64>>,
+        times: Option<Vec<f64>>,
+    ) -> Result<Self, FlowError> {
+        Self::with_images(mesh, positions, Images::grey(intensities), times)
+    }
+
+    /// [`Self::new`] with an image of any number of channels.
+    pub fn with_images(
+        mesh: Mesh,
+        positions: Vec<Vec<Vector3<f64>>>,
+        images: Images,
         times: Option<Vec<f64>>,
     ) -> Result<Self, FlowError> {
         let lengths = positions
@@ -35,17 +90,28 @@ impl MeshSequence {
                 edge_lengths(&mesh, p).map_err(|source| FlowError::Frame { frame, source })
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let mut sequence = Self::from_edge_lengths(mesh, lengths, intensities, times)?;
+        let mut sequence = Self::from_edge_lengths_with_images(mesh, lengths, images, times)?;
         sequence.positions = Some(positions);
         Ok(sequence)
     }
 
     /// An intrinsic sequence: one length per edge (indexed like [`Mesh::edges`]) per frame, no
-    /// embedding. Everything but the push-forward to R^3 works on it.
+    /// embedding, and a grey value per vertex and frame. Everything but the push-forward to R^3
+    /// works on it.
     pub fn from_edge_lengths(
         mesh: Mesh,
         edge_lengths: Vec<Vec<f64>>,
         intensities: Vec<Vec<f64>>,
+        times: Option<Vec<f64>>,
+    ) -> Result<Self, FlowError> {
+        Self::from_edge_lengths_with_images(mesh, edge_lengths, Images::grey(intensities), times)
+    }
+
+    /// [`Self::from_edge_lengths`] with an image of any number of channels.
+    pub fn from_edge_lengths_with_images(
+        mesh: Mesh,
+        edge_lengths: Vec<Vec<f64>>,
+        images: Images,
         times: Option<Vec<f64>>,
     ) -> Result<Self, FlowError> {
         let n_frames = edge_lengths.len();
@@ -56,14 +122,17 @@ impl MeshSequence {
             IntrinsicGeometry::new(&mesh, lengths.clone())
                 .map_err(|source| FlowError::Frame { frame, source })?;
         }
-        check_intensities(&mesh, &intensities, n_frames)?;
+        check_images(&mesh, &images, n_frames)?;
         let times = times.unwrap_or_else(|| (0..n_frames).map(|k| k as f64).collect());
         check_times(&times, n_frames)?;
+        let channel_means = (images.frame(0).len() > 1)
+            .then(|| images.frames.iter().map(|f| channel_mean(f)).collect());
         Ok(Self {
             mesh,
             positions: None,
             edge_lengths,
-            intensities,
+            images,
+            channel_means,
             times,
         })
     }
@@ -125,51 +194,94 @@ impl MeshSequence {
         self.times[s + 1] - self.times[s]
     }
 
+    /// The grey value per vertex of frame `k`: the image itself when it has one channel, the
+    /// mean of its channels otherwise. Pictures and outputs show it; the data term uses every
+    /// channel ([`Self::channels`]).
     pub fn intensities(&self, k: usize) -> &[f64] {
-        &self.intensities[k]
+        match &self.channel_means {
+            Some(means) => &means[k],
+            None => &self.images.frames[k][0],
+        }
+    }
+
+    /// `C`, the number of image channels (1 for grey).
+    pub fn n_channels(&self) -> usize {
+        self.images.frame(0).len()
+    }
+
+    /// The channels of frame `k`: `channels(k)[c][i]`.
+    pub fn channels(&self, k: usize) -> &[Vec<f64>] {
+        self.images.frame(k)
+    }
+
+    pub fn images(&self) -> &Images {
+        &self.images
     }
 }
 
-fn check_intensities(
-    mesh: &Mesh,
-    intensities: &[Vec<f64>],
-    n_frames: usize,
-) -> Result<(), FlowError> {
-    if intensities.len() != n_frames {
+/// The unweighted mean over channels per vertex (`channels[c][i]`).
+pub(crate) fn channel_mean(channels: &[Vec<f64>]) -> Vec<f64> {
+    let scale = 1.0 / channels.len() as f64;
+    (0..channels.first().map_or(0, Vec::len))
+        .map(|i| channels.iter().map(|c| c[i]).sum::<f64>() * scale)
+        .collect()
+}
+
+fn check_images(mesh: &Mesh, images: &Images, n_frames: usize) -> Result<(), FlowError> {
+    if images.n_frames() != n_frames {
         return Err(FlowError::CountMismatch {
             what: "intensity frames",
             expected: n_frames,
-            got: intensities.len(),
+            got: images.n_frames(),
         });
     }
-    for (frame, values) in intensities.iter().enumerate() {
-        if values.len() != mesh.n_vertices() {
-            return Err(FlowError::Frame {
+    let n_channels = images.frame(0).len();
+    if n_channels == 0 {
+        return Err(FlowError::CountMismatch {
+            what: "image channels in frame 0",
+            expected: 1,
+            got: 0,
+        });
+    }
+    let vertex_mismatch = |frame: usize, got: usize| FlowError::Frame {
+        frame,
+        source: crate::geometry::GeometryError::CountMismatch {
+            what: "intensities (one per vertex)",
+            expected: mesh.n_vertices(),
+            got,
+        },
+    };
+    for (frame, channels) in images.frames.iter().enumerate() {
+        if channels.len() != n_channels {
+            return Err(FlowError::ChannelMismatch {
                 frame,
-                source: crate::geometry::GeometryError::CountMismatch {
-                    what: "intensities (one per vertex)",
-                    expected: mesh.n_vertices(),
-                    got: values.len(),
-                },
+                expected: n_channels,
+                got: channels.len(),
             });
         }
+        if let Some(c) = channels.iter().find(|c| c.len() != mesh.n_vertices()) {
+            return Err(vertex_mismatch(frame, c.len()));
+        }
     }
-    check_finite_intensities(intensities, |_| true)
+    check_finite_intensities(images, |_| true)
 }
 
-/// Fails on the first non-finite grey value at a vertex that `checked` selects.
+/// Fails on the first non-finite image value at a vertex that `checked` selects.
 pub(crate) fn check_finite_intensities(
-    intensities: &[Vec<f64>],
+    images: &Images,
     checked: impl Fn(usize) -> bool,
 ) -> Result<(), FlowError> {
-    for (frame, values) in intensities.iter().enumerate() {
-        let bad = |(i, v): &(usize, &f64)| !v.is_finite() && checked(*i);
-        if let Some((vertex, _)) = values.iter().enumerate().find(bad) {
-            return Err(FlowError::NonFiniteIntensity {
-                frame,
-                vertex,
-                value: values[vertex],
-            });
+    for (frame, channels) in images.frames.iter().enumerate() {
+        for (channel, values) in channels.iter().enumerate() {
+            let bad = |(i, v): &(usize, &f64)| !v.is_finite() && checked(*i);
+            if let Some((vertex, _)) = values.iter().enumerate().find(bad) {
+                return Err(FlowError::NonFiniteIntensity {
+                    frame,
+                    vertex,
+                    channel: (channels.len() > 1).then_some(channel),
+                    value: values[vertex],
+                });
+            }
         }
     }
     Ok(())

@@ -8,15 +8,39 @@ use crate::geometry::IntrinsicGeometry;
 use nalgebra::{Matrix2, Matrix3, Matrix3x2, Matrix6, Vector2};
 use rayon::prelude::*;
 
-/// Slab `s = [t_s, t_{s+1}]`: lengths are the mean of the two frames' lengths;
-/// `I_mid = (I_s + I_{s+1}) / 2`, `τ = (I_{s+1} − I_s) / Δt_s` per vertex.
+/// One image channel `c` on a slab: `I_mid = (I_s + I_{s+1}) / 2`, `τ = (I_{s+1} − I_s) / Δt_s`
+/// per vertex, and the channel's weight `w_c` in the data term `Σ_c w_c (τ_c + dI_c(u))²`.
+#[derive(Clone, Debug)]
+pub struct SlabChannel {
+    pub weight: f64,
+    pub mid: Vec<f64>,
+    pub rate: Vec<f64>,
+}
+
+impl SlabChannel {
+    /// The channel between the images `before` (at `t_s`) and `after` (at `t_s + dt`).
+    pub fn between(before: &[f64], after: &[f64], dt: f64, weight: f64) -> Self {
+        Self {
+            weight,
+            mid: before
+                .iter()
+                .zip(after)
+                .map(|(a, b)| 0.5 * (a + b))
+                .collect(),
+            rate: before.iter().zip(after).map(|(a, b)| (b - a) / dt).collect(),
+        }
+    }
+}
+
+/// Slab `s = [t_s, t_{s+1}]`: lengths are the mean of the two frames' lengths; each image
+/// channel's mid values and rates ([`SlabChannel`]).
 #[derive(Clone, Debug)]
 pub struct Slab {
     pub geometry: IntrinsicGeometry,
     pub connection: Connection,
     pub dt: f64,
-    pub intensity_mid: Vec<f64>,
-    pub rate: Vec<f64>,
+    /// One per image channel (one for grey).
+    pub channels: Vec<SlabChannel>,
     /// The flow the data term is linearized around (vertex frames), `None` for zero: with
     /// images warped by it, `∂_t I + dI(u)` becomes `τ + G·R_a (u_a − ū_a)` at corner `a`
     /// (see [`crate::flow::warped_slab`]).
@@ -38,29 +62,83 @@ pub struct FaceElements {
 }
 
 impl Slab {
-    pub(crate) fn new(sequence: &MeshSequence, s: usize) -> Result<Self, FlowError> {
+    /// Slab `s` of `sequence`, channel `c` weighted by `channel_weights[c]` (one per channel).
+    pub(crate) fn new(
+        sequence: &MeshSequence,
+        s: usize,
+        channel_weights: &[f64],
+    ) -> Result<Self, FlowError> {
+        let dt = sequence.slab_duration(s);
+        let (before, after) = (sequence.channels(s), sequence.channels(s + 1));
+        let channels = (before.iter().zip(after).zip(channel_weights))
+            .map(|((b, a), &w)| SlabChannel::between(b, a, dt, w))
+            .collect();
+        Self::with_channels(sequence, s, channels, None)
+    }
+
+    /// Slab `s`'s geometry and connection with the given channels, linearized around `u`.
+    pub(crate) fn with_channels(
+        sequence: &MeshSequence,
+        s: usize,
+        channels: Vec<SlabChannel>,
+        linearization: Option<Vec<Vector2<f64>>>,
+    ) -> Result<Self, FlowError> {
         let geometry = sequence.slab_geometry(s)?;
         let connection = Connection::new(sequence.mesh(), &geometry);
-        let dt = sequence.slab_duration(s);
-        let (before, after) = (sequence.intensities(s), sequence.intensities(s + 1));
         Ok(Self {
             geometry,
             connection,
-            dt,
-            intensity_mid: before
-                .iter()
-                .zip(after)
-                .map(|(a, b)| 0.5 * (a + b))
-                .collect(),
-            rate: before
-                .iter()
-                .zip(after)
-                .map(|(a, b)| (b - a) / dt)
-                .collect(),
-            linearization: None,
+            dt: sequence.slab_duration(s),
+            channels,
+            linearization,
             smoothness_weights: None,
             embedding_frames: None,
         })
+    }
+
+    /// Per channel, its weight `w_c` and the face-frame gradient `G_c` of `I_mid` on face `f`.
+    pub fn face_gradients<'s>(
+        &'s self,
+        face: &'s [u32; 3],
+        f: usize,
+    ) -> impl Iterator<Item = (f64, Vector2<f64>)> + 's {
+        let triangle = self.geometry.triangle(f);
+        self.channels.iter().map(move |channel| {
+            let values = face.map(|v| channel.mid[v as usize]);
+            (channel.weight, element::face_gradient(triangle, values))
+        })
+    }
+
+    /// The data term's structure tensor on face `f`: `Σ_c w_c G_c G_cᵀ` (its trace is the
+    /// squared gradient `|∇I|²` of a grey image).
+    pub fn structure_tensor(&self, face: &[u32; 3], f: usize) -> Matrix2<f64> {
+        self.face_gradients(face, f)
+            .map(|(w, g)| g * g.transpose() * w)
+            .sum()
+    }
+
+    /// The data element of face `f`: `Σ_c w_c` times channel `c`'s [`element::data_element`],
+    /// each rate shifted by the linearization (if any).
+    fn data_element(&self, face: &[u32; 3], f: usize) -> DataElement {
+        let triangle = self.geometry.triangle(f);
+        let rotations = self.connection.face_rotations(f);
+        let at = |values: &[f64]| face.map(|v| values[v as usize]);
+        let mut sum = DataElement::zero();
+        for channel in &self.channels {
+            let intensity = at(&channel.mid);
+            let mut rate = at(&channel.rate);
+            if let Some(u) = &self.linearization {
+                let gradient = element::face_gradient(triangle, intensity);
+                for (a, &v) in face.iter().enumerate() {
+                    rate[a] -= gradient.dot(&(rotations[a] * u[v as usize]));
+                }
+            }
+            sum.add_scaled(
+                &element::data_element(triangle, rotations, intensity, rate),
+                channel.weight,
+            );
+        }
+        sum
     }
 
     /// Data, vector mass and regularizer (`regularizer`'s element: the connection stiffness
@@ -73,17 +151,8 @@ impl Slab {
     ) -> FaceElements {
         let triangle = self.geometry.triangle(f);
         let rotations = self.connection.face_rotations(f);
-        let at = |values: &[f64]| face.map(|v| values[v as usize]);
-        let intensity = at(&self.intensity_mid);
-        let mut rate = at(&self.rate);
-        if let Some(u) = &self.linearization {
-            let gradient = element::face_gradient(triangle, intensity);
-            for (a, &v) in face.iter().enumerate() {
-                rate[a] -= gradient.dot(&(rotations[a] * u[v as usize]));
-            }
-        }
         FaceElements {
-            data: element::data_element(triangle, rotations, intensity, rate),
+            data: self.data_element(face, f),
             mass: element::vector_element(&element::consistent_mass(triangle), rotations),
             stiffness: regularizer.element(triangle, rotations, self.corner_frames(face))
                 * self.smoothness_weights.as_ref().map_or(1.0, |w| w[f]),
@@ -111,11 +180,14 @@ impl Slab {
     }
 }
 
-/// All slabs of a sequence, built in parallel.
-pub fn build_slabs(sequence: &MeshSequence) -> Result<Vec<Slab>, FlowError> {
+/// All slabs of a sequence, built in parallel, with one weight per image channel.
+pub fn build_slabs(
+    sequence: &MeshSequence,
+    channel_weights: &[f64],
+) -> Result<Vec<Slab>, FlowError> {
     (0..sequence.n_slabs())
         .into_par_iter()
-        .map(|s| Slab::new(sequence, s))
+        .map(|s| Slab::new(sequence, s, channel_weights))
         .collect()
 }
 

@@ -20,7 +20,6 @@
 use super::slab::{Slab, TimeLink};
 use super::{Boundary, FlowError, FlowParams, Weights};
 use crate::connection::{rotation, wrap_angle};
-use crate::fem::element::face_gradient;
 use crate::mesh::Mesh;
 use nalgebra::Matrix2;
 
@@ -116,16 +115,16 @@ fn is_singular(n: &Matrix2<f64>) -> bool {
     n.determinant() <= SINGULAR_RATIO * n.trace() * n.trace()
 }
 
-/// `Σ_T A_T h_T h_Tᵀ`, `h_T = Rot(−θ_T) G_T`, over the faces of a component.
+/// `Σ_T A_T Rot(−θ_T) (Σ_c w_c G_c G_cᵀ) Rot(θ_T)` over the faces of a component: for one
+/// channel `Σ_T A_T h_T h_Tᵀ`, `h_T = Rot(−θ_T) G_T`.
 fn data_matrix(mesh: &Mesh, slab: &Slab, theta: &[f64], component: &[usize]) -> Matrix2<f64> {
     component_faces(mesh, component)
         .into_iter()
         .map(|f| {
             let face = mesh.faces()[f];
             let triangle = slab.geometry.triangle(f);
-            let gradient = face_gradient(triangle, face.map(|v| slab.intensity_mid[v as usize]));
-            let h = rotation(-theta[f]) * gradient;
-            h * h.transpose() * triangle.area
+            let turn = rotation(-theta[f]);
+            turn * slab.structure_tensor(&face, f) * turn.transpose() * triangle.area
         })
         .sum()
 }

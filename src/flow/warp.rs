@@ -27,11 +27,11 @@
 //! should be smooth). All slabs are warped and solved together at every step.
 
 use super::pyramid::scale_pyramid;
-use super::slab::Slab;
-use super::{FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence, SolveEvent};
+use super::slab::{Slab, SlabChannel};
+use super::{FlowError, FlowParams, FlowProblem, FlowResult, Images, MeshSequence, SolveEvent};
 use super::{SolveObserver, Weight};
 use crate::connection::Connection;
-use crate::geometry::trace;
+use crate::geometry::{trace, SurfacePoint};
 use nalgebra::Vector2;
 use rayon::prelude::*;
 
@@ -44,6 +44,7 @@ pub(super) fn coarse_to_fine(
     let sequence = problem.sequence();
     let warping = problem.params().warping;
     let pyramid = scale_pyramid(sequence, warping.levels)?;
+    let channel_weights = problem.params().channel_weights_for(sequence.n_channels())?;
     let weights = *problem.weights();
     let mesh = sequence.mesh();
     let mut flow = vec![vec![Vector2::zeros(); mesh.n_vertices()]; sequence.n_slabs()];
@@ -66,7 +67,7 @@ pub(super) fn coarse_to_fine(
                 solve: solves,
                 solves: warping.solves(),
             })?;
-            let slabs = warped_slabs(sequence, &pyramid[level], &flow)?;
+            let slabs = warped_slabs(sequence, &pyramid[level], &flow, &channel_weights)?;
             let level_problem = FlowProblem::from_slabs(sequence, &params, slabs)?;
             let solved = level_problem.solve(observer)?;
             flow.clone_from(&solved.intrinsic);
@@ -75,62 +76,74 @@ pub(super) fn coarse_to_fine(
     }
     let mut result = result.expect("warping solves at least once");
     result.scales = *problem.scales();
-    let last = warped_slabs(sequence, &pyramid[0], &flow)?;
-    result.warped_residual = Some(
-        last.iter()
-            .map(|slab| slab.rate.iter().map(|r| r * slab.dt).collect())
-            .collect(),
-    );
+    let last = warped_slabs(sequence, &pyramid[0], &flow, &channel_weights)?;
+    result.warped_residual = Some(last.iter().map(warped_residual).collect());
     Ok(result)
+}
+
+/// `I⁺ − I⁻` per vertex for one channel; with several, the weighted root mean square over
+/// channels, `√(Σ_c w_c (I⁺_c − I⁻_c)² / Σ_c w_c)`.
+fn warped_residual(slab: &Slab) -> Vec<f64> {
+    if let [channel] = slab.channels.as_slice() {
+        return channel.rate.iter().map(|r| r * slab.dt).collect();
+    }
+    let total: f64 = slab.channels.iter().map(|c| c.weight).sum();
+    (0..slab.channels[0].rate.len())
+        .map(|i| {
+            let sum: f64 = (slab.channels.iter())
+                .map(|c| c.weight * (c.rate[i] * slab.dt).powi(2))
+                .sum();
+            (sum / total).sqrt()
+        })
+        .collect()
 }
 
 /// Every slab with its two images warped halfway by `flow` and linearized around it.
 fn warped_slabs(
     sequence: &MeshSequence,
-    images: &[Vec<f64>],
+    images: &Images,
     flow: &[Vec<Vector2<f64>>],
+    channel_weights: &[f64],
 ) -> Result<Vec<Slab>, FlowError> {
     (0..sequence.n_slabs())
         .into_par_iter()
-        .map(|s| warped_slab(sequence, s, (&images[s], &images[s + 1]), &flow[s]))
+        .map(|s| {
+            let frames = (images.frame(s), images.frame(s + 1));
+            warped_slab(sequence, s, frames, &flow[s], channel_weights)
+        })
         .collect()
 }
 
-/// Slab `s` with `I⁻`, `I⁺` of the module docs and the linearization point `u`.
+/// Slab `s` with `I⁻`, `I⁺` of the module docs (every channel of the two frames' images
+/// `before`, `after`, channel `c` weighted by `channel_weights[c]`) and the linearization
+/// point `u`.
 pub fn warped_slab(
     sequence: &MeshSequence,
     s: usize,
-    (before, after): (&[f64], &[f64]),
+    (before, after): (&[Vec<f64>], &[Vec<f64>]),
     u: &[Vector2<f64>],
+    channel_weights: &[f64],
 ) -> Result<Slab, FlowError> {
     let mesh = sequence.mesh();
     let geometry = sequence.slab_geometry(s)?;
     let connection = Connection::new(mesh, &geometry);
     let dt = sequence.slab_duration(s);
-    let sample = |i: usize, step: Vector2<f64>, image: &[f64]| {
-        let (start, step) = connection.vertex_trace_start(mesh, &geometry, i, step);
-        trace(mesh, &geometry, start, step)
-            .point
-            .interpolate(mesh, image)
-    };
-    let (minus, plus): (Vec<f64>, Vec<f64>) = (0..mesh.n_vertices())
+    // Each vertex's two traces serve every channel.
+    let (minus, plus): (Vec<SurfacePoint>, Vec<SurfacePoint>) = (0..mesh.n_vertices())
         .map(|i| {
             let half = 0.5 * dt * u[i];
-            (sample(i, -half, before), sample(i, half, after))
+            let point = |step: Vector2<f64>| {
+                let (start, step) = connection.vertex_trace_start(mesh, &geometry, i, step);
+                trace(mesh, &geometry, start, step).point
+            };
+            (point(-half), point(half))
         })
         .unzip();
-    Ok(Slab {
-        intensity_mid: minus
-            .iter()
-            .zip(&plus)
-            .map(|(a, b)| 0.5 * (a + b))
-            .collect(),
-        rate: minus.iter().zip(&plus).map(|(a, b)| (b - a) / dt).collect(),
-        linearization: Some(u.to_vec()),
-        smoothness_weights: None,
-        embedding_frames: None,
-        geometry,
-        connection,
-        dt,
-    })
+    let sample = |points: &[SurfacePoint], image: &[f64]| -> Vec<f64> {
+        points.iter().map(|p| p.interpolate(mesh, image)).collect()
+    };
+    let channels = (before.iter().zip(after).zip(channel_weights))
+        .map(|((b, a), &w)| SlabChannel::between(&sample(&minus, b), &sample(&plus, a), dt, w))
+        .collect();
+    Slab::with_channels(sequence, s, channels, Some(u.to_vec()))
 }

@@ -1,27 +1,27 @@
 //! What every reader produces: one frame's triangle mesh with optional grey values, and
 //! a whole sequence read from a single file.
 
-use super::LoadWarning;
+use super::{LoadWarning, VertexValues};
 use nalgebra::Vector3;
 use std::path::PathBuf;
 
 /// One frame as read from one file, before any validation: vertex positions, triangles
-/// (0-based, counter-clockwise seen from outside) and a grey value per vertex if the file
-/// carries one.
+/// (0-based, counter-clockwise seen from outside) and a grey value or colour per vertex if the
+/// file carries one.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct FrameMesh {
     pub positions: Vec<Vector3<f64>>,
     pub faces: Vec<[u32; 3]>,
-    pub intensity: Option<Vec<f64>>,
+    pub image: Option<VertexValues>,
 }
 
 /// A sequence read from one file (a glTF morph animation): one connectivity, positions and
-/// optional grey values per frame, and the frame times when the file defines them.
+/// optional grey values or colours per frame, and the frame times when the file defines them.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RawSequence {
     pub faces: Vec<[u32; 3]>,
     pub positions: Vec<Vec<Vector3<f64>>>,
-    pub intensities: Option<Vec<Vec<f64>>>,
+    pub images: Option<Vec<VertexValues>>,
     pub times: Option<Vec<f64>>,
     /// The file each frame came from, for error messages.
     pub sources: Vec<PathBuf>,

@@ -14,7 +14,7 @@
 //! Appendix C (values and tangents); before the first and after the last keyframe the end
 //! values hold.
 //!
-//! Grey values (see [`grey_value`]) come from `COLOR_0` (RGB, alpha ignored) plus its
+//! Colours (the image, see [`super::Channels`]) come from `COLOR_0` (RGB, alpha ignored) plus its
 //! morph-target deltas, the same weighted sum; without `COLOR_0`, from the material's
 //! base-colour texture sampled bilinearly (see [`Texture`], always with repeat wrapping) at
 //! the texture coordinates it names (`TEXCOORD_n` plus deltas, `t` from the top as glTF
@@ -25,7 +25,7 @@
 //!
 //! Exactly one node with a mesh (not skinned); all of that mesh's primitives triangle lists.
 //! Several primitives are merged into one mesh: their vertices follow each other in primitive
-//! order and their triangles are renumbered accordingly; they then have grey values only if
+//! order and their triangles are renumbered accordingly; they then have colours only if
 //! every primitive has a source for them. Vertices are returned as stored, one per glTF
 //! vertex: glTF splits vertices along texture and normal seams, so the caller welds
 //! coincident vertices. Indices may be `u8`, `u16` or `u32`, or absent (triangles
@@ -36,7 +36,7 @@
 mod animation;
 mod file;
 
-use super::{grey_value, FrameMesh, IoError, LoadOptions, RawSequence, Texture};
+use super::{FrameMesh, IoError, LoadOptions, RawSequence, Texture, VertexValues};
 pub(crate) use animation::clip_list;
 pub use animation::AnimationClip;
 use animation::{resampled_times, WeightTrack};
@@ -68,16 +68,16 @@ pub fn read_gltf_animation(path: &Path, options: &LoadOptions) -> Result<RawSequ
         Some(fps) => resampled_times(&track.times, fps).map_err(|m| file.error(m))?,
     };
     let mut positions = Vec::with_capacity(times.len());
-    let mut intensities = Vec::with_capacity(times.len());
+    let mut images = Vec::with_capacity(times.len());
     for &t in &times {
         let weights = track.at(t);
         positions.push(surface.positions(&weights));
-        intensities.push(surface.intensity(&weights, &file)?);
+        images.push(surface.image(&weights, &file)?);
     }
     Ok(RawSequence {
         faces: surface.faces,
         positions,
-        intensities: intensities.into_iter().collect(),
+        images: images.into_iter().collect(),
         sources: vec![path.to_path_buf(); times.len()],
         times: Some(times),
         warnings: warning.into_iter().collect(),
@@ -86,13 +86,13 @@ pub fn read_gltf_animation(path: &Path, options: &LoadOptions) -> Result<RawSequ
 
 /// Reads one static mesh (for sequences stored one file per frame): the mesh node's
 /// geometry in world coordinates, at the default morph weights of the node or mesh (zero
-/// if neither gives any), with grey values as in [`read_gltf_animation`]. Animations are
+/// if neither gives any), with colours as in [`read_gltf_animation`]. Animations are
 /// ignored.
 pub fn read_gltf_frame(path: &Path) -> Result<FrameMesh, IoError> {
     read_static(path, true)
 }
 
-/// [`read_gltf_frame`] without grey values: no colours are read and no image is decoded.
+/// [`read_gltf_frame`] without its image: no colours are read and no image is decoded.
 pub fn read_gltf_geometry(path: &Path) -> Result<FrameMesh, IoError> {
     read_static(path, false)
 }
@@ -104,7 +104,7 @@ fn read_static(path: &Path, grey: bool) -> Result<FrameMesh, IoError> {
     let weights = default_weights(&file, &node, surface.target_count)?;
     Ok(FrameMesh {
         positions: surface.positions(&weights),
-        intensity: surface.intensity(&weights, &file)?,
+        image: surface.image(&weights, &file)?,
         faces: surface.faces,
     })
 }
@@ -257,11 +257,9 @@ enum GreySource {
 }
 
 impl GreySource {
-    fn at(&self, weights: &[f64], file: &GltfFile) -> Result<Vec<f64>, IoError> {
+    fn at(&self, weights: &[f64], file: &GltfFile) -> Result<Vec<[f64; 3]>, IoError> {
         match self {
-            GreySource::Colors(colors) => {
-                Ok(colors.at(weights).into_iter().map(grey_value).collect())
-            }
+            GreySource::Colors(colors) => Ok(colors.at(weights)),
             GreySource::Texture {
                 coords,
                 texture,
@@ -357,16 +355,16 @@ impl Surface {
             .collect()
     }
 
-    /// Grey values of all vertices, if every primitive has a source for them.
-    fn intensity(&self, weights: &[f64], file: &GltfFile) -> Result<Option<Vec<f64>>, IoError> {
-        let mut grey = Vec::with_capacity(self.vertex_count());
+    /// Colours of all vertices, if every primitive has a source for them.
+    fn image(&self, weights: &[f64], file: &GltfFile) -> Result<Option<VertexValues>, IoError> {
+        let mut colors = Vec::with_capacity(self.vertex_count());
         for primitive in &self.primitives {
             match &primitive.grey {
-                Some(source) => grey.extend(source.at(weights, file)?),
+                Some(source) => colors.extend(source.at(weights, file)?),
                 None => return Ok(None),
             }
         }
-        Ok(Some(grey))
+        Ok(Some(VertexValues::Colors(colors)))
     }
 }
 

@@ -12,6 +12,7 @@
 //! exactly one run, marked by its manifest [`RUN_MANIFEST`].
 
 mod atomic;
+mod channels;
 mod flow_output;
 mod frame;
 mod glb;
@@ -36,10 +37,11 @@ pub use atomic::{write_atomically, Overwrite, RunManifest, StagedDir, RUN_MANIFE
 pub use flow_output::{
     summary_json, write_flow_outputs, write_slab_vtus, GroundTruthReport, OutputFormat,
 };
+pub use channels::{select_channels, Channels, VertexValues};
 pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use ground_truth::read_ground_truth;
 pub use input::{FrameFormat, SequenceSource};
-pub use mtl::{texture_intensity, TextureCache};
+pub use mtl::{texture_colors, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};
 pub use npy::{
     read_npy, read_npy_float, read_npy_indices, write_npy, write_npy_sequence, write_npy_vectors,

@@ -1,6 +1,6 @@
-//! OBJ materials: grey values from the diffuse texture (`map_Kd`) at each vertex.
+//! OBJ materials: colours from the diffuse texture (`map_Kd`) at each vertex.
 //!
-//! A vertex's grey value is the mean of the bilinear texture samples (see [`Texture`]) at the
+//! A vertex's colour is the mean of the bilinear texture samples (see [`Texture`]) at the
 //! texture coordinates of its face corners, each corner using the `map_Kd` image of its face's
 //! material. OBJ's `v` runs upwards, so a corner with `vt u v` samples at `(u, 1 − v)`. Averaging
 //! over corners makes vertices on a UV seam (one vertex, several `vt`) and vertices split at the
@@ -34,20 +34,20 @@ impl TextureCache {
     }
 }
 
-/// Grey values sampled from the materials' `map_Kd` textures, or `None` when no face of the file
+/// Colours sampled from the materials' `map_Kd` textures, or `None` when no face of the file
 /// has both texture coordinates and a textured material. Every vertex must then lie on a
 /// textured face.
-pub fn texture_intensity(
+pub fn texture_colors(
     obj: &ObjMesh,
     obj_path: &Path,
     cache: &TextureCache,
-) -> Result<Option<Vec<f64>>, IoError> {
+) -> Result<Option<Vec<[f64; 3]>>, IoError> {
     let textures = material_textures(obj, obj_path, cache)?;
     if textures.iter().all(Option::is_none) {
         return Ok(None);
     }
     let n = obj.positions.len();
-    let (mut sum, mut count) = (vec![0.0; n], vec![0u32; n]);
+    let (mut sum, mut count) = (vec![[0.0; 3]; n], vec![0u32; n]);
     let corners = obj
         .faces
         .iter()
@@ -66,7 +66,9 @@ pub fn texture_intensity(
                     format!("texture coordinate {} is not finite", t + 1),
                 )
             })?;
-            sum[vertex as usize] += value;
+            for (total, v) in sum[vertex as usize].iter_mut().zip(value) {
+                *total += v;
+            }
             count[vertex as usize] += 1;
         }
     }
@@ -74,13 +76,15 @@ pub fn texture_intensity(
         return Err(IoError::format(
             obj_path,
             format!(
-                "vertex {} lies on no textured face, so it has no grey value",
+                "vertex {} lies on no textured face, so it has no colour",
                 vertex + 1
             ),
         ));
     }
     Ok(Some(
-        sum.iter().zip(&count).map(|(s, &c)| s / c as f64).collect(),
+        (sum.iter().zip(&count))
+            .map(|(s, &c)| s.map(|x| x / c as f64))
+            .collect(),
     ))
 }
 

@@ -344,6 +344,6 @@ pub fn read_mesh_geometry(path: &Path) -> Result<FrameMesh, IoError> {
     Ok(FrameMesh {
         positions,
         faces,
-        intensity: None,
+        image: None,
     })
 }

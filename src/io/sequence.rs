@@ -6,11 +6,11 @@
 //! repair, dropping unused vertices; the [`VertexMap`] keeps the files' numbering) and validated
 //! as a [`MeshSequence`]. Errors name the file, and the frame, vertex or face at fault.
 //!
-//! Grey values come from `--intensity` (a float32 or float64 `.npy` of shape (K, V) over the
-//! files' vertices) when given, else from each format's own data: OBJ vertex colours or `map_Kd`
-//! texture, a PLY scalar property (`intensity_attribute`) or its colours, glTF `COLOR_0` or
-//! base-colour texture, `intensity.npy` next to NPY arrays. Colours become grey by
-//! [`grey_values`]. Frame times come from `--times`, else a glTF animation's keyframes, else a
+//! The image comes from `--intensity` (a float32 or float64 `.npy` of shape (K, V), or (K, V, C)
+//! for `C` channels, over the files' vertices) when given, else from each format's own data: OBJ
+//! vertex colours or `map_Kd` texture, a PLY scalar property (`intensity_attribute`) or its
+//! colours, glTF `COLOR_0` or base-colour texture, `intensity.npy` next to NPY arrays.
+//! [`LoadOptions::channels`] chooses the channels (see [`super::channels`]). Frame times come from `--times`, else a glTF animation's keyframes, else a
 //! `times.txt` next to the frames (numbers separated by white space or commas, `#` comments),
 //! else `0, 1, 2, …`.
 
@@ -19,9 +19,10 @@ use super::input::{FrameFormat, SequenceSource};
 use super::ply::read_ply;
 use super::prepare::prepare_mesh;
 use super::warning::STATIC_IMAGE_TOLERANCE;
-use super::{grey_values, read_npy_float, read_npy_indices, read_obj, texture_intensity};
+use super::{read_npy_float, read_npy_indices, read_obj, select_channels, texture_colors};
+use super::{Channels, VertexValues};
 use super::{FrameMesh, IoError, LoadWarning, RawSequence, TextureCache, VertexMap};
-use crate::flow::{check_finite_intensities, FlowError, MeshSequence};
+use crate::flow::{check_finite_intensities, FlowError, Images, MeshSequence};
 use crate::Error;
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -32,8 +33,11 @@ use std::path::{Path, PathBuf};
 /// files, welded at the default tolerance, not repaired".
 #[derive(Clone, Debug)]
 pub struct LoadOptions {
-    /// Grey values from this float32 or float64 `.npy` of shape (frames, file vertices).
+    /// The image from this float32 or float64 `.npy` of shape (frames, file vertices), or
+    /// (frames, file vertices, channels).
     pub intensity: Option<PathBuf>,
+    /// Which channels of the image to use (`--channels`): all of them by default.
+    pub channels: Channels,
     /// The PLY vertex property holding the grey value (instead of the colours).
     pub intensity_attribute: Option<String>,
     /// Frame times, overriding any in the files.
@@ -63,6 +67,7 @@ impl Default for LoadOptions {
     fn default() -> Self {
         Self {
             intensity: None,
+            channels: Channels::Auto,
             intensity_attribute: None,
             times: None,
             fps: None,
@@ -97,14 +102,15 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
 }
 
 /// A sequence from arrays in memory, through the same steps as [`load_sequence`] (welding,
-/// orientation, repair per `options`; the [`VertexMap`] relates `positions`' numbering to the
-/// mesh's). `faces` index `positions[k]`; `intensities[k][i]` is file vertex `i`'s grey value in
-/// frame `k`; `times = None` means `options.times`, else `0, 1, 2, …`. Errors name the frame,
-/// vertex or face, and the argument (`"arrays: frame 3: …"`).
+/// orientation, repair per `options`, channels per `options.channels`; the [`VertexMap`]
+/// relates `positions`' numbering to the mesh's). `faces` index `positions[k]`; `images[k]` is
+/// frame `k`'s image over the file vertices; `times = None` means `options.times`, else
+/// `0, 1, 2, …`. Errors name the frame, vertex or face, and the argument
+/// (`"arrays: frame 3: …"`).
 pub fn sequence_from_arrays(
     faces: Vec<[u32; 3]>,
     positions: Vec<Vec<Vector3<f64>>>,
-    intensities: Vec<Vec<f64>>,
+    images: Vec<VertexValues>,
     times: Option<Vec<f64>>,
     options: &LoadOptions,
 ) -> Result<LoadedSequence, Error> {
@@ -115,7 +121,7 @@ pub fn sequence_from_arrays(
         faces,
         sources: vec![path.to_path_buf(); positions.len()],
         positions,
-        intensities: Some(intensities),
+        images: Some(images),
         times,
         warnings: Vec::new(),
     };
@@ -125,7 +131,7 @@ pub fn sequence_from_arrays(
 /// What errors name when the input came as arrays (the Python package, library callers).
 pub(super) const ARRAYS: &str = "arrays";
 
-/// The steps after reading (module docs): mesh, grey values, times, sequence.
+/// The steps after reading (module docs): mesh, image channels, times, sequence.
 fn build_sequence(
     source: SequenceSource,
     raw: RawSequence,
@@ -135,7 +141,7 @@ fn build_sequence(
     let RawSequence {
         faces,
         positions,
-        intensities,
+        images,
         times,
         sources: files,
         mut warnings,
@@ -144,21 +150,29 @@ fn build_sequence(
         return Err(FlowError::TooFewFrames(positions.len()).into());
     }
     let n_file_vertices = positions[0].len();
-    check_frame_sizes(&positions, intensities.as_deref(), &files)?;
+    check_frame_sizes(&positions, images.as_deref(), &files)?;
     check_finite_positions(&positions).map_err(|e| in_frame_file(e, &files))?;
     let prepared = prepare_mesh(&files[0], &faces, &positions, options)?;
     let vertex_map = prepared.vertex_map;
-    let intensities = match &options.intensity {
-        Some(file) => intensity_array(file, positions.len(), n_file_vertices)?,
-        None => intensities.ok_or_else(|| {
-            IoError::format(
-                &files[0],
-                "no grey values (vertex colours, texture or intensity property); give --intensity FILE.npy",
-            )
-        })?,
+    let (images, images_file) = match &options.intensity {
+        Some(file) => (
+            intensity_array(file, positions.len(), n_file_vertices)?,
+            file.as_path(),
+        ),
+        None => (
+            images.ok_or_else(|| {
+                IoError::format(
+                    &files[0],
+                    "no grey values (vertex colours, texture or intensity property); give --intensity FILE.npy",
+                )
+            })?,
+            files[0].as_path(),
+        ),
     };
-    // Dropped vertices' grey values are never used.
-    check_finite_intensities(&intensities, |i| vertex_map.mesh_vertex(i).is_some())
+    let images = select_channels(images, options.channels)
+        .map_err(|message| IoError::format(images_file, message))?;
+    // Dropped vertices' values are never used.
+    check_finite_intensities(&images, |i| vertex_map.mesh_vertex(i).is_some())
         .map_err(|e| in_frame_file(e, &files))?;
     let times_file = source.times_file();
     let (times, times_from_file) = match (&options.times, times, &times_file) {
@@ -172,12 +186,13 @@ fn build_sequence(
         (None, None, None) => (None, false),
     };
     let positions = positions.iter().map(|p| vertex_map.positions(p)).collect();
-    let intensities = intensities
-        .iter()
-        .map(|v| vertex_map.mean_values(v))
-        .collect();
+    let images = Images::from_channels(
+        (images.into_frames().iter())
+            .map(|channels| channels.iter().map(|c| vertex_map.mean_values(c)).collect())
+            .collect(),
+    );
     let sequence =
-        MeshSequence::new(prepared.mesh, positions, intensities, times).map_err(|e| {
+        MeshSequence::with_images(prepared.mesh, positions, images, times).map_err(|e| {
             match (e, &times_file) {
                 (e, Some(file)) if times_from_file && is_about_times(&e) => {
                     Error::from(e).in_file(file)
@@ -200,7 +215,7 @@ fn build_sequence(
 /// ensure it, arrays from a caller may not.
 fn check_frame_sizes(
     positions: &[Vec<Vector3<f64>>],
-    intensities: Option<&[Vec<f64>]>,
+    intensities: Option<&[VertexValues]>,
     files: &[PathBuf],
 ) -> Result<(), IoError> {
     let expected = positions[0].len();
@@ -234,24 +249,27 @@ fn check_frame_sizes(
     }
 }
 
-/// [`LoadWarning::StaticImage`] when every frame's grey values equal frame 0's (to
-/// [`STATIC_IMAGE_TOLERANCE`] of the grey range) while some position changes (beyond
-/// round-off of the surface's size).
+/// [`LoadWarning::StaticImage`] when every frame's image equals frame 0's (every channel, to
+/// [`STATIC_IMAGE_TOLERANCE`] of its range) while some position changes (beyond round-off of
+/// the surface's size).
 fn static_image_warning(sequence: &MeshSequence, path: &Path) -> Option<LoadWarning> {
     let frames = sequence.n_frames();
-    let grey = |k: usize| sequence.intensities(k);
-    let (low, high) = (0..frames)
-        .flat_map(grey)
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &g| {
-            (l.min(g), h.max(g))
-        });
-    let tolerance = STATIC_IMAGE_TOLERANCE * (high - low);
-    let same_image = (1..frames).all(|k| {
-        grey(k)
-            .iter()
-            .zip(grey(0))
-            .all(|(a, b)| (a - b).abs() <= tolerance)
-    });
+    let same_channel = |c: usize| {
+        let channel = |k: usize| sequence.channels(k)[c].as_slice();
+        let (low, high) = (0..frames)
+            .flat_map(channel)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &g| {
+                (l.min(g), h.max(g))
+            });
+        let tolerance = STATIC_IMAGE_TOLERANCE * (high - low);
+        (1..frames).all(|k| {
+            channel(k)
+                .iter()
+                .zip(channel(0))
+                .all(|(a, b)| (a - b).abs() <= tolerance)
+        })
+    };
+    let same_image = (0..sequence.n_channels()).all(same_channel);
     let positions: Vec<&[Vector3<f64>]> = (0..frames)
         .map(|k| sequence.positions(k))
         .collect::<Option<_>>()?;
@@ -340,8 +358,8 @@ fn read_frames(
     for (k, (frame, file)) in frames.iter().zip(files).enumerate().skip(1) {
         check_same_connectivity(first, frame, k).map_err(|m| IoError::format(file, m))?;
     }
-    let all_missing = frames.iter().all(|f| f.intensity.is_none());
-    let partly_missing = frames.iter().position(|f| f.intensity.is_none());
+    let all_missing = frames.iter().all(|f| f.image.is_none());
+    let partly_missing = frames.iter().position(|f| f.image.is_none());
     if let Some(k) = partly_missing.filter(|_| !all_missing && options.intensity.is_none()) {
         return Err(IoError::format(
             &files[k],
@@ -350,14 +368,12 @@ fn read_frames(
         .into());
     }
     let faces = frames[0].faces.clone();
-    let (positions, intensities): (Vec<_>, Vec<_>) = frames
-        .into_iter()
-        .map(|f| (f.positions, f.intensity))
-        .unzip();
+    let (positions, images): (Vec<_>, Vec<_>) =
+        frames.into_iter().map(|f| (f.positions, f.image)).unzip();
     Ok(RawSequence {
         faces,
         positions,
-        intensities: intensities.into_iter().collect(),
+        images: images.into_iter().collect(),
         times: None,
         sources: files.to_vec(),
         warnings: Vec::new(),
@@ -389,21 +405,21 @@ fn read_frame(
     match format {
         FrameFormat::Obj => {
             let obj = read_obj(file)?;
-            let intensity = match &obj.colors {
-                Some(colors) => Some(grey_values(colors)),
-                None => texture_intensity(&obj, file, textures)?,
+            let colors = match obj.colors {
+                Some(colors) => Some(colors),
+                None => texture_colors(&obj, file, textures)?,
             };
             Ok(FrameMesh {
                 positions: obj.positions,
                 faces: obj.faces,
-                intensity,
+                image: colors.map(VertexValues::Colors),
             })
         }
         FrameFormat::Ply => {
             let ply = read_ply(file)?;
             let untold = ply.colors.is_none() && options.intensity.is_none();
-            let intensity = match &options.intensity_attribute {
-                Some(name) => Some(ply_property(ply.properties, name, file)?),
+            let image = match &options.intensity_attribute {
+                Some(name) => Some(VertexValues::Grey(ply_property(ply.properties, name, file)?)),
                 None if untold && !ply.properties.is_empty() => {
                     // Without colours, a scalar property is most likely the grey value.
                     let names: Vec<&str> = ply.properties.iter().map(|(n, _)| n.as_str()).collect();
@@ -417,12 +433,12 @@ fn read_frame(
                         ),
                     ));
                 }
-                None => ply.colors.as_deref().map(grey_values),
+                None => ply.colors.map(VertexValues::Colors),
             };
             Ok(FrameMesh {
                 positions: ply.positions,
                 faces: ply.faces,
-                intensity,
+                image,
             })
         }
         FrameFormat::Gltf => read_gltf_frame(file),
@@ -450,7 +466,8 @@ fn ply_property(
         })
 }
 
-/// `positions.npy` (K, V, 3), `faces.npy` (F, 3) and, if present, `intensity.npy` (K, V).
+/// `positions.npy` (K, V, 3), `faces.npy` (F, 3) and, if present, `intensity.npy` (K, V) or
+/// (K, V, C).
 fn read_npy_sequence(dir: &Path) -> Result<RawSequence, Error> {
     let positions_file = dir.join("positions.npy");
     let array = read_npy_float(&positions_file)?;
@@ -483,14 +500,14 @@ fn read_npy_sequence(dir: &Path) -> Result<RawSequence, Error> {
         .map(|f| [f[0], f[1], f[2]])
         .collect();
     let intensity_file = dir.join("intensity.npy");
-    let intensities = match intensity_file.exists() {
+    let images = match intensity_file.exists() {
         true => Some(intensity_array(&intensity_file, k as usize, v as usize)?),
         false => None,
     };
     Ok(RawSequence {
         faces,
         positions,
-        intensities,
+        images,
         times: None,
         sources: vec![positions_file; k as usize],
         warnings: Vec::new(),
@@ -558,19 +575,35 @@ fn check_same_connectivity(first: &FrameMesh, frame: &FrameMesh, k: usize) -> Re
     Ok(())
 }
 
+/// The image of an intensity `.npy`: (frames, vertices) grey values or (frames, vertices,
+/// channels).
 fn intensity_array(
     path: &Path,
     n_frames: usize,
     n_vertices: usize,
-) -> Result<Vec<Vec<f64>>, IoError> {
+) -> Result<Vec<VertexValues>, IoError> {
     let array = read_npy_float(path)?;
-    if array.shape != [n_frames as u64, n_vertices as u64] {
-        return Err(IoError::format(
+    let (k, v) = (n_frames as u64, n_vertices as u64);
+    match array.shape[..] {
+        [a, b] if (a, b) == (k, v) => Ok(split_frames(&array.data, n_frames, n_vertices)
+            .into_iter()
+            .map(VertexValues::Grey)
+            .collect()),
+        [a, b, c] if (a, b) == (k, v) && c > 0 => {
+            let c = c as usize;
+            Ok(split_frames(&array.data, n_frames, n_vertices * c)
+                .into_iter()
+                .map(|frame| {
+                    let channel = |j: usize| frame.iter().skip(j).step_by(c).copied().collect();
+                    VertexValues::Channels((0..c).map(channel).collect())
+                })
+                .collect())
+        }
+        _ => Err(IoError::format(
             path,
-            format!("intensity array has shape {:?}, expected ({n_frames}, {n_vertices}) = (frames, vertices)", array.shape),
-        ));
+            format!("intensity array has shape {:?}, expected ({n_frames}, {n_vertices}) = (frames, vertices) or ({n_frames}, {n_vertices}, channels)", array.shape),
+        )),
     }
-    Ok(split_frames(&array.data, n_frames, n_vertices))
 }
 
 /// `n_frames` rows of `row_length` values (which may be 0) from a C-order array.

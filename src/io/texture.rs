@@ -1,34 +1,33 @@
-//! Grey-value textures sampled at vertex texture coordinates.
+//! Colour textures sampled at vertex texture coordinates.
 //!
-//! A texture is a `width × height` grid of grey values (see [`grey_value`]) with texel
+//! A texture is a `width × height` grid of RGB colours (channels in `[0, 1]`) with texel
 //! `(x, y)` centred at `((x + ½)/width, (y + ½)/height)` in texture space, `y` counted from
 //! the top row of the image. Sampling is bilinear between the four nearest texel centres with
 //! wrap-around (repeat) addressing, the default of OBJ and glTF.
 
-use super::frame::grey_value;
 use super::IoError;
 use std::path::Path;
 
-/// A grey-value image for sampling at texture coordinates.
+/// A colour image for sampling at texture coordinates.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Texture {
     width: usize,
     height: usize,
-    grey: Vec<f64>,
+    texels: Vec<[f64; 3]>,
 }
 
 impl Texture {
-    /// A texture from grey values in row-major order, top row first. `None` if the sizes do
-    /// not match or the image is empty.
-    pub fn new(width: usize, height: usize, grey: Vec<f64>) -> Option<Self> {
-        (width > 0 && height > 0 && grey.len() == width * height).then_some(Self {
+    /// A texture from colours in row-major order, top row first. `None` if the sizes do not
+    /// match or the image is empty.
+    pub fn new(width: usize, height: usize, texels: Vec<[f64; 3]>) -> Option<Self> {
+        (width > 0 && height > 0 && texels.len() == width * height).then_some(Self {
             width,
             height,
-            grey,
+            texels,
         })
     }
 
-    /// Decodes an image (PNG or JPEG) and converts it to grey values in `[0, 1]`.
+    /// Decodes an image (PNG or JPEG) with channels scaled to `[0, 1]` (alpha ignored).
     pub fn open(path: &Path) -> Result<Self, IoError> {
         let image = image::open(path).map_err(|e| match e {
             image::ImageError::IoError(e) => IoError::file(path, e),
@@ -37,14 +36,11 @@ impl Texture {
         Self::from_image(&image).ok_or_else(|| IoError::format(path, "the image has no pixels"))
     }
 
-    /// Grey values of a decoded image (channels scaled to `[0, 1]`, alpha ignored).
+    /// The colours of a decoded image (channels scaled to `[0, 1]`, alpha ignored).
     pub fn from_image(image: &image::DynamicImage) -> Option<Self> {
         let rgb = image.to_rgb32f();
-        let grey = rgb
-            .pixels()
-            .map(|p| grey_value(p.0.map(f64::from)))
-            .collect();
-        Self::new(rgb.width() as usize, rgb.height() as usize, grey)
+        let texels = rgb.pixels().map(|p| p.0.map(f64::from)).collect();
+        Self::new(rgb.width() as usize, rgb.height() as usize, texels)
     }
 
     pub fn width(&self) -> usize {
@@ -58,16 +54,26 @@ impl Texture {
     /// Bilinear sample at texture coordinates `(s, t)` with `t` measured from the **top** row
     /// (glTF's convention; for OBJ's bottom-up `v` pass `t = 1 − v`). Coordinates wrap
     /// (repeat); non-finite coordinates give `None`.
-    pub fn sample(&self, s: f64, t: f64) -> Option<f64> {
+    pub fn sample(&self, s: f64, t: f64) -> Option<[f64; 3]> {
         if !(s.is_finite() && t.is_finite()) {
             return None;
         }
         let (x0, x1, fx) = texel_pair(s, self.width);
         let (y0, y1, fy) = texel_pair(t, self.height);
-        let at = |x: usize, y: usize| self.grey[y * self.width + x];
-        let top = at(x0, y0) * (1.0 - fx) + at(x1, y0) * fx;
-        let bottom = at(x0, y1) * (1.0 - fx) + at(x1, y1) * fx;
-        Some(top * (1.0 - fy) + bottom * fy)
+        let corners = [
+            (x0, y0, (1.0 - fx) * (1.0 - fy)),
+            (x1, y0, fx * (1.0 - fy)),
+            (x0, y1, (1.0 - fx) * fy),
+            (x1, y1, fx * fy),
+        ];
+        let mut colour = [0.0; 3];
+        for (x, y, w) in corners {
+            let texel = self.texels[y * self.width + x];
+            for c in 0..3 {
+                colour[c] += w * texel[c];
+            }
+        }
+        Some(colour)
     }
 }
 

@@ -91,7 +91,7 @@ fn read_frames(input: &Path, load: &LoadOptions) -> Result<InputFrames, Error> {
                             faces: mesh.faces,
                             intensity: Vec::new(),
                         },
-                        intensity: mesh.intensity,
+                        intensity: mesh.image.map(|v| v.to_grey()),
                     })
                 })
                 .collect::<Result<Vec<_>, Error>>()?;
