@@ -24,7 +24,12 @@ fn with_channels(
 }
 
 fn max_difference(a: &FlowResult, b: &FlowResult) -> f64 {
-    let scale = a.intrinsic.iter().flatten().map(|u| u.norm()).fold(0.0, f64::max);
+    let scale = a
+        .intrinsic
+        .iter()
+        .flatten()
+        .map(|u| u.norm())
+        .fold(0.0, f64::max);
     let difference = (a.intrinsic.iter().flatten())
         .zip(b.intrinsic.iter().flatten())
         .map(|(u, v)| (u - v).norm())
@@ -47,12 +52,20 @@ fn three_equal_channels_are_the_grey_image_three_times() {
         FlowProblem::new(&colour, &params).unwrap(),
     );
     let ratio = three.scales().gradient / one.scales().gradient;
-    assert!((ratio - 3f64.sqrt()).abs() < 1e-12, "gradient scale ratio {ratio}");
+    assert!(
+        (ratio - 3f64.sqrt()).abs() < 1e-12,
+        "gradient scale ratio {ratio}"
+    );
     let u: Vec<f64> = (scene.intrinsic_flow().unwrap().iter().flatten())
         .flat_map(|v| [v.x + 0.01, v.y - 0.02])
         .collect();
     let (e1, e3) = (one.energy_terms(&u), three.energy_terms(&u));
-    assert!((e3.data - 3.0 * e1.data).abs() < 1e-12 * e1.data, "{} vs {}", e3.data, e1.data);
+    assert!(
+        (e3.data - 3.0 * e1.data).abs() < 1e-12 * e1.data,
+        "{} vs {}",
+        e3.data,
+        e1.data
+    );
     assert!((e3.spatial - 3.0 * e1.spatial).abs() < 1e-12 * e1.spatial);
 
     for params in [
@@ -95,7 +108,10 @@ fn channel_weights_choose_what_counts() {
         assert!(max_difference(&reference, &result) < 1e-9);
     }
     let unweighted = compute_flow(&mixed, &FlowParams::default()).unwrap();
-    assert!(max_difference(&reference, &unweighted) > 0.1, "the noise channels count");
+    assert!(
+        max_difference(&reference, &unweighted) > 0.1,
+        "the noise channels count"
+    );
 
     let wrong_count = FlowParams {
         channel_weights: Some(vec![1.0, 1.0]),
@@ -109,13 +125,20 @@ fn channel_weights_choose_what_counts() {
             ..
         }
     ));
-    for bad in [vec![1.0, -1.0, 0.0], vec![0.0, 0.0, 0.0], vec![f64::NAN, 1.0, 1.0]] {
+    for bad in [
+        vec![1.0, -1.0, 0.0],
+        vec![0.0, 0.0, 0.0],
+        vec![f64::NAN, 1.0, 1.0],
+    ] {
         let params = FlowParams {
             channel_weights: Some(bad.clone()),
             ..FlowParams::default()
         };
         let error = compute_flow(&mixed, &params).unwrap_err();
-        assert!(error.to_string().contains("channel_weights"), "{bad:?}: {error}");
+        assert!(
+            error.to_string().contains("channel_weights"),
+            "{bad:?}: {error}"
+        );
     }
 }
 
@@ -141,7 +164,11 @@ fn colour_sees_an_isoluminant_texture_that_grey_cannot() {
     let result = compute_flow(colour, &FlowParams::default()).unwrap();
     let error = compare_result(colour, &result, &scene.flow).unwrap();
     println!("isoluminant, colour: {:.2}°", error.mean_angular_degrees);
-    assert!(error.mean_angular_degrees < 3.0, "{}", error.mean_angular_degrees);
+    assert!(
+        error.mean_angular_degrees < 3.0,
+        "{}",
+        error.mean_angular_degrees
+    );
 }
 
 /// A non-finite value names its frame, vertex and channel; frames must agree on channels.
@@ -160,10 +187,18 @@ fn bad_channels_are_named() {
     channels[2][1][5] = f64::INFINITY;
     let build = |channels: Vec<Vec<Vec<f64>>>| {
         let mesh = grey.mesh().clone();
-        MeshSequence::with_images(mesh, positions.clone(), Images::from_channels(channels), None)
+        MeshSequence::with_images(
+            mesh,
+            positions.clone(),
+            Images::from_channels(channels),
+            None,
+        )
     };
     let error = build(channels.clone()).unwrap_err().to_string();
-    assert_eq!(error, "frame 2: intensity at vertex 5, channel 1 is inf, not a finite number");
+    assert_eq!(
+        error,
+        "frame 2: intensity at vertex 5, channel 1 is inf, not a finite number"
+    );
     channels[2][1][5] = 0.0;
     channels[1].pop();
     let error = build(channels).unwrap_err().to_string();
@@ -176,7 +211,10 @@ fn channel_arrays_and_the_channels_option() {
     let dir = tempfile::tempdir().unwrap();
     let sample = shipped_frames(dir.path());
     let loaded = load_sequence(&sample, &LoadOptions::default()).unwrap();
-    let (k, v) = (loaded.sequence.n_frames(), loaded.vertex_map.n_file_vertices());
+    let (k, v) = (
+        loaded.sequence.n_frames(),
+        loaded.vertex_map.n_file_vertices(),
+    );
     // Shipped frames are grey (r = g = b): one channel under `auto`.
     assert_eq!(loaded.sequence.n_channels(), 1);
 
@@ -193,7 +231,10 @@ fn channel_arrays_and_the_channels_option() {
     };
     let all = load(&five, Channels::Auto).unwrap().sequence;
     assert_eq!(all.n_channels(), 5);
-    assert!(loaded.vertex_map.is_identity(), "each value below is one file vertex's");
+    assert!(
+        loaded.vertex_map.is_identity(),
+        "each value below is one file vertex's"
+    );
     let file_vertex = |i: usize| loaded.vertex_map.representative(i);
     let i = 3;
     for c in 0..5 {
@@ -206,7 +247,10 @@ fn channel_arrays_and_the_channels_option() {
     assert!((mean.intensities(2)[i] - expected).abs() < 1e-15);
     for refused in [Channels::Rgb, Channels::Luma] {
         let error = error_of(load(&five, refused));
-        assert!(error.contains("five.npy") && error.contains("needs 3 colour channels"), "{error}");
+        assert!(
+            error.contains("five.npy") && error.contains("needs 3 colour channels"),
+            "{error}"
+        );
     }
 
     let three = dir.path().join("three.npy");

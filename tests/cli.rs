@@ -1055,3 +1055,82 @@ fn advect_command_follows_the_vertices_of_a_run() {
     assert!((first - start[10]).norm() < 1e-9, "{first:?}");
     assert!(!seeded.join("positions.npy").exists());
 }
+
+/// `--channels` on an isoluminant colour sequence (NPY with a channel axis): every channel
+/// sees the rotation and the outputs carry them; luma sees nothing and says so; channel weights
+/// reach the library and `summary.json`.
+#[test]
+fn channels_choose_what_the_data_term_sees() {
+    use meshflow::synth::{isoluminant, rotating_sphere_in_channels};
+    let scene = rotating_sphere_in_channels(isoluminant, 3, 3, 1.0, 0.05).unwrap();
+    let sequence = &scene.sequence;
+    let work = tempfile::tempdir().unwrap();
+    let input = work.path().join("colour");
+    std::fs::create_dir_all(&input).unwrap();
+    let positions: Vec<_> = (0..3)
+        .map(|k| sequence.positions(k).unwrap().to_vec())
+        .collect();
+    meshflow::io::write_npy_sequence(
+        &input,
+        &positions,
+        sequence.mesh().faces(),
+        None,
+        sequence.times(),
+    )
+    .unwrap();
+    let v = sequence.mesh().n_vertices();
+    let rgb: Vec<f64> = (0..3)
+        .flat_map(|k| (0..v).flat_map(move |i| (0..3).map(move |c| (k, i, c))))
+        .map(|(k, i, c)| sequence.channels(k)[c][i])
+        .collect();
+    meshflow::io::write_npy(&input.join("intensity.npy"), &[3, v as u64, 3], &rgb).unwrap();
+    let input = input.to_str().unwrap().to_string();
+    let out = |name: &str| work.path().join(name).to_str().unwrap().to_string();
+
+    meshflow_ok(&["solve", &input, "--out", &out("rgb"), "--format", "npy,vtu"]);
+    assert_eq!(summary(&work.path().join("rgb"))["channels"], 3);
+    let image = vtu_point_array(&work.path().join("rgb").join("flow_0000.vtu"), "image");
+    assert_eq!(image.len(), 3 * v);
+    assert_eq!(image[3 * 7 + 2], sequence.channels(0)[2][7]);
+    let library = meshflow::flow::compute_flow(sequence, &Default::default()).unwrap();
+    let errors = compare_result(sequence, &library, &scene.flow).unwrap();
+    assert!(
+        errors.mean_angular_degrees < 3.0,
+        "{}",
+        errors.mean_angular_degrees
+    );
+
+    let luma = meshflow(&["solve", &input, "--out", &out("luma"), "--channels", "luma"]);
+    let stderr = String::from_utf8_lossy(&luma.stderr);
+    assert!(
+        !luma.status.success() && stderr.lines().count() == 1,
+        "{stderr}"
+    );
+    assert!(stderr.contains("do not vary"), "{stderr}");
+
+    meshflow_ok(&[
+        "solve",
+        &input,
+        "--out",
+        &out("weighted"),
+        "--format",
+        "npy",
+        "--channel-weights",
+        "1,2,0.5",
+    ]);
+    let weights = &summary(&work.path().join("weighted"))["params"]["channel_weights"];
+    assert_eq!(weights, &serde_json::json!([1.0, 2.0, 0.5]));
+    let wrong = meshflow(&[
+        "solve",
+        &input,
+        "--out",
+        &out("wrong"),
+        "--channel-weights",
+        "1,1",
+    ]);
+    let stderr = String::from_utf8_lossy(&wrong.stderr);
+    assert!(
+        !wrong.status.success() && stderr.contains("expected 3 channel weights"),
+        "{stderr}"
+    );
+}

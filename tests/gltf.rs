@@ -480,7 +480,10 @@ fn primitives_are_merged_in_order() {
     assert_eq!(frame.faces, vec![[0, 1, 2], [3, 4, 5]]);
     assert_eq!(frame.positions[3], Vector3::new(2.0, 0.0, 0.0));
     // Normalized u8: c / 255, alpha ignored.
-    assert_eq!(frame.image.unwrap().to_grey(), [0.25, 0.25, 0.25, 1.0, 0.2, 0.0]);
+    assert_eq!(
+        frame.image.unwrap().to_grey(),
+        [0.25, 0.25, 0.25, 1.0, 0.2, 0.0]
+    );
     // Grey values only if every primitive has them.
     let frame = read_gltf_frame(&two_primitives(dir.path(), false)).unwrap();
     assert_eq!(frame.positions.len(), 6);

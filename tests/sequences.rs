@@ -3,8 +3,10 @@
 //! last bit, textures are sampled where they should be, seams are welded.
 
 use meshflow::io::ply::{write_ply, PlyEncoding};
-use meshflow::io::{load_sequence, read_npy, read_obj, write_npy, write_obj, LoadOptions, VertexValues};
 use meshflow::io::Channels;
+use meshflow::io::{
+    load_sequence, read_npy, read_obj, write_npy, write_obj, LoadOptions, VertexValues,
+};
 use meshflow::render::UpAxis;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
@@ -366,7 +368,10 @@ fn textured_obj_frames_are_sampled_bilinearly_and_welded() {
         for (c, channel) in sequence.channels(k).iter().enumerate() {
             let value = |t: [u8; 3]| t[c] as f64 / 255.0;
             for (p, &got) in positions.iter().zip(channel) {
-                assert!((got - sample(p.x, p.y, &value)).abs() < 1e-6, "at {p:?}: {got}");
+                assert!(
+                    (got - sample(p.x, p.y, &value)).abs() < 1e-6,
+                    "at {p:?}: {got}"
+                );
             }
         }
     }
@@ -380,7 +385,10 @@ fn textured_obj_frames_are_sampled_bilinearly_and_welded() {
     for k in 0..2 {
         let positions = luma_sequence.positions(k).unwrap();
         for (p, &got) in positions.iter().zip(luma_sequence.intensities(k)) {
-            assert!((got - sample(p.x, p.y, &luma)).abs() < 1e-6, "at {p:?}: {got}");
+            assert!(
+                (got - sample(p.x, p.y, &luma)).abs() < 1e-6,
+                "at {p:?}: {got}"
+            );
         }
     }
     // Unwelded, the split copies stay apart and every triangle is its own component.

@@ -817,7 +817,10 @@ fn solve_output_reads_back_as_flow_npy_and_obj_frames() {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
         assert!(worst <= 1e-15 * max_speed, "slab {s}: speed off by {worst}");
-        let grey = frame.image.expect("the shipped frames are coloured").to_grey();
+        let grey = frame
+            .image
+            .expect("the shipped frames are coloured")
+            .to_grey();
         assert_eq!(bits(&array("intensity").values), bits(&grey), "slab {s}");
     }
 }

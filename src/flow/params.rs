@@ -319,7 +319,12 @@ impl FlowParams {
         }
         if let Some(weights) = &self.channel_weights {
             if let Some(&w) = weights.iter().find(|w| !(w.is_finite() && **w >= 0.0)) {
-                check("channel_weights", w, false, "finite and ≥ 0 for every channel")?;
+                check(
+                    "channel_weights",
+                    w,
+                    false,
+                    "finite and ≥ 0 for every channel",
+                )?;
             }
             check(
                 "channel_weights (their sum)",

@@ -42,7 +42,12 @@ impl DataScales {
     pub fn measure(mesh: &Mesh, slabs: &[Slab]) -> Self {
         let (mut second, mut fourth) = (0.0, 0.0);
         for slab in slabs {
-            for (f, (face, triangle)) in mesh.faces().iter().zip(slab.geometry.triangles()).enumerate() {
+            for (f, (face, triangle)) in mesh
+                .faces()
+                .iter()
+                .zip(slab.geometry.triangles())
+                .enumerate()
+            {
                 let squared = slab.structure_tensor(face, f).trace();
                 second += slab.dt * triangle.area * squared;
                 fourth += slab.dt * triangle.area * squared * squared;

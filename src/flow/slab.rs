@@ -27,7 +27,11 @@ impl SlabChannel {
                 .zip(after)
                 .map(|(a, b)| 0.5 * (a + b))
                 .collect(),
-            rate: before.iter().zip(after).map(|(a, b)| (b - a) / dt).collect(),
+            rate: before
+                .iter()
+                .zip(after)
+                .map(|(a, b)| (b - a) / dt)
+                .collect(),
         }
     }
 }

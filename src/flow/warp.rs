@@ -44,7 +44,9 @@ pub(super) fn coarse_to_fine(
     let sequence = problem.sequence();
     let warping = problem.params().warping;
     let pyramid = scale_pyramid(sequence, warping.levels)?;
-    let channel_weights = problem.params().channel_weights_for(sequence.n_channels())?;
+    let channel_weights = problem
+        .params()
+        .channel_weights_for(sequence.n_channels())?;
     let weights = *problem.weights();
     let mesh = sequence.mesh();
     let mut flow = vec![vec![Vector2::zeros(); mesh.n_vertices()]; sequence.n_slabs()];

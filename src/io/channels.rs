@@ -105,7 +105,9 @@ impl std::str::FromStr for Channels {
 /// `g` as `(g, g, g)`); frames of `C` channels must all have `C`.
 pub fn select_channels(frames: Vec<VertexValues>, choice: Channels) -> Result<Images, String> {
     let colour = frames.iter().any(|f| matches!(f, VertexValues::Colors(_)));
-    let arrays = frames.iter().position(|f| matches!(f, VertexValues::Channels(_)));
+    let arrays = frames
+        .iter()
+        .position(|f| matches!(f, VertexValues::Channels(_)));
     if let (true, Some(k)) = (colour, arrays) {
         return Err(format!(
             "frame {k} has a channel array while other frames have colours"
@@ -127,7 +129,8 @@ pub fn select_channels(frames: Vec<VertexValues>, choice: Channels) -> Result<Im
             VertexValues::Colors(c) => c.iter().all(|&[r, g, b]| r == g && g == b),
             _ => true,
         });
-    let needs_three = |option: &str| match n_channels {
+    let needs_three = |option: &str| {
+        match n_channels {
         3 => Ok(()),
         1 => Err(format!(
             "--channels {option} needs colours (vertex colours, a texture or a (frames, vertices, 3) array); this input has grey values only"
@@ -135,16 +138,19 @@ pub fn select_channels(frames: Vec<VertexValues>, choice: Channels) -> Result<Im
         c => Err(format!(
             "--channels {option} needs 3 colour channels; this input has {c} (use --channels auto or grey)"
         )),
+    }
     };
-    let channels: Vec<Vec<Vec<f64>>> = frames.into_iter().map(VertexValues::into_channels).collect();
+    let channels: Vec<Vec<Vec<f64>>> = frames
+        .into_iter()
+        .map(VertexValues::into_channels)
+        .collect();
     match choice {
         Channels::Auto if all_grey_colours => Ok(first_channel(channels)),
         Channels::Auto => Ok(Images::from_channels(channels)),
         Channels::Rgb => needs_three("rgb").map(|()| Images::from_channels(channels)),
         Channels::Luma if n_channels == 1 => Ok(first_channel(channels)),
-        Channels::Luma => needs_three("luma").map(|()| {
-            Images::grey(channels.iter().map(|c| luma_of_channels(c)).collect())
-        }),
+        Channels::Luma => needs_three("luma")
+            .map(|()| Images::grey(channels.iter().map(|c| luma_of_channels(c)).collect())),
         Channels::Grey => Ok(Images::grey(
             channels.iter().map(|c| mean_channel(c)).collect(),
         )),
@@ -168,4 +174,3 @@ fn luma_of_channels(channels: &[Vec<f64>]) -> Vec<f64> {
         .map(|i| grey_value([channels[0][i], channels[1][i], channels[2][i]]))
         .collect()
 }
-

@@ -11,9 +11,9 @@
 //! | `flow_intrinsic.npy` | (S, V_file, 2) float64: components in the vertex frames |
 //! | `vertex_map.npy` | (V_file,) int64: mesh vertex of each file vertex, −1 if dropped; only when that is not the identity |
 //! | `angular_error.npy`, `endpoint_error.npy`, `direction_error.npy` | (S, V_file) float64, with a ground truth: per-vertex AE (degrees, on displacements in mean edge lengths), EPE (velocity units) and direction error (degrees, NaN where the truth does not move) ([`crate::accuracy`]) |
-//! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` (mesh vertices) with point data `flow`, `flow_intrinsic`, `speed`, `intensity` (and `angular_error`, `endpoint_error`, `direction_error` with a ground truth; `warped_residual` with warping); the `.pvd` plays the slabs at their start times |
+//! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` (mesh vertices) with point data `flow`, `flow_intrinsic`, `speed`, `intensity` (the mean of the channels for a colour or multi-channel image, whose channels are `image`; and `angular_error`, `endpoint_error`, `direction_error` with a ground truth; `warped_residual` with warping); the `.pvd` plays the slabs at their start times |
 //! | `flow.glb` | the frames as a morph-target animation, coloured by the flow as `flow_SSSS.png` shows it (Middlebury colour of the direction seen from the given [`View`], scaled by a robust maximum speed) |
-//! | `summary.json` | energy and its terms, residual, iterations, solver with the reason for it (`solver_reason`) and its `time_levels`, sizes, input, timings, dropped vertices and warnings, the `view` of the pictures and colours; the parameters as given (`params`, each weight `{"value": x}` or `{"relative": x}`), the weights used (`weights`: α, β, γ in the data's units) and the data's scales that resolved them (`scales`); with a ground truth, `ground_truth`: its file, the space-time means (AE, direction error, relative EPE, speed ratio, EPE) and maxima, per slab the same, and `zero_flow`, the zero flow's scores |
+//! | `summary.json` | energy and its terms, residual, iterations, image `channels`, solver with the reason for it (`solver_reason`) and its `time_levels`, sizes, input, timings, dropped vertices and warnings, the `view` of the pictures and colours; the parameters as given (`params`, each weight `{"value": x}` or `{"relative": x}`), the weights used (`weights`: α, β, γ in the data's units) and the data's scales that resolved them (`scales`); with a ground truth, `ground_truth`: its file, the space-time means (AE, direction error, relative EPE, speed ratio, EPE) and maxima, per slab the same, and `zero_flow`, the zero flow's scores |
 //!
 //! Slab `s` spans `[t_s, t_{s+1}]`; `S = K − 1` slabs for `K` frames.
 
@@ -186,6 +186,9 @@ fn write_flow_vtk(
             NamedArray::scalars("speed", &speed),
             NamedArray::scalars("intensity", sequence.intensities(s)),
         ];
+        if sequence.n_channels() > 1 {
+            arrays.push(NamedArray::channels("image", sequence.channels(s)));
+        }
         if let Some(residual) = &result.warped_residual {
             arrays.push(NamedArray::scalars("warped_residual", &residual[s]));
         }
@@ -311,6 +314,7 @@ pub fn summary_json(
         "slabs": sequence.n_slabs(),
         "vertices": sequence.mesh().n_vertices(),
         "faces": sequence.mesh().n_faces(),
+        "channels": sequence.n_channels(),
         "times": sequence.times(),
         "max_speed": speeds.iter().cloned().fold(0.0, f64::max),
         "params": params,

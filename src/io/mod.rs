@@ -34,10 +34,10 @@ mod warning;
 mod weld;
 
 pub use atomic::{write_atomically, Overwrite, RunManifest, StagedDir, RUN_MANIFEST};
+pub use channels::{select_channels, Channels, VertexValues};
 pub use flow_output::{
     summary_json, write_flow_outputs, write_slab_vtus, GroundTruthReport, OutputFormat,
 };
-pub use channels::{select_channels, Channels, VertexValues};
 pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use ground_truth::read_ground_truth;
 pub use input::{FrameFormat, SequenceSource};

@@ -419,7 +419,11 @@ fn read_frame(
             let ply = read_ply(file)?;
             let untold = ply.colors.is_none() && options.intensity.is_none();
             let image = match &options.intensity_attribute {
-                Some(name) => Some(VertexValues::Grey(ply_property(ply.properties, name, file)?)),
+                Some(name) => Some(VertexValues::Grey(ply_property(
+                    ply.properties,
+                    name,
+                    file,
+                )?)),
                 None if untold && !ply.properties.is_empty() => {
                     // Without colours, a scalar property is most likely the grey value.
                     let names: Vec<&str> = ply.properties.iter().map(|(n, _)| n.as_str()).collect();

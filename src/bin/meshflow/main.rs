@@ -201,10 +201,23 @@ struct SolveArgs {
     /// Relative residual at which the iterative solver stops
     #[arg(long, default_value_t = FlowParams::default().tolerance, allow_negative_numbers = true)]
     tolerance: f64,
-    /// Grey values as a float32 or float64 .npy of shape (frames, file vertices) instead of
-    /// vertex colours
+    /// The image as a float32 or float64 .npy of shape (frames, file vertices), or (frames,
+    /// file vertices, channels), instead of the files' colours
     #[arg(long)]
     intensity: Option<PathBuf>,
+    /// Image channels: auto (every channel the input has: RGB for colours, one for grey
+    /// colours and values), rgb, luma (Rec. 709) or grey (mean of the channels)
+    #[arg(long, default_value = "auto")]
+    channels: meshflow::io::Channels,
+    /// Weight of each image channel in the data term, w1,w2,… (one per channel) [default: 1
+    /// each]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "W",
+        allow_negative_numbers = true
+    )]
+    channel_weights: Option<Vec<f64>>,
     /// PLY vertex property holding the grey values (instead of the colours)
     #[arg(long)]
     intensity_attribute: Option<String>,
@@ -269,6 +282,7 @@ impl SolveArgs {
     fn load_options(&self) -> LoadOptions {
         LoadOptions {
             intensity: self.intensity.clone(),
+            channels: self.channels,
             intensity_attribute: self.intensity_attribute.clone(),
             times: self.times.clone(),
             fps: self.fps,

@@ -26,6 +26,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         gamma: weight(args.gamma, args.spread, defaults.gamma),
         regularizer: args.regularizer()?,
         robust_smoothness: args.robust_smoothness,
+        channel_weights: args.channel_weights.clone(),
         boundary: args.boundary,
         time_coupling: args.time_coupling,
         solver: args.solver,
@@ -44,12 +45,16 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
     crate::print_warnings(&loaded.warnings);
     let sequence = &loaded.sequence;
     println!(
-        "{}: {}, {} vertices, {} faces{}",
+        "{}: {}, {} vertices, {} faces{}{}",
         args.input.display(),
         loaded.source.describe(),
         sequence.mesh().n_vertices(),
         sequence.mesh().n_faces(),
-        crate::welded_note(loaded.vertex_map.n_welded())
+        crate::welded_note(loaded.vertex_map.n_welded()),
+        match sequence.n_channels() {
+            1 => String::new(),
+            c => format!(", {c} image channels"),
+        }
     );
     let slabs = match args.png {
         true => args.pictures.slabs(sequence.n_slabs())?,

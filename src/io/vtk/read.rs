@@ -62,6 +62,18 @@ impl NamedArray {
         }
     }
 
+    /// `channels.len()` components per point from channel-major values (`channels[c][i]`).
+    pub fn channels(name: &str, channels: &[Vec<f64>]) -> Self {
+        let n = channels.first().map_or(0, Vec::len);
+        Self {
+            name: name.to_string(),
+            components: channels.len(),
+            values: (0..n)
+                .flat_map(|i| channels.iter().map(move |c| c[i]))
+                .collect(),
+        }
+    }
+
     /// The array in the writer's form, e.g. to write it again with [`super::write_vtu`].
     pub fn as_point_array(&self) -> PointArray<'_> {
         PointArray {
