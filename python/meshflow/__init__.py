@@ -67,6 +67,7 @@ def _floats(name: str, array: Any, ndim: int, last: Optional[int] = None) -> np.
             (3, 3): "(frames, vertices, 3)",
             (2, 3): "(vertices, 3)",
             (2, None): "(frames, vertices)",
+            (3, None): "(frames, vertices, channels)",
             (1, None): "(frames,)",
         }[(ndim, last)]
         raise ValueError(f"{name} has shape {values.shape}, expected {expected}")
@@ -85,8 +86,15 @@ def _faces(faces: Any) -> np.ndarray:
     return array.astype(np.int64, copy=False)
 
 
-def _mesh_args(weld: bool, weld_tolerance: float, repair: bool) -> Dict[str, Any]:
-    return {"weld": bool(weld), "weld_tolerance": float(weld_tolerance), "repair": bool(repair)}
+def _mesh_args(
+    weld: bool, weld_tolerance: float, repair: bool, channels: str = "auto"
+) -> Dict[str, Any]:
+    return {
+        "weld": bool(weld),
+        "weld_tolerance": float(weld_tolerance),
+        "repair": bool(repair),
+        "channels": str(channels),
+    }
 
 
 def _optional_float(name: str, value: Any) -> Optional[float]:
@@ -113,6 +121,8 @@ def compute_flow(
     regularizer: str = "covariant",
     dirichlet_mix: Optional[float] = None,
     robust_smoothness: Optional[float] = None,
+    channels: str = "auto",
+    channel_weights: Optional[SequenceOf[float]] = None,
     boundary: str = "neumann",
     time_coupling: str = "lumped",
     solver: str = "auto",
@@ -134,8 +144,9 @@ def compute_flow(
     faces : (F, 3) array of int
         Triangles indexing ``positions[k]`` (any integer dtype), the same in every frame,
         e.g. ``trimesh.Trimesh.faces``.
-    intensity : (K, V) array of float
-        Grey value of each vertex in each frame.
+    intensity : (K, V) or (K, V, C) array of float
+        Grey value of each vertex in each frame, or ``C`` channels (RGB, stains, …): the
+        data term sums ``(∂_t I_c + dI_c(u))²`` over them.
     times : (K,) array of float, optional
         Strictly increasing frame times; default ``0, 1, 2, …``.
     spread, time_scale, speed_penalty : float, optional
@@ -153,6 +164,11 @@ def compute_flow(
     robust_smoothness : float, optional
         ``ε``: the Charbonnier penalty ``2ε(√(r + ε²) − ε)`` of the regularizer's density
         ``r`` (linear growth beyond ``|∇u| = ε``, for flows with jumps), by reweighted solves.
+    channels : {"auto", "rgb", "luma", "grey"}
+        Which channels of a (K, V, C) ``intensity`` to use: all (``auto``), the three colour
+        channels (``rgb``), their Rec. 709 luma, or their mean (``grey``).
+    channel_weights : sequence of float, optional
+        The weight of each channel in the data term (default 1 each).
     boundary : {"neumann", "dirichlet"}
     time_coupling : {"lumped", "consistent"}
     solver : {"auto", "direct", "pcg-slab-gauss-seidel", "pcg-time-multigrid", "pcg-jacobi"}
@@ -180,11 +196,11 @@ def compute_flow(
     """
     positions = _floats("positions", positions, 3, 3)
     faces = _faces(faces)
-    intensity = _floats("intensity", intensity, 2)
-    if intensity.shape != positions.shape[:2]:
+    intensity = _floats("intensity", intensity, 3 if np.ndim(intensity) == 3 else 2)
+    if intensity.shape[:2] != positions.shape[:2] or 0 in intensity.shape[2:]:
         raise ValueError(
             f"intensity has shape {intensity.shape}, expected {positions.shape[:2]} "
-            "(frames, vertices) to match positions"
+            "(frames, vertices) or (frames, vertices, channels) to match positions"
         )
     if times is not None:
         times = _floats("times", times, 1)
@@ -202,6 +218,7 @@ def compute_flow(
         "regularizer": str(regularizer),
         "dirichlet_mix": _optional_float("dirichlet_mix", dirichlet_mix),
         "robust_smoothness": _optional_float("robust_smoothness", robust_smoothness),
+        "channel_weights": _channel_weights(channel_weights),
         "boundary": str(boundary),
         "time_coupling": str(time_coupling),
         "solver": str(solver),
@@ -216,9 +233,18 @@ def compute_flow(
         intensity,
         times,
         params,
-        _mesh_args(weld, weld_tolerance, repair),
+        _mesh_args(weld, weld_tolerance, repair, channels),
         progress,
     )
+
+
+def _channel_weights(weights: Any) -> Optional[List[float]]:
+    if weights is None:
+        return None
+    try:
+        return [float(w) for w in weights]
+    except (TypeError, ValueError):
+        raise ValueError(f"channel_weights must be numbers, got {weights!r}") from None
 
 
 def operators(
@@ -260,9 +286,10 @@ def operators(
 
 @dataclass
 class Sequence:
-    """A moving mesh with grey values, as :func:`load_sequence` or :func:`track` return it.
+    """A moving mesh with its image, as :func:`load_sequence` or :func:`track` return it.
 
-    ``positions`` (K, V, 3), ``faces`` (F, 3) int64, ``intensity`` (K, V), ``times`` (K,).
+    ``positions`` (K, V, 3), ``faces`` (F, 3) int64, ``intensity`` (K, V) grey values or
+    (K, V, C) channels (colours), ``times`` (K,).
     ``vertex_map`` (V_file,) int64 is the mesh vertex of each vertex of the files (−1 if
     dropped), ``warnings`` what the loader noticed, ``source`` what was read, ``report``
     tracking's per-frame report (``None`` when not tracked).
@@ -290,6 +317,7 @@ def load_sequence(
     times: Optional[SequenceOf[float]] = None,
     fps: Optional[float] = None,
     animation: Optional[Union[str, int]] = None,
+    channels: str = "auto",
     weld: bool = True,
     weld_tolerance: float = DEFAULT_WELD_TOLERANCE,
     repair: bool = False,
@@ -298,8 +326,10 @@ def load_sequence(
 
     ``path`` is a directory of .obj/.ply/.gltf/.glb frames, a glob (``"dir/frame_*.ply"``),
     one .gltf/.glb morph animation, or a directory with positions.npy, faces.npy and
-    intensity.npy. Grey values come from vertex colours, textures, a PLY property
-    (``intensity_attribute``) or ``intensity`` (a (K, V_file) .npy); times from ``times``,
+    intensity.npy. The image comes from vertex colours, textures, a PLY property
+    (``intensity_attribute``) or ``intensity`` (a (K, V_file) or (K, V_file, C) .npy), its
+    channels chosen by ``channels`` as the CLI's ``--channels`` (``auto``: RGB for colours,
+    one channel for grey colours and values); times from ``times``,
     the animation (resampled at ``fps``), a times.txt beside the frames, or 0, 1, 2, ….
     The arrays are the mesh's (welded); ``vertex_map`` relates them to the files' vertices.
     """
@@ -310,7 +340,7 @@ def load_sequence(
         None if times is None else [float(t) for t in times],
         _optional_float("fps", fps),
         None if animation is None else str(animation),
-        _mesh_args(weld, weld_tolerance, repair),
+        _mesh_args(weld, weld_tolerance, repair, channels),
     )
     positions, faces, grey, frame_times, vertex_map, warnings, source = loaded
     return Sequence(positions, faces, grey, frame_times, vertex_map, warnings, source)

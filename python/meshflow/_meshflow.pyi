@@ -60,7 +60,7 @@ class Flow:
 def compute_flow(
     positions: npt.NDArray[np.float64],
     faces: npt.NDArray[np.int64],
-    intensity: npt.NDArray[np.float64],
+    intensity: npt.NDArray[np.float64],  # (K, V) or (K, V, C)
     times: Optional[npt.NDArray[np.float64]],
     params: Dict[str, Any],
     mesh: Dict[str, Any],

@@ -13,19 +13,22 @@
 
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::flow::{
-    Boundary, FlowError, FlowParams, FlowProblem, FlowResult, Regularizer, SolveEvent,
-    SolveObserver, SolverChoice, TimeCoupling, Warping, Weight,
+    Boundary, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence, Regularizer,
+    SolveEvent, SolveObserver, SolverChoice, TimeCoupling, Warping, Weight,
 };
 use meshflow::geometry::IntrinsicGeometry;
 use meshflow::io::{
     load_sequence as load_files, mesh_from_arrays, sequence_from_arrays, write_flow_outputs,
     IoError, LoadOptions, LoadedSequence, OutputFormat, Overwrite, StagedDir, VertexMap,
+    VertexValues,
 };
 use meshflow::render::View;
 use meshflow::{fem, shapes, track as tracking, Error};
 use nalgebra::{Matrix3x2, Vector2, Vector3};
 use numpy::ndarray::{Array1, Array2, Array3, Array4};
-use numpy::{IntoPyArray, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
+use numpy::{
+    IntoPyArray, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3, PyReadonlyArrayDyn,
+};
 use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyPermissionError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -87,12 +90,25 @@ fn read_points_view(frame: numpy::ndarray::ArrayView2<f64>) -> Vec<Vector3<f64>>
         .collect()
 }
 
-fn read_rows(array: &PyReadonlyArray2<f64>) -> Vec<Vec<f64>> {
-    array
-        .as_array()
-        .outer_iter()
-        .map(|row| row.to_vec())
-        .collect()
+/// Each frame's image from a (K, V) grey or (K, V, C) channel array.
+fn read_images(array: &PyReadonlyArrayDyn<f64>) -> PyResult<Vec<VertexValues>> {
+    let array = array.as_array();
+    match array.ndim() {
+        2 => Ok(array
+            .outer_iter()
+            .map(|row| VertexValues::Grey(row.iter().copied().collect()))
+            .collect()),
+        3 => Ok(array
+            .outer_iter()
+            .map(|frame| {
+                let channels = frame.axis_iter(numpy::ndarray::Axis(1));
+                VertexValues::Channels(channels.map(|c| c.iter().copied().collect()).collect())
+            })
+            .collect()),
+        n => Err(value_error(format!(
+            "intensity has {n} dimensions, expected (frames, vertices) or (frames, vertices, channels)"
+        ))),
+    }
 }
 
 /// Faces as the library's `u32` triples; an index below 0 or beyond `u32` is named.
@@ -273,6 +289,7 @@ struct ParamArgs {
     regularizer: String,
     dirichlet_mix: Option<f64>,
     robust_smoothness: Option<f64>,
+    channel_weights: Option<Vec<f64>>,
     boundary: String,
     time_coupling: String,
     solver: String,
@@ -314,6 +331,7 @@ impl ParamArgs {
             )
             .map_err(|e| to_py_err(e.into()))?,
             robust_smoothness: self.robust_smoothness,
+            channel_weights: self.channel_weights.clone(),
             boundary: parse::<Boundary>(&self.boundary, "boundary")?,
             time_coupling: parse::<TimeCoupling>(&self.time_coupling, "time_coupling")?,
             solver: parse::<SolverChoice>(&self.solver, "solver")?,
@@ -334,23 +352,26 @@ where
         .map_err(|e| value_error(format!("{name}: {e}")))
 }
 
-/// How meshes are built from faces (the CLI's `--no-weld`, `--weld-tolerance`, `--repair`).
+/// How meshes are built from faces (the CLI's `--no-weld`, `--weld-tolerance`, `--repair`)
+/// and which image channels are used (`--channels`).
 #[derive(FromPyObject)]
 #[pyo3(from_item_all)]
 struct MeshArgs {
     weld: bool,
     weld_tolerance: f64,
     repair: bool,
+    channels: String,
 }
 
 impl MeshArgs {
-    fn options(&self) -> LoadOptions {
-        LoadOptions {
+    fn options(&self) -> PyResult<LoadOptions> {
+        Ok(LoadOptions {
             weld: self.weld,
             weld_tolerance: self.weld_tolerance,
             repair: self.repair,
+            channels: parse(&self.channels, "channels")?,
             ..LoadOptions::default()
-        }
+        })
     }
 }
 
@@ -554,7 +575,7 @@ fn compute_flow(
     py: Python<'_>,
     positions: PyReadonlyArray3<f64>,
     faces: PyReadonlyArray2<i64>,
-    intensity: PyReadonlyArray2<f64>,
+    intensity: PyReadonlyArrayDyn<f64>,
     times: Option<PyReadonlyArray1<f64>>,
     params: ParamArgs,
     mesh: MeshArgs,
@@ -563,9 +584,9 @@ fn compute_flow(
     let params = params.params()?;
     let faces = read_faces(&faces)?;
     let positions = read_positions(&positions);
-    let intensities = read_rows(&intensity);
+    let intensities = read_images(&intensity)?;
     let times = times.map(|t| t.as_array().to_vec());
-    let options = mesh.options();
+    let options = mesh.options()?;
     let observer = PythonObserver {
         callback: progress,
         failure: Mutex::new(None),
@@ -624,7 +645,7 @@ fn operators<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let faces = read_faces(&faces)?;
     let positions = read_points(&positions);
-    let options = mesh.options();
+    let options = mesh.options()?;
     let built = py.detach(|| -> Result<_, Error> {
         let loaded = mesh_from_arrays(positions, &faces, &options)?;
         let (mesh, positions) = (&loaded.mesh, &loaded.positions);
@@ -651,7 +672,7 @@ fn operators<'py>(
 type SequenceArrays<'py> = (
     Bound<'py, numpy::PyArray3<f64>>,
     Bound<'py, numpy::PyArray2<i64>>,
-    Bound<'py, numpy::PyArray2<f64>>,
+    Bound<'py, numpy::PyArrayDyn<f64>>,
     Bound<'py, numpy::PyArray1<f64>>,
     Bound<'py, numpy::PyArray1<i64>>,
     Vec<String>,
@@ -669,22 +690,42 @@ fn sequence_arrays<'py>(py: Python<'py>, loaded: &LoadedSequence) -> SequenceArr
         })
         .flat_map(|p| [p.x, p.y, p.z])
         .collect();
-    let grey: Vec<f64> = (0..k)
-        .flat_map(|f| sequence.intensities(f).to_vec())
-        .collect();
     (
         Array3::from_shape_vec((k, v, 3), positions)
             .expect("K × V × 3")
             .into_pyarray(py),
         faces_array(sequence.mesh().faces()).into_pyarray(py),
-        Array2::from_shape_vec((k, v), grey)
-            .expect("K × V")
-            .into_pyarray(py),
+        image_array(py, sequence),
         sequence.times().to_vec().into_pyarray(py),
         Array1::from(loaded.vertex_map.to_npy()).into_pyarray(py),
         loaded.warnings.iter().map(ToString::to_string).collect(),
         loaded.source.describe(),
     )
+}
+
+/// The sequence's image: (K, V) for one channel, (K, V, C) for several.
+fn image_array<'py>(
+    py: Python<'py>,
+    sequence: &MeshSequence,
+) -> Bound<'py, numpy::PyArrayDyn<f64>> {
+    let (k, v, c) = (
+        sequence.n_frames(),
+        sequence.mesh().n_vertices(),
+        sequence.n_channels(),
+    );
+    let values: Vec<f64> = (0..k)
+        .flat_map(|f| {
+            let channels = sequence.channels(f);
+            (0..v).flat_map(move |i| channels.iter().map(move |channel| channel[i]))
+        })
+        .collect();
+    let shape = match c {
+        1 => vec![k, v],
+        _ => vec![k, v, c],
+    };
+    numpy::ndarray::ArrayD::from_shape_vec(shape, values)
+        .expect("K × V × C")
+        .into_pyarray(py)
 }
 
 /// Reads what `meshflow solve INPUT` reads.
@@ -707,7 +748,7 @@ fn load_sequence<'py>(
         times,
         fps,
         animation,
-        ..mesh.options()
+        ..mesh.options()?
     };
     let loaded = py
         .detach(|| load_files(&path, &options))
