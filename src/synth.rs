@@ -435,3 +435,58 @@ pub fn shearing_sphere(
         0.0,
     )
 }
+
+/// Radius (Gaussian σ) of the cells of [`moving_cell_sphere`].
+pub const CELL_RADIUS: f64 = 0.15;
+
+/// Centres of the still cells of [`moving_cell_sphere`] on the unit sphere.
+pub const STILL_CELLS: [[f64; 3]; 3] = [[0.0, 0.6, 0.8], [0.0, -0.6, 0.8], [-0.8, 0.0, 0.6]];
+
+/// A flow with discontinuities: on the unit icosphere at rest, one bright round cell (a
+/// Gaussian of radius [`CELL_RADIUS`]) crawls along the equator from `(1, 0, 0)` at `omega`
+/// radians per unit time past three still ones ([`STILL_CELLS`]) on a dark, flat background;
+/// frames at `t_k = k dt`. The true flow is the moving cell's velocity `ω ẑ × x` within two
+/// radii of its centre at `t_s` and zero elsewhere (brightness constancy holds up to the
+/// cells' overlap, which is below `1e-6` for `ω t ≤ 1`).
+pub fn moving_cell_sphere(
+    level: u32,
+    n_frames: usize,
+    dt: f64,
+    omega: f64,
+) -> Result<GroundTruth, FlowError> {
+    let sphere = icosphere(level);
+    let mesh = sphere.mesh().expect("icospheres are valid meshes");
+    let cell = |p: &Vector3<f64>, c: &Vector3<f64>| {
+        (-(p - c).norm_squared() / (2.0 * CELL_RADIUS * CELL_RADIUS)).exp()
+    };
+    let centre = |t: f64| Vector3::new((omega * t).cos(), (omega * t).sin(), 0.0);
+    let still: Vec<Vector3<f64>> = STILL_CELLS.iter().map(|c| Vector3::from(*c)).collect();
+    let times: Vec<f64> = (0..n_frames).map(|k| k as f64 * dt).collect();
+    let grey = times
+        .iter()
+        .map(|&t| {
+            let moving = centre(t);
+            (sphere.positions.iter())
+                .map(|p| {
+                    0.1 + 0.8 * cell(p, &moving)
+                        + still.iter().map(|c| 0.8 * cell(p, c)).sum::<f64>()
+                })
+                .collect()
+        })
+        .collect();
+    let flow = times[..n_frames.saturating_sub(1)]
+        .iter()
+        .map(|&t| {
+            let moving = centre(t);
+            (sphere.positions.iter())
+                .map(|p| match (p - moving).norm() < 2.0 * CELL_RADIUS {
+                    true => omega * Vector3::z().cross(p),
+                    false => Vector3::zeros(),
+                })
+                .collect()
+        })
+        .collect();
+    let frames = vec![sphere.positions.clone(); n_frames];
+    let sequence = MeshSequence::new(mesh, frames, grey, Some(times))?;
+    Ok(GroundTruth { sequence, flow })
+}

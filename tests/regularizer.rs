@@ -7,7 +7,7 @@ use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::flow::{compute_flow, FlowError, FlowParams, MeshSequence, Regularizer, Warping};
 use meshflow::geometry::IntrinsicGeometry;
 use meshflow::shapes::{grid, icosphere, Surface};
-use meshflow::synth::rotating_sphere;
+use meshflow::synth::{moving_cell_sphere, rotating_sphere, STILL_CELLS};
 use nalgebra::{Matrix2, Vector3, Vector6};
 use std::f64::consts::PI;
 
@@ -191,33 +191,10 @@ fn robust_smoothness_with_a_huge_scale_is_the_quadratic_model() {
 /// still cells along; the robust one keeps the motion where it is.
 #[test]
 fn robust_smoothness_keeps_a_moving_cell_from_dragging_its_neighbours() {
+    let scene = moving_cell_sphere(4, 3, 1.0, 0.08).unwrap();
+    let sequence = scene.sequence;
     let sphere = icosphere(4);
-    let cell = |p: &Vector3<f64>, c: Vector3<f64>| {
-        (-(p - c).norm_squared() / (2.0 * 0.15f64.powi(2))).exp()
-    };
-    let still = [
-        Vector3::new(0.0, 0.6, 0.8),
-        Vector3::new(0.0, -0.6, 0.8),
-        Vector3::new(-0.8, 0.0, 0.6),
-    ];
-    let moving = |k: usize| {
-        let angle = 0.08 * k as f64;
-        Vector3::new(angle.cos(), angle.sin(), 0.0)
-    };
-    let grey: Vec<Vec<f64>> = (0..3)
-        .map(|k| {
-            sphere
-                .positions
-                .iter()
-                .map(|p| {
-                    0.1 + 0.8 * cell(p, moving(k))
-                        + still.iter().map(|&c| 0.8 * cell(p, c)).sum::<f64>()
-                })
-                .collect()
-        })
-        .collect();
-    let frames = vec![sphere.positions.clone(); 3];
-    let sequence = MeshSequence::new(sphere.mesh().unwrap(), frames, grey, None).unwrap();
+    let still = STILL_CELLS.map(Vector3::from);
     // Mean speed at the still cells' centres (where their image gradient is weak) and around them.
     let near_still: Vec<usize> = (0..sphere.positions.len())
         .filter(|&i| still.iter().any(|c| (sphere.positions[i] - c).norm() < 0.3))
