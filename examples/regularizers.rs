@@ -16,13 +16,17 @@
 //! 2562-vertex icosphere, 6 frames, every section; SECTION is 1, 2 or 3).
 
 use meshflow::accuracy::compare_result;
-use meshflow::flow::{compute_flow, FlowParams, Images, MeshSequence, Regularizer, Warping, Weight};
+use meshflow::flow::{
+    compute_flow, FlowParams, Images, MeshSequence, Regularizer, Warping, Weight,
+};
 use meshflow::io::grey_value;
 use meshflow::synth::{isoluminant, moving_cell_sphere, rotating_sphere};
 use meshflow::synth::{rotating_sphere_in_channels, shearing_sphere, GroundTruth, STILL_CELLS};
 use nalgebra::Vector3;
 
 const GAMMAS: [f64; 3] = [1e-4, 1e-3, 1e-2];
+/// One section of the comparison, on the icosphere of a level with a number of frames.
+type Section = fn(u32, usize) -> Result<(), meshflow::Error>;
 const STRAIN: Regularizer = Regularizer::Strain { dirichlet: 0.0 };
 
 fn main() -> Result<(), meshflow::Error> {
@@ -36,8 +40,7 @@ fn main() -> Result<(), meshflow::Error> {
     );
     let section = args.get(2).copied();
     println!("level-{level} icosphere, {frames} frames, --large-motion, best γ of {GAMMAS:?}");
-    let sections: [fn(u32, usize) -> Result<(), meshflow::Error>; 3] =
-        [regularizers, cells, colour];
+    let sections: [Section; 3] = [regularizers, cells, colour];
     for (k, run) in sections.iter().enumerate() {
         if section.is_none_or(|s| s == k + 1) {
             run(level, frames)?;
@@ -110,7 +113,10 @@ fn cells(level: u32, frames: usize) -> Result<(), meshflow::Error> {
                 let drag = still_cell_drag(&scene, &result.vectors.expect("embedded"));
                 Ok((error.mean_angular_degrees, drag / rotation))
             })?;
-            print!(" {error:>6.2}°, drag {:>5.1}% (γ {gamma:.0e})", 100.0 * drag);
+            print!(
+                " {error:>6.2}°, drag {:>5.1}% (γ {gamma:.0e})",
+                100.0 * drag
+            );
         }
         println!();
     }
