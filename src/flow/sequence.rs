@@ -40,12 +40,6 @@ impl Images {
     }
 }
 
-impl From<Vec<Vec<f64>>> for Images {
-    fn from(grey: Vec<Vec<f64>>) -> Self {
-        Self::grey(grey)
-    }
-}
-
 /// Frames `k = 0..K−1` of one mesh connectivity: geometry per frame (positions, or edge lengths
 /// for an intrinsic sequence), an image of `C ≥ 1` channels per vertex and frame ([`Images`]),
 /// and strictly increasing times.

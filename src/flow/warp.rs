@@ -30,7 +30,6 @@ use super::pyramid::scale_pyramid;
 use super::slab::{Slab, SlabChannel};
 use super::{FlowError, FlowParams, FlowProblem, FlowResult, Images, MeshSequence, SolveEvent};
 use super::{SolveObserver, Weight};
-use crate::connection::Connection;
 use crate::geometry::{trace, SurfacePoint};
 use nalgebra::Vector2;
 use rayon::prelude::*;
@@ -127,16 +126,16 @@ pub fn warped_slab(
     channel_weights: &[f64],
 ) -> Result<Slab, FlowError> {
     let mesh = sequence.mesh();
-    let geometry = sequence.slab_geometry(s)?;
-    let connection = Connection::new(mesh, &geometry);
-    let dt = sequence.slab_duration(s);
+    // The slab's own geometry and connection serve the traces; its channels come after.
+    let mut slab = Slab::with_channels(sequence, s, Vec::new(), Some(u.to_vec()))?;
+    let (geometry, connection, dt) = (&slab.geometry, &slab.connection, slab.dt);
     // Each vertex's two traces serve every channel.
     let (minus, plus): (Vec<SurfacePoint>, Vec<SurfacePoint>) = (0..mesh.n_vertices())
         .map(|i| {
             let half = 0.5 * dt * u[i];
             let point = |step: Vector2<f64>| {
-                let (start, step) = connection.vertex_trace_start(mesh, &geometry, i, step);
-                trace(mesh, &geometry, start, step).point
+                let (start, step) = connection.vertex_trace_start(mesh, geometry, i, step);
+                trace(mesh, geometry, start, step).point
             };
             (point(-half), point(half))
         })
@@ -144,8 +143,8 @@ pub fn warped_slab(
     let sample = |points: &[SurfacePoint], image: &[f64]| -> Vec<f64> {
         points.iter().map(|p| p.interpolate(mesh, image)).collect()
     };
-    let channels = (before.iter().zip(after).zip(channel_weights))
+    slab.channels = (before.iter().zip(after).zip(channel_weights))
         .map(|((b, a), &w)| SlabChannel::between(&sample(&minus, b), &sample(&plus, a), dt, w))
         .collect();
-    Slab::with_channels(sequence, s, channels, Some(u.to_vec()))
+    Ok(slab)
 }

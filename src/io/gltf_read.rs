@@ -97,10 +97,10 @@ pub fn read_gltf_geometry(path: &Path) -> Result<FrameMesh, IoError> {
     read_static(path, false)
 }
 
-fn read_static(path: &Path, grey: bool) -> Result<FrameMesh, IoError> {
+fn read_static(path: &Path, colors: bool) -> Result<FrameMesh, IoError> {
     let file = GltfFile::open(path)?;
     let node = mesh_node(&file)?;
-    let surface = Surface::read(&file, &node, grey)?;
+    let surface = Surface::read(&file, &node, colors)?;
     let weights = default_weights(&file, &node, surface.target_count)?;
     Ok(FrameMesh {
         positions: surface.positions(&weights),
@@ -246,8 +246,8 @@ impl<const N: usize> Morphed<N> {
     }
 }
 
-/// Where a primitive's grey values come from.
-enum GreySource {
+/// Where a primitive's colours come from.
+enum ColorSource {
     Colors(Morphed<3>),
     Texture {
         coords: Morphed<2>,
@@ -256,11 +256,11 @@ enum GreySource {
     },
 }
 
-impl GreySource {
+impl ColorSource {
     fn at(&self, weights: &[f64], file: &GltfFile) -> Result<Vec<[f64; 3]>, IoError> {
         match self {
-            GreySource::Colors(colors) => Ok(colors.at(weights)),
-            GreySource::Texture {
+            ColorSource::Colors(colors) => Ok(colors.at(weights)),
+            ColorSource::Texture {
                 coords,
                 texture,
                 label,
@@ -280,10 +280,10 @@ impl GreySource {
     }
 }
 
-/// One triangle primitive: morphing positions and perhaps a grey-value source.
+/// One triangle primitive: morphing positions and perhaps a colour source.
 struct MorphPrimitive {
     positions: Morphed<3>,
-    grey: Option<GreySource>,
+    colors: Option<ColorSource>,
 }
 
 /// The mesh of the mesh node, all primitives merged, in the node's world frame.
@@ -295,8 +295,8 @@ struct Surface {
 }
 
 impl Surface {
-    /// The surface of `node`, with the primitives' grey-value sources when `grey`.
-    fn read(file: &GltfFile, node: &Node, grey: bool) -> Result<Self, IoError> {
+    /// The surface of `node`, with the primitives' colour sources when `colors`.
+    fn read(file: &GltfFile, node: &Node, colors: bool) -> Result<Self, IoError> {
         let mesh = node
             .mesh()
             .ok_or_else(|| file.error(format!("{} has no mesh", node_label(node))))?;
@@ -317,7 +317,7 @@ impl Surface {
                 mesh: mesh.index(),
                 primitive,
             };
-            let (faces, read) = reader.read(grey.then_some(&mut textures))?;
+            let (faces, read) = reader.read(colors.then_some(&mut textures))?;
             let target_count = read.positions.deltas.len();
             // glTF requires all primitives of a mesh to have the same morph targets.
             if !surface.primitives.is_empty() && target_count != surface.target_count {
@@ -359,7 +359,7 @@ impl Surface {
     fn image(&self, weights: &[f64], file: &GltfFile) -> Result<Option<VertexValues>, IoError> {
         let mut colors = Vec::with_capacity(self.vertex_count());
         for primitive in &self.primitives {
-            match &primitive.grey {
+            match &primitive.colors {
                 Some(source) => colors.extend(source.at(weights, file)?),
                 None => return Ok(None),
             }
@@ -386,7 +386,7 @@ struct PrimitiveReader<'f, 'p> {
 }
 
 impl PrimitiveReader<'_, '_> {
-    /// The primitive's triangles (local vertex numbers) and data, with its grey-value source
+    /// The primitive's triangles (local vertex numbers) and data, with its colour source
     /// when given `textures` (a cache of decoded images by index).
     fn read(
         &self,
@@ -402,11 +402,11 @@ impl PrimitiveReader<'_, '_> {
         let positions = positions.ok_or_else(|| self.error("no POSITION attribute".to_string()))?;
         let vertex_count = positions.base.len();
         let faces = self.faces(vertex_count)?;
-        let grey = match textures {
-            Some(textures) => self.grey_source(vertex_count, textures)?,
+        let colors = match textures {
+            Some(textures) => self.color_source(vertex_count, textures)?,
             None => None,
         };
-        Ok((faces, MorphPrimitive { positions, grey }))
+        Ok((faces, MorphPrimitive { positions, colors }))
     }
 
     fn error(&self, message: String) -> IoError {
@@ -483,16 +483,16 @@ impl PrimitiveReader<'_, '_> {
     }
 
     /// `COLOR_0` if present, else the base-colour texture at its texture coordinates.
-    fn grey_source(
+    fn color_source(
         &self,
         vertex_count: usize,
         textures: &mut HashMap<usize, Rc<Texture>>,
-    ) -> Result<Option<GreySource>, IoError> {
+    ) -> Result<Option<ColorSource>, IoError> {
         let count = Some(vertex_count);
         if let Some(colors) =
             self.attribute::<3>(&Semantic::Colors(0), "COLOR_0", &[3, 4], count)?
         {
-            return Ok(Some(GreySource::Colors(colors)));
+            return Ok(Some(ColorSource::Colors(colors)));
         }
         let material = self.primitive.material();
         let Some(info) = material.pbr_metallic_roughness().base_color_texture() else {
@@ -516,7 +516,7 @@ impl PrimitiveReader<'_, '_> {
                 texture
             }
         };
-        Ok(Some(GreySource::Texture {
+        Ok(Some(ColorSource::Texture {
             coords,
             texture,
             label: self.label.clone(),
