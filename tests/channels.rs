@@ -302,3 +302,32 @@ fn shipped_frames(dir: &std::path::Path) -> std::path::PathBuf {
     }
     target
 }
+
+/// Arrays from a caller whose channels differ in length are refused, naming the frame.
+#[test]
+fn ragged_channel_arrays_are_refused() {
+    use meshflow::io::{sequence_from_arrays, VertexValues};
+    let scene = rotating_sphere(1, 2, 1.0, 0.1).unwrap();
+    let sequence = &scene.sequence;
+    let positions: Vec<Vec<Vector3<f64>>> = (0..2)
+        .map(|k| sequence.positions(k).unwrap().to_vec())
+        .collect();
+    let grey = |k: usize| sequence.intensities(k).to_vec();
+    let mut short = grey(1);
+    short.pop();
+    let images = vec![
+        VertexValues::Channels(vec![grey(0), grey(0)]),
+        VertexValues::Channels(vec![grey(1), short]),
+    ];
+    let faces = sequence.mesh().faces().to_vec();
+    let result = sequence_from_arrays(faces, positions, images, None, &LoadOptions::default());
+    let v = sequence.mesh().n_vertices();
+    let error = error_of(result);
+    assert!(
+        error.contains(&format!(
+            "frame 1 has {} grey values for {v} vertices",
+            v - 1
+        )),
+        "{error}"
+    );
+}

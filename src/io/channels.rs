@@ -31,17 +31,15 @@ pub enum VertexValues {
 }
 
 impl VertexValues {
-    /// How many vertices the values cover.
-    pub fn len(&self) -> usize {
-        match self {
-            VertexValues::Grey(v) => v.len(),
-            VertexValues::Colors(v) => v.len(),
-            VertexValues::Channels(c) => c.first().map_or(0, Vec::len),
-        }
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
+    /// The number of values of a channel that does not have `n` (one per vertex), if any: the
+    /// channels of a [`VertexValues::Channels`] may differ in length when a caller builds them.
+    pub fn wrong_length(&self, n: usize) -> Option<usize> {
+        let lengths: Vec<usize> = match self {
+            VertexValues::Grey(v) => vec![v.len()],
+            VertexValues::Colors(v) => vec![v.len()],
+            VertexValues::Channels(c) => c.iter().map(Vec::len).collect(),
+        };
+        lengths.into_iter().find(|&length| length != n)
     }
 
     /// One grey value per vertex: itself, the luma of a colour, the mean of several channels

@@ -237,14 +237,11 @@ fn check_frame_sizes(
             format!("{got} frames of grey values for {frames} frames"),
         );
     }
-    match grey.iter().position(|g| g.len() != expected) {
-        Some(k) => {
-            let got = grey[k].len();
-            wrong(
-                k,
-                format!("frame {k} has {got} grey values for {expected} vertices"),
-            )
-        }
+    match (grey.iter().enumerate()).find_map(|(k, g)| Some((k, g.wrong_length(expected)?))) {
+        Some((k, got)) => wrong(
+            k,
+            format!("frame {k} has {got} grey values for {expected} vertices"),
+        ),
         None => Ok(()),
     }
 }
