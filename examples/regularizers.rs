@@ -16,10 +16,8 @@
 //! 2562-vertex icosphere, 6 frames, every section; SECTION is 1, 2 or 3).
 
 use meshflow::accuracy::compare_result;
-use meshflow::flow::{
-    compute_flow, FlowParams, Images, MeshSequence, Regularizer, Warping, Weight,
-};
-use meshflow::io::grey_value;
+use meshflow::flow::{compute_flow, FlowParams, MeshSequence, Regularizer, Warping, Weight};
+use meshflow::io::{select_channels, Channels, VertexValues};
 use meshflow::synth::{isoluminant, moving_cell_sphere, rotating_sphere};
 use meshflow::synth::{rotating_sphere_in_channels, shearing_sphere, GroundTruth, STILL_CELLS};
 use nalgebra::Vector3;
@@ -141,11 +139,10 @@ fn still_cell_drag(scene: &GroundTruth, vectors: &[Vec<Vector3<f64>>]) -> f64 {
 
 /// Section 3: an isoluminant texture as luma, as the channels' mean, as RGB.
 fn colour(level: u32, frames: usize) -> Result<(), meshflow::Error> {
-    type Reading = fn(&[Vec<f64>]) -> Vec<Vec<f64>>;
-    let readings: [(&str, Reading); 3] = [
-        ("luma", |c| vec![luma(c)]),
-        ("grey (mean)", |c| vec![mean(c)]),
-        ("rgb", |c| c.to_vec()),
+    let readings = [
+        ("luma", Channels::Luma),
+        ("grey (mean)", Channels::Grey),
+        ("rgb", Channels::Rgb),
     ];
     println!("\n3. colour: an isoluminant texture turning, mean angular error");
     print!("{:>10}", "rad/frame");
@@ -166,28 +163,16 @@ fn colour(level: u32, frames: usize) -> Result<(), meshflow::Error> {
     Ok(())
 }
 
-fn luma(c: &[Vec<f64>]) -> Vec<f64> {
-    (0..c[0].len())
-        .map(|i| grey_value([c[0][i], c[1][i], c[2][i]]))
-        .collect()
-}
-
-fn mean(c: &[Vec<f64>]) -> Vec<f64> {
-    (0..c[0].len())
-        .map(|i| c.iter().map(|channel| channel[i]).sum::<f64>() / c.len() as f64)
-        .collect()
-}
-
-/// `sequence` with each frame's channels replaced by `reading` of them.
-fn reread(
-    sequence: &MeshSequence,
-    reading: fn(&[Vec<f64>]) -> Vec<Vec<f64>>,
-) -> Result<MeshSequence, meshflow::Error> {
+/// `sequence` with its channels read as `--channels reading` reads them.
+fn reread(sequence: &MeshSequence, reading: Channels) -> Result<MeshSequence, meshflow::Error> {
     let frames = 0..sequence.n_frames();
     let positions = (frames.clone())
         .map(|k| sequence.positions(k).expect("embedded").to_vec())
         .collect();
-    let images = Images::from_channels(frames.map(|k| reading(sequence.channels(k))).collect());
+    let values = frames
+        .map(|k| VertexValues::Channels(sequence.channels(k).to_vec()))
+        .collect();
+    let images = select_channels(values, reading).expect("three channels in every frame");
     let times = Some(sequence.times().to_vec());
     Ok(MeshSequence::with_images(
         sequence.mesh().clone(),
