@@ -527,7 +527,8 @@ impl Flow {
 
     /// `summary.json` of the CLI, as a JSON string.
     fn summary_json(&self) -> String {
-        meshflow::io::summary_json(&self.loaded, &self.params, &self.result, None).to_string()
+        meshflow::io::summary_json(&self.loaded, &self.params, &self.result, Default::default())
+            .to_string()
     }
 
     /// Writes the CLI's outputs (`formats` of npy, vtu, glb; summary.json always) into `out`,
@@ -557,7 +558,7 @@ impl Flow {
                 &self.params,
                 &self.result,
                 &formats,
-                None,
+                Default::default(),
                 &view,
             )?;
             staged.commit()?;

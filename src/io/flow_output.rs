@@ -13,14 +13,14 @@
 //! | `angular_error.npy`, `endpoint_error.npy`, `direction_error.npy` | (S, V_file) float64, with a ground truth: per-vertex AE (degrees, on displacements in mean edge lengths), EPE (velocity units) and direction error (degrees, NaN where the truth does not move) ([`crate::accuracy`]) |
 //! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` (mesh vertices) with point data `flow`, `flow_intrinsic`, `speed`, `intensity` (the mean of the channels for a colour or multi-channel image, whose channels are `image`; and `angular_error`, `endpoint_error`, `direction_error` with a ground truth; `warped_residual` with warping); the `.pvd` plays the slabs at their start times |
 //! | `flow.glb` | the frames as a morph-target animation, coloured by the flow as `flow_SSSS.png` shows it (Middlebury colour of the direction seen from the given [`View`], scaled by a robust maximum speed) |
-//! | `summary.json` | energy and its terms, residual, iterations, image `channels`, solver with the reason for it (`solver_reason`) and its `time_levels`, sizes, input, timings, dropped vertices and warnings, the `view` of the pictures and colours; the parameters as given (`params`, each weight `{"value": x}` or `{"relative": x}`), the weights used (`weights`: α, β, γ in the data's units) and the data's scales that resolved them (`scales`); with a ground truth, `ground_truth`: its file, the space-time means (AE, direction error, relative EPE, speed ratio, EPE) and maxima, per slab the same, and `zero_flow`, the zero flow's scores |
+//! | `summary.json` | energy and its terms, residual, iterations, image `channels`, solver with the reason for it (`solver_reason`) and its `time_levels`, sizes, input, timings, dropped vertices and warnings, the `view` of the pictures and colours; the parameters as given (`params`, each weight `{"value": x}` or `{"relative": x}`), the weights used (`weights`: α, β, γ in the data's units) and the data's scales that resolved them (`scales`); with a ground truth, `ground_truth`: its file, the space-time means (AE, direction error, relative EPE, speed ratio, EPE) and maxima, per slab the same, and `zero_flow`, the zero flow's scores; with tracked points (`--ground-truth-tracks`), `ground_truth_tracks`: its file, points, moving points, mean and median endpoint error of the flow and of the zero flow (`zero_mean_endpoint`, …), `endpoint_ratio`, mean and median direction error, median speed ratio, median distance of the points from the surface, and the same per slab |
 //!
 //! Slab `s` spans `[t_s, t_{s+1}]`; `S = K − 1` slabs for `K` frames.
 
 use super::gltf_write::{write_glb_animation, AnimationFrame};
 use super::vtk::{write_pvd, write_vtu, NamedArray, PointArray};
 use super::{write_atomically, write_npy, IoError, LoadedSequence, StagedDir, VertexMap};
-use crate::accuracy::FlowErrors;
+use crate::accuracy::{FlowErrors, TrackScores, TrackSummary};
 use crate::flow::{FlowParams, FlowResult, MeshSequence};
 use crate::render::color_wheel::robust_max;
 use crate::render::{screen_flow_colors, Camera, View};
@@ -67,6 +67,21 @@ pub struct GroundTruthReport {
     pub zero_flow: FlowErrors,
 }
 
+/// The computed flow scored at tracked points (cells, beads, landmarks).
+#[derive(Clone, Debug)]
+pub struct TrackReport {
+    /// Where the tracks came from.
+    pub file: PathBuf,
+    pub scores: TrackScores,
+}
+
+/// What a flow is scored against, written with the outputs: a known flow, tracked points.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Scores<'a> {
+    pub flow: Option<&'a GroundTruthReport>,
+    pub tracks: Option<&'a TrackReport>,
+}
+
 /// Writes the outputs of `result` for `loaded` into `out` (see the module table), with the
 /// errors against a ground truth when there is one; `flow.glb` is coloured as pictures from
 /// `view` show the flow (e.g. `View::default().with_up(loaded.source.up())`), and
@@ -77,19 +92,11 @@ pub fn write_flow_outputs(
     params: &FlowParams,
     result: &FlowResult,
     formats: &[OutputFormat],
-    ground_truth: Option<&GroundTruthReport>,
+    scores: Scores,
     view: &View,
 ) -> Result<(), IoError> {
-    write_all(
-        out.path(),
-        loaded,
-        params,
-        result,
-        formats,
-        ground_truth,
-        view,
-    )
-    .map_err(|e| out.in_target(e))
+    write_all(out.path(), loaded, params, result, formats, scores, view)
+        .map_err(|e| out.in_target(e))
 }
 
 fn write_all(
@@ -98,11 +105,11 @@ fn write_all(
     params: &FlowParams,
     result: &FlowResult,
     formats: &[OutputFormat],
-    ground_truth: Option<&GroundTruthReport>,
+    scores: Scores,
     view: &View,
 ) -> Result<(), IoError> {
     let sequence = &loaded.sequence;
-    let errors = ground_truth.map(|g| &g.errors);
+    let errors = scores.flow.map(|g| &g.errors);
     if formats.contains(&OutputFormat::Npy) {
         write_flow_npy(dir, loaded, result)?;
         if let Some(errors) = errors {
@@ -117,7 +124,7 @@ fn write_all(
             write_flow_glb(&dir.join("flow.glb"), sequence, result, view)?;
         }
     }
-    let mut summary = summary_json(loaded, params, result, ground_truth);
+    let mut summary = summary_json(loaded, params, result, scores);
     summary["view"] = serde_json::to_value(view).expect("views serialize");
     write_atomically(&dir.join("summary.json"), |w| {
         serde_json::to_writer_pretty(&mut *w, &summary).map_err(std::io::Error::other)?;
@@ -276,7 +283,7 @@ pub fn summary_json(
     loaded: &LoadedSequence,
     params: &FlowParams,
     result: &FlowResult,
-    ground_truth: Option<&GroundTruthReport>,
+    scores: Scores,
 ) -> serde_json::Value {
     let sequence = &loaded.sequence;
     let speeds: Vec<f64> = match &result.vectors {
@@ -322,10 +329,28 @@ pub fn summary_json(
         "scales": result.scales,
         "seconds": result.timings,
     });
-    if let Some(ground_truth) = ground_truth {
+    if let Some(ground_truth) = scores.flow {
         summary["ground_truth"] = ground_truth_json(ground_truth);
     }
+    if let Some(tracks) = scores.tracks {
+        summary["ground_truth_tracks"] = tracks_json(tracks);
+    }
     summary
+}
+
+/// The scores at tracked points, overall and per slab, beside the zero flow's
+/// ([`crate::accuracy::tracks`] defines them).
+fn tracks_json(report: &TrackReport) -> serde_json::Value {
+    let summary = |s: &TrackSummary| {
+        let mut json = serde_json::to_value(s).expect("summaries serialize");
+        // serde_json writes the NaN of undefined measures (no point moved) as null.
+        json["endpoint_ratio"] = finite_or_null(s.endpoint_ratio());
+        json
+    };
+    let mut json = summary(&report.scores.overall);
+    json["file"] = report.file.to_string_lossy().into();
+    json["slabs"] = report.scores.slabs.iter().map(summary).collect();
+    json
 }
 
 /// The scores of the computed flow and of the zero flow, overall and per slab

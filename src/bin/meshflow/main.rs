@@ -238,6 +238,12 @@ struct SolveArgs {
     /// angular_error.npy, endpoint_error.npy and "ground_truth" in summary.json
     #[arg(long, value_name = "FILE.npy")]
     ground_truth: Option<PathBuf>,
+    /// Points whose motion is known (tracked cells, beads, landmarks): .npy (frames, points, 3)
+    /// of positions, NaN where a point is not tracked (`meshflow match` makes one from point
+    /// clouds). Scores the flow's tangential displacement at them against the zero flow's:
+    /// "ground_truth_tracks" in summary.json
+    #[arg(long, value_name = "TRACKS.npy")]
+    ground_truth_tracks: Option<PathBuf>,
     /// Output files: any of npy, vtu, glb (summary.json is always written)
     #[arg(long, value_delimiter = ',', default_value = "npy,vtu,glb")]
     format: Vec<OutputFormat>,

@@ -3,9 +3,15 @@
 use crate::pictures;
 use crate::progress::{during, solver_progress};
 use crate::SolveArgs;
-use meshflow::accuracy::{check_embedded, compare_result, FlowErrors};
-use meshflow::flow::{FlowParams, FlowProblem, FlowResult, SolveEvent, Weight, Weights};
-use meshflow::io::{load_sequence, write_flow_outputs, StagedDir};
+use meshflow::accuracy::{
+    check_embedded, compare_result, score_result, AccuracyError, FlowErrors, TrackSummary, Tracks,
+};
+use meshflow::flow::{
+    FlowParams, FlowProblem, FlowResult, MeshSequence, SolveEvent, Weight, Weights,
+};
+use meshflow::io::{
+    load_sequence, read_npy_float, write_flow_outputs, Scores, StagedDir, TrackReport,
+};
 use meshflow::io::{read_ground_truth, GroundTruthReport, LoadedSequence};
 use meshflow::render::{sequence_views, View};
 use meshflow::Error;
@@ -68,6 +74,11 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         .as_deref()
         .map(|file| read_truth(file, &loaded))
         .transpose()?;
+    let tracks = args
+        .ground_truth_tracks
+        .as_deref()
+        .map(|file| read_tracks(file, sequence))
+        .transpose()?;
     let problem = during("assembling the space-time system", || {
         FlowProblem::new(sequence, &params)
     })?;
@@ -110,16 +121,19 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
             })
         })
         .transpose()?;
+    let track_report = tracks
+        .map(|(file, tracks)| -> Result<_, Error> {
+            let scores = score_result(sequence, &result, &tracks)
+                .map_err(|e| Error::from(e).in_file(&file))?;
+            Ok(TrackReport { file, scores })
+        })
+        .transpose()?;
+    let scores = Scores {
+        flow: report.as_ref(),
+        tracks: track_report.as_ref(),
+    };
     during(format!("writing {}", args.out.display()), || {
-        write_flow_outputs(
-            &out,
-            &loaded,
-            &params,
-            &result,
-            &args.format,
-            report.as_ref(),
-            &view,
-        )
+        write_flow_outputs(&out, &loaded, &params, &result, &args.format, scores, &view)
     })?;
     if args.png {
         let pictures = Pictures {
@@ -161,7 +175,43 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
             describe_errors("         zero flow", &report.zero_flow)
         );
     }
+    if let Some(report) = &track_report {
+        println!("{}", describe_track_scores(&report.scores.overall));
+    }
     Ok(())
+}
+
+/// `--ground-truth-tracks`, read and checked against the sequence before the solve.
+fn read_tracks(file: &Path, sequence: &MeshSequence) -> Result<(PathBuf, Tracks), Error> {
+    let in_file = |e: Error| e.in_file(file);
+    check_embedded(sequence).map_err(|e| in_file(e.into()))?;
+    let array = read_npy_float(file)?;
+    let tracks = Tracks::from_array(&array.shape, &array.data).map_err(|e| in_file(e.into()))?;
+    if tracks.n_frames() != sequence.n_frames() {
+        let e = AccuracyError::TrackFrames {
+            tracks: tracks.n_frames(),
+            frames: sequence.n_frames(),
+        };
+        return Err(in_file(e.into()));
+    }
+    Ok((file.to_path_buf(), tracks))
+}
+
+/// One line of scores at tracked points (see `meshflow::accuracy::tracks`).
+pub fn describe_track_scores(s: &TrackSummary) -> String {
+    format!(
+        "tracked points: {} pairs, endpoint error mean {:.3} / median {:.3} (zero flow {:.3} / {:.3}: {:.2}×), direction error mean {:.1}° / median {:.1}° at {} that moved, median speed ratio {:.2}",
+        s.points,
+        s.mean_endpoint,
+        s.median_endpoint,
+        s.zero_mean_endpoint,
+        s.zero_median_endpoint,
+        s.endpoint_ratio(),
+        s.mean_direction_degrees,
+        s.median_direction_degrees,
+        s.moving,
+        s.median_speed_ratio,
+    )
 }
 
 /// `truth[s][i]`: the known R^3 flow of slab `s` at mesh vertex `i`.

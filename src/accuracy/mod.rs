@@ -54,6 +54,13 @@
 //!
 //! [`FlowResult::vectors`]: crate::flow::FlowResult::vectors
 
+mod tracks;
+
+pub use tracks::{
+    default_match_distance, match_tracks, score_result, score_tracks, TrackPoint, TrackScores,
+    TrackSummary, Tracks,
+};
+
 use crate::fem::vertex_areas;
 use crate::flow::{FlowError, FlowResult, MeshSequence};
 use nalgebra::{Vector3, Vector4};
@@ -91,6 +98,28 @@ pub enum AccuracyError {
         vertex: usize,
         value: [f64; 3],
     },
+    #[error("tracks: frame {frame} has {got} points, frame 0 has {expected} (a (K, N, 3) array has N points in every frame, NaN where untracked)")]
+    TrackCount {
+        frame: usize,
+        expected: usize,
+        got: usize,
+    },
+    #[error(
+        "tracks: frame {frame}, point {point} is neither finite nor NaN in all three coordinates"
+    )]
+    BadTrackPoint { frame: usize, point: usize },
+    #[error("tracks must have shape (K, N, 3), got {0:?}")]
+    TracksShape(Vec<u64>),
+    #[error("the tracks have {tracks} frames, the sequence has {frames}")]
+    TrackFrames { tracks: usize, frames: usize },
+    #[error("the matching distance must be a positive number, got {0}")]
+    MatchDistance(f64),
+    #[error(
+        "cannot derive a matching distance: the first frame needs two distinct points (give one)"
+    )]
+    NoSpacing,
+    #[error("the surface for scoring: {0}")]
+    Surface(String),
     #[error(transparent)]
     Flow(#[from] FlowError),
 }
