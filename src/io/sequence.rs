@@ -17,12 +17,13 @@
 use super::gltf_read::{read_gltf_animation, read_gltf_frame};
 use super::input::{FrameFormat, SequenceSource};
 use super::ply::read_ply;
-use super::prepare::prepare_mesh;
+use super::prepare::{prepare_mesh, Prepared};
 use super::warning::STATIC_IMAGE_TOLERANCE;
 use super::{read_npy_float, read_npy_indices, read_obj, select_channels, texture_colors};
 use super::{Channels, VertexValues};
 use super::{FrameMesh, IoError, LoadWarning, RawSequence, TextureCache, VertexMap};
 use crate::flow::{check_finite_intensities, FlowError, Images, MeshSequence};
+use crate::mesh::Mesh;
 use crate::Error;
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -151,8 +152,7 @@ fn build_sequence(
     }
     let n_file_vertices = positions[0].len();
     check_frame_sizes(&positions, images.as_deref(), &files)?;
-    check_finite_positions(&positions).map_err(|e| in_frame_file(e, &files))?;
-    let prepared = prepare_mesh(&files[0], &faces, &positions, options)?;
+    let prepared = prepare_geometry(&faces, &positions, &files, options)?;
     let vertex_map = prepared.vertex_map;
     let (images, images_file) = match &options.intensity {
         Some(file) => (
@@ -209,6 +209,58 @@ fn build_sequence(
         frame_files: files,
         warnings,
     })
+}
+
+/// A sequence's surfaces without an image, read and built as [`load_sequence`] builds them.
+#[derive(Clone, Debug)]
+pub struct LoadedGeometry {
+    pub mesh: Mesh,
+    /// `positions[k][i]`: mesh vertex `i` in frame `k`.
+    pub positions: Vec<Vec<Vector3<f64>>>,
+    /// File vertices ↔ mesh vertices.
+    pub vertex_map: VertexMap,
+    pub source: SequenceSource,
+    /// The file each frame came from.
+    pub frame_files: Vec<PathBuf>,
+    pub warnings: Vec<LoadWarning>,
+}
+
+/// The surfaces of the sequence that `path` names, without its image (which it need not
+/// have): the mesh as [`load_sequence`] builds it from `options` (welding, orientation,
+/// repair) and every frame's positions of its vertices. What `meshflow sample` carries an
+/// image onto.
+pub fn load_geometry(path: &Path, options: &LoadOptions) -> Result<LoadedGeometry, Error> {
+    let source = SequenceSource::detect(path)?;
+    let raw = read_raw(&source, options)?;
+    let prepared = prepare_geometry(&raw.faces, &raw.positions, &raw.sources, options)?;
+    let vertex_map = prepared.vertex_map;
+    let positions = raw
+        .positions
+        .iter()
+        .map(|p| vertex_map.positions(p))
+        .collect();
+    let mut warnings = raw.warnings;
+    warnings.extend(prepared.warnings);
+    Ok(LoadedGeometry {
+        mesh: prepared.mesh,
+        positions,
+        vertex_map,
+        source,
+        frame_files: raw.sources,
+        warnings,
+    })
+}
+
+/// Frames of equal size with finite positions, and the mesh built from their faces.
+fn prepare_geometry(
+    faces: &[[u32; 3]],
+    positions: &[Vec<Vector3<f64>>],
+    files: &[PathBuf],
+    options: &LoadOptions,
+) -> Result<Prepared, Error> {
+    check_frame_sizes(positions, None, files)?;
+    check_finite_positions(positions).map_err(|e| in_frame_file(e, files))?;
+    prepare_mesh(&files[0], faces, positions, options)
 }
 
 /// Every frame has as many positions (and grey values) as frame 0 has positions: readers

@@ -21,7 +21,7 @@ use super::camera::{Camera, MAX_IMAGE_SIDE};
 use super::color_wheel::flow_color;
 use super::colormap::{grey, viridis};
 use super::error::{check_count, check_positive};
-use super::glyphs::{draw_arrows, reference_arrow_length, ArrowStyle};
+use super::glyphs::{draw_arrows, draw_point_arrows, reference_arrow_length, ArrowStyle};
 use super::legend::{draw_arrow_key, draw_colour_bar, draw_title, draw_wheel_legend};
 use super::raster::{Canvas, DEFAULT_SUPERSAMPLE};
 use super::shading::Lighting;
@@ -137,6 +137,45 @@ pub fn arrow_picture(
     scale: f64,
     style: &PictureStyle,
 ) -> Result<RgbImage, RenderError> {
+    let canvas = arrow_canvas(camera, surface, (intensity, range), flow, scale, style)?;
+    Ok(finish(canvas, style))
+}
+
+/// [`arrow_picture`] with the known displacements of tracked points drawn over it on the same
+/// scale, in [`TRACK_ARROW_COLOUR`]: `tracked = (points, vectors)`, points on the surface (e.g.
+/// [`crate::accuracy::TrackPoint`]'s `position` and its `truth / Δt`, the true velocity).
+pub fn tracks_picture(
+    camera: &Camera,
+    surface: Surface,
+    (intensity, range): (&[f64], (f64, f64)),
+    flow: &[Vector3<f64>],
+    scale: f64,
+    tracked: (&[Vector3<f64>], &[Vector3<f64>]),
+    style: &PictureStyle,
+) -> Result<RgbImage, RenderError> {
+    let mut canvas = arrow_canvas(camera, surface, (intensity, range), flow, scale, style)?;
+    let arrows = ArrowStyle {
+        colour: TRACK_ARROW_COLOUR,
+        width: 2.0 * style.arrows().width,
+        ..style.arrows()
+    };
+    draw_point_arrows(&mut canvas, camera, tracked.0, tracked.1, scale, &arrows)?;
+    Ok(finish(canvas, style))
+}
+
+/// The colour of tracked points' arrows in [`tracks_picture`]: red, apart from the flow's
+/// near-black arrows on the grey image.
+pub const TRACK_ARROW_COLOUR: [f64; 3] = [0.85, 0.1, 0.1];
+
+/// The grey surface with the flow's arrows and the reference arrow, not yet finished.
+fn arrow_canvas(
+    camera: &Camera,
+    surface: Surface,
+    (intensity, range): (&[f64], (f64, f64)),
+    flow: &[Vector3<f64>],
+    scale: f64,
+    style: &PictureStyle,
+) -> Result<Canvas, RenderError> {
     let arrows = style.arrows();
     check_count("flow vectors", surface.positions.len(), flow.len())?;
     check_positive("flow scale", scale)?;
@@ -152,7 +191,7 @@ pub fn arrow_picture(
         &arrows,
     )?;
     draw_arrow_key(&mut canvas, scale, reference_arrow_length(&arrows), &arrows);
-    Ok(finish(canvas, style))
+    Ok(canvas)
 }
 
 /// The surface coloured by `values` (one per vertex, e.g. angular errors in degrees) with

@@ -122,6 +122,45 @@ pub fn draw_arrows(
         .count())
 }
 
+/// Draws the arrow of `scale`-relative length of `vectors[n]` from `points[n]` (points on the
+/// surface already drawn on `canvas`, e.g. tracked cells and their displacements), where the
+/// camera sees the point: its depth within the tolerance of the nearest surface there. Lengths
+/// as in [`draw_arrows`]; non-finite points and vectors are skipped. Returns how many were
+/// drawn.
+pub fn draw_point_arrows(
+    canvas: &mut Canvas,
+    camera: &Camera,
+    points: &[Vector3<f64>],
+    vectors: &[Vector3<f64>],
+    scale: f64,
+    style: &ArrowStyle,
+) -> Result<usize, RenderError> {
+    check_count("point vectors", points.len(), vectors.len())?;
+    check_positive("flow scale", scale)?;
+    let k = reference_arrow_length(style) / (scale * camera.pixels_per_unit(camera.target_depth()));
+    let visible = |[x, y, depth]: [f64; 3]| {
+        let on_canvas =
+            x >= 0.0 && y >= 0.0 && x < canvas.width() as f64 && y < canvas.height() as f64;
+        on_canvas && depth <= canvas.nearest_depth([x, y], 1) * (1.0 + DEPTH_TOLERANCE)
+    };
+    let segments: Vec<[[f64; 2]; 2]> = points
+        .iter()
+        .zip(vectors)
+        .filter_map(|(p, v)| camera.project(p).zip(camera.project(&(p + k * v))))
+        .filter(|&(from, _)| visible(from))
+        .map(|([x0, y0, _], [x1, y1, _])| [[x0, y0], [x1, y1]])
+        .collect();
+    if let Some(halo) = style.halo {
+        for &[from, to] in &segments {
+            draw_arrow(canvas, from, to, style.width + HALO_WIDTH, halo);
+        }
+    }
+    Ok(segments
+        .iter()
+        .filter(|&&[from, to]| draw_arrow(canvas, from, to, style.width, style.colour))
+        .count())
+}
+
 /// The vertices that get arrows, by screen cell in row-major order; see the module
 /// documentation. `faces` must index `positions`.
 pub fn glyph_vertices(
