@@ -213,14 +213,51 @@ pub fn score_tracks(
     for (s, flow) in vectors.iter().enumerate() {
         points.extend(score_slab(sequence, s, flow, tracks)?);
     }
-    let slabs = (0..sequence.n_slabs())
-        .map(|s| TrackSummary::of(points.iter().filter(move |p| p.slab == s)))
-        .collect();
-    Ok(TrackScores {
-        overall: TrackSummary::of(points.iter()),
-        slabs,
-        points,
-    })
+    Ok(TrackScores::from_points(points, sequence.n_slabs()))
+}
+
+impl TrackScores {
+    /// The measures and summaries of points whose `truth` and `computed` displacements are set
+    /// (the other measures are recomputed): e.g. a baseline's prediction at the points of
+    /// another score. Points of slabs `≥ n_slabs` count only in the overall summary.
+    pub fn from_points(mut points: Vec<TrackPoint>, n_slabs: usize) -> Self {
+        for s in 0..n_slabs {
+            let in_slab = |p: &&mut TrackPoint| p.slab == s;
+            let largest = maximum(
+                &points
+                    .iter_mut()
+                    .filter(in_slab)
+                    .map(|p| p.truth.norm())
+                    .collect::<Vec<_>>(),
+            );
+            for p in points.iter_mut().filter(in_slab) {
+                p.measure(MOVING_FRACTION * largest);
+            }
+        }
+        let slabs = (0..n_slabs)
+            .map(|s| TrackSummary::of(points.iter().filter(move |p| p.slab == s)))
+            .collect();
+        Self {
+            overall: TrackSummary::of(points.iter()),
+            slabs,
+            points,
+        }
+    }
+}
+
+impl TrackPoint {
+    /// EPE, and DE and speed ratio where `|r|` reaches `moving_threshold` (positive).
+    fn measure(&mut self, moving_threshold: f64) {
+        self.endpoint = (self.computed - self.truth).norm();
+        let moved = moving_threshold > 0.0 && self.truth.norm() >= moving_threshold;
+        (self.direction_degrees, self.speed_ratio) = match moved {
+            true => (
+                direction_error_degrees(&self.computed, &self.truth),
+                self.computed.norm() / self.truth.norm(),
+            ),
+            false => (f64::NAN, f64::NAN),
+        };
+    }
 }
 
 /// [`score_tracks`] for a computed [`FlowResult`].
@@ -245,7 +282,7 @@ fn score_slab(
     let surface = FrameSurface::new(s, here, faces, sequence.intensities(s))
         .map_err(|e| AccuracyError::Surface(e.to_string()))?;
     let duration = sequence.slab_duration(s);
-    let mut points: Vec<TrackPoint> = (0..tracks.n_tracks())
+    let points = (0..tracks.n_tracks())
         .filter_map(|n| Some((n, tracks.position(s, n)?, tracks.position(s + 1, n)?)))
         .map(|(n, from, to)| {
             let xi = surface.locate(&from);
@@ -271,27 +308,13 @@ fn score_slab(
                 distance: (from - position).norm(),
                 truth,
                 computed,
-                endpoint: (computed - truth).norm(),
+                // Set by TrackScores::from_points.
+                endpoint: f64::NAN,
                 direction_degrees: f64::NAN,
                 speed_ratio: f64::NAN,
             }
         })
         .collect();
-    let largest = maximum(
-        points
-            .iter()
-            .map(|p| p.truth.norm())
-            .collect::<Vec<_>>()
-            .iter(),
-    );
-    let threshold = MOVING_FRACTION * largest;
-    for p in points
-        .iter_mut()
-        .filter(|p| threshold > 0.0 && p.truth.norm() >= threshold)
-    {
-        p.direction_degrees = direction_error_degrees(&p.computed, &p.truth);
-        p.speed_ratio = p.computed.norm() / p.truth.norm();
-    }
     Ok(points)
 }
 
