@@ -16,7 +16,9 @@ Functions (NumPy arrays in, NumPy/SciPy out):
 - :func:`operators` — the finite-element operators of one mesh as ``scipy.sparse`` matrices;
 - :func:`load_sequence` — read a sequence as ``meshflow solve`` reads it (OBJ, PLY, glTF, NPY);
 - :func:`write_outputs` — write a flow as the CLI does (NPY, ParaView VTU/PVD, glTF);
-- :func:`track` — turn frames meshed each on its own into one moving mesh.
+- :func:`track` — turn frames meshed each on its own into one moving mesh;
+- :func:`match_tracks`, :func:`score_tracks` — tracks from point clouds (cells, beads), and a
+  flow scored at them.
 
 Keyword names and defaults are the command line's (``meshflow solve --help``). Errors are
 ``ValueError`` (bad data, broken files, bad parameters) or ``OSError`` and its subclasses
@@ -42,7 +44,9 @@ __all__ = [
     "Sequence",
     "compute_flow",
     "load_sequence",
+    "match_tracks",
     "operators",
+    "score_tracks",
     "track",
     "write_outputs",
     "__version__",
@@ -409,3 +413,36 @@ def _path(path: Union[str, PathLike]) -> str:
     import os
 
     return os.fspath(path)
+
+
+def match_tracks(
+    frames: SequenceOf[Any], *, max_distance: Optional[float] = None
+) -> np.ndarray:
+    """Point clouds per frame (a list of (N_k, 3) arrays: cell centres, beads, landmarks)
+    chained into tracks by mutual nearest neighbours between consecutive frames, within
+    ``max_distance`` (default: half the median nearest-neighbour distance in frame 0).
+
+    Returns (K, N, 3) float64 positions, NaN where a track has no point: what
+    :func:`score_tracks` and ``meshflow solve --ground-truth-tracks`` take.
+    """
+    points = [_floats(f"frames[{k}]", f, 2, 3) for k, f in enumerate(frames)]
+    return _meshflow.match_tracks(points, _optional_float("max_distance", max_distance))
+
+
+def score_tracks(flow: Flow, tracks: Any) -> Dict[str, Any]:
+    """The flow scored where the motion is known at some points only.
+
+    ``tracks`` (K, N, 3): positions per frame, NaN where a point is not tracked. Per slab and
+    overall, against the zero flow: the endpoint error of the tangential displacement relative
+    to the mesh at each point's closest surface point (``mean_endpoint``,
+    ``median_endpoint``, ``zero_mean_endpoint``, ``endpoint_ratio``, …), the direction error
+    for points that moved and the median speed ratio, as summary.json's
+    ``ground_truth_tracks`` (``slabs`` per slab), and ``points``: per-point arrays ``slab``,
+    ``track``, ``position`` (on the surface), ``truth`` and ``computed`` (displacements over
+    the slab), ``endpoint``, ``direction_degrees`` (NaN where the point did not move),
+    ``distance`` (from the surface).
+    """
+    summary, points = flow.score_tracks(_floats("tracks", tracks, 3, 3))
+    scores = json.loads(summary)
+    scores["points"] = points
+    return scores

@@ -56,6 +56,8 @@ class Flow:
     def summary_json(self) -> str:
         """The CLI's summary.json as a string."""
     def write(self, out: Union[str, PathLike[str]], formats: List[str], force: bool) -> None: ...
+    def score_tracks(self, tracks: npt.NDArray[np.float64]) -> Tuple[str, Dict[str, Any]]:
+        """Summary JSON and per-point arrays of the flow scored at tracks (K, N, 3)."""
 
 def compute_flow(
     positions: npt.NDArray[np.float64],
@@ -87,3 +89,7 @@ def track(
     keep_going: bool,
     reference: Optional[Tuple[Any, Any]],
 ) -> Tuple[Any, ...]: ...
+def match_tracks(
+    frames: List[npt.NDArray[np.float64]],
+    max_distance: Optional[float],
+) -> npt.NDArray[np.float64]: ...

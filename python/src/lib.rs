@@ -23,7 +23,7 @@ use meshflow::io::{
     VertexValues,
 };
 use meshflow::render::View;
-use meshflow::{fem, shapes, track as tracking, Error};
+use meshflow::{accuracy, fem, shapes, track as tracking, Error};
 use nalgebra::{Matrix3x2, Vector2, Vector3};
 use numpy::ndarray::{Array1, Array2, Array3, Array4};
 use numpy::{
@@ -525,6 +525,51 @@ impl Flow {
         Ok(dict)
     }
 
+    /// The flow scored at tracked points (`tracks` (K, N, 3), NaN where untracked): the
+    /// summary as JSON (summary.json's `ground_truth_tracks`) and per-point arrays.
+    fn score_tracks<'py>(
+        &self,
+        py: Python<'py>,
+        tracks: PyReadonlyArray3<'py, f64>,
+    ) -> PyResult<(String, Bound<'py, PyDict>)> {
+        let array = tracks.as_array();
+        let shape: Vec<u64> = array.shape().iter().map(|&n| n as u64).collect();
+        let values: Vec<f64> = array.iter().copied().collect();
+        let scores = py
+            .detach(|| -> Result<_, Error> {
+                let tracks = accuracy::Tracks::from_array(&shape, &values)?;
+                Ok(accuracy::score_result(
+                    &self.loaded.sequence,
+                    &self.result,
+                    &tracks,
+                )?)
+            })
+            .map_err(to_py_err)?;
+        let points = &scores.points;
+        let column = |f: fn(&accuracy::TrackPoint) -> Vector3<f64>| {
+            points_array(&points.iter().map(f).collect::<Vec<_>>()).into_pyarray(py)
+        };
+        let dict = PyDict::new(py);
+        let indices = |f: fn(&accuracy::TrackPoint) -> usize| -> Vec<i64> {
+            points.iter().map(|p| f(p) as i64).collect()
+        };
+        dict.set_item("slab", indices(|p| p.slab).into_pyarray(py))?;
+        dict.set_item("track", indices(|p| p.track).into_pyarray(py))?;
+        dict.set_item("position", column(|p| p.position))?;
+        dict.set_item("truth", column(|p| p.truth))?;
+        dict.set_item("computed", column(|p| p.computed))?;
+        let values =
+            |f: fn(&accuracy::TrackPoint) -> f64| -> Vec<f64> { points.iter().map(f).collect() };
+        dict.set_item("endpoint", values(|p| p.endpoint).into_pyarray(py))?;
+        dict.set_item(
+            "direction_degrees",
+            values(|p| p.direction_degrees).into_pyarray(py),
+        )?;
+        dict.set_item("distance", values(|p| p.distance).into_pyarray(py))?;
+        let summary = meshflow::io::track_scores_json(&scores).to_string();
+        Ok((summary, dict))
+    }
+
     /// `summary.json` of the CLI, as a JSON string.
     fn summary_json(&self) -> String {
         meshflow::io::summary_json(&self.loaded, &self.params, &self.result, Default::default())
@@ -773,6 +818,26 @@ type TrackedArrays<'py> = (
     String,
 );
 
+/// Point clouds per frame chained into tracks by mutual nearest neighbours: (K, N, 3), NaN
+/// where a track has no point.
+#[pyfunction]
+#[pyo3(signature = (frames, max_distance))]
+fn match_tracks<'py>(
+    py: Python<'py>,
+    frames: Vec<PyReadonlyArray2<'py, f64>>,
+    max_distance: Option<f64>,
+) -> PyResult<Bound<'py, numpy::PyArray3<f64>>> {
+    let frames: Vec<Vec<Vector3<f64>>> = frames.iter().map(read_points).collect();
+    let tracks = py
+        .detach(|| accuracy::match_tracks(&frames, max_distance))
+        .map_err(|e| to_py_err(e.into()))?;
+    let (shape, values) = tracks.to_array();
+    let shape = (shape[0] as usize, shape[1] as usize, 3);
+    Ok(Array3::from_shape_vec(shape, values)
+        .expect("K × N × 3")
+        .into_pyarray(py))
+}
+
 /// `meshflow track` on frames in memory: the tracked sequence (positions, faces, grey values,
 /// times) and the report as JSON.
 #[pyfunction]
@@ -847,6 +912,7 @@ fn _meshflow(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(operators, m)?)?;
     m.add_function(wrap_pyfunction!(load_sequence, m)?)?;
     m.add_function(wrap_pyfunction!(track, m)?)?;
+    m.add_function(wrap_pyfunction!(match_tracks, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -338,18 +338,24 @@ pub fn summary_json(
     summary
 }
 
-/// The scores at tracked points, overall and per slab, beside the zero flow's
-/// ([`crate::accuracy::tracks`] defines them).
+/// `ground_truth_tracks`: the file and [`track_scores_json`].
 fn tracks_json(report: &TrackReport) -> serde_json::Value {
+    let mut json = track_scores_json(&report.scores);
+    json["file"] = report.file.to_string_lossy().into();
+    json
+}
+
+/// The scores at tracked points, overall and per slab (`slabs`), beside the zero flow's
+/// ([`crate::accuracy::TrackSummary`] defines them); undefined ones (no point moved) as `null`.
+pub fn track_scores_json(scores: &TrackScores) -> serde_json::Value {
     let summary = |s: &TrackSummary| {
+        // serde_json writes NaN as null.
         let mut json = serde_json::to_value(s).expect("summaries serialize");
-        // serde_json writes the NaN of undefined measures (no point moved) as null.
         json["endpoint_ratio"] = finite_or_null(s.endpoint_ratio());
         json
     };
-    let mut json = summary(&report.scores.overall);
-    json["file"] = report.file.to_string_lossy().into();
-    json["slabs"] = report.scores.slabs.iter().map(summary).collect();
+    let mut json = summary(&scores.overall);
+    json["slabs"] = scores.slabs.iter().map(summary).collect();
     json
 }
 
