@@ -437,12 +437,13 @@ def score_tracks(flow: Flow, tracks: Any) -> Dict[str, Any]:
     to the mesh at each point's closest surface point (``mean_endpoint``,
     ``median_endpoint``, ``zero_mean_endpoint``, ``endpoint_ratio``, …), the direction error
     for points that moved and the median speed ratio, as summary.json's
-    ``ground_truth_tracks`` (``slabs`` per slab), and ``points``: per-point arrays ``slab``,
+    ``ground_truth_tracks`` (``slabs`` per slab; ``points`` counts the scored points), and
+    ``per_point``: arrays ``slab``,
     ``track``, ``position`` (on the surface), ``truth`` and ``computed`` (displacements over
     the slab), ``endpoint``, ``direction_degrees`` (NaN where the point did not move),
     ``distance`` (from the surface).
     """
     summary, points = flow.score_tracks(_floats("tracks", tracks, 3, 3))
     scores = json.loads(summary)
-    scores["points"] = points
+    scores["per_point"] = points
     return scores
