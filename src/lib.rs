@@ -54,6 +54,7 @@ pub mod render;
 pub mod shapes;
 pub mod synth;
 pub mod track;
+pub mod volume;
 
 use std::path::PathBuf;
 
@@ -81,6 +82,8 @@ pub enum Error {
     Render(#[from] render::RenderError),
     #[error(transparent)]
     Track(#[from] track::TrackError),
+    #[error(transparent)]
+    Volume(#[from] volume::VolumeError),
     /// An error in the contents of a file, with the file's name.
     #[error("{}: {source}", path.display())]
     InFile { path: PathBuf, source: Box<Error> },

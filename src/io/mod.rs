@@ -41,11 +41,12 @@ pub use flow_output::{
 };
 pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use ground_truth::read_ground_truth;
-pub use input::{FrameFormat, SequenceSource};
+pub use input::{frame_files, FrameFormat, SequenceSource};
 pub use mtl::{texture_colors, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};
 pub use npy::{
-    read_npy, read_npy_float, read_npy_indices, write_npy, write_npy_sequence, write_npy_vectors,
+    read_npy, read_npy_f32, read_npy_float, read_npy_indices, write_npy, write_npy_sequence,
+    write_npy_vectors,
     NpyArray,
 };
 pub use obj::{read_obj, write_obj, ObjMesh};

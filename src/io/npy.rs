@@ -72,6 +72,36 @@ fn read_floats(path: &Path, sizes: &[u64], expected: &str) -> Result<NpyArray, I
     Ok(NpyArray { shape, data })
 }
 
+/// Reads a float32, float64, uint8 or uint16 `.npy` (microscope volumes) as `f32` values in C
+/// order, with its shape; float64 values are rounded to the nearest `f32`.
+pub fn read_npy_f32(path: &Path) -> Result<(Vec<u64>, Vec<f32>), IoError> {
+    use npyz::TypeChar::{Float, Uint};
+    let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
+    let accepted = |t: &npyz::TypeStr| match t.type_char() {
+        Float => matches!(t.size_field(), 4 | 8),
+        Uint => matches!(t.size_field(), 1 | 2),
+        _ => false,
+    };
+    let file = open_npy(path, &bytes, accepted, "float32, float64, uint8 or uint16")?;
+    let shape = file.shape().to_vec();
+    let corrupt =
+        |e: std::io::Error| IoError::format(path, format!("truncated or corrupt data ({e})"));
+    let npyz::DType::Plain(dtype) = file.dtype() else {
+        unreachable!("open_npy accepts plain types only")
+    };
+    let values: Vec<f32> = match (dtype.type_char(), dtype.size_field()) {
+        (Float, 4) => file.into_vec::<f32>().map_err(corrupt)?,
+        (Float, _) => narrow(file.into_vec::<f64>().map_err(corrupt)?, |v| v as f32),
+        (_, 1) => narrow(file.into_vec::<u8>().map_err(corrupt)?, f32::from),
+        _ => narrow(file.into_vec::<u16>().map_err(corrupt)?, f32::from),
+    };
+    Ok((shape, values))
+}
+
+fn narrow<T>(values: Vec<T>, to_f32: impl Fn(T) -> f32) -> Vec<f32> {
+    values.into_iter().map(to_f32).collect()
+}
+
 /// Reads an integer `.npy` of vertex indices (int8…int64 or uint8…uint64, either byte order,
 /// C order) as `u32`, with its shape; negative or ≥ 2³² values are errors naming the entry.
 pub fn read_npy_indices(path: &Path) -> Result<(Vec<u64>, Vec<u32>), IoError> {

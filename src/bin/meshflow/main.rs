@@ -4,6 +4,7 @@ mod advect;
 mod operators;
 mod pictures;
 mod progress;
+mod sample;
 mod solve;
 mod track;
 
@@ -80,6 +81,12 @@ enum Command {
         #[command(flatten)]
         force: ForceArg,
     },
+    /// Carry a microscope recording onto a moving surface: per vertex and frame, the volume
+    /// (trilinear) along the vertex normal over a shell, reduced to one value (the maximum by
+    /// default: a maximum-intensity projection). Writes intensity.npy (frames × file vertices)
+    /// into the sequence's directory, or --out. Vertices whose shell leaves the volume get 0 and
+    /// are counted in a warning.
+    Sample(Box<SampleArgs>),
     /// Draw PNG pictures of the slabs of a `solve` output directory (read from flow.pvd and its
     /// flow_SSSS.vtu files): grey_SSSS.png (the image on the surface), flow_SSSS.png (flow
     /// directions on the screen, Middlebury colour wheel, with its legend), arrows_SSSS.png and,
@@ -255,6 +262,87 @@ struct SolveArgs {
 }
 
 #[derive(clap::Args)]
+struct SampleArgs {
+    /// Volumes, one per frame: a .npy (Z, Y, X) or (K, Z, Y, X), a .tif/.tiff stack (pages =
+    /// z), or a directory or quoted glob of them (natural order)
+    volumes: PathBuf,
+    /// The moving surface: any sequence `solve` reads (an image is not needed), e.g. the
+    /// output of `meshflow surface` or `meshflow track`
+    sequence: PathBuf,
+    /// Output .npy [default: SEQUENCE/intensity.npy]
+    #[arg(long, value_name = "FILE.npy")]
+    out: Option<PathBuf>,
+    /// Voxel size x,y,z in the surface's units [default: from ImageJ TIFF metadata, else
+    /// 1,1,1]
+    #[arg(long, value_name = "X,Y,Z", value_delimiter = ',', allow_negative_numbers = true)]
+    voxel_size: Option<Vec<f64>>,
+    /// Position of voxel (0, 0, 0), x,y,z
+    #[arg(long, value_name = "X,Y,Z", value_delimiter = ',', allow_negative_numbers = true)]
+    origin: Option<Vec<f64>>,
+    /// How far the shell reaches inside and outside along the normal, in the surface's units
+    /// [default: two of the largest voxel sides each way]
+    #[arg(long, value_name = "INSIDE,OUTSIDE", value_delimiter = ',', allow_negative_numbers = true)]
+    shell: Option<Vec<f64>>,
+    /// Samples across the shell, evenly spaced
+    #[arg(long, value_name = "N", default_value_t = meshflow::volume::sample::DEFAULT_LAYERS)]
+    layers: usize,
+    /// max (maximum-intensity projection), mean, or layer:L (sample L, 0 the innermost)
+    #[arg(long, default_value = "max")]
+    reduce: meshflow::volume::Reduce,
+    /// Gaussian smoothing of each volume first, σ in the surface's units (0: none)
+    #[arg(long, value_name = "SIGMA", default_value_t = 0.0, allow_negative_numbers = true)]
+    smooth: f64,
+    #[command(flatten)]
+    building: MeshArgs,
+}
+
+impl SampleArgs {
+    fn request(&self) -> Result<sample::SampleRequest<'_>, meshflow::Error> {
+        let triple = |values: &Option<Vec<f64>>, name: &str| -> Result<_, meshflow::Error> {
+            match values.as_deref() {
+                None => Ok(None),
+                Some(&[x, y, z]) => Ok(Some(nalgebra::Vector3::new(x, y, z))),
+                Some(other) => Err(usage(format!("{name} takes three numbers x,y,z, got {}", other.len()))),
+            }
+        };
+        let shell = match self.shell.as_deref() {
+            None => None,
+            Some(&[inside, outside]) => Some(meshflow::volume::Shell {
+                inside,
+                outside,
+                layers: self.layers,
+            }),
+            Some(other) => {
+                return Err(usage(format!(
+                    "--shell takes two distances INSIDE,OUTSIDE, got {} numbers",
+                    other.len()
+                )))
+            }
+        };
+        Ok(sample::SampleRequest {
+            volumes: &self.volumes,
+            sequence: &self.sequence,
+            out: self.out.as_deref(),
+            volume: meshflow::volume::VolumeOptions {
+                voxel_size: triple(&self.voxel_size, "--voxel-size")?,
+                origin: triple(&self.origin, "--origin")?.unwrap_or_default(),
+            },
+            sampling: meshflow::volume::SampleOptions {
+                smoothing: self.smooth,
+                shell,
+                reduce: self.reduce,
+            },
+            load: self.building.options(),
+        })
+    }
+}
+
+/// A usage error found after parsing, as a library error (one line, exit 1).
+fn usage(message: String) -> meshflow::Error {
+    meshflow::volume::VolumeError::Setting(message).into()
+}
+
+#[derive(clap::Args)]
 struct TrackArgs {
     /// Frames directory, glob (quoted), .gltf/.glb animation, or NPY directory; frames may
     /// differ in vertices and triangles
@@ -369,6 +457,7 @@ fn main() -> ExitCode {
             load: args.building.options(),
             overwrite: args.force.overwrite(),
         }),
+        Command::Sample(args) => args.request().and_then(sample::run),
         Command::Render {
             dir,
             out,

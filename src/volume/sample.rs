@@ -1,0 +1,241 @@
+//! A volume read onto a surface: per vertex, samples along its normal over a shell, reduced to
+//! one value.
+//!
+//! With `x_i` a vertex, `n_i` its unit normal (outward for a surface oriented counter-clockwise
+//! seen from outside) and a shell `[−a, b]` of `L` layers, the samples are
+//!
+//! ```text
+//! s_{i,l} = v(x_i + o_l n_i),   o_l = −a + l (a + b) / (L − 1),  l = 0 … L−1   (o_0 = 0 if L = 1)
+//! ```
+//!
+//! (`v` trilinear, [`super::Volume::sample`]), reduced by the maximum (a maximum-intensity
+//! projection in the shell: bright cells near the surface show whatever their exact depth), the
+//! mean, or one layer. A vertex whose shell leaves the volume, at any layer, gets 0 and is
+//! counted: a partial shell would bias the maximum and the mean against the vertices whose
+//! shell is whole, and 0 is what a dark region of a fluorescence image reads anyway.
+
+use super::{Volume, VolumeError};
+use crate::connection::vertex_normals;
+use crate::mesh::Mesh;
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use std::str::FromStr;
+
+/// How the samples of a vertex's shell become its value.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Reduce {
+    /// The brightest sample: a maximum-intensity projection.
+    #[default]
+    Max,
+    Mean,
+    /// Sample `l` (0: the innermost).
+    Layer(usize),
+}
+
+impl FromStr for Reduce {
+    type Err = String;
+
+    /// `max`, `mean` or `layer:L`.
+    fn from_str(text: &str) -> Result<Self, String> {
+        match text {
+            "max" => Ok(Self::Max),
+            "mean" => Ok(Self::Mean),
+            _ => text
+                .strip_prefix("layer:")
+                .and_then(|l| l.parse().ok())
+                .map(Self::Layer)
+                .ok_or_else(|| format!("'{text}': expected max, mean or layer:L (L = 0, 1, …)")),
+        }
+    }
+}
+
+/// The shell along each normal, physical units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shell {
+    /// `a`: how far inside (against the normal).
+    pub inside: f64,
+    /// `b`: how far outside.
+    pub outside: f64,
+    /// `L ≥ 1` samples, evenly spaced from `−a` to `b` (one: at the surface).
+    pub layers: usize,
+}
+
+impl Shell {
+    fn check(&self, reduce: Reduce) -> Result<(), VolumeError> {
+        let bad = |message: String| Err(VolumeError::Setting(message));
+        if !(self.inside.is_finite() && self.outside.is_finite())
+            || self.inside < 0.0
+            || self.outside < 0.0
+        {
+            return bad(format!(
+                "the shell must be two distances ≥ 0 (inside, outside), got {}, {}",
+                self.inside, self.outside
+            ));
+        }
+        if self.layers == 0 {
+            return bad("the shell needs at least one layer".into());
+        }
+        match reduce {
+            Reduce::Layer(l) if l >= self.layers => bad(format!(
+                "layer {l} of a shell of {} layers (0 … {})",
+                self.layers,
+                self.layers - 1
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// `o_l` for every layer.
+    fn offsets(&self) -> Vec<f64> {
+        match self.layers {
+            1 => vec![0.0],
+            n => (0..n)
+                .map(|l| -self.inside + l as f64 * (self.inside + self.outside) / (n - 1) as f64)
+                .collect(),
+        }
+    }
+}
+
+/// One frame's values per vertex, and how many vertices' shells left the volume (value 0).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sampled {
+    pub values: Vec<f64>,
+    pub outside: usize,
+}
+
+/// The reduced shell samples at every vertex (module docs).
+pub fn sample_shell(
+    volume: &Volume,
+    positions: &[Vector3<f64>],
+    normals: &[Vector3<f64>],
+    shell: &Shell,
+    reduce: Reduce,
+) -> Result<Sampled, VolumeError> {
+    shell.check(reduce)?;
+    if positions.len() != normals.len() {
+        return Err(VolumeError::NormalCount {
+            frame: 0,
+            positions: positions.len(),
+            normals: normals.len(),
+        });
+    }
+    let offsets = shell.offsets();
+    let values: Vec<Option<f64>> = positions
+        .par_iter()
+        .zip(normals)
+        .map(|(x, n)| {
+            let samples = offsets.iter().map(|o| volume.sample(&(x + *o * n)));
+            let samples: Option<Vec<f64>> = samples.collect();
+            samples.map(|s| match reduce {
+                Reduce::Max => s.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+                Reduce::Mean => s.iter().sum::<f64>() / s.len() as f64,
+                Reduce::Layer(l) => s[l],
+            })
+        })
+        .collect();
+    Ok(Sampled {
+        outside: values.iter().filter(|v| v.is_none()).count(),
+        values: values.into_iter().map(|v| v.unwrap_or(0.0)).collect(),
+    })
+}
+
+/// How a recording is carried onto a surface: Gaussian pre-smoothing, shell, reduction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SampleOptions {
+    /// `σ` of the Gaussian applied to each volume first (physical units; 0: none).
+    pub smoothing: f64,
+    /// `None`: ± two of the largest voxel sides, [`DEFAULT_LAYERS`] layers.
+    pub shell: Option<Shell>,
+    pub reduce: Reduce,
+}
+
+/// Layers of the default shell.
+pub const DEFAULT_LAYERS: usize = 9;
+
+impl Default for SampleOptions {
+    /// No smoothing, the default shell, the maximum.
+    fn default() -> Self {
+        Self {
+            smoothing: 0.0,
+            shell: None,
+            reduce: Reduce::Max,
+        }
+    }
+}
+
+impl SampleOptions {
+    /// The shell for `volume`: the given one, else ±2 of its largest voxel sides (a shell that
+    /// spans a few slices of the coarsest axis, so a surface a voxel off still sees the cells).
+    pub fn shell_for(&self, volume: &Volume) -> Shell {
+        self.shell.unwrap_or_else(|| {
+            let reach = 2.0 * volume.voxel_size().max();
+            Shell {
+                inside: reach,
+                outside: reach,
+                layers: DEFAULT_LAYERS,
+            }
+        })
+    }
+}
+
+/// Every frame of a moving surface read from its volume: `values[k][i]` for mesh vertex `i`
+/// of frame `k`, `outside[k]` the vertices whose shell left volume `k`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SampledSequence {
+    pub values: Vec<Vec<f64>>,
+    pub outside: Vec<usize>,
+    /// The shell used.
+    pub shell: Shell,
+}
+
+/// Carries `volumes[k]` onto frame `k` of the surface (`positions[k]` of `mesh`'s vertices)
+/// along the corner-angle-weighted vertex normals (outward for counter-clockwise faces), each
+/// volume smoothed first when `options.smoothing > 0`.
+pub fn sample_sequence(
+    volumes: &[Volume],
+    mesh: &Mesh,
+    positions: &[Vec<Vector3<f64>>],
+    options: &SampleOptions,
+) -> Result<SampledSequence, VolumeError> {
+    if volumes.len() != positions.len() {
+        return Err(VolumeError::FrameCount {
+            volumes: volumes.len(),
+            frames: positions.len(),
+        });
+    }
+    let Some(first) = volumes.first() else {
+        return Err(VolumeError::FrameCount {
+            volumes: 0,
+            frames: 0,
+        });
+    };
+    if !(options.smoothing.is_finite() && options.smoothing >= 0.0) {
+        return Err(VolumeError::Sigma(options.smoothing));
+    }
+    let shell = options.shell_for(first);
+    shell.check(options.reduce)?;
+    let mut values = Vec::with_capacity(volumes.len());
+    let mut outside = Vec::with_capacity(volumes.len());
+    for (frame, (volume, x)) in volumes.iter().zip(positions).enumerate() {
+        if x.len() != mesh.n_vertices() {
+            return Err(VolumeError::NormalCount {
+                frame,
+                positions: x.len(),
+                normals: mesh.n_vertices(),
+            });
+        }
+        let smoothed = (options.smoothing > 0.0)
+            .then(|| volume.smoothed(options.smoothing))
+            .transpose()?;
+        let volume = smoothed.as_ref().unwrap_or(volume);
+        let normals = vertex_normals(mesh, x);
+        let sampled = sample_shell(volume, x, &normals, &shell, options.reduce)?;
+        values.push(sampled.values);
+        outside.push(sampled.outside);
+    }
+    Ok(SampledSequence {
+        values,
+        outside,
+        shell,
+    })
+}
