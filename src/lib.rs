@@ -52,6 +52,7 @@ pub mod io;
 pub mod mesh;
 pub mod render;
 pub mod shapes;
+pub mod surface;
 pub mod synth;
 pub mod track;
 pub mod volume;
@@ -84,6 +85,8 @@ pub enum Error {
     Track(#[from] track::TrackError),
     #[error(transparent)]
     Volume(#[from] volume::VolumeError),
+    #[error(transparent)]
+    Surface(#[from] surface::SurfaceError),
     /// An error in the contents of a file, with the file's name.
     #[error("{}: {source}", path.display())]
     InFile { path: PathBuf, source: Box<Error> },

@@ -43,7 +43,7 @@ pub mod robust;
 mod scales;
 mod sequence;
 mod slab;
-mod solve;
+pub(crate) mod solve;
 mod system;
 mod uniqueness;
 pub mod warp;

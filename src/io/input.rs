@@ -160,7 +160,10 @@ pub fn frame_files(
     let text = path.to_string_lossy();
     let mut files = if text.contains(['*', '?', '[']) && !path.exists() {
         glob_files(&text, path)?
-    } else if std::fs::metadata(path).map_err(|e| IoError::file(path, e))?.is_dir() {
+    } else if std::fs::metadata(path)
+        .map_err(|e| IoError::file(path, e))?
+        .is_dir()
+    {
         directory_files(path)?
     } else {
         vec![path.to_path_buf()]

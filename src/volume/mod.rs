@@ -153,12 +153,15 @@ impl Volume {
 
     /// The centre of voxel `(k, j, i)`.
     pub fn position(&self, k: usize, j: usize, i: usize) -> Vector3<f64> {
-        self.origin
-            + Vector3::new(i as f64, j as f64, k as f64).component_mul(&self.voxel_size)
+        self.origin + Vector3::new(i as f64, j as f64, k as f64).component_mul(&self.voxel_size)
     }
 
     /// The same volume placed elsewhere: another voxel size and origin.
-    pub fn placed(self, voxel_size: Vector3<f64>, origin: Vector3<f64>) -> Result<Self, VolumeError> {
+    pub fn placed(
+        self,
+        voxel_size: Vector3<f64>,
+        origin: Vector3<f64>,
+    ) -> Result<Self, VolumeError> {
         Self::new(self.shape, self.values, voxel_size, origin)
     }
 

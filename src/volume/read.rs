@@ -92,7 +92,10 @@ pub fn read_volumes(path: &Path, options: &VolumeOptions) -> Result<VolumeFrames
 }
 
 fn is_volume_file(path: &Path) -> bool {
-    let extension = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
     matches!(extension.as_deref(), Some("npy" | "tif" | "tiff"))
 }
 
@@ -106,7 +109,9 @@ struct Stack {
 
 /// The frames of one file (several for a `(K, Z, Y, X)` NPY).
 fn read_file(file: &Path) -> Result<Vec<Stack>, Error> {
-    let is_npy = file.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+    let is_npy = file
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
     match is_npy {
         true => Ok(read_npy_stacks(file)?),
         false => Ok(vec![read_tiff(file)?]),
@@ -161,7 +166,9 @@ fn read_tiff(file: &Path) -> Result<Stack, IoError> {
             other => {
                 return Err(IoError::format(
                     file,
-                    format!("page {pages} is {other:?}: a volume must be grey (one sample per pixel)"),
+                    format!(
+                        "page {pages} is {other:?}: a volume must be grey (one sample per pixel)"
+                    ),
                 ))
             }
         }
@@ -225,5 +232,7 @@ fn imagej_voxel_size<R: std::io::Read + std::io::Seek>(
     let x = 1.0 / decoder.get_tag_f64(Tag::XResolution).ok()?;
     let y = 1.0 / decoder.get_tag_f64(Tag::YResolution).ok()?;
     let size = Vector3::new(x, y, spacing);
-    size.iter().all(|d| d.is_finite() && *d > 0.0).then_some(size)
+    size.iter()
+        .all(|d| d.is_finite() && *d > 0.0)
+        .then_some(size)
 }

@@ -6,6 +6,7 @@ mod pictures;
 mod progress;
 mod sample;
 mod solve;
+mod surface;
 mod track;
 
 use clap::{Parser, Subcommand};
@@ -80,6 +81,26 @@ enum Command {
         seeds: Option<PathBuf>,
         #[command(flatten)]
         force: ForceArg,
+    },
+    /// Fit a moving surface through points per frame (cell centres, landmarks; physical
+    /// units): a smoothing-spline height over a sphere fitted to frame 0's points (the cap they
+    /// cover, or --whole-sphere) or over the plane z = 0 (--shape graph). Writes positions.npy,
+    /// faces.npy and times.txt, which `meshflow sample` and `meshflow solve` read, and
+    /// surface.json (the reference, the fit's residuals per frame).
+    Surface(Box<SurfaceArgs>),
+    /// Chain point clouds per frame (cell centres, beads) into tracks by mutual nearest
+    /// neighbours between consecutive frames: a (frames, points, 3) .npy with NaN where a
+    /// track has no point, for `meshflow solve --ground-truth-tracks`.
+    Match {
+        /// Points per frame: a directory or quoted glob of (N, 3) .npy or .csv files
+        points: PathBuf,
+        /// Output .npy
+        #[arg(long, value_name = "TRACKS.npy")]
+        out: PathBuf,
+        /// Largest distance between matched points [default: half the median
+        /// nearest-neighbour distance of the first frame]
+        #[arg(long, value_name = "LENGTH", allow_negative_numbers = true)]
+        max_distance: Option<f64>,
     },
     /// Carry a microscope recording onto a moving surface: per vertex and frame, the volume
     /// (trilinear) along the vertex normal over a shell, reduced to one value (the maximum by
@@ -261,6 +282,74 @@ struct SolveArgs {
     pictures: PictureArgs,
 }
 
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum ShapeArg {
+    /// A height over a sphere fitted to frame 0's points
+    SphereLike,
+    /// z = h(x, y) over the plane
+    Graph,
+}
+
+#[derive(clap::Args)]
+struct SurfaceArgs {
+    /// Points per frame: a directory or quoted glob of (N, 3) .npy or .csv files (natural
+    /// order), or one (frames, N, 3) .npy (NaN rows dropped)
+    points: PathBuf,
+    /// Output directory (an NPY sequence)
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    force: ForceArg,
+    /// The reference the height is measured from
+    #[arg(long, value_enum, default_value = "sphere-like")]
+    shape: ShapeArg,
+    /// With sphere-like: the whole sphere instead of the cap the points cover
+    #[arg(long)]
+    whole_sphere: bool,
+    /// Mean edge length of the mesh, in the points' units
+    #[arg(
+        long,
+        value_name = "LENGTH",
+        conflicts_with = "vertices",
+        allow_negative_numbers = true
+    )]
+    edge_length: Option<f64>,
+    /// About this many vertices [default: 16000]
+    #[arg(long, value_name = "N")]
+    vertices: Option<usize>,
+    /// Smoothing length in mean point spacings: height variations shorter than it are smoothed
+    /// away (0: as close to the points as the mesh allows)
+    #[arg(long, value_name = "SPACINGS", default_value_t = meshflow::surface::DEFAULT_SMOOTHING, allow_negative_numbers = true)]
+    smoothing: f64,
+    /// How far the mesh reaches beyond the outermost point, in mean point spacings
+    #[arg(long, value_name = "SPACINGS", default_value_t = meshflow::surface::DEFAULT_MARGIN, allow_negative_numbers = true)]
+    margin: f64,
+    /// Frame times t0,t1,… [default: 0,1,2,…]
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    times: Option<Vec<f64>>,
+}
+
+impl SurfaceArgs {
+    fn options(&self) -> meshflow::surface::FitOptions {
+        use meshflow::surface::{FitOptions, Resolution, Shape};
+        FitOptions {
+            shape: match self.shape {
+                ShapeArg::SphereLike => Shape::SphereLike {
+                    whole: self.whole_sphere,
+                },
+                ShapeArg::Graph => Shape::Graph,
+            },
+            resolution: match (self.edge_length, self.vertices) {
+                (Some(length), _) => Resolution::EdgeLength(length),
+                (None, Some(n)) => Resolution::Vertices(n),
+                (None, None) => FitOptions::default().resolution,
+            },
+            smoothing: self.smoothing,
+            margin: self.margin,
+        }
+    }
+}
+
 #[derive(clap::Args)]
 struct SampleArgs {
     /// Volumes, one per frame: a .npy (Z, Y, X) or (K, Z, Y, X), a .tif/.tiff stack (pages =
@@ -274,14 +363,29 @@ struct SampleArgs {
     out: Option<PathBuf>,
     /// Voxel size x,y,z in the surface's units [default: from ImageJ TIFF metadata, else
     /// 1,1,1]
-    #[arg(long, value_name = "X,Y,Z", value_delimiter = ',', allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     voxel_size: Option<Vec<f64>>,
     /// Position of voxel (0, 0, 0), x,y,z
-    #[arg(long, value_name = "X,Y,Z", value_delimiter = ',', allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     origin: Option<Vec<f64>>,
     /// How far the shell reaches inside and outside along the normal, in the surface's units
     /// [default: two of the largest voxel sides each way]
-    #[arg(long, value_name = "INSIDE,OUTSIDE", value_delimiter = ',', allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "INSIDE,OUTSIDE",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     shell: Option<Vec<f64>>,
     /// Samples across the shell, evenly spaced
     #[arg(long, value_name = "N", default_value_t = meshflow::volume::sample::DEFAULT_LAYERS)]
@@ -290,7 +394,12 @@ struct SampleArgs {
     #[arg(long, default_value = "max")]
     reduce: meshflow::volume::Reduce,
     /// Gaussian smoothing of each volume first, σ in the surface's units (0: none)
-    #[arg(long, value_name = "SIGMA", default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "SIGMA",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     smooth: f64,
     #[command(flatten)]
     building: MeshArgs,
@@ -302,7 +411,10 @@ impl SampleArgs {
             match values.as_deref() {
                 None => Ok(None),
                 Some(&[x, y, z]) => Ok(Some(nalgebra::Vector3::new(x, y, z))),
-                Some(other) => Err(usage(format!("{name} takes three numbers x,y,z, got {}", other.len()))),
+                Some(other) => Err(usage(format!(
+                    "{name} takes three numbers x,y,z, got {}",
+                    other.len()
+                ))),
             }
         };
         let shell = match self.shell.as_deref() {
@@ -458,6 +570,18 @@ fn main() -> ExitCode {
             overwrite: args.force.overwrite(),
         }),
         Command::Sample(args) => args.request().and_then(sample::run),
+        Command::Surface(args) => surface::run(surface::SurfaceRequest {
+            points: &args.points,
+            out: &args.out,
+            options: args.options(),
+            times: args.times.clone(),
+            overwrite: args.force.overwrite(),
+        }),
+        Command::Match {
+            points,
+            out,
+            max_distance,
+        } => surface::write_tracks(&points, &out, max_distance),
         Command::Render {
             dir,
             out,

@@ -64,7 +64,10 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
             100.0 * outside as f64 / total as f64
         );
     }
-    println!("{}", describe(&request, &sampled, geometry.mesh.n_vertices(), &out));
+    println!(
+        "{}",
+        describe(&request, &sampled, geometry.mesh.n_vertices(), &out)
+    );
     Ok(())
 }
 

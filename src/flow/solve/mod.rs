@@ -62,7 +62,7 @@
 //! Results agree with the direct solver to 1e-9 relative (`tests/solver.rs`), for lumped and
 //! consistent coupling, Neumann and Dirichlet boundaries, even and odd slab counts.
 
-pub(super) mod cholesky;
+pub(crate) mod cholesky;
 mod multigrid;
 mod pcg;
 mod precondition;

@@ -1,0 +1,130 @@
+//! `meshflow surface`: point clouds per frame (cell centres, landmarks) → a moving surface with
+//! fixed connectivity (an NPY sequence that `meshflow sample` and `meshflow solve` read), by a
+//! smoothing-spline height over a fitted sphere or a plane (`meshflow::surface`).
+
+use crate::progress::during;
+use meshflow::accuracy::{default_match_distance, match_tracks};
+use meshflow::io::{write_atomically, write_npy, write_npy_sequence, Overwrite, StagedDir};
+use meshflow::surface::{fit_surface, read_points, FitOptions, FittedSurface, Reference};
+use meshflow::Error;
+use std::path::Path;
+
+/// What `surface` needs from the command line.
+pub struct SurfaceRequest<'a> {
+    pub points: &'a Path,
+    pub out: &'a Path,
+    pub options: FitOptions,
+    pub times: Option<Vec<f64>>,
+    pub overwrite: Overwrite,
+}
+
+pub fn run(request: SurfaceRequest) -> Result<(), Error> {
+    let mut staged = StagedDir::create(request.out, request.overwrite)?;
+    staged.record_command(crate::command_line());
+    let frames = during(format!("reading {}", request.points.display()), || {
+        read_points(request.points)
+    })?;
+    let fitted = during(
+        format!("fitting a surface through {} frames", frames.len()),
+        || fit_surface(&frames, &request.options),
+    )
+    .map_err(|e| Error::from(e).in_file(request.points))?;
+    let times = request
+        .times
+        .unwrap_or_else(|| (0..frames.len()).map(|k| k as f64).collect());
+    write_outputs(&staged, &fitted, &times).map_err(|e| staged.error_in_target(e))?;
+    staged.commit()?;
+    print_report(&fitted, request.points, request.out);
+    Ok(())
+}
+
+/// positions.npy, faces.npy, times.txt and surface.json.
+fn write_outputs(staged: &StagedDir, fitted: &FittedSurface, times: &[f64]) -> Result<(), Error> {
+    let dir = staged.path();
+    write_npy_sequence(dir, &fitted.positions, &fitted.faces, None, times)?;
+    let report = serde_json::json!({
+        "reference": fitted.reference,
+        "vertices": fitted.positions[0].len(),
+        "faces": fitted.faces.len(),
+        "mean_edge_length": fitted.mean_edge_length(),
+        "mean_point_spacing": fitted.mean_point_spacing,
+        "lambda": fitted.lambda,
+        "frames": fitted.frames,
+    });
+    let report = serde_json::to_string_pretty(&report).expect("a report serializes");
+    write_atomically(&dir.join("surface.json"), |w| {
+        use std::io::Write;
+        writeln!(w, "{report}")
+    })?;
+    Ok(())
+}
+
+fn print_report(fitted: &FittedSurface, points: &Path, out: &Path) {
+    let reference = match &fitted.reference {
+        Reference::Sphere {
+            centre,
+            radius,
+            cap_degrees,
+            ..
+        } => format!(
+            "a height over the sphere of radius {radius:.4e} about ({:.4e}, {:.4e}, {:.4e}){}",
+            centre[0],
+            centre[1],
+            centre[2],
+            match cap_degrees {
+                Some(angle) => format!(", cap of {angle:.1}°"),
+                None => ", whole".to_string(),
+            }
+        ),
+        Reference::Plane { .. } => "a height over the plane z = 0".to_string(),
+    };
+    println!(
+        "{}: {} frames -> {reference}: {} vertices, {} faces, mean edge {:.3e} -> {}",
+        points.display(),
+        fitted.positions.len(),
+        fitted.positions[0].len(),
+        fitted.faces.len(),
+        fitted.mean_edge_length(),
+        out.display()
+    );
+    for (k, fit) in fitted.frames.iter().enumerate() {
+        println!(
+            "  frame {k:3}: {} points ({} outside the surface), height residual rms {:.3e}, max {:.3e}",
+            fit.points, fit.dropped, fit.rms_residual, fit.max_residual
+        );
+    }
+}
+
+/// `meshflow match`: tracks from point clouds by mutual nearest neighbours.
+pub fn write_tracks(points: &Path, out: &Path, max_distance: Option<f64>) -> Result<(), Error> {
+    let frames = during(format!("reading {}", points.display()), || {
+        read_points(points)
+    })?;
+    let bound = match max_distance {
+        Some(d) => d,
+        None => default_match_distance(&frames).map_err(|e| Error::from(e).in_file(points))?,
+    };
+    let tracks = match_tracks(&frames, Some(bound)).map_err(|e| Error::from(e).in_file(points))?;
+    let (shape, values) = tracks.to_array();
+    write_npy(out, &shape, &values)?;
+    let pairs = tracks.pairs_per_slab();
+    println!(
+        "{}: {} frames of {} points -> {} tracks, matched within {bound:.4e}: {} pairs per slab -> {}",
+        points.display(),
+        frames.len(),
+        count_range(frames.iter().map(Vec::len)),
+        tracks.n_tracks(),
+        count_range(pairs.iter().copied()),
+        out.display()
+    );
+    Ok(())
+}
+
+/// "5" or "3–7": the range of some counts.
+fn count_range(counts: impl Iterator<Item = usize> + Clone) -> String {
+    let (low, high) = (counts.clone().min().unwrap_or(0), counts.max().unwrap_or(0));
+    match low == high {
+        true => low.to_string(),
+        false => format!("{low}–{high}"),
+    }
+}
