@@ -4,8 +4,8 @@
 
 Needs numpy, h5py and scipy (`pip install numpy h5py scipy`). Writes, in OUT_DIR:
 
-- volumes/frame_140.npy, frame_141.npy, frame_142.npy: (Z, Y, X) = (44, 512, 512) float32
-  confocal volumes (the .mat files are MATLAB v7.3, i.e. HDF5; h5py reads them as (z, y, x));
+- volumes/frame_K.npy for K = 114, 116, 120, 122, 140, 141, 142: (Z, Y, X) = (44, 512, 512)
+  float32 confocal volumes (frames-A-B-unfiltered.mat: two frames each);
 - cells/frame_001.npy … frame_151.npy: (N, 3) float64 cell centres in micrometres;
 - voxel_size.txt: "1.6774,1.6774,7.1847" (x, y, z in micrometres), for --voxel-size.
 
@@ -27,12 +27,20 @@ import numpy as np
 import scipy.io
 
 VOXEL = np.array([1.6774, 1.6774, 7.1847])  # x, y, z in micrometres
+PAIRS = ((114, 116), (120, 122), (140, 141), (140, 142))  # the volumes of the folder
 
 
 def read_volume_pair(path):
-    """The two volumes of a frames-A-B-unfiltered.mat file, as (z, y, x) float32."""
-    with h5py.File(path, "r") as f:
-        return [np.asarray(f[ref]["u"][()], dtype=np.float32) for ref in f["U"][:, 0]]
+    """The two volumes of a frames-A-B-unfiltered.mat file, as (z, y, x) float32.
+
+    Files of 2014 and later are MATLAB v7.3 (HDF5), which h5py reads as (z, y, x); the one of
+    2013 (frames 114-116) is MATLAB v5, which scipy reads in MATLAB's own (row, column, slice)
+    order, i.e. (x, y, z) here: transposed to match."""
+    if h5py.is_hdf5(path):
+        with h5py.File(path, "r") as f:
+            return [np.asarray(f[ref]["u"][()], dtype=np.float32) for ref in f["U"][:, 0]]
+    pair = scipy.io.loadmat(path)["U"].ravel()
+    return [np.asarray(c["u"][0, 0], dtype=np.float32).transpose(2, 1, 0) for c in pair]
 
 
 def cell_centres(path):
@@ -50,16 +58,21 @@ def cell_centres(path):
 def main(data, out):
     os.makedirs(os.path.join(out, "volumes"), exist_ok=True)
     os.makedirs(os.path.join(out, "cells"), exist_ok=True)
-    v140, v141 = read_volume_pair(os.path.join(data, "frames-140-141-unfiltered.mat"))
-    w140, v142 = read_volume_pair(os.path.join(data, "frames-140-142-unfiltered.mat"))
-    assert np.array_equal(v140, w140), "frame 140 differs between the two files"
-    for frame, volume in ((140, v140), (141, v141), (142, v142)):
-        np.save(os.path.join(out, "volumes", f"frame_{frame}.npy"), volume)
+    written = {}
+    for first, last in PAIRS:
+        name = f"frames-{first}-{last}-unfiltered.mat"
+        for frame, volume in zip((first, last), read_volume_pair(os.path.join(data, name))):
+            if frame in written:
+                assert np.array_equal(written[frame], volume), f"frame {frame} differs"
+                continue
+            written[frame] = volume
+            np.save(os.path.join(out, "volumes", f"frame_{frame}.npy"), volume)
     for k, cells in enumerate(cell_centres(os.path.join(data, "thresholdedcenters.mat"))):
         np.save(os.path.join(out, "cells", f"frame_{k + 1:03d}.npy"), cells)
     with open(os.path.join(out, "voxel_size.txt"), "w") as f:
         f.write(",".join(f"{v:g}" for v in VOXEL) + "\n")
-    print(f"wrote {out}: volumes of frames 140-142 (44 x 512 x 512), cells of 151 frames")
+    frames = ", ".join(str(k) for k in sorted(written))
+    print(f"wrote {out}: volumes of frames {frames} (44 x 512 x 512), cells of 151 frames")
 
 
 if __name__ == "__main__":

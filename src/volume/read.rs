@@ -13,6 +13,7 @@ use crate::io::{frame_files, read_npy_f32, IoError};
 use crate::Error;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
+use tiff::decoder::ifd::Value;
 use tiff::decoder::{Decoder, DecodingResult};
 use tiff::tags::Tag;
 use tiff::ColorType;
@@ -229,10 +230,22 @@ fn imagej_voxel_size<R: std::io::Read + std::io::Seek>(
         .trim()
         .parse()
         .ok()?;
-    let x = 1.0 / decoder.get_tag_f64(Tag::XResolution).ok()?;
-    let y = 1.0 / decoder.get_tag_f64(Tag::YResolution).ok()?;
+    let x = 1.0 / rational(decoder, Tag::XResolution)?;
+    let y = 1.0 / rational(decoder, Tag::YResolution)?;
     let size = Vector3::new(x, y, spacing);
     size.iter()
         .all(|d| d.is_finite() && *d > 0.0)
         .then_some(size)
+}
+
+/// A RATIONAL tag as a number (`get_tag_f64` refuses rationals, the type TIFF resolutions
+/// have).
+fn rational<R: std::io::Read + std::io::Seek>(decoder: &mut Decoder<R>, tag: Tag) -> Option<f64> {
+    match decoder.get_tag(tag).ok()? {
+        Value::Rational(n, d) => Some(n as f64 / d as f64),
+        Value::SRational(n, d) => Some(n as f64 / d as f64),
+        Value::Float(v) => Some(v as f64),
+        Value::Double(v) => Some(v),
+        _ => None,
+    }
 }

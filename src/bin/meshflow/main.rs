@@ -394,13 +394,9 @@ struct SampleArgs {
     #[arg(long, default_value = "max")]
     reduce: meshflow::volume::Reduce,
     /// Gaussian smoothing of each volume first, σ in the surface's units (0: none)
-    #[arg(
-        long,
-        value_name = "SIGMA",
-        default_value_t = 0.0,
-        allow_negative_numbers = true
-    )]
-    smooth: f64,
+    /// [default: 2 of the smallest voxel sides]
+    #[arg(long, value_name = "SIGMA", allow_negative_numbers = true)]
+    smooth: Option<f64>,
     #[command(flatten)]
     building: MeshArgs,
 }

@@ -93,9 +93,9 @@ fn describe(
     out: &Path,
 ) -> String {
     let shell = sampled.shell;
-    let smoothing = match request.sampling.smoothing {
+    let smoothing = match sampled.smoothing {
         0.0 => String::new(),
-        sigma => format!(", smoothed by a Gaussian of σ = {sigma}"),
+        sigma => format!(", smoothed by a Gaussian of σ = {sigma:.4}"),
     };
     format!(
         "{}: {} frames onto {} vertices of {}: {:?} of {} layers over [−{}, +{}] along the normals{smoothing} -> {}",
