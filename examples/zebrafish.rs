@@ -323,14 +323,16 @@ fn print_table(rows: &[Row], zero: &TrackScores) {
     for row in rows {
         let s = &row.scores.overall;
         println!(
-            "  {:<62} {:>7} {:>7.2} / {:<5.2} {:>9.3} {:>7.1}° / {:<5.1}° {:>7.2} {:>8.2}",
+            "  {:<62} {:>7} {:>7.2} / {:<5.2} {:>9.3} {:>17} {:>7.2} {:>8.2}",
             row.name,
             s.points,
             s.mean_endpoint,
             s.median_endpoint,
             s.endpoint_ratio(),
-            s.mean_direction_degrees,
-            s.median_direction_degrees,
+            format!(
+                "{:.1}° / {:.1}°",
+                s.mean_direction_degrees, s.median_direction_degrees
+            ),
             s.median_speed_ratio,
             row.seconds
         );
