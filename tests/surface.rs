@@ -125,7 +125,10 @@ fn a_height_over_a_sphere_converges_at_least_at_second_order() {
     let orders: Vec<f64> = errors.windows(2).map(|e| (e[0] / e[1]).log2()).collect();
     assert!(errors[2] < 2e-3, "errors {errors:?}");
     println!("errors {errors:?}, orders {orders:?}");
-    assert!(orders.iter().all(|&p| p > 1.7), "errors {errors:?}, orders {orders:?}");
+    assert!(
+        orders.iter().all(|&p| p > 1.7),
+        "errors {errors:?}, orders {orders:?}"
+    );
 }
 
 /// The largest error of a graph `z = f(x, y)` fitted through `m × m` jittered points of
@@ -158,7 +161,10 @@ fn a_graph_converges_at_least_at_second_order() {
     let errors: Vec<f64> = [17, 33, 65].iter().map(|&m| graph_error(m)).collect();
     let orders: Vec<f64> = errors.windows(2).map(|e| (e[0] / e[1]).log2()).collect();
     println!("errors {errors:?}, orders {orders:?}");
-    assert!(orders.iter().all(|&p| p > 1.7), "errors {errors:?}, orders {orders:?}");
+    assert!(
+        orders.iter().all(|&p| p > 1.7),
+        "errors {errors:?}, orders {orders:?}"
+    );
 }
 
 #[test]
@@ -197,13 +203,13 @@ fn the_resolution_is_what_was_asked() {
     let points: Vec<Vector3<f64>> = directions.iter().map(|d| CENTRE + d * 10.0).collect();
     for n in [1000, 10_000] {
         let whole = Shape::SphereLike { whole: true };
-        let fitted = fit_surface(
-            &[points.clone()],
-            &options(whole, Resolution::Vertices(n)),
-        )
-        .unwrap();
+        let fitted =
+            fit_surface(&[points.clone()], &options(whole, Resolution::Vertices(n))).unwrap();
         let count = fitted.positions[0].len() as f64;
-        assert!(count / n as f64 > 0.5 && count / (n as f64) < 2.0, "{count} for {n}");
+        assert!(
+            count / n as f64 > 0.5 && count / (n as f64) < 2.0,
+            "{count} for {n}"
+        );
         let Reference::Sphere { cap_degrees, .. } = fitted.reference else {
             panic!()
         };
@@ -239,12 +245,28 @@ fn points_read_from_csv_and_npy_alike() {
     );
     std::fs::write(csv.join("t_11.csv"), "1,2\n").unwrap();
     let message = read_points(&csv).unwrap_err().to_string();
-    assert!(message.contains("t_11.csv") && message.contains("line 1"), "{message}");
+    assert!(
+        message.contains("t_11.csv") && message.contains("line 1"),
+        "{message}"
+    );
 
     // (K, N, 3) tracks: untracked (NaN) rows are dropped per frame.
     use npyz::WriterBuilder;
     let tracks = dir.path().join("tracks.npy");
-    let values = [1.0, 2.0, 3.0, f64::NAN, f64::NAN, f64::NAN, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0];
+    let values = [
+        1.0,
+        2.0,
+        3.0,
+        f64::NAN,
+        f64::NAN,
+        f64::NAN,
+        4.0,
+        5.0,
+        6.0,
+        7.0,
+        8.0,
+        9.0,
+    ];
     let mut file = std::fs::File::create(&tracks).unwrap();
     let mut writer = npyz::WriteOptions::<f64>::new()
         .default_dtype()

@@ -52,7 +52,9 @@ fn trilinear_interpolation_is_exact_for_linear_functions_and_none_outside() {
     // The box of voxel centres is closed: its far corner is inside, a hair beyond is not.
     assert!(volume.sample(&(origin + extent)).is_some());
     assert!(volume.sample(&(origin + extent * (1.0 + 1e-9))).is_none());
-    assert!(volume.sample(&(origin - Vector3::new(0.0, 0.0, 1e-9))).is_none());
+    assert!(volume
+        .sample(&(origin - Vector3::new(0.0, 0.0, 1e-9)))
+        .is_none());
 }
 
 #[test]
@@ -121,7 +123,10 @@ fn pattern_values(frames: usize, shape: [usize; 3]) -> Vec<f64> {
     let per_frame: usize = shape.iter().product();
     (0..frames * per_frame)
         .map(|n| {
-            let (k, rest) = ((n % per_frame) / (shape[1] * shape[2]), n % (shape[1] * shape[2]));
+            let (k, rest) = (
+                (n % per_frame) / (shape[1] * shape[2]),
+                n % (shape[1] * shape[2]),
+            );
             pattern(shape, k, rest / shape[2], rest % shape[2]) + (n / per_frame) as f64
         })
         .collect()
@@ -133,7 +138,11 @@ fn assert_pattern(volume: &Volume, shape: [usize; 3], frame: usize) {
         for j in 0..shape[1] {
             for i in 0..shape[2] {
                 let got = volume.values()[(k * shape[1] + j) * shape[2] + i] as f64;
-                assert_eq!(got, pattern(shape, k, j, i) + frame as f64, "voxel {k} {j} {i}");
+                assert_eq!(
+                    got,
+                    pattern(shape, k, j, i) + frame as f64,
+                    "voxel {k} {j} {i}"
+                );
             }
         }
     }
@@ -163,7 +172,11 @@ fn npy_volumes_read_as_one_or_many_frames() {
     let per_frame = pattern_values(11, shape);
     for k in [0, 1, 2, 10] {
         let values = &per_frame[k * 60..][..60];
-        write_npy(&frames_dir.join(format!("frame_{k}.npy")), &[3, 4, 5], values);
+        write_npy(
+            &frames_dir.join(format!("frame_{k}.npy")),
+            &[3, 4, 5],
+            values,
+        );
     }
     let read = read_volumes(&frames_dir, &VolumeOptions::default()).unwrap();
     assert_eq!(read.voxel_size_source, VoxelSizeSource::Default);
@@ -236,7 +249,10 @@ fn tiff_stacks_read_back_with_their_sample_type_and_imagej_voxel_size() {
             }
             false => {
                 assert!(matches!(read.voxel_size_source, VoxelSizeSource::File(_)));
-                assert!((voxel - Vector3::from(anisotropic)).norm() < 1e-9, "{voxel:?}");
+                assert!(
+                    (voxel - Vector3::from(anisotropic)).norm() < 1e-9,
+                    "{voxel:?}"
+                );
             }
         }
     }
@@ -308,7 +324,10 @@ fn distance_field() -> (Volume, Vector3<f64>) {
             }
         }
     }
-    (Volume::new(shape, values, voxel, Vector3::zeros()).unwrap(), centre)
+    (
+        Volume::new(shape, values, voxel, Vector3::zeros()).unwrap(),
+        centre,
+    )
 }
 
 #[test]
@@ -333,7 +352,10 @@ fn sampling_along_outward_normals_reads_a_distance_field_at_the_shell_offsets() 
         let sampled = sample_shell(&volume, &x, &normals, &shell, reduce).unwrap();
         assert_eq!(sampled.outside, 0);
         for (i, v) in sampled.values.iter().enumerate() {
-            assert!((v - value).abs() < 4e-3, "{reduce:?} at vertex {i}: {v}, not {value}");
+            assert!(
+                (v - value).abs() < 4e-3,
+                "{reduce:?} at vertex {i}: {v}, not {value}"
+            );
         }
     };
     expect(Reduce::Max, 1.5);
@@ -390,7 +412,10 @@ fn a_sequence_is_smoothed_by_default_by_two_of_the_smallest_voxel_sides() {
         let r = 1.0 + 0.1 * k as f64;
         let expected = r + 0.01 / r;
         for v in frame {
-            assert!((v - expected).abs() < 4e-3, "frame {k}: {v}, not {expected}");
+            assert!(
+                (v - expected).abs() < 4e-3,
+                "frame {k}: {v}, not {expected}"
+            );
         }
     }
     let unsmoothed = SampleOptions {
@@ -401,4 +426,3 @@ fn a_sequence_is_smoothed_by_default_by_two_of_the_smallest_voxel_sides() {
     assert_eq!(sampled.smoothing, 0.0);
     assert!(sample_sequence(&volumes[..1], sphere.mesh(), &positions, &options).is_err());
 }
-

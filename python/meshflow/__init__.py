@@ -18,7 +18,9 @@ Functions (NumPy arrays in, NumPy/SciPy out):
 - :func:`write_outputs` — write a flow as the CLI does (NPY, ParaView VTU/PVD, glTF);
 - :func:`track` — turn frames meshed each on its own into one moving mesh;
 - :func:`match_tracks`, :func:`score_tracks` — tracks from point clouds (cells, beads), and a
-  flow scored at them.
+  flow scored at them;
+- :func:`fit_surface`, :func:`sample_volume` — a moving surface fitted through point clouds,
+  and a microscope recording (3-D volumes) read onto it: the mesh and the image a flow needs.
 
 Keyword names and defaults are the command line's (``meshflow solve --help``). Errors are
 ``ValueError`` (bad data, broken files, bad parameters) or ``OSError`` and its subclasses
@@ -43,9 +45,11 @@ __all__ = [
     "Flow",
     "Sequence",
     "compute_flow",
+    "fit_surface",
     "load_sequence",
     "match_tracks",
     "operators",
+    "sample_volume",
     "score_tracks",
     "track",
     "write_outputs",
@@ -60,14 +64,21 @@ DEFAULT_WELD_TOLERANCE = 1e-9
 Progress = Callable[[Dict[str, Any]], Any]
 
 
-def _floats(name: str, array: Any, ndim: int, last: Optional[int] = None) -> np.ndarray:
-    """``array`` as float64 (no copy when it already is), its shape checked."""
+def _floats(
+    name: str,
+    array: Any,
+    ndim: int,
+    last: Optional[int] = None,
+    expected: Optional[str] = None,
+) -> np.ndarray:
+    """``array`` as float64 (no copy when it already is), its shape checked (``expected``
+    names the shape in the error, default from ``ndim`` and ``last``)."""
     try:
         values = np.asarray(array, dtype=np.float64)
     except (TypeError, ValueError) as error:
         raise ValueError(f"{name}: not an array of numbers ({error})") from None
     if values.ndim != ndim or (last is not None and values.shape[-1] != last):
-        expected = {
+        expected = expected or {
             (3, 3): "(frames, vertices, 3)",
             (2, 3): "(vertices, 3)",
             (2, None): "(frames, vertices)",
@@ -447,3 +458,240 @@ def score_tracks(flow: Flow, tracks: Any) -> Dict[str, Any]:
     scores = json.loads(summary)
     scores["per_point"] = points
     return scores
+
+
+def _point_frames(points: Any) -> List[np.ndarray]:
+    """Points per frame as float64 (N_k, 3) arrays: from a list of (N_k, 3) arrays, one
+    (K, N, 3) array (all-NaN rows, untracked points, dropped) or one (N, 3) array (one
+    frame)."""
+    if isinstance(points, np.ndarray):
+        if points.ndim == 3:
+            tracks = _floats("points", points, 3, 3, "(frames, points, 3)")
+            return [frame[~np.isnan(frame).all(axis=1)] for frame in tracks]
+        return [_floats("points", points, 2, 3, "(frames, points, 3) or (points, 3)")]
+    if isinstance(points, (str, bytes)) or not hasattr(points, "__len__"):
+        raise ValueError(
+            f"points must be a list of (points, 3) arrays or a (frames, points, 3) array, "
+            f"got {type(points).__name__}"
+        )
+    return [_floats(f"points[{k}]", f, 2, 3, "(points, 3)") for k, f in enumerate(points)]
+
+
+def _count(name: str, value: Any) -> Optional[int]:
+    """A count ≥ 0 (the library names 0 where it is wrong), or None."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise ValueError(f"{name} must be a whole number ≥ 0, got {value!r}")
+    return int(value)
+
+
+def fit_surface(
+    points: Any,
+    shape: str = "sphere-like",
+    *,
+    whole_sphere: bool = False,
+    vertices: Optional[int] = None,
+    edge_length: Optional[float] = None,
+    smoothing: float = 1.0,
+    margin: float = 1.0,
+) -> Dict[str, Any]:
+    """A moving surface fitted through point clouds (``meshflow surface``): one mesh with fixed
+    faces whose vertices move with the points, frame by frame.
+
+    A reference surface is chosen once for all frames, and each frame's surface is a height
+    along its normal, a thin-plate smoothing spline through that frame's points:
+
+    - ``shape="sphere-like"``: over a sphere fitted to frame 0's points (cell centres of an
+      embryo, an organoid, a yolk), meshed as an icosphere cut to the cap their directions
+      cover plus ``margin``, or the whole sphere with ``whole_sphere=True``;
+    - ``shape="graph"``: a height ``z = h(x, y)`` over the points' ``(x, y)`` bounding box
+      plus ``margin`` (a sheet of tissue seen from above).
+
+    Parameters
+    ----------
+    points : list of (N_k, 3) arrays, or a (K, N, 3) array
+        The points of each frame (the counts may differ). In a (K, N, 3) array, as
+        :func:`match_tracks` returns, all-NaN rows (untracked) are dropped, as the CLI's
+        ``meshflow surface`` drops them; elsewhere a point that
+        is not finite is an error. One (N, 3) array is one frame.
+    shape : {"sphere-like", "graph"}
+    whole_sphere : bool
+        With ``"sphere-like"``: mesh the whole sphere, not just the cap the points cover.
+    vertices : int, optional
+        About this many mesh vertices (default 16,000).
+    edge_length : float, optional
+        The mesh's mean edge length at most this, in the points' units, instead of
+        ``vertices`` (giving both is a ``ValueError``).
+    smoothing : float
+        The smoothing length in mean point spacings: height variations shorter than it are
+        smoothed away (0: as close to the points as the mesh allows). Unit-free: scaling the
+        points scales the surface and nothing else.
+    margin : float
+        How far the mesh reaches beyond the outermost point, in mean point spacings.
+
+    Returns
+    -------
+    dict
+        ``positions`` (K, V, 3) float64 and ``faces`` (F, 3) int64 (counter-clockwise seen
+        from outside: normals away from the sphere's centre, or +z), what
+        :func:`compute_flow` and :func:`sample_volume` take; ``reference``: ``{"kind":
+        "sphere", "centre", "radius", "cap_degrees" (None for the whole sphere), "axis"}`` or
+        ``{"kind": "plane", "min", "max"}`` (the rectangle of ``z = 0``, ``(x, y)`` corners);
+        ``frames``: per frame ``{"points", "dropped" (outside the reference mesh),
+        "rms_residual", "max_residual"}`` (distances of the points from the surface along its
+        normal); ``mean_point_spacing`` ``d̄`` (the unit of ``smoothing`` and ``margin``);
+        ``lambda``, the spline's weight ``smoothing⁴ · d̄²``.
+
+    Errors (``ValueError``, naming the frame and point): fewer than 3 points in a frame
+    (4 in frame 0 of a sphere), points that are not finite, frame 0's points on a plane
+    (``"sphere-like"``) or their ``(x, y)`` on a line (``"graph"``).
+
+    Example: a surface through cell centres, a recording read onto it, its flow::
+
+        surface = meshflow.fit_surface(cells, vertices=5000)        # cells: list of (N_k, 3)
+        grey = meshflow.sample_volume(stack, surface["positions"], surface["faces"],
+                                      voxel_size=(0.4, 0.4, 2.0))["values"]
+        flow = meshflow.compute_flow(surface["positions"], surface["faces"], grey)
+    """
+    frames = _point_frames(points)
+    if not isinstance(shape, str):
+        raise ValueError(f"shape must be \"sphere-like\" or \"graph\", got {shape!r}")
+    smoothing_value = _optional_float("smoothing", smoothing)
+    margin_value = _optional_float("margin", margin)
+    if smoothing_value is None or margin_value is None:
+        raise ValueError("smoothing and margin must be numbers, not None")
+    return _meshflow.fit_surface(
+        frames,
+        shape,
+        bool(whole_sphere),
+        _count("vertices", vertices),
+        _optional_float("edge_length", edge_length),
+        smoothing_value,
+        margin_value,
+    )
+
+
+def _volume_frames(volumes: Any) -> List[np.ndarray]:
+    """Volumes as float32 (Z, Y, X) arrays: from a (K, Z, Y, X) array or a list of (Z, Y, X)
+    arrays of floats or integers."""
+
+    def as_float32(name: str, array: Any, ndim: int, expected: str) -> np.ndarray:
+        values = np.asarray(array)
+        if values.dtype.kind not in "fiu":
+            raise ValueError(f"{name} must be numbers (float or integer), got dtype {values.dtype}")
+        if values.ndim != ndim:
+            raise ValueError(f"{name} has shape {values.shape}, expected {expected}")
+        return values.astype(np.float32, copy=False)
+
+    if isinstance(volumes, np.ndarray):
+        return list(as_float32("volumes", volumes, 4, "(frames, z, y, x), or a list of (z, y, x)"))
+    if isinstance(volumes, (str, bytes)) or not hasattr(volumes, "__len__"):
+        raise ValueError(
+            f"volumes must be a (frames, z, y, x) array or a list of (z, y, x) arrays, "
+            f"got {type(volumes).__name__}"
+        )
+    return [as_float32(f"volumes[{k}]", v, 3, "(z, y, x)") for k, v in enumerate(volumes)]
+
+
+def _triple(name: str, value: Any) -> Tuple[float, float, float]:
+    try:
+        x, y, z = (float(c) for c in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be three numbers (x, y, z), got {value!r}") from None
+    return (x, y, z)
+
+
+def sample_volume(
+    volumes: Any,
+    positions: Any,
+    faces: Any,
+    voxel_size: SequenceOf[float],
+    *,
+    origin: SequenceOf[float] = (0.0, 0.0, 0.0),
+    smoothing: Optional[float] = None,
+    shell: Optional[Tuple[float, float]] = None,
+    layers: int = 9,
+    reduce: str = "max",
+) -> Dict[str, Any]:
+    """A microscope recording read onto a moving surface (``meshflow sample``): the grey
+    value of every vertex in every frame, for :func:`compute_flow`.
+
+    Volume ``k`` is read on frame ``k`` of the surface: at each vertex ``x_i``, ``layers``
+    trilinear samples along its unit normal ``n_i`` (the corner-angle-weighted mean of its
+    faces' normals, outward for faces counter-clockwise seen from outside, as
+    :func:`fit_surface` returns them), evenly spaced over ``[−inside, +outside]``, reduced
+    to one value. A vertex whose shell leaves the volume at any layer gets 0 and is counted
+    in ``outside``.
+
+    Parameters
+    ----------
+    volumes : (K, Z, Y, X) array, or a list of K (Z, Y, X) arrays
+        One 3-D image per frame in NumPy's ``(z, y, x)`` order (as tifffile and h5py read
+        stacks), float32, float64 or any integer dtype (uint8, uint16 …); stored as float32.
+        Voxel ``(k, j, i)`` is the value at ``origin + (i·d_x, j·d_y, k·d_z)``.
+    positions : (K, V, 3) array of float
+        The surface's vertex positions per frame, in the same physical units.
+    faces : (F, 3) array of int
+        Its triangles (every vertex in one; no welding is done here).
+    voxel_size : (d_x, d_y, d_z)
+        The voxel's sides in the surface's units (e.g. µm), in ``(x, y, z)`` order.
+    origin : (x, y, z)
+        The position of voxel ``(0, 0, 0)``'s centre.
+    smoothing : float, optional
+        ``σ`` of a Gaussian applied to each volume first (physical units; 0: none); default
+        two of the smallest voxel sides.
+    shell : (inside, outside), optional
+        How far the samples reach against and along the normal (physical units); default two
+        of the largest voxel sides each way.
+    layers : int
+        Samples across the shell (1: at the surface only).
+    reduce : {"max", "mean", "layer:L"}
+        The brightest sample (a maximum-intensity projection within the shell), their mean,
+        or sample ``L`` (0: the innermost).
+
+    Returns
+    -------
+    dict
+        ``values`` (K, V) float64; ``outside``: per frame, how many vertices' shells left the
+        volume (their value is 0); ``shell`` ``(inside, outside, layers)`` and ``smoothing``
+        ``σ`` as used.
+
+    Errors are ``ValueError`` with the library's message: a volume that is not finite
+    (naming the frame and voxel), a voxel size that is not positive, as many volumes as
+    frames, faces that name no vertex, ``layer:L`` beyond the shell.
+
+    Example::
+
+        surface = meshflow.fit_surface(cells)
+        sampled = meshflow.sample_volume(stack, surface["positions"], surface["faces"],
+                                         voxel_size=(0.4, 0.4, 2.0), reduce="max")
+        flow = meshflow.compute_flow(surface["positions"], surface["faces"], sampled["values"])
+    """
+    frames = _volume_frames(volumes)
+    positions = _floats("positions", positions, 3, 3)
+    faces = _faces(faces)
+    if shell is not None:
+        try:
+            inside, outside = (float(d) for d in shell)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"shell must be two distances (inside, outside), got {shell!r}"
+            ) from None
+        shell = (inside, outside)
+    layer_count = _count("layers", layers)
+    if layer_count is None:
+        raise ValueError("layers must be a whole number ≥ 1, not None")
+    if not isinstance(reduce, str):
+        raise ValueError(f"reduce must be \"max\", \"mean\" or \"layer:L\", got {reduce!r}")
+    return _meshflow.sample_volume(
+        frames,
+        positions,
+        faces,
+        _triple("voxel_size", voxel_size),
+        _triple("origin", origin),
+        _optional_float("smoothing", smoothing),
+        shell,
+        layer_count,
+        reduce,
+    )

@@ -93,3 +93,27 @@ def match_tracks(
     frames: List[npt.NDArray[np.float64]],
     max_distance: Optional[float],
 ) -> npt.NDArray[np.float64]: ...
+def fit_surface(
+    frames: List[npt.NDArray[np.float64]],  # (N_k, 3) each
+    shape: str,
+    whole_sphere: bool,
+    vertices: Optional[int],
+    edge_length: Optional[float],
+    smoothing: float,
+    margin: float,
+) -> Dict[str, Any]:
+    """``positions`` (K, V, 3), ``faces`` (F, 3), ``reference``, ``frames``,
+    ``mean_point_spacing``, ``lambda``."""
+def sample_volume(
+    volumes: List[npt.NDArray[np.float32]],  # (Z, Y, X) each
+    positions: npt.NDArray[np.float64],
+    faces: npt.NDArray[np.int64],
+    voxel_size: Tuple[float, float, float],
+    origin: Tuple[float, float, float],
+    smoothing: Optional[float],
+    shell: Optional[Tuple[float, float]],
+    layers: int,
+    reduce: str,
+) -> Dict[str, Any]:
+    """``values`` (K, V), ``outside`` (per frame), ``shell`` (inside, outside, layers),
+    ``smoothing``."""

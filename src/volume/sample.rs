@@ -240,9 +240,7 @@ pub fn sample_sequence(
                 normals: mesh.n_vertices(),
             });
         }
-        let smoothed = (sigma > 0.0)
-            .then(|| volume.smoothed(sigma))
-            .transpose()?;
+        let smoothed = (sigma > 0.0).then(|| volume.smoothed(sigma)).transpose()?;
         let volume = smoothed.as_ref().unwrap_or(volume);
         let normals = vertex_normals(mesh, x);
         let sampled = sample_shell(volume, x, &normals, &shell, options.reduce)?;
