@@ -13,13 +13,14 @@
 //!
 //! For each case (frames 114 → 116, 120 → 122, 140 → 141, 140 → 142 and the sequence
 //! 140–142: every volume of the folder) it fits a surface through the cells' centres
-//! (`meshflow::surface`, a height over a sphere fitted to the first frame), carries the Gaussian-smoothed volumes onto it (`meshflow::volume`, the maximum along
-//! the vertex normal over a shell), solves with several settings and scores each flow at the
-//! cells matched between frames by mutual nearest neighbours (`meshflow::accuracy::tracks`),
-//! beside two baselines: the zero flow and each cell moved as the mean of its 8 nearest
-//! neighbours. It prints one table row per setting with the time of each step, and draws the
-//! recommended flow of 140 → 141 into `out/zebrafish/`: the projected image, the flow's colours
-//! and its arrows with the cells' own displacements in red.
+//! (`meshflow::surface`, a height over a sphere fitted to the first frame), carries the
+//! volumes onto it with the default sampling (`meshflow::volume`: a Gaussian of two voxels,
+//! the maximum along the vertex normal over a shell), solves with several settings and scores
+//! each flow at the cells matched between frames by mutual nearest neighbours
+//! (`meshflow::accuracy::tracks`), beside two baselines: the zero flow and each cell moved as
+//! the mean of its 8 nearest neighbours. It prints one table row per setting with the time of
+//! each step, and draws the recommended flow of 140 → 141 into `out/zebrafish/`: the projected
+//! image, the flow's colours and its arrows with the cells' own displacements in red.
 
 use meshflow::accuracy::{match_tracks, score_result, TrackPoint, TrackScores};
 use meshflow::connection::vertex_normals;
