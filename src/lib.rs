@@ -21,7 +21,10 @@
 //! assembly) → [`flow`] (the space-time energy and its minimizer); [`chart`] reads flows in a
 //! parameter domain, [`io`] reads and writes files, [`render`] draws PNG pictures, [`shapes`]
 //! makes sample surfaces, [`synth`] sample sequences with known flow, and [`accuracy`] measures
-//! a computed flow against a known one. The user guide is `docs/guide.md`.
+//! a computed flow against a known one or at tracked points. Before the flow, recordings
+//! become moving meshes: [`track`] follows frames meshed each on its own, [`surface`] fits a
+//! moving surface through points (cell centres) and [`volume`] carries 3-D images (microscope
+//! stacks) onto it. The user guide is `docs/guide.md`.
 //!
 //! ```
 //! use meshflow::{connection::Connection, fem, geometry::IntrinsicGeometry, shapes};
