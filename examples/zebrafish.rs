@@ -115,8 +115,11 @@ fn case_frames() -> Vec<usize> {
     frames
 }
 
-/// Cell centres of the cases' frames (µm), by frame number.
-fn read_cells(data: &Path) -> Result<Vec<(usize, Vec<Vector3<f64>>)>, meshflow::Error> {
+/// The cell centres of one frame (µm).
+type Cells = Vec<Vector3<f64>>;
+
+/// Cell centres of the cases' frames, by frame number.
+fn read_cells(data: &Path) -> Result<Vec<(usize, Cells)>, meshflow::Error> {
     case_frames()
         .into_iter()
         .map(|k| {
@@ -150,7 +153,7 @@ struct Row {
 
 fn run_case(
     case: &Case,
-    cells: &[(usize, Vec<Vector3<f64>>)],
+    cells: &[(usize, Cells)],
     volumes: &[(usize, Volume)],
     vertices: usize,
     out: &Path,

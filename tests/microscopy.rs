@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{meshflow, meshflow_ok};
+use common::{meshflow, meshflow_ok, write_npy};
 use meshflow::accuracy::{score_result, Tracks};
 use meshflow::flow::{compute_flow, FlowParams, MeshSequence};
 use meshflow::mesh::Mesh;
@@ -107,19 +107,6 @@ fn the_pipeline_finds_the_turning_of_cells_on_a_sphere() {
     assert!(s.endpoint_ratio() < 0.15, "{s:?}");
     assert!(s.median_direction_degrees < 4.0, "{s:?}");
     assert!((0.85..1.05).contains(&s.median_speed_ratio), "{s:?}");
-}
-
-fn write_npy(path: &Path, shape: &[u64], values: &[f64]) {
-    use npyz::WriterBuilder;
-    let mut file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
-    let mut writer = npyz::WriteOptions::<f64>::new()
-        .default_dtype()
-        .shape(shape)
-        .writer(&mut file)
-        .begin_nd()
-        .unwrap();
-    writer.extend(values.iter().copied()).unwrap();
-    writer.finish().unwrap();
 }
 
 fn write_points(path: &Path, frames: &[Vec<Vector3<f64>>]) {

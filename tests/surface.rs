@@ -4,6 +4,8 @@
 //! else, the cap covers the points, the resolution is what was asked, points read from CSV and NPY alike, and bad
 //! input is an error naming the frame and point.
 
+mod common;
+
 use meshflow::surface::{
     fit_surface, read_points, FitOptions, Reference, Resolution, Shape, SurfaceError,
 };
@@ -203,8 +205,11 @@ fn the_resolution_is_what_was_asked() {
     let points: Vec<Vector3<f64>> = directions.iter().map(|d| CENTRE + d * 10.0).collect();
     for n in [1000, 10_000] {
         let whole = Shape::SphereLike { whole: true };
-        let fitted =
-            fit_surface(&[points.clone()], &options(whole, Resolution::Vertices(n))).unwrap();
+        let fitted = fit_surface(
+            std::slice::from_ref(&points),
+            &options(whole, Resolution::Vertices(n)),
+        )
+        .unwrap();
         let count = fitted.positions[0].len() as f64;
         assert!(
             count / n as f64 > 0.5 && count / (n as f64) < 2.0,
@@ -251,7 +256,6 @@ fn points_read_from_csv_and_npy_alike() {
     );
 
     // (K, N, 3) tracks: untracked (NaN) rows are dropped per frame.
-    use npyz::WriterBuilder;
     let tracks = dir.path().join("tracks.npy");
     let values = [
         1.0,
@@ -267,15 +271,7 @@ fn points_read_from_csv_and_npy_alike() {
         8.0,
         9.0,
     ];
-    let mut file = std::fs::File::create(&tracks).unwrap();
-    let mut writer = npyz::WriteOptions::<f64>::new()
-        .default_dtype()
-        .shape(&[2, 2, 3])
-        .writer(&mut file)
-        .begin_nd()
-        .unwrap();
-    writer.extend(values).unwrap();
-    writer.finish().unwrap();
+    common::write_npy(&tracks, &[2, 2, 3], &values);
     let frames = read_points(&tracks).unwrap();
     assert_eq!(frames[0], vec![Vector3::new(1.0, 2.0, 3.0)]);
     assert_eq!(frames[1].len(), 2);
@@ -318,7 +314,7 @@ fn bad_points_are_errors_naming_frame_and_point() {
         ..default
     };
     assert!(matches!(
-        fit(&[good.clone()], &bad_smoothing),
+        fit(std::slice::from_ref(&good), &bad_smoothing),
         SurfaceError::BadSetting { .. }
     ));
     let message = fit(&[good], &options(CAP, Resolution::EdgeLength(f64::NAN))).to_string();

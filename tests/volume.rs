@@ -3,6 +3,9 @@
 //! anisotropic ImageJ spacing) read back voxel for voxel, sampling along normals reads a
 //! distance field at the right offsets, and bad input is an error naming the file.
 
+mod common;
+
+use common::write_npy;
 use meshflow::connection::vertex_normals;
 use meshflow::synth::rotating_sphere;
 use meshflow::volume::{
@@ -104,19 +107,6 @@ fn the_gaussian_keeps_constants_and_mass_and_has_variance_sigma_squared() {
 /// `(z, y, x)` test pattern with distinct integer values in every voxel (u8 holds them).
 fn pattern(shape: [usize; 3], k: usize, j: usize, i: usize) -> f64 {
     ((k * shape[1] + j) * shape[2] + i) as f64 + 3.0
-}
-
-fn write_npy(path: &Path, shape: &[u64], values: &[f64]) {
-    use npyz::WriterBuilder;
-    let mut file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
-    let mut writer = npyz::WriteOptions::<f64>::new()
-        .default_dtype()
-        .shape(shape)
-        .writer(&mut file)
-        .begin_nd()
-        .unwrap();
-    writer.extend(values.iter().copied()).unwrap();
-    writer.finish().unwrap();
 }
 
 fn pattern_values(frames: usize, shape: [usize; 3]) -> Vec<f64> {

@@ -225,3 +225,17 @@ pub fn assert_same_intrinsic_flow(a: &FlowResult, b: &FlowResult) {
     );
     assert!((a.energy - b.energy).abs() < 1e-10 * a.energy);
 }
+
+/// Writes `values` as a float64 `.npy` file of `shape` (C order).
+pub fn write_npy(path: &Path, shape: &[u64], values: &[f64]) {
+    use npyz::WriterBuilder;
+    let mut file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let mut writer = npyz::WriteOptions::<f64>::new()
+        .default_dtype()
+        .shape(shape)
+        .writer(&mut file)
+        .begin_nd()
+        .unwrap();
+    writer.extend(values.iter().copied()).unwrap();
+    writer.finish().unwrap();
+}
