@@ -431,18 +431,25 @@ fn read_frames(
 
 /// Reads one mesh file (`.obj`, `.ply`, `.gltf`, `.glb`) with its grey values, if any.
 pub fn read_mesh(path: &Path) -> Result<FrameMesh, IoError> {
+    read_mesh_with(path, &LoadOptions::default())
+}
+
+/// [`read_mesh`] with the image options of `options` (`intensity_attribute`; with
+/// `intensity` set, a PLY without colours is not an error).
+pub fn read_mesh_with(path: &Path, options: &LoadOptions) -> Result<FrameMesh, IoError> {
     let format = FrameFormat::of(path).ok_or_else(|| {
         IoError::format(
             path,
             "unknown mesh format (expected .obj, .ply, .gltf or .glb)",
         )
     })?;
-    read_frame(
-        format,
-        path,
-        &LoadOptions::default(),
-        &TextureCache::default(),
-    )
+    if options.intensity_attribute.is_some() && format != FrameFormat::Ply {
+        return Err(IoError::format(
+            path,
+            "--intensity-attribute applies to PLY frames only",
+        ));
+    }
+    read_frame(format, path, options, &TextureCache::default())
 }
 
 fn read_frame(
@@ -474,15 +481,18 @@ fn read_frame(
                     file,
                 )?)),
                 None if untold && !ply.properties.is_empty() => {
-                    // Without colours, a scalar property is most likely the grey value.
+                    // Without colours, a scalar property is most likely the grey value;
+                    // one with fractional values rather than an integer id or label.
                     let names: Vec<&str> = ply.properties.iter().map(|(n, _)| n.as_str()).collect();
+                    let likely = (ply.properties.iter())
+                        .find(|(_, values)| values.iter().any(|v| v.fract() != 0.0))
+                        .map_or(names[0], |(name, _)| name.as_str());
                     return Err(IoError::format(
                         file,
                         format!(
                             "no grey values: no vertex colours, but scalar vertex properties \
-                             {}; use --intensity-attribute {} (or --intensity FILE.npy)",
+                             {}; use --intensity-attribute {likely} (or --intensity FILE.npy)",
                             names.join(", "),
-                            names[0]
                         ),
                     ));
                 }

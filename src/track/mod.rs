@@ -20,21 +20,39 @@
 //! feature that moved sideways by more than its width, a step too large for the surface)
 //! falls back to the closest point, and is counted.
 //!
+//! Normal motion alone keeps no neighbours apart: where a step is large against the surface's
+//! radius of curvature the mesh shears, and over many frames it folds. So after each normal step
+//! the tracked mesh is relaxed on the new surface ([`Relaxation::Arap`], the default; see
+//! `relax`): it moves tangentially to stay as rigid as possible against the previous frame. A
+//! recording whose sample drifts is first aligned frame to frame ([`Alignment`], see `align`),
+//! and a coarser reference can be made from frame 0 ([`simplified_reference`]).
+//!
 //! What it means for the flow: `solve` on the tracked sequence measures motion relative to
-//! points that move normally, which is exactly the flow of the paper's model; the tangential
-//! motion of the material is what the flow then shows. Limits: the tracked mesh's quality
-//! drifts over many frames (tangential shrinking or stretching is not corrected; the report
-//! shows the worst edge and area change), and a topology change cannot be followed.
+//! the tracked points. With [`Relaxation::None`] they move normally, which is exactly the
+//! paper's model, and the flow is all of the material's tangential motion. With relaxation the
+//! mesh also moves tangentially, and the material's velocity is the mesh's own velocity plus
+//! the flow (`solve` writes that sum as `velocity.npy`). A topology change cannot be followed.
+//!
+//! Reports: every [`FrameReport`] compares frame `k` with frame `k − 1` (per frame, not
+//! cumulative), except `worst_edge_change` and `worst_area_change`, which compare with the
+//! reference (cumulative). Frame 0's report is the projection of the reference onto frame 0.
 
+mod align;
+mod reference;
+mod relax;
 mod surface;
 
 use crate::connection::vertex_normals;
 use crate::flow::{FlowError, MeshSequence};
+use crate::geometry::SurfacePoint;
 use crate::mesh::{ConnectivityError, Mesh};
 use crate::shapes::Surface;
 use nalgebra::Vector3;
 use rayon::prelude::*;
+pub use align::{Alignment, AlignmentReport, Motion};
+pub use reference::simplified_reference;
 pub use surface::{barycentric, FrameSurface, SurfaceSample};
+use relax::Relaxer;
 
 /// One frame as read, with its own vertices and triangles.
 #[derive(Clone, Debug, Default)]
@@ -45,8 +63,32 @@ pub struct TrackFrame {
     pub intensity: Vec<f64>,
 }
 
-/// How far a vertex may move per frame, and what to do with vertices and triangles that
-/// cannot be tracked.
+/// How the tracked mesh is kept well shaped after each normal step (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Relaxation {
+    /// Normal motion only: the paper's Appendix A.
+    None,
+    /// As rigid as possible against the previous frame, on the new surface, with at most
+    /// `iterations` local/global steps per frame.
+    Arap { iterations: usize },
+}
+
+impl Relaxation {
+    /// The default number of ARAP steps per frame.
+    pub const DEFAULT_ITERATIONS: usize = 20;
+}
+
+impl Default for Relaxation {
+    fn default() -> Self {
+        Relaxation::Arap {
+            iterations: Self::DEFAULT_ITERATIONS,
+        }
+    }
+}
+
+/// How far a vertex may move per frame, how the mesh is kept in shape, and what to do with
+/// vertices and triangles that cannot be tracked.
 #[derive(Clone, Debug, Default)]
 pub struct TrackOptions {
     /// Largest normal step per frame, in the data's length unit; `None`: 10 % of the diagonal
@@ -58,9 +100,18 @@ pub struct TrackOptions {
     /// The mesh to track (positions on frame 0's surface, or near it: it is first moved onto
     /// frame 0 by the same normal step); `None`: frame 0's own mesh.
     pub reference: Option<Surface>,
+    /// Make the reference from frame 0 (or from `reference`) with about this many vertices
+    /// ([`simplified_reference`]).
+    pub reference_vertices: Option<usize>,
+    /// Tangential relaxation after each normal step.
+    pub relaxation: Relaxation,
+    /// The motion taken out between frames before tracking.
+    pub alignment: Alignment,
 }
 
-/// What tracking did from the previous frame to this one.
+/// What tracking did from the previous frame to this one (frame 0: from the reference onto
+/// frame 0). Per frame, except the two `worst_*_change` fields, which are against the
+/// reference.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct FrameReport {
     pub frame: usize,
@@ -71,27 +122,66 @@ pub struct FrameReport {
     pub fallbacks: usize,
     /// Misses farther than the step bound (only with `keep_going`).
     pub beyond_max_step: usize,
+    /// Distance each vertex moved from the previous frame: mean and largest.
     pub mean_step: f64,
     pub max_step: f64,
+    /// Tangential distance the relaxation moved vertices from where the normal step put them:
+    /// mean and largest.
+    pub mean_relaxation: f64,
+    pub max_relaxation: f64,
+    /// `|log(l / l_previous)|` over the edges: 99th percentile and largest.
+    pub edge_log_ratio_p99: f64,
+    pub edge_log_ratio_max: f64,
     /// `max |l/l_ref − 1|` over the edges, against the reference mesh.
     pub worst_edge_change: f64,
     /// `max |A/A_ref − 1|` over the triangles, against the reference mesh.
     pub worst_area_change: f64,
     /// Triangles whose normal turned by more than 90° in this step.
     pub flipped_triangles: usize,
+    /// The motion between this frame and the previous one (frames after the first).
+    pub alignment: Option<AlignmentReport>,
 }
 
 /// The whole run: the step bound used and one report per frame (frame 0: the reference).
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct TrackReport {
     pub max_step_bound: f64,
+    pub relaxation: Option<Relaxation>,
+    pub alignment: Alignment,
+    /// Vertices of the reference: frame 0's, the one given, or made to the asked size.
+    pub reference_vertices: usize,
     pub frames: Vec<FrameReport>,
+    /// Frames that look misaligned against the previous one, and other things to know.
+    pub warnings: Vec<String>,
 }
 
 /// A tracked sequence with its report.
 pub struct Tracked {
     pub sequence: MeshSequence,
     pub report: TrackReport,
+    /// `landings[k][i]`: where tracked vertex `i` lies on frame `k`'s own triangulation (a
+    /// face of the frame as given and barycentric coordinates), to carry any per-vertex data
+    /// of the frames (colour channels, labels, signals) onto the tracked mesh.
+    pub landings: Vec<Vec<SurfacePoint>>,
+}
+
+/// Where on the tracked mesh a fault is: a point in the frame's coordinates, and whether it is
+/// at the mesh's boundary.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Location {
+    pub position: [f64; 3],
+    pub at_boundary: bool,
+}
+
+impl std::fmt::Display for Location {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let [x, y, z] = self.position;
+        let place = match self.at_boundary {
+            true => "at the boundary",
+            false => "inside",
+        };
+        write!(f, "at ({x:.4e}, {y:.4e}, {z:.4e}), {place}")
+    }
 }
 
 /// Why frames could not be tracked. Each variant names the frame (and vertex or face).
@@ -121,34 +211,45 @@ pub enum TrackError {
     #[error("frame {frame}: {detail}")]
     Surface { frame: usize, detail: String },
     #[error(
-        "frame {frame}: vertex {vertex} is {distance:.3e} from the surface, beyond the step bound \
-         {max_step:.3e} (a topology change or too large a motion; raise --max-step, or \
-         --keep-going to take the closest point)"
+        "frame {frame}: vertex {vertex} ({at}) is {distance:.3e} from the surface, beyond the \
+         step bound {max_step:.3e} (a topology change, a drift or too large a motion; raise \
+         --max-step, try --align rigid, or --keep-going to take the closest point)"
     )]
     TooFar {
         frame: usize,
         vertex: usize,
         distance: f64,
         max_step: f64,
+        at: Location,
     },
     #[error(
-        "frame {frame}: {count} triangles flipped, first triangle {face} (the tracked mesh \
-         folds where the normal step exceeds the surface's radius of curvature: use frames \
-         closer in time or a coarser --reference; --keep-going to continue anyway)"
+        "frame {frame}: {count} triangles flipped, first triangle {face} ({at}): the tracked \
+         mesh folds where the step is large against the surface's curvature; use frames closer \
+         in time, a coarser reference (--reference-vertices) or --align rigid; --keep-going to \
+         continue anyway"
     )]
     Flipped {
         frame: usize,
         face: usize,
         count: usize,
+        at: Location,
     },
     #[error(
-        "frame {frame}: tracked triangle {face} collapsed to zero area (its vertices landed on \
-         one line): the tracked mesh cannot carry a flow; use frames closer in time or a \
-         coarser --reference"
+        "frame {frame}: tracked triangle {face} ({at}) collapsed to zero area (its vertices \
+         landed on one line): the tracked mesh cannot carry a flow; use frames closer in time \
+         or a coarser reference (--reference-vertices)"
     )]
-    Collapsed { frame: usize, face: usize },
+    Collapsed {
+        frame: usize,
+        face: usize,
+        at: Location,
+    },
     #[error("the step bound must be a positive number, got {0}")]
     BadMaxStep(f64),
+    #[error("a reference of {0} vertices cannot be made: ask for at least 4")]
+    BadReferenceVertices(usize),
+    #[error("frame {frame}: the relaxation's system is singular ({detail})")]
+    Relaxation { frame: usize, detail: String },
     #[error("the reference mesh: {0}")]
     Reference(#[from] ConnectivityError),
     #[error("tracked sequence: {0}")]
@@ -162,6 +263,17 @@ pub fn track(
     times: Option<Vec<f64>>,
     options: &TrackOptions,
 ) -> Result<Tracked, TrackError> {
+    track_with_progress(frames, times, options, &mut |_| {})
+}
+
+/// [`track`], calling `on_frame` with each frame's report as soon as the frame is done (the
+/// frames done before a failure are thus known to the caller).
+pub fn track_with_progress(
+    frames: &[TrackFrame],
+    times: Option<Vec<f64>>,
+    options: &TrackOptions,
+    on_frame: &mut dyn FnMut(&FrameReport),
+) -> Result<Tracked, TrackError> {
     let first = frames.first().ok_or(TrackError::NoFrames)?;
     for (k, frame) in frames.iter().enumerate() {
         check_frame(k, frame)?;
@@ -171,36 +283,108 @@ pub fn track(
         Some(s) => return Err(TrackError::BadMaxStep(s)),
         None => 0.1 * bounding_diagonal(&first.positions),
     };
-    let (reference, faces) = match &options.reference {
-        Some(surface) => (surface.positions.clone(), surface.faces.clone()),
-        None => (first.positions.clone(), first.faces.clone()),
+    let reference = reference_surface(first, options)?;
+    let mesh = Mesh::new(reference.positions.len(), reference.faces)?;
+    let relaxer = match options.relaxation {
+        Relaxation::Arap { iterations } if iterations > 0 => Some(Relaxer::new(&mesh, iterations)),
+        _ => None,
     };
-    let mesh = Mesh::new(reference.len(), faces)?;
     let tracker = Tracker {
         mesh: &mesh,
-        reference: &reference,
+        reference: &reference.positions,
         bound,
         keep_going: options.keep_going,
+        relaxer,
+    };
+    let mut report = TrackReport {
+        max_step_bound: bound,
+        relaxation: tracker.relaxer.is_some().then_some(options.relaxation),
+        alignment: options.alignment,
+        reference_vertices: mesh.n_vertices(),
+        ..Default::default()
     };
     let mut positions = Vec::with_capacity(frames.len());
     let mut intensities = Vec::with_capacity(frames.len());
-    let mut reports = Vec::with_capacity(frames.len());
-    let mut current = reference.clone();
+    let mut landings = Vec::with_capacity(frames.len());
+    let mut current = reference.positions.clone();
+    let mut previous: Option<TrackFrame> = None;
     for (k, frame) in frames.iter().enumerate() {
-        let step = tracker.step(k, &current, frame)?;
+        let (frame, alignment) = match &previous {
+            Some(before) => align_to(k, frame, before, options.alignment, &mut report.warnings)?,
+            None => (frame.clone(), None),
+        };
+        let mut step = tracker.step(k, &current, &frame)?;
+        step.report.alignment = alignment;
+        on_frame(&step.report);
         current = step.positions;
         positions.push(current.clone());
         intensities.push(step.intensity);
-        reports.push(step.report);
+        landings.push(step.landing);
+        report.frames.push(step.report);
+        previous = Some(frame);
     }
     let sequence = MeshSequence::new(mesh, positions, intensities, times)?;
     Ok(Tracked {
         sequence,
-        report: TrackReport {
-            max_step_bound: bound,
-            frames: reports,
-        },
+        report,
+        landings,
     })
+}
+
+/// The mesh to track: the given reference or frame 0's, simplified if asked.
+fn reference_surface(first: &TrackFrame, options: &TrackOptions) -> Result<Surface, TrackError> {
+    let given = match &options.reference {
+        Some(surface) => surface.clone(),
+        None => Surface {
+            positions: first.positions.clone(),
+            faces: first.faces.clone(),
+        },
+    };
+    match options.reference_vertices {
+        Some(n) if n < 4 => Err(TrackError::BadReferenceVertices(n)),
+        Some(n) => Ok(simplified_reference(&given.positions, &given.faces, n)),
+        None => Ok(given),
+    }
+}
+
+/// Frame `k` moved onto `previous` (already aligned) as `alignment` asks; a rigid fit is still
+/// measured without alignment, and a frame it would bring much closer is reported.
+fn align_to(
+    k: usize,
+    frame: &TrackFrame,
+    previous: &TrackFrame,
+    alignment: Alignment,
+    warnings: &mut Vec<String>,
+) -> Result<(TrackFrame, Option<AlignmentReport>), TrackError> {
+    let target = FrameSurface::new(k - 1, &previous.positions, &previous.faces, &previous.intensity)?;
+    let (motion, report) = align::fit(&frame.positions, &target, alignment);
+    let spacing = median_edge_length(&frame.positions, &frame.faces);
+    let (before, after) = (report.median_distance_before, report.median_distance_after);
+    if alignment == Alignment::None && before > spacing && after < 0.5 * before {
+        warnings.push(format!(
+            "frame {k} looks misaligned against frame {}: a rigid motion ({:.1}°, translation \
+             {:.3e}) brings its median distance from {before:.3e} to {after:.3e} (the median \
+             edge is {spacing:.3e}); try --align rigid",
+            k - 1,
+            report.rotation_degrees,
+            Vector3::from(report.translation).norm()
+        ));
+    }
+    if alignment != Alignment::None && after > spacing {
+        warnings.push(format!(
+            "frame {k} is still {after:.3e} from frame {} after alignment (median distance; the \
+             median edge is {spacing:.3e}): the surfaces differ by more than a motion",
+            k - 1
+        ));
+    }
+    let aligned = match alignment {
+        Alignment::None => frame.clone(),
+        _ => TrackFrame {
+            positions: frame.positions.iter().map(|x| motion.apply(x)).collect(),
+            ..frame.clone()
+        },
+    };
+    Ok((aligned, Some(report)))
 }
 
 /// How much farther than the closest point a hit along the normal may be: a surface tilted by
@@ -217,12 +401,14 @@ struct Tracker<'a> {
     reference: &'a [Vector3<f64>],
     bound: f64,
     keep_going: bool,
+    relaxer: Option<Relaxer>,
 }
 
 /// The tracked mesh on one frame: positions, grey values, and what happened.
 struct Step {
     positions: Vec<Vector3<f64>>,
     intensity: Vec<f64>,
+    landing: Vec<SurfacePoint>,
     report: FrameReport,
 }
 
@@ -234,7 +420,7 @@ enum Landing {
 }
 
 impl Tracker<'_> {
-    /// Moves `current` onto `frame`'s surface along the vertex normals.
+    /// Moves `current` onto `frame`'s surface along the vertex normals, then relaxes it there.
     fn step(
         &self,
         k: usize,
@@ -252,8 +438,7 @@ impl Tracker<'_> {
             frame: k,
             ..Default::default()
         };
-        let mut next = Vec::with_capacity(current.len());
-        let mut grey = Vec::with_capacity(current.len());
+        let mut samples = Vec::with_capacity(current.len());
         for (i, landing) in landings.into_iter().enumerate() {
             let point = match landing {
                 Landing::Hit(p) => p,
@@ -273,17 +458,31 @@ impl Tracker<'_> {
                         vertex: i,
                         distance: (p.position - current[i]).norm(),
                         max_step: self.bound,
+                        at: self.location(&[i], current),
                     })
                 }
             };
-            let step = (point.position - current[i]).norm();
-            report.mean_step += step / current.len() as f64;
+            samples.push(point);
+        }
+        let normal_step: Vec<Vector3<f64>> = samples.iter().map(|p| p.position).collect();
+        if let Some(relaxer) = &self.relaxer {
+            samples = relaxer
+                .relax(self.mesh, current, samples, &surface)
+                .map_err(|detail| TrackError::Relaxation { frame: k, detail })?;
+        }
+        let (next, grey): (Vec<_>, Vec<_>) =
+            samples.into_iter().map(|p| (p.position, p.intensity)).unzip();
+        let n = current.len() as f64;
+        for ((x, y), z) in current.iter().zip(&next).zip(&normal_step) {
+            let (step, relaxed) = ((y - x).norm(), (y - z).norm());
+            report.mean_step += step / n;
             report.max_step = report.max_step.max(step);
-            next.push(point.position);
-            grey.push(point.intensity);
+            report.mean_relaxation += relaxed / n;
+            report.max_relaxation = report.max_relaxation.max(relaxed);
         }
         self.measure_quality(k, current, &next, &mut report)?;
         Ok(Step {
+            landing: next.par_iter().map(|y| surface.locate(y)).collect(),
             positions: next,
             intensity: grey,
             report,
@@ -308,7 +507,17 @@ impl Tracker<'_> {
         }
     }
 
-    /// Edge and area changes against the reference, and triangles flipped in this step.
+    /// The mean of `vertices`' positions, and whether any of them is on the boundary.
+    fn location(&self, vertices: &[usize], positions: &[Vector3<f64>]) -> Location {
+        let sum: Vector3<f64> = vertices.iter().map(|&v| positions[v]).sum();
+        Location {
+            position: (sum / vertices.len() as f64).into(),
+            at_boundary: vertices.iter().any(|&v| self.mesh.is_boundary_vertex(v)),
+        }
+    }
+
+    /// Edge and area changes against the reference and the previous frame, and triangles
+    /// flipped in this step.
     fn measure_quality(
         &self,
         k: usize,
@@ -320,33 +529,61 @@ impl Tracker<'_> {
             let [a, b, c] = f.map(|v| x[v as usize]);
             (b - a).cross(&(c - a))
         };
+        let corners = |face: &[u32; 3]| face.map(|v| v as usize);
         let mut flipped = Vec::new();
         for (f, face) in self.mesh.faces().iter().enumerate() {
             let (reference, now) = (normal(self.reference, face), normal(after, face));
             if now.norm() <= COLLAPSED_AREA * reference.norm() {
-                return Err(TrackError::Collapsed { frame: k, face: f });
+                let at = self.location(&corners(face), after);
+                return Err(TrackError::Collapsed { frame: k, face: f, at });
             }
             let change = (now.norm() / reference.norm() - 1.0).abs();
             report.worst_area_change = report.worst_area_change.max(change);
             if normal(before, face).dot(&now) <= 0.0 {
                 flipped.push(f);
             }
-            for c in 0..3 {
-                let (i, j) = (face[c] as usize, face[(c + 1) % 3] as usize);
-                let length = (after[i] - after[j]).norm();
-                let change = (length / (self.reference[i] - self.reference[j]).norm() - 1.0).abs();
-                report.worst_edge_change = report.worst_edge_change.max(change);
-            }
         }
+        let mut log_ratios = Vec::with_capacity(self.mesh.n_edges());
+        for &[i, j] in self.mesh.edges() {
+            let (i, j) = (i as usize, j as usize);
+            let length = (after[i] - after[j]).norm();
+            let change = (length / (self.reference[i] - self.reference[j]).norm() - 1.0).abs();
+            report.worst_edge_change = report.worst_edge_change.max(change);
+            log_ratios.push((length / (before[i] - before[j]).norm()).ln().abs());
+        }
+        (report.edge_log_ratio_p99, report.edge_log_ratio_max) = percentile_and_max(log_ratios, 0.99);
         report.flipped_triangles = flipped.len();
         match flipped.first() {
             Some(&face) if !self.keep_going => Err(TrackError::Flipped {
                 frame: k,
                 face,
                 count: flipped.len(),
+                at: self.location(&corners(&self.mesh.faces()[face]), after),
             }),
             _ => Ok(()),
         }
+    }
+}
+
+/// The `q`-quantile (nearest rank) and the largest of `values` (0 for none).
+fn percentile_and_max(mut values: Vec<f64>, q: f64) -> (f64, f64) {
+    if values.is_empty() {
+        return (0.0, 0.0);
+    }
+    values.sort_unstable_by(f64::total_cmp);
+    let rank = ((q * values.len() as f64).ceil() as usize).clamp(1, values.len());
+    (values[rank - 1], values[values.len() - 1])
+}
+
+fn median_edge_length(positions: &[Vector3<f64>], faces: &[[u32; 3]]) -> f64 {
+    let mut lengths: Vec<f64> = faces
+        .iter()
+        .map(|f| (positions[f[0] as usize] - positions[f[1] as usize]).norm())
+        .collect();
+    let middle = lengths.len() / 2;
+    match lengths.is_empty() {
+        true => 0.0,
+        false => *lengths.select_nth_unstable_by(middle, f64::total_cmp).1,
     }
 }
 

@@ -84,6 +84,16 @@ impl<'a> FrameSurface<'a> {
         }
     }
 
+    /// The closest point of the surface to `point` and the unit normal of the triangle it lies
+    /// on (oriented as that triangle's corners are).
+    pub fn closest_point_and_normal(&self, point: &Vector3<f64>) -> (SurfaceSample, Vector3<f64>) {
+        let (face, position) = self.project(point);
+        let [a, b, c] = self.faces[face].map(|v| self.positions[v as usize]);
+        let normal = (b - a).cross(&(c - a));
+        let unit = normal.try_normalize(0.0).unwrap_or_else(Vector3::z);
+        (self.sample(face, position), unit)
+    }
+
     /// The face and position of the closest point of the surface to `point`.
     fn project(&self, point: &Vector3<f64>) -> (usize, Vector3<f64>) {
         let (projection, (face, _)) = self

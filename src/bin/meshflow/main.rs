@@ -475,8 +475,70 @@ struct TrackArgs {
     /// else 0,1,2,…)
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     times: Option<Vec<f64>>,
+    /// Track a reference of about N vertices made from frame 0 (or from --reference) by
+    /// simplification: faster, and it folds less than a fine segmentation mesh
+    #[arg(long, value_name = "N")]
+    reference_vertices: Option<usize>,
+    /// After each normal step, relax the mesh on the new surface as rigidly as possible
+    /// against the previous frame (arap), or move vertices along their normals only (none,
+    /// the paper's normal motion)
+    #[arg(long, value_name = "KIND", default_value = "arap")]
+    relax: RelaxKind,
+    /// Relaxation steps per frame (with --relax arap)
+    #[arg(long, value_name = "N", default_value_t = meshflow::track::Relaxation::DEFAULT_ITERATIONS)]
+    relax_iterations: usize,
+    /// Take out the motion of the whole sample between frames before tracking: rigid,
+    /// similarity (also uniform scale) or none; the transforms are in track.json
+    #[arg(long, value_name = "KIND", default_value = "none")]
+    align: meshflow::track::Alignment,
+    /// The image as a float .npy of shape (frames, vertices) or (frames, vertices, channels)
+    /// when every frame has as many vertices, or a directory of one .npy per frame, (vertices,)
+    /// or (vertices, channels), in natural order; instead of the files' colours
+    #[arg(long, value_name = "FILE.npy|DIR")]
+    intensity: Option<PathBuf>,
+    /// PLY vertex property holding the grey values (instead of the colours)
+    #[arg(long)]
+    intensity_attribute: Option<String>,
+    /// Image channels: auto (every channel the input has), rgb, luma (Rec. 709) or grey (mean)
+    #[arg(long, default_value = "auto")]
+    channels: meshflow::io::Channels,
     #[command(flatten)]
     building: MeshArgs,
+}
+
+/// `--relax`.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum RelaxKind {
+    Arap,
+    None,
+}
+
+impl TrackArgs {
+    fn options(&self) -> meshflow::track::TrackOptions {
+        use meshflow::track::Relaxation;
+        meshflow::track::TrackOptions {
+            max_step: self.max_step,
+            keep_going: self.keep_going,
+            reference: None,
+            reference_vertices: self.reference_vertices,
+            relaxation: match self.relax {
+                RelaxKind::Arap => Relaxation::Arap {
+                    iterations: self.relax_iterations,
+                },
+                RelaxKind::None => Relaxation::None,
+            },
+            alignment: self.align,
+        }
+    }
+
+    fn load_options(&self) -> LoadOptions {
+        LoadOptions {
+            intensity: self.intensity.clone(),
+            intensity_attribute: self.intensity_attribute.clone(),
+            channels: self.channels,
+            ..self.building.options()
+        }
+    }
 }
 
 impl SolveArgs {
@@ -556,13 +618,9 @@ fn main() -> ExitCode {
             input: &args.input,
             out: &args.out,
             reference: args.reference.as_deref(),
-            options: meshflow::track::TrackOptions {
-                max_step: args.max_step,
-                keep_going: args.keep_going,
-                reference: None,
-            },
+            options: args.options(),
             times: args.times.clone(),
-            load: args.building.options(),
+            load: args.load_options(),
             overwrite: args.force.overwrite(),
         }),
         Command::Sample(args) => args.request().and_then(sample::run),

@@ -1,13 +1,17 @@
 //! `meshflow track`: frames with their own triangulations → one fixed-connectivity sequence
-//! (NPY directory that `solve` reads), by normal motion (`meshflow::track`).
+//! (NPY directory that `solve` reads), by normal motion and relaxation (`meshflow::track`).
+//!
+//! The image goes along channel by channel: every tracked vertex lands on a triangle of each
+//! frame ([`Tracked::landings`]), where each channel of that frame is interpolated.
 
-use crate::progress::during;
+use crate::progress::count_progress;
 use meshflow::io::{
-    load_mesh, load_sequence, read_mesh, read_times_file, write_atomically, write_npy_sequence,
-    LoadOptions, Overwrite, SequenceSource, StagedDir,
+    load_mesh, load_sequence, natural_order, read_mesh_with, read_npy_float, read_times_file,
+    select_channels, write_atomically, write_npy, write_npy_sequence, IoError, LoadOptions,
+    Overwrite, SequenceSource, StagedDir, VertexValues,
 };
 use meshflow::shapes::Surface;
-use meshflow::track::{track, FrameReport, TrackFrame, TrackOptions, Tracked};
+use meshflow::track::{track_with_progress, FrameReport, TrackFrame, TrackOptions, Tracked};
 use meshflow::Error;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -26,120 +30,285 @@ pub struct TrackRequest<'a> {
 pub fn run(request: TrackRequest) -> Result<(), Error> {
     let mut staged = StagedDir::create(request.out, request.overwrite)?;
     staged.record_command(crate::command_line());
-    let input = during(format!("reading {}", request.input.display()), || {
+    let input = crate::progress::during(format!("reading {}", request.input.display()), || {
         read_frames(request.input, &request.load)
     })?;
-    let has_grey = input.frames.iter().any(|f| f.intensity.is_some());
-    let frames: Vec<TrackFrame> = input
-        .frames
-        .into_iter()
-        .map(|f| TrackFrame {
-            intensity: f
-                .intensity
-                .unwrap_or_else(|| vec![0.0; f.frame.positions.len()]),
-            ..f.frame
+    let channels = frame_channels(&input, &request.load)?;
+    let frames: Vec<TrackFrame> = (input.frames.iter().zip(&channels))
+        .map(|(frame, channels)| TrackFrame {
+            intensity: match channels {
+                Some(c) => mean(c),
+                None => vec![0.0; frame.positions.len()],
+            },
+            positions: frame.positions.clone(),
+            faces: frame.faces.clone(),
         })
         .collect();
-    let reference_file = request.reference.unwrap_or(&input.first_file);
-    let reference = load_mesh(reference_file, &request.load)?;
-    crate::print_warnings(&reference.warnings);
     let options = TrackOptions {
-        reference: Some(Surface {
-            faces: reference.mesh.faces().to_vec(),
-            positions: reference.positions,
-        }),
+        reference: reference_mesh(request.reference, &request.load)?,
         ..request.options
     };
+    print_header(request.input, &frames, &options);
+    let bar = count_progress(frames.len() as u64, "tracking frames");
+    let mut on_frame = |report: &FrameReport| {
+        bar.suspend(|| println!("  {}", describe(report)));
+        bar.inc(1);
+    };
     let times = request.times.or(input.times);
-    let tracked = during(format!("tracking {} frames", frames.len()), || {
-        track(&frames, times, &options)
-    })?;
-    write_outputs(&staged, &tracked, has_grey).map_err(|e| staged.error_in_target(e))?;
+    let tracked = track_with_progress(&frames, times, &options, &mut on_frame);
+    bar.finish_and_clear();
+    let tracked = tracked?;
+    let image = channels
+        .iter()
+        .all(Option::is_some)
+        .then(|| carry_image(&tracked, &frames, &channels));
+    write_outputs(&staged, &tracked, image.as_deref()).map_err(|e| staged.error_in_target(e))?;
     staged.commit()?;
-    print_report(&tracked, request.input, request.out);
-    if !has_grey {
-        eprintln!("meshflow: warning: the frames have no grey values: intensity.npy not written");
+    print_summary(&tracked, request.out);
+    if image.is_none() {
+        eprintln!(
+            "meshflow: warning: the frames have no image (vertex colours, texture or a PLY \
+             property): intensity.npy not written, and `meshflow solve` on the result will need \
+             --intensity FILE.npy of shape (frames, {} vertices); or track again with \
+             --intensity or --intensity-attribute",
+            tracked.sequence.mesh().n_vertices()
+        );
     }
     Ok(())
 }
 
-/// A frame as read, with its grey values if it has any.
-struct ReadFrame {
-    frame: TrackFrame,
-    intensity: Option<Vec<f64>>,
-}
-
-/// What `track` reads: the frames (each file its own mesh), times from a `times.txt` or the
-/// glTF animation, and the file whose mesh is the default reference.
+/// What `track` reads: the frames (each file its own mesh) with their images as stored, times
+/// from a `times.txt` or the glTF animation, and the file of frame 0 (the default reference).
 struct InputFrames {
-    frames: Vec<ReadFrame>,
+    frames: Vec<Surface>,
+    images: Vec<Option<VertexValues>>,
     times: Option<Vec<f64>>,
-    first_file: PathBuf,
+    files: Vec<PathBuf>,
 }
 
 fn read_frames(input: &Path, load: &LoadOptions) -> Result<InputFrames, Error> {
     let source = SequenceSource::detect(input)?;
     match &source {
         SequenceSource::Frames { files, .. } => {
-            let frames = files
+            let read: Vec<(Surface, Option<VertexValues>)> = files
                 .par_iter()
                 .map(|file| {
-                    let mesh = read_mesh(file)?;
-                    Ok(ReadFrame {
-                        frame: TrackFrame {
-                            positions: mesh.positions,
-                            faces: mesh.faces,
-                            intensity: Vec::new(),
-                        },
-                        intensity: mesh.image.map(|v| v.to_grey()),
-                    })
+                    let mesh = read_mesh_with(file, load)?;
+                    let surface = Surface {
+                        positions: mesh.positions,
+                        faces: mesh.faces,
+                    };
+                    Ok((surface, mesh.image))
                 })
-                .collect::<Result<Vec<_>, Error>>()?;
+                .collect::<Result<_, Error>>()?;
             let times_file = source.times_file().expect("frames are files");
-            let times = read_times_file(&times_file)?;
+            let (frames, images) = read.into_iter().unzip();
             Ok(InputFrames {
                 frames,
-                times,
-                first_file: files[0].clone(),
+                images,
+                times: read_times_file(&times_file)?,
+                files: files.clone(),
             })
         }
         // One connectivity already: tracking re-parametrizes it by normal motion.
         SequenceSource::GltfAnimation(file) | SequenceSource::Npy(file) => {
             let loaded = load_sequence(input, load)?;
             let sequence = &loaded.sequence;
-            let frames = (0..sequence.n_frames())
-                .map(|k| ReadFrame {
-                    frame: TrackFrame {
-                        positions: sequence.positions(k).expect("read from files").to_vec(),
-                        faces: sequence.mesh().faces().to_vec(),
-                        intensity: Vec::new(),
-                    },
-                    intensity: Some(sequence.intensities(k).to_vec()),
+            let k = sequence.n_frames();
+            let frames = (0..k)
+                .map(|k| Surface {
+                    positions: sequence.positions(k).expect("read from files").to_vec(),
+                    faces: sequence.mesh().faces().to_vec(),
                 })
                 .collect();
             Ok(InputFrames {
                 frames,
+                images: (0..k)
+                    .map(|k| Some(VertexValues::Channels(sequence.channels(k).to_vec())))
+                    .collect(),
                 times: Some(sequence.times().to_vec()),
-                first_file: file.clone(),
+                files: vec![file.clone(); k],
             })
         }
         SequenceSource::Arrays => unreachable!("detect() finds files"),
     }
 }
 
-/// positions.npy, faces.npy, intensity.npy, times.txt and track.json.
-fn write_outputs(staged: &StagedDir, tracked: &Tracked, has_grey: bool) -> Result<(), Error> {
+/// Each frame's image channels `[c][i]` as `--intensity` and `--channels` choose; `None` for
+/// frames without an image.
+fn frame_channels(input: &InputFrames, load: &LoadOptions) -> Result<Vec<Option<Vec<Vec<f64>>>>, Error> {
+    let sizes: Vec<usize> = input.frames.iter().map(|f| f.positions.len()).collect();
+    let (values, file) = match &load.intensity {
+        Some(file) => (intensity_values(file, &sizes)?, file.as_path()),
+        None => match input.images.iter().position(Option::is_none) {
+            Some(k) if input.images.iter().any(Option::is_some) => {
+                return Err(IoError::format(
+                    &input.files[k],
+                    "this frame has no image (vertex colours, texture or property) but others do",
+                )
+                .into())
+            }
+            Some(_) => return Ok(vec![None; sizes.len()]),
+            None => (input.images.iter().flatten().cloned().collect(), input.files[0].as_path()),
+        },
+    };
+    for (k, (v, &n)) in values.iter().zip(&sizes).enumerate() {
+        if let Some(got) = v.wrong_length(n) {
+            let message = format!("frame {k} has {got} image values for {n} vertices");
+            return Err(IoError::format(file, message).into());
+        }
+    }
+    let images = select_channels(values, load.channels).map_err(|m| IoError::format(file, m))?;
+    Ok(images.into_frames().into_iter().map(Some).collect())
+}
+
+/// `--intensity`: one array (K, V) or (K, V, C) when every frame has V vertices, or a
+/// directory of one array per frame, (V_k,) or (V_k, C).
+fn intensity_values(path: &Path, sizes: &[usize]) -> Result<Vec<VertexValues>, Error> {
+    if path.is_dir() {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(path)
+            .map_err(|e| IoError::file(path, e))?
+            .filter_map(|entry| entry.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "npy"))
+            .collect();
+        files.sort_by(|a, b| natural_order(&a.to_string_lossy(), &b.to_string_lossy()));
+        if files.len() != sizes.len() {
+            let message = format!("{} .npy files for {} frames", files.len(), sizes.len());
+            return Err(IoError::format(path, message).into());
+        }
+        return files
+            .iter()
+            .map(|file| {
+                let array = read_npy_float(file)?;
+                let (rows, columns) = match array.shape[..] {
+                    [v] => (v as usize, 1),
+                    [v, c] => (v as usize, c as usize),
+                    _ => {
+                        let message = format!("shape {:?}, expected (vertices,) or (vertices, channels)", array.shape);
+                        return Err(IoError::format(file, message).into());
+                    }
+                };
+                Ok(channels_of(&array.data, rows, columns))
+            })
+            .collect();
+    }
+    let array = read_npy_float(path)?;
+    let (k, v, c) = match array.shape[..] {
+        [k, v] => (k as usize, v as usize, 1),
+        [k, v, c] => (k as usize, v as usize, c as usize),
+        _ => {
+            let message = format!("shape {:?}, expected (frames, vertices) or (frames, vertices, channels)", array.shape);
+            return Err(IoError::format(path, message).into());
+        }
+    };
+    if let Some(other) = sizes.iter().position(|&n| n != sizes[0]) {
+        let message = format!(
+            "one array cannot hold frames of different sizes (frame 0 has {} vertices, frame \
+             {other} has {}): give a directory with one .npy per frame",
+            sizes[0], sizes[other]
+        );
+        return Err(IoError::format(path, message).into());
+    }
+    if k != sizes.len() || v != sizes[0] {
+        let message = format!(
+            "shape {:?}, expected ({}, {}) or ({}, {}, channels) = (frames, vertices[, channels])",
+            array.shape,
+            sizes.len(),
+            sizes[0],
+            sizes.len(),
+            sizes[0]
+        );
+        return Err(IoError::format(path, message).into());
+    }
+    Ok(array
+        .data
+        .chunks_exact(v * c)
+        .map(|frame| channels_of(frame, v, c))
+        .collect())
+}
+
+/// Row-major `(rows, columns)` values as `columns` channels.
+fn channels_of(data: &[f64], rows: usize, columns: usize) -> VertexValues {
+    match columns {
+        1 => VertexValues::Grey(data[..rows].to_vec()),
+        _ => VertexValues::Channels(
+            (0..columns)
+                .map(|c| (0..rows).map(|i| data[i * columns + c]).collect())
+                .collect(),
+        ),
+    }
+}
+
+fn mean(channels: &[Vec<f64>]) -> Vec<f64> {
+    let n = channels.len() as f64;
+    (0..channels[0].len())
+        .map(|i| channels.iter().map(|c| c[i]).sum::<f64>() / n)
+        .collect()
+}
+
+/// `--reference`, read as `solve` reads a mesh.
+fn reference_mesh(file: Option<&Path>, load: &LoadOptions) -> Result<Option<Surface>, Error> {
+    let Some(file) = file else {
+        return Ok(None);
+    };
+    let reference = load_mesh(file, load)?;
+    crate::print_warnings(&reference.warnings);
+    Ok(Some(Surface {
+        faces: reference.mesh.faces().to_vec(),
+        positions: reference.positions,
+    }))
+}
+
+/// Frame `k`'s channels interpolated where each tracked vertex landed: `[k][c][i]`.
+fn carry_image(
+    tracked: &Tracked,
+    frames: &[TrackFrame],
+    channels: &[Option<Vec<Vec<f64>>>],
+) -> Vec<Vec<Vec<f64>>> {
+    (tracked.landings.iter().zip(frames).zip(channels))
+        .map(|((landing, frame), channels)| {
+            let channels = channels.as_ref().expect("every frame has an image");
+            channels
+                .iter()
+                .map(|values| {
+                    landing
+                        .iter()
+                        .map(|p| {
+                            let corners = frame.faces[p.face];
+                            (0..3)
+                                .map(|c| p.barycentric[c] * values[corners[c] as usize])
+                                .sum()
+                        })
+                        .collect()
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// positions.npy, faces.npy, intensity.npy ((K, V) or (K, V, C)), times.txt and track.json.
+fn write_outputs(
+    staged: &StagedDir,
+    tracked: &Tracked,
+    image: Option<&[Vec<Vec<f64>>]>,
+) -> Result<(), Error> {
     let dir = staged.path();
     let sequence = &tracked.sequence;
-    let frames = 0..sequence.n_frames();
-    let positions: Vec<_> = frames
-        .clone()
+    let positions: Vec<_> = (0..sequence.n_frames())
         .map(|f| sequence.positions(f).expect("tracked in R^3").to_vec())
         .collect();
-    let grey: Vec<_> = frames.map(|f| sequence.intensities(f).to_vec()).collect();
-    let faces = sequence.mesh().faces();
-    let intensities = has_grey.then_some(&grey[..]);
-    write_npy_sequence(dir, &positions, faces, intensities, sequence.times())?;
+    write_npy_sequence(dir, &positions, sequence.mesh().faces(), None, sequence.times())?;
+    if let Some(image) = image {
+        let (k, c, v) = (image.len(), image[0].len(), positions[0].len());
+        let values: Vec<f64> = (image.iter())
+            .flat_map(|frame| (0..v).flat_map(move |i| frame.iter().map(move |ch| ch[i])))
+            .collect();
+        let shape: Vec<u64> = match c {
+            1 => vec![k as u64, v as u64],
+            _ => vec![k as u64, v as u64, c as u64],
+        };
+        write_npy(&dir.join("intensity.npy"), &shape, &values)?;
+    }
     let report = serde_json::to_string_pretty(&tracked.report).expect("a report serializes");
     write_atomically(&dir.join("track.json"), |w| {
         use std::io::Write;
@@ -148,34 +317,78 @@ fn write_outputs(staged: &StagedDir, tracked: &Tracked, has_grey: bool) -> Resul
     Ok(())
 }
 
-fn print_report(tracked: &Tracked, input: &Path, out: &Path) {
+fn print_header(input: &Path, frames: &[TrackFrame], options: &TrackOptions) {
+    let reference = match (&options.reference, options.reference_vertices) {
+        (_, Some(n)) => format!("a reference of about {n} vertices"),
+        (Some(r), None) => format!("the given reference ({} vertices)", r.positions.len()),
+        (None, None) => format!("frame 0's mesh ({} vertices)", frames[0].positions.len()),
+    };
+    let relaxation = match options.relaxation {
+        meshflow::track::Relaxation::None => "normal motion only".to_string(),
+        meshflow::track::Relaxation::Arap { iterations } => {
+            format!("normal motion and ARAP relaxation ({iterations} steps)")
+        }
+    };
+    println!(
+        "{}: tracking {} frames by {relaxation}, {reference}, align {:?}; per frame, against \
+         the previous frame (frame 0: the reference projected onto frame 0; worst_*_change: \
+         against the reference):",
+        input.display(),
+        frames.len(),
+        options.alignment
+    );
+}
+
+fn print_summary(tracked: &Tracked, out: &Path) {
     let mesh = tracked.sequence.mesh();
     println!(
-        "{}: {} frames tracked by normal motion on {} vertices, {} faces (step bound {:.3e}) -> {}",
-        input.display(),
+        "{} frames tracked on {} vertices, {} faces (step bound {:.3e}) -> {}",
         tracked.sequence.n_frames(),
         mesh.n_vertices(),
         mesh.n_faces(),
         tracked.report.max_step_bound,
         out.display()
     );
-    for report in &tracked.report.frames {
-        println!("  {}", describe(report));
+    for warning in &tracked.report.warnings {
+        eprintln!("meshflow: warning: {warning}");
     }
 }
 
+/// One frame's line, with track.json's names.
 fn describe(r: &FrameReport) -> String {
-    format!(
-        "frame {:3}: step mean {:.3e} max {:.3e}; misses {} (closest point {}, beyond bound {}); \
-         worst edge change {:.1} %, area change {:.1} %; flipped triangles {}",
+    let mut line = format!(
+        "frame {:3}: mean_step {:.3e} max_step {:.3e}; mean_relaxation {:.3e} max_relaxation \
+         {:.3e}; edge_log_ratio_p99 {:.3} edge_log_ratio_max {:.3}; flipped_triangles {}; \
+         misses {} (fallbacks {}, beyond_max_step {}); worst_edge_change {:.1} %, \
+         worst_area_change {:.1} %",
         r.frame,
         r.mean_step,
         r.max_step,
+        r.mean_relaxation,
+        r.max_relaxation,
+        r.edge_log_ratio_p99,
+        r.edge_log_ratio_max,
+        r.flipped_triangles,
         r.misses,
         r.fallbacks,
         r.beyond_max_step,
         100.0 * r.worst_edge_change,
         100.0 * r.worst_area_change,
-        r.flipped_triangles
-    )
+    );
+    if let Some(a) = &r.alignment {
+        let what = match a.applied {
+            true => "alignment",
+            false => "rigid fit (not applied)",
+        };
+        line += &format!(
+            "; {what}: rotation_degrees {:.2}, translation {:.3e}, scale {:.4}, \
+             median_distance {:.3e} -> {:.3e}",
+            a.rotation_degrees,
+            nalgebra::Vector3::from(a.translation).norm(),
+            a.scale,
+            a.median_distance_before,
+            a.median_distance_after
+        );
+    }
+    line
 }

@@ -1,0 +1,225 @@
+//! Aligning a frame to the previous one: iterative closest points (Besl & McKay 1992) with
+//! the closed-form best rigid or similarity motion per iteration (Umeyama 1991).
+//!
+//! A recording whose sample drifts between time points (a stage that moves, an organ that
+//! turns) puts a rigid motion between its frames that normal motion cannot follow: the step
+//! bound is exceeded or the mesh shears. Each frame `k ≥ 1` is moved onto frame `k − 1` (as
+//! aligned, so motions compose back to frame 0) by the transform `x ↦ s R x + t` minimizing
+//!
+//! ```text
+//! Σ_i |s R p_i + t − c(s R p_i + t)|²,   c = the closest point of frame k − 1's surface,
+//! ```
+//!
+//! over up to [`SAMPLES`] of its vertices, with `s = 1` for a rigid motion. Each iteration
+//! pairs the points with their closest points (pairs farther than [`TRIM`] times the median
+//! distance are left out: parts of the surface not seen in both frames), then solves for the
+//! motion in closed form: with centred point sets and `U Σ Vᵀ = cov(q, p)`,
+//! `R = U diag(1, 1, det U V) Vᵀ`, `s = tr(Σ S) / var(p)`, `t = q̄ − s R p̄`.
+//!
+//! Alignment removes the rigid (or similarity) part of the whole sample's motion, which is then
+//! in neither the mesh's motion nor the flow; the transforms are reported so that a user can
+//! put it back.
+
+use super::surface::FrameSurface;
+use nalgebra::{Matrix3, Matrix4, Vector3};
+use rayon::prelude::*;
+
+/// Which motion is taken out between frames.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Alignment {
+    /// None: frames are taken as they are (a misalignment is still detected and reported).
+    #[default]
+    None,
+    /// Rotation and translation.
+    Rigid,
+    /// Rotation, translation and uniform scale (also removes uniform growth).
+    Similarity,
+}
+
+impl std::str::FromStr for Alignment {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "none" => Ok(Alignment::None),
+            "rigid" => Ok(Alignment::Rigid),
+            "similarity" => Ok(Alignment::Similarity),
+            other => Err(format!("'{other}' is not one of: none, rigid, similarity")),
+        }
+    }
+}
+
+/// The motion found between a frame and the previous one, and how close they are.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct AlignmentReport {
+    /// Which fit this is: the one applied, or (`--align none`) a rigid fit only measured.
+    pub applied: bool,
+    pub rotation_degrees: f64,
+    pub translation: [f64; 3],
+    pub scale: f64,
+    /// Median distance of the frame's vertices to the previous frame's surface, before and
+    /// after the motion.
+    pub median_distance_before: f64,
+    pub median_distance_after: f64,
+    /// `x ↦ M (x, 1)`: row-major 4×4 matrix taking the frame as read to the aligned frame.
+    pub matrix: [[f64; 4]; 4],
+}
+
+/// At most this many vertices of a frame enter the fit (evenly spread by index).
+pub const SAMPLES: usize = 4000;
+
+/// Pairs farther apart than this many median distances are left out of a fit.
+pub const TRIM: f64 = 2.5;
+
+const MAX_ITERATIONS: usize = 100;
+
+/// A similarity transform `x ↦ s R x + t`.
+#[derive(Clone, Copy, Debug)]
+pub struct Motion {
+    pub rotation: Matrix3<f64>,
+    pub scale: f64,
+    pub translation: Vector3<f64>,
+}
+
+impl Motion {
+    pub fn identity() -> Self {
+        Self {
+            rotation: Matrix3::identity(),
+            scale: 1.0,
+            translation: Vector3::zeros(),
+        }
+    }
+
+    pub fn apply(&self, x: &Vector3<f64>) -> Vector3<f64> {
+        self.scale * self.rotation * x + self.translation
+    }
+
+    /// `self ∘ first`.
+    fn after(&self, first: &Motion) -> Motion {
+        Motion {
+            rotation: self.rotation * first.rotation,
+            scale: self.scale * first.scale,
+            translation: self.apply(&first.translation),
+        }
+    }
+
+    fn matrix(&self) -> [[f64; 4]; 4] {
+        let mut m = Matrix4::identity();
+        m.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&(self.scale * self.rotation));
+        m.fixed_view_mut::<3, 1>(0, 3).copy_from(&self.translation);
+        std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
+    }
+
+    fn rotation_degrees(&self) -> f64 {
+        let cosine = ((self.rotation.trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
+        cosine.acos().to_degrees()
+    }
+}
+
+/// The motion of `points` onto `target` of the kind `alignment` asks for (`None`: a rigid fit,
+/// measured but reported as not applied) and its report.
+pub fn fit(
+    points: &[Vector3<f64>],
+    target: &FrameSurface,
+    alignment: Alignment,
+) -> (Motion, AlignmentReport) {
+    let stride = points.len().div_ceil(SAMPLES).max(1);
+    let sample: Vec<Vector3<f64>> = points.iter().step_by(stride).copied().collect();
+    let with_scale = alignment == Alignment::Similarity;
+    let before = median_distance(&sample, target, &Motion::identity());
+    let mut motion = Motion::identity();
+    for _ in 0..MAX_ITERATIONS {
+        let moved: Vec<Vector3<f64>> = sample.iter().map(|p| motion.apply(p)).collect();
+        let pairs = closest_pairs(&moved, target);
+        let Some(step) = best_motion(&pairs, with_scale) else {
+            break;
+        };
+        motion = step.after(&motion);
+        let settled = step.rotation_degrees() < 1e-7
+            && (step.scale - 1.0).abs() < 1e-9
+            && step.translation.norm() <= 1e-9 * (1.0 + before);
+        if settled {
+            break;
+        }
+    }
+    let report = AlignmentReport {
+        applied: alignment != Alignment::None,
+        rotation_degrees: motion.rotation_degrees(),
+        translation: motion.translation.into(),
+        scale: motion.scale,
+        median_distance_before: before,
+        median_distance_after: median_distance(&sample, target, &motion),
+        matrix: motion.matrix(),
+    };
+    (motion, report)
+}
+
+/// Each point with its closest point on `target`, the farthest (beyond [`TRIM`] medians) left
+/// out.
+fn closest_pairs(points: &[Vector3<f64>], target: &FrameSurface) -> Vec<(Vector3<f64>, Vector3<f64>)> {
+    let pairs: Vec<(Vector3<f64>, Vector3<f64>)> = points
+        .par_iter()
+        .map(|p| (*p, target.closest_point(p).position))
+        .collect();
+    let distances: Vec<f64> = pairs.iter().map(|(p, q)| (p - q).norm()).collect();
+    let limit = TRIM * median(distances.clone());
+    pairs
+        .into_iter()
+        .zip(distances)
+        .filter(|(_, d)| *d <= limit)
+        .map(|(pair, _)| pair)
+        .collect()
+}
+
+/// The similarity (or rigid) motion taking the first points of `pairs` closest to the second
+/// (Umeyama 1991); `None` for fewer than 3 pairs.
+fn best_motion(pairs: &[(Vector3<f64>, Vector3<f64>)], with_scale: bool) -> Option<Motion> {
+    if pairs.len() < 3 {
+        return None;
+    }
+    let n = pairs.len() as f64;
+    let p_mean = pairs.iter().map(|(p, _)| p).sum::<Vector3<f64>>() / n;
+    let q_mean = pairs.iter().map(|(_, q)| q).sum::<Vector3<f64>>() / n;
+    let mut covariance = Matrix3::zeros();
+    let mut variance = 0.0;
+    for (p, q) in pairs {
+        let (dp, dq) = (p - p_mean, q - q_mean);
+        covariance += dq * dp.transpose() / n;
+        variance += dp.norm_squared() / n;
+    }
+    let svd = covariance.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    let sign = (u.determinant() * v_t.determinant()).signum();
+    let s = Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, sign));
+    let rotation = u * s * v_t;
+    let scale = match with_scale && variance > 0.0 {
+        true => (svd.singular_values.component_mul(&s.diagonal())).sum() / variance,
+        false => 1.0,
+    };
+    Some(Motion {
+        rotation,
+        scale,
+        translation: q_mean - scale * rotation * p_mean,
+    })
+}
+
+fn median_distance(points: &[Vector3<f64>], target: &FrameSurface, motion: &Motion) -> f64 {
+    median(
+        points
+            .par_iter()
+            .map(|p| {
+                let x = motion.apply(p);
+                (target.closest_point(&x).position - x).norm()
+            })
+            .collect(),
+    )
+}
+
+fn median(mut values: Vec<f64>) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let middle = values.len() / 2;
+    *values.select_nth_unstable_by(middle, f64::total_cmp).1
+}

@@ -1,0 +1,190 @@
+//! A reference mesh of a chosen size made from frame 0: edge-collapse simplification by
+//! quadric error metrics (Garland & Heckbert 1997) through `meshopt` (meshoptimizer), with its
+//! regularizing option, then cleaned for finite elements, which need triangles far from
+//! degenerate: edges are flipped where the two angles opposite them sum to more than π (the
+//! Delaunay criterion, only between nearly coplanar triangles so the shape stays), and
+//! vertices are moved a few times towards the centroid of their neighbours within the surface
+//! (tangential Laplacian smoothing, projected back onto frame 0; boundary vertices stay).
+//! meshoptimizer neither flips edges nor smooths, and both are a few lines on a face list.
+//!
+//! Surfaces meshed per time point by a segmentation are often finer than the flow needs, and
+//! tracking a coarser mesh is faster and folds less. The simplified mesh's vertices are a subset
+//! of frame 0's, so it lies on frame 0's surface exactly; simplification never refines, so a
+//! target at or above frame 0's vertex count returns frame 0's mesh.
+
+use super::FrameSurface;
+use crate::mesh::Mesh;
+use crate::shapes::Surface;
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+
+/// How many rounds adjust the triangle target to land near the asked vertex count.
+const ROUNDS: usize = 3;
+
+/// Passes of edge flips and of smoothing.
+const FLIP_PASSES: usize = 10;
+const SMOOTHING_PASSES: usize = 5;
+
+/// Two triangles are flipped only if their normals differ by less than this (degrees).
+const FLIP_CREASE_DEGREES: f64 = 20.0;
+
+/// Frame 0's mesh (`positions`, `faces`) simplified to about `vertices` vertices (the count is
+/// met within a few percent where the surface's topology allows).
+pub fn simplified_reference(
+    positions: &[Vector3<f64>],
+    faces: &[[u32; 3]],
+    vertices: usize,
+) -> Surface {
+    let all_faces = faces;
+    let used = used_vertices(positions.len(), faces.iter().flatten().copied());
+    if vertices >= used {
+        return compact(positions, faces.to_vec());
+    }
+    let coordinates: Vec<[f32; 3]> = positions
+        .iter()
+        .map(|p| [p.x as f32, p.y as f32, p.z as f32])
+        .collect();
+    let bytes = meshopt::typed_to_bytes(&coordinates);
+    let adapter = meshopt::VertexDataAdapter::new(bytes, std::mem::size_of::<[f32; 3]>(), 0)
+        .expect("a stride of three floats divides three-float vertices");
+    let indices: Vec<u32> = faces.iter().flatten().copied().collect();
+    // A triangle mesh has about twice as many triangles as vertices.
+    let mut target_faces = 2 * vertices;
+    let mut result = indices.clone();
+    for _ in 0..ROUNDS {
+        result = meshopt::simplify(
+            &indices,
+            &adapter,
+            3 * target_faces.max(1),
+            1.0,
+            meshopt::SimplifyOptions::Regularize,
+            None,
+        );
+        let got = used_vertices(positions.len(), result.iter().copied());
+        if got == 0 || got.abs_diff(vertices) * 50 <= vertices {
+            break;
+        }
+        target_faces = (target_faces as f64 * vertices as f64 / got as f64).round() as usize;
+    }
+    let mut faces: Vec<[u32; 3]> = result.chunks_exact(3).map(|f| [f[0], f[1], f[2]]).collect();
+    for _ in 0..FLIP_PASSES {
+        if flip_to_delaunay(positions, &mut faces) == 0 {
+            break;
+        }
+    }
+    let mut reference = compact(positions, faces);
+    smooth_on(&mut reference, positions, all_faces);
+    reference
+}
+
+/// One pass of Delaunay flips between nearly coplanar triangles (module docs); how many.
+fn flip_to_delaunay(x: &[Vector3<f64>], faces: &mut [[u32; 3]]) -> usize {
+    let mut edges: BTreeMap<(u32, u32), Vec<(usize, usize)>> = BTreeMap::new();
+    for (f, face) in faces.iter().enumerate() {
+        for c in 0..3 {
+            let (a, b) = (face[c], face[(c + 1) % 3]);
+            edges.entry((a.min(b), a.max(b))).or_default().push((f, c));
+        }
+    }
+    let crease = FLIP_CREASE_DEGREES.to_radians().cos();
+    let normal = |f: [u32; 3]| {
+        let [a, b, c] = f.map(|v| x[v as usize]);
+        (b - a).cross(&(c - a))
+    };
+    let angle = |at: u32, p: u32, q: u32| {
+        let (u, v) = (x[p as usize] - x[at as usize], x[q as usize] - x[at as usize]);
+        u.angle(&v)
+    };
+    let mut touched = vec![false; faces.len()];
+    let mut flips = 0;
+    for pair in edges.values() {
+        let &[(f, c), (g, _)] = pair.as_slice() else {
+            continue;
+        };
+        if touched[f] || touched[g] {
+            continue;
+        }
+        let (a, b, opposite_c) = (faces[f][c], faces[f][(c + 1) % 3], faces[f][(c + 2) % 3]);
+        let Some(&d) = faces[g].iter().find(|&&v| v != a && v != b) else {
+            continue;
+        };
+        let (n_f, n_g) = (normal(faces[f]), normal(faces[g]));
+        let coplanar = n_f.normalize().dot(&n_g.normalize()) >= crease;
+        let delaunay = angle(opposite_c, a, b) + angle(d, a, b) <= std::f64::consts::PI + 1e-9;
+        let exists = edges.contains_key(&(opposite_c.min(d), opposite_c.max(d)));
+        let (new_f, new_g) = ([a, d, opposite_c], [d, b, opposite_c]);
+        let keeps_side = normal(new_f).dot(&n_f) > 0.0 && normal(new_g).dot(&n_f) > 0.0;
+        if coplanar && !delaunay && !exists && keeps_side {
+            faces[f] = new_f;
+            faces[g] = new_g;
+            touched[f] = true;
+            touched[g] = true;
+            flips += 1;
+        }
+    }
+    flips
+}
+
+/// Tangential Laplacian smoothing of `mesh` on the surface `(positions, faces)` (module docs).
+fn smooth_on(mesh: &mut Surface, positions: &[Vector3<f64>], faces: &[[u32; 3]]) {
+    let Ok(connectivity) = Mesh::new(mesh.positions.len(), mesh.faces.clone()) else {
+        return;
+    };
+    let zeros = vec![0.0; positions.len()];
+    let Ok(surface) = FrameSurface::new(0, positions, faces, &zeros) else {
+        return;
+    };
+    let mut neighbours = vec![Vec::new(); mesh.positions.len()];
+    for &[i, j] in connectivity.edges() {
+        neighbours[i as usize].push(j as usize);
+        neighbours[j as usize].push(i as usize);
+    }
+    for _ in 0..SMOOTHING_PASSES {
+        let x = &mesh.positions;
+        let next: Vec<Vector3<f64>> = (0..x.len())
+            .into_par_iter()
+            .map(|i| {
+                if connectivity.is_boundary_vertex(i) || neighbours[i].is_empty() {
+                    return x[i];
+                }
+                let centroid = neighbours[i].iter().map(|&j| x[j]).sum::<Vector3<f64>>()
+                    / neighbours[i].len() as f64;
+                let (_, n) = surface.closest_point_and_normal(&x[i]);
+                let shift = centroid - x[i];
+                surface.closest_point(&(x[i] + 0.5 * (shift - n * n.dot(&shift)))).position
+            })
+            .collect();
+        mesh.positions = next;
+    }
+}
+
+fn used_vertices(n: usize, indices: impl Iterator<Item = u32>) -> usize {
+    let mut used = vec![false; n];
+    indices.for_each(|v| used[v as usize] = true);
+    used.iter().filter(|&&u| u).count()
+}
+
+/// The vertices `faces` use, renumbered in their original order.
+fn compact(positions: &[Vector3<f64>], faces: Vec<[u32; 3]>) -> Surface {
+    let mut new_index = vec![u32::MAX; positions.len()];
+    let mut kept = Vec::new();
+    for &v in faces.iter().flatten() {
+        if new_index[v as usize] == u32::MAX {
+            new_index[v as usize] = 0;
+        }
+    }
+    for (old, slot) in new_index.iter_mut().enumerate() {
+        if *slot == 0 {
+            *slot = kept.len() as u32;
+            kept.push(positions[old]);
+        }
+    }
+    Surface {
+        positions: kept,
+        faces: faces
+            .into_iter()
+            .map(|f| f.map(|v| new_index[v as usize]))
+            .collect(),
+    }
+}
