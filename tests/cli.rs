@@ -926,7 +926,7 @@ fn track_command_writes_the_library_tracking_for_solve() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(!run.status.success(), "{stderr}");
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("frame 1: vertex 0 is"), "{stderr}");
+    assert!(stderr.contains("frame 1: vertex 0 (at ("), "{stderr}");
     assert!(!refused.exists(), "no output for a failed run");
 }
 

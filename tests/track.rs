@@ -302,3 +302,149 @@ fn a_hit_far_beyond_the_closest_distance_gives_way_to_the_closest_point() {
         }
     }
 }
+
+/// An ellipsoid (radii 1, 0.8, 0.6: no rotation leaves it in place), remeshed, turned by 20°
+/// and moved between frames: rigid alignment finds the motion, and the tracked mesh, on the
+/// aligned frame, stays where it was. Without alignment the drift is reported.
+#[test]
+fn rigid_alignment_recovers_a_turned_and_moved_remeshed_ellipsoid() {
+    use meshflow::track::Alignment;
+    let radii = Vector3::new(1.0, 0.8, 0.6);
+    let axis = nalgebra::Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8));
+    let turn = Rotation3::from_axis_angle(&axis, 20f64.to_radians());
+    let shift = Vector3::new(0.15, -0.1, 0.05);
+    let frames = vec![
+        frame(&icosphere(3), |x| x.component_mul(&radii), linear_grey),
+        frame(&icosphere(4), |x| turn * x.component_mul(&radii) + shift, linear_grey),
+    ];
+    let options = TrackOptions {
+        alignment: Alignment::Rigid,
+        ..Default::default()
+    };
+    let tracked = track(&frames, None, &options).unwrap();
+    let alignment = tracked.report.frames[1].alignment.clone().unwrap();
+    assert!(alignment.applied);
+    assert!((alignment.rotation_degrees - 20.0).abs() < 0.2, "{alignment:?}");
+    assert!(alignment.median_distance_after < 2e-3, "{alignment:?}");
+    // The finer frame's facets lie within 1e-3 of the coarse one's vertices.
+    let (before, after) = (tracked.sequence.positions(0).unwrap(), tracked.sequence.positions(1).unwrap());
+    let largest = before.iter().zip(after).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    assert!(largest < 5e-3, "tracked vertices moved by up to {largest}");
+    assert!(tracked.report.warnings.is_empty(), "{:?}", tracked.report.warnings);
+
+    let unaligned = track(&frames, None, &TrackOptions { keep_going: true, ..Default::default() });
+    let warnings = match unaligned {
+        Ok(t) => t.report.warnings,
+        Err(e) => vec![e.to_string()],
+    };
+    assert!(
+        warnings.iter().any(|w| w.contains("frame 1 looks misaligned") && w.contains("--align rigid")),
+        "{warnings:?}"
+    );
+}
+
+/// A strong bump (curvature radius 0.13 at its top) moving onto a plane 0.6 below its top:
+/// normal lines from the top cross before they reach the plane, so normal motion alone folds
+/// the mesh; the relaxation keeps every triangle the right way up, on the plane.
+#[test]
+fn relaxation_prevents_the_fold_of_normal_steps_beyond_the_radius_of_curvature() {
+    let bump = |x: &Vector3<f64>| {
+        let r2 = (x.x - 0.5).powi(2) + (x.y - 0.5).powi(2);
+        Vector3::new(x.x, x.y, 0.3 * (-r2 / (2.0 * 0.2f64.powi(2))).exp())
+    };
+    let patch = grid(24, 24, 1.0, 1.0);
+    let plane = grid(30, 30, 3.0, 3.0);
+    let frames = vec![
+        frame(&patch, bump, linear_grey),
+        frame(&plane, |x| x - Vector3::new(1.0, 1.0, 0.3), linear_grey),
+    ];
+    let normal_only = TrackOptions {
+        max_step: Some(2.0),
+        ..normal_motion()
+    };
+    let error = track(&frames, None, &normal_only).err().expect("normal motion folds");
+    assert!(matches!(error, TrackError::Flipped { frame: 1, .. }), "{error}");
+    let relaxed = TrackOptions {
+        max_step: Some(2.0),
+        ..Default::default()
+    };
+    let tracked = track(&frames, None, &relaxed).unwrap();
+    let report = &tracked.report.frames[1];
+    assert_eq!(report.flipped_triangles, 0);
+    assert_eq!(tracked.report.trimmed_vertices, 0);
+    for x in tracked.sequence.positions(1).unwrap() {
+        assert!((x.z + 0.3).abs() < 1e-12, "{x:?} off the plane");
+    }
+    // Flattening the bump stretches the patch by its arc length, not more.
+    assert!(report.edge_log_ratio_max < 0.7, "{report:?}");
+}
+
+/// A reference simplified to a chosen size: the count within 5 %, a closed manifold sphere,
+/// on frame 0's surface, and triangles far from degenerate.
+#[test]
+fn a_reference_of_a_chosen_size_is_a_clean_mesh_on_frame_0() {
+    use meshflow::mesh::Mesh;
+    use meshflow::track::simplified_reference;
+    let sphere = icosphere(4);
+    for target in [300, 1000] {
+        let reference = simplified_reference(&sphere.positions, &sphere.faces, target);
+        let n = reference.positions.len();
+        assert!(n.abs_diff(target) * 20 <= target, "{n} vertices for {target}");
+        let mesh = Mesh::new(n, reference.faces.clone()).unwrap();
+        assert!(mesh.is_closed() && mesh.euler_characteristic() == 2);
+        let zeros = vec![0.0; sphere.positions.len()];
+        let surface = FrameSurface::new(0, &sphere.positions, &sphere.faces, &zeros).unwrap();
+        for x in &reference.positions {
+            assert!((surface.closest_point(x).position - x).norm() < 1e-12);
+        }
+        let smallest = reference
+            .faces
+            .iter()
+            .map(|f| {
+                let x = f.map(|v| reference.positions[v as usize]);
+                (0..3)
+                    .map(|c| (x[(c + 1) % 3] - x[c]).angle(&(x[(c + 2) % 3] - x[c])).to_degrees())
+                    .fold(180.0, f64::min)
+            })
+            .fold(180.0, f64::min);
+        assert!(smallest > 20.0, "{target}: smallest angle {smallest}°");
+    }
+    let whole = simplified_reference(&sphere.positions, &sphere.faces, 10_000);
+    assert_eq!(whole.positions, sphere.positions, "no refinement");
+}
+
+/// A patch whose next frame ends short of it (the field of view shrank): the reference is
+/// trimmed to what both frames cover, the trimming is reported, and every tracked vertex is
+/// on each frame's surface.
+#[test]
+fn a_reference_beyond_a_frame_boundary_is_trimmed_to_the_covered_part() {
+    let patch = grid(20, 20, 1.0, 1.0);
+    let smaller = grid(14, 14, 0.7, 0.7);
+    let frames = vec![
+        frame(&patch, |x| *x, linear_grey),
+        frame(&smaller, |x| x + Vector3::new(0.0, 0.0, 0.05), linear_grey),
+    ];
+    let mut trims = Vec::new();
+    let tracked = meshflow::track::track_with_progress(&frames, None, &TrackOptions::default(), &mut |event| {
+        if let meshflow::track::TrackEvent::Trimmed { frame, remaining, .. } = event {
+            trims.push((frame, remaining));
+        }
+    })
+    .unwrap();
+    let n = tracked.sequence.mesh().n_vertices();
+    assert!(!trims.is_empty() && trims.iter().all(|&(frame, _)| frame == 1), "{trims:?}");
+    assert_eq!(trims.last().unwrap().1, n);
+    assert_eq!(tracked.report.trimmed_vertices, 21 * 21 - n);
+    assert!((n as f64) > 0.3 * 21.0 * 21.0, "only {n} vertices left");
+    for x in tracked.sequence.positions(1).unwrap() {
+        assert!(x.x <= 0.7 + 1e-12 && x.y <= 0.7 + 1e-12 && (x.z - 0.05).abs() < 1e-12, "{x:?}");
+    }
+    assert!(tracked.report.warnings[0].contains("frame 1 does not cover"), "{:?}", tracked.report.warnings);
+    let kept = TrackOptions {
+        keep_uncovered: true,
+        keep_going: true,
+        ..Default::default()
+    };
+    let untrimmed = track(&frames, None, &kept);
+    assert!(untrimmed.map_or(true, |t| t.sequence.mesh().n_vertices() == 21 * 21));
+}

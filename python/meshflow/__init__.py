@@ -384,16 +384,32 @@ def track(
     max_step: Optional[float] = None,
     keep_going: bool = False,
     reference: Optional[Tuple[Any, Any]] = None,
+    reference_vertices: Optional[int] = None,
+    relax: str = "arap",
+    relax_iterations: int = 20,
+    align: str = "none",
+    keep_uncovered: bool = False,
 ) -> Sequence:
     """One moving mesh from frames meshed each on its own (``meshflow track``).
 
     ``frames`` is a list of ``(positions (V_k, 3), faces (F_k, 3), intensity (V_k,) or
     None)``. From frame to frame every vertex of the reference mesh (``reference =
-    (positions, faces)``, default frame 0's) moves along its normal to the next frame's
-    surface and takes that frame's grey value there. ``max_step`` bounds a step (default 10 %
-    of frame 0's bounding-box diagonal); ``keep_going`` counts vertices beyond it instead of
+    (positions, faces)``, default frame 0's; ``reference_vertices=N`` simplifies it to about
+    N vertices) moves along its normal to the next frame's surface, is relaxed there as
+    rigidly as possible against the previous frame (``relax="arap"``, up to
+    ``relax_iterations`` steps; ``"none"``: normal motion only) and takes that frame's grey
+    value. ``align`` (``"none"``, ``"rigid"``, ``"similarity"``) takes the sample's drift out
+    between frames. Reference vertices beyond a frame's boundary are trimmed away unless
+    ``keep_uncovered``. ``max_step`` bounds a step (default 10 % of frame 0's bounding-box
+    diagonal); ``keep_going`` counts vertices beyond it and flipped triangles instead of
     failing. Returns the :class:`Sequence`, with the per-frame ``report``.
     """
+    if relax not in ("arap", "none"):
+        raise ValueError(f"relax must be 'arap' or 'none', got {relax!r}")
+    if align not in ("none", "rigid", "similarity"):
+        raise ValueError(f"align must be 'none', 'rigid' or 'similarity', got {align!r}")
+    if reference_vertices is not None and int(reference_vertices) < 4:
+        raise ValueError(f"reference_vertices must be at least 4, got {reference_vertices}")
     converted = []
     for k, frame in enumerate(frames):
         if len(frame) not in (2, 3):
@@ -415,6 +431,10 @@ def track(
         _optional_float("max_step", max_step),
         bool(keep_going),
         reference,
+        None if reference_vertices is None else int(reference_vertices),
+        0 if relax == "none" else int(relax_iterations),
+        align,
+        bool(keep_uncovered),
     )
     positions, faces, grey, frame_times, report = result
     return Sequence(positions, faces, grey, frame_times, source="tracked", report=json.loads(report))

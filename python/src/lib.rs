@@ -844,7 +844,8 @@ fn match_tracks<'py>(
 /// `meshflow track` on frames in memory: the tracked sequence (positions, faces, grey values,
 /// times) and the report as JSON.
 #[pyfunction]
-#[pyo3(signature = (frames, times, max_step, keep_going, reference))]
+#[pyo3(signature = (frames, times, max_step, keep_going, reference, reference_vertices, relax_iterations, align, keep_uncovered))]
+#[allow(clippy::too_many_arguments)]
 fn track<'py>(
     py: Python<'py>,
     frames: Vec<TrackFrameArgs<'py>>,
@@ -852,6 +853,10 @@ fn track<'py>(
     max_step: Option<f64>,
     keep_going: bool,
     reference: Option<(PyReadonlyArray2<'py, f64>, PyReadonlyArray2<'py, i64>)>,
+    reference_vertices: Option<usize>,
+    relax_iterations: usize,
+    align: &str,
+    keep_uncovered: bool,
 ) -> PyResult<TrackedArrays<'py>> {
     let frames = frames
         .iter()
@@ -880,6 +885,13 @@ fn track<'py>(
         max_step,
         keep_going,
         reference,
+        reference_vertices,
+        relaxation: match relax_iterations {
+            0 => tracking::Relaxation::None,
+            iterations => tracking::Relaxation::Arap { iterations },
+        },
+        alignment: align.parse().map_err(PyValueError::new_err)?,
+        keep_uncovered,
     };
     let tracked = py
         .detach(|| tracking::track(&frames, times, &options))

@@ -9,9 +9,10 @@
 //! |---|---|
 //! | `flow.npy` | (S, V_file, 3) float64: R^3 flow vectors of slab `s` at the vertices of frame `s`, one row per vertex of the input files (NaN for dropped vertices) |
 //! | `flow_intrinsic.npy` | (S, V_file, 2) float64: components in the vertex frames |
+//! | `velocity.npy` | (S, V_file, 3) float64: the material's velocity, the mesh's own motion over the slab plus the flow ([`tissue_velocity`]); the flow alone is relative to the mesh, which a tracked or animated mesh may also slide |
 //! | `vertex_map.npy` | (V_file,) int64: mesh vertex of each file vertex, −1 if dropped; only when that is not the identity |
 //! | `angular_error.npy`, `endpoint_error.npy`, `direction_error.npy` | (S, V_file) float64, with a ground truth: per-vertex AE (degrees, on displacements in mean edge lengths), EPE (velocity units) and direction error (degrees, NaN where the truth does not move) ([`crate::accuracy`]) |
-//! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` (mesh vertices) with point data `flow`, `flow_intrinsic`, `speed`, `intensity` (the mean of the channels for a colour or multi-channel image, whose channels are `image`; and `angular_error`, `endpoint_error`, `direction_error` with a ground truth; `warped_residual` with warping); the `.pvd` plays the slabs at their start times |
+//! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` (mesh vertices) with point data `flow`, `velocity`, `flow_intrinsic`, `speed`, `intensity` (the mean of the channels for a colour or multi-channel image, whose channels are `image`; and `angular_error`, `endpoint_error`, `direction_error` with a ground truth; `warped_residual` with warping); the `.pvd` plays the slabs at their start times |
 //! | `flow.glb` | the frames as a morph-target animation, coloured by the flow as `flow_SSSS.png` shows it (Middlebury colour of the direction seen from the given [`View`], scaled by a robust maximum speed) |
 //! | `summary.json` | energy and its terms, residual, iterations, image `channels`, solver with the reason for it (`solver_reason`) and its `time_levels`, sizes, input, timings, dropped vertices and warnings, the `view` of the pictures and colours; the parameters as given (`params`, each weight `{"value": x}` or `{"relative": x}`), the weights used (`weights`: α, β, γ in the data's units) and the data's scales that resolved them (`scales`); with a ground truth, `ground_truth`: its file, the space-time means (AE, direction error, relative EPE, speed ratio, EPE) and maxima, per slab the same, and `zero_flow`, the zero flow's scores; with tracked points (`--ground-truth-tracks`), `ground_truth_tracks`: its file, points, moving points, mean and median endpoint error of the flow and of the zero flow (`zero_mean_endpoint`, …), `endpoint_ratio`, mean and median direction error, median speed ratio, median distance of the points from the surface, and the same per slab |
 //!
@@ -148,6 +149,11 @@ fn write_flow_npy(dir: &Path, loaded: &LoadedSequence, result: &FlowResult) -> R
             .flat_map(|slab| map.file_rows(slab, Vector3::repeat(f64::NAN)))
             .collect();
         write_npy(&dir.join("flow.npy"), &[s, v, 3], &flatten3(rows.iter()))?;
+        let rows: Vec<Vector3<f64>> = tissue_velocity(&loaded.sequence, vectors)
+            .iter()
+            .flat_map(|slab| map.file_rows(slab, Vector3::repeat(f64::NAN)))
+            .collect();
+        write_npy(&dir.join("velocity.npy"), &[s, v, 3], &flatten3(rows.iter()))?;
     }
     if !map.is_identity() {
         let table = map.to_npy();
@@ -173,6 +179,24 @@ fn write_error_npy(dir: &Path, map: &VertexMap, errors: &FlowErrors) -> Result<(
     Ok(())
 }
 
+/// The material's velocity in R³ per slab and vertex: the mesh's own motion
+/// `(x_{s+1} − x_s) / (t_{s+1} − t_s)` plus the flow `u`, which the model measures relative
+/// to the mesh (a mesh moved only along its normals has a normal motion, and the sum is then
+/// normal velocity plus flow; a tracked or animated mesh that also slides brings its sliding).
+pub fn tissue_velocity(sequence: &MeshSequence, flow: &[Vec<Vector3<f64>>]) -> Vec<Vec<Vector3<f64>>> {
+    (flow.iter().enumerate())
+        .map(|(s, u)| match (sequence.positions(s), sequence.positions(s + 1)) {
+            (Some(x0), Some(x1)) => {
+                let dt = sequence.slab_duration(s);
+                (x0.iter().zip(x1).zip(u))
+                    .map(|((a, b), u)| (b - a) / dt + u)
+                    .collect()
+            }
+            _ => u.clone(),
+        })
+        .collect()
+}
+
 fn flatten3<'a>(vectors: impl Iterator<Item = &'a Vector3<f64>>) -> Vec<f64> {
     vectors.flat_map(|u| [u.x, u.y, u.z]).collect()
 }
@@ -185,10 +209,12 @@ fn write_flow_vtk(
     vectors: &[Vec<Vector3<f64>>],
     errors: Option<&FlowErrors>,
 ) -> Result<(), IoError> {
+    let velocity = tissue_velocity(sequence, vectors);
     write_slab_vtus(dir, "flow", sequence, |s| {
         let speed: Vec<f64> = vectors[s].iter().map(|u| u.norm()).collect();
         let mut arrays = vec![
             NamedArray::vectors("flow", &vectors[s]),
+            NamedArray::vectors("velocity", &velocity[s]),
             NamedArray::vectors2("flow_intrinsic", &result.intrinsic[s]),
             NamedArray::scalars("speed", &speed),
             NamedArray::scalars("intensity", sequence.intensities(s)),

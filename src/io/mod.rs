@@ -36,7 +36,7 @@ mod weld;
 pub use atomic::{write_atomically, Overwrite, RunManifest, StagedDir, RUN_MANIFEST};
 pub use channels::{select_channels, Channels, VertexValues};
 pub use flow_output::{
-    summary_json, track_scores_json, write_flow_outputs, write_slab_vtus, GroundTruthReport,
+    summary_json, tissue_velocity, track_scores_json, write_flow_outputs, write_slab_vtus, GroundTruthReport,
     OutputFormat, Scores, TrackReport,
 };
 pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};

@@ -1,5 +1,5 @@
 //! Aligning a frame to the previous one: iterative closest points (Besl & McKay 1992) with
-//! the closed-form best rigid or similarity motion per iteration (Umeyama 1991).
+//! the point-to-plane distance (Chen & Medioni 1992).
 //!
 //! A recording whose sample drifts between time points (a stage that moves, an organ that
 //! turns) puts a rigid motion between its frames that normal motion cannot follow: the step
@@ -12,9 +12,8 @@
 //!
 //! over up to [`SAMPLES`] of its vertices, with `s = 1` for a rigid motion. Each iteration
 //! pairs the points with their closest points (pairs farther than [`TRIM`] times the median
-//! distance are left out: parts of the surface not seen in both frames), then solves for the
-//! motion in closed form: with centred point sets and `U Σ Vᵀ = cov(q, p)`,
-//! `R = U diag(1, 1, det U V) Vᵀ`, `s = tr(Σ S) / var(p)`, `t = q̄ − s R p̄`.
+//! distance are left out: parts of the surface not seen in both frames) and takes one
+//! Gauss–Newton step of the distances to the tangent planes there (`linearized_step`).
 //!
 //! Alignment removes the rigid (or similarity) part of the whole sample's motion, which is then
 //! in neither the mesh's motion nor the flow; the transforms are reported so that a user can
@@ -132,7 +131,7 @@ pub fn fit(
     for _ in 0..MAX_ITERATIONS {
         let moved: Vec<Vector3<f64>> = sample.iter().map(|p| motion.apply(p)).collect();
         let pairs = closest_pairs(&moved, target);
-        let Some(step) = best_motion(&pairs, with_scale) else {
+        let Some(step) = linearized_step(&pairs, with_scale) else {
             break;
         };
         motion = step.after(&motion);
@@ -155,14 +154,20 @@ pub fn fit(
     (motion, report)
 }
 
+/// A point, its closest point on the target and the target's unit normal there.
+type Pair = (Vector3<f64>, Vector3<f64>, Vector3<f64>);
+
 /// Each point with its closest point on `target`, the farthest (beyond [`TRIM`] medians) left
 /// out.
-fn closest_pairs(points: &[Vector3<f64>], target: &FrameSurface) -> Vec<(Vector3<f64>, Vector3<f64>)> {
-    let pairs: Vec<(Vector3<f64>, Vector3<f64>)> = points
+fn closest_pairs(points: &[Vector3<f64>], target: &FrameSurface) -> Vec<Pair> {
+    let pairs: Vec<Pair> = points
         .par_iter()
-        .map(|p| (*p, target.closest_point(p).position))
+        .map(|p| {
+            let (q, n) = target.closest_point_and_normal(p);
+            (*p, q.position, n)
+        })
         .collect();
-    let distances: Vec<f64> = pairs.iter().map(|(p, q)| (p - q).norm()).collect();
+    let distances: Vec<f64> = pairs.iter().map(|(p, q, _)| (p - q).norm()).collect();
     let limit = TRIM * median(distances.clone());
     pairs
         .into_iter()
@@ -172,35 +177,35 @@ fn closest_pairs(points: &[Vector3<f64>], target: &FrameSurface) -> Vec<(Vector3
         .collect()
 }
 
-/// The similarity (or rigid) motion taking the first points of `pairs` closest to the second
-/// (Umeyama 1991); `None` for fewer than 3 pairs.
-fn best_motion(pairs: &[(Vector3<f64>, Vector3<f64>)], with_scale: bool) -> Option<Motion> {
-    if pairs.len() < 3 {
+/// One Gauss–Newton step of the point-to-plane distance (Chen & Medioni 1992), which converges
+/// in a few iterations where point-to-point pairs would slide along a smooth surface for
+/// hundreds: with `x ↦ x + δs x + ω × x + t` (small `ω`, `δs`), minimize
+/// `Σ (n · (p + δs p + ω × p + t − q))²`, a 6×6 (7×7 with scale) least-squares problem; the
+/// rotation is then the exact one of angle `|ω|` about `ω`. `None` if it is singular.
+fn linearized_step(pairs: &[Pair], with_scale: bool) -> Option<Motion> {
+    if pairs.len() < 7 {
         return None;
     }
-    let n = pairs.len() as f64;
-    let p_mean = pairs.iter().map(|(p, _)| p).sum::<Vector3<f64>>() / n;
-    let q_mean = pairs.iter().map(|(_, q)| q).sum::<Vector3<f64>>() / n;
-    let mut covariance = Matrix3::zeros();
-    let mut variance = 0.0;
-    for (p, q) in pairs {
-        let (dp, dq) = (p - p_mean, q - q_mean);
-        covariance += dq * dp.transpose() / n;
-        variance += dp.norm_squared() / n;
+    let dimension = if with_scale { 7 } else { 6 };
+    let mut normal = nalgebra::DMatrix::<f64>::zeros(dimension, dimension);
+    let mut rhs = nalgebra::DVector::<f64>::zeros(dimension);
+    for (p, q, n) in pairs {
+        let c = p.cross(n);
+        let mut row = vec![c.x, c.y, c.z, n.x, n.y, n.z];
+        if with_scale {
+            row.push(p.dot(n));
+        }
+        let row = nalgebra::DVector::from_vec(row);
+        normal += &row * row.transpose();
+        rhs += &row * n.dot(&(q - p));
     }
-    let svd = covariance.svd(true, true);
-    let (u, v_t) = (svd.u?, svd.v_t?);
-    let sign = (u.determinant() * v_t.determinant()).signum();
-    let s = Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, sign));
-    let rotation = u * s * v_t;
-    let scale = match with_scale && variance > 0.0 {
-        true => (svd.singular_values.component_mul(&s.diagonal())).sum() / variance,
-        false => 1.0,
-    };
+    let x = normal.cholesky()?.solve(&rhs);
+    let omega = Vector3::new(x[0], x[1], x[2]);
+    let rotation = nalgebra::Rotation3::new(omega).into_inner();
     Some(Motion {
         rotation,
-        scale,
-        translation: q_mean - scale * rotation * p_mean,
+        scale: if with_scale { 1.0 + x[6] } else { 1.0 },
+        translation: Vector3::new(x[3], x[4], x[5]),
     })
 }
 

@@ -41,6 +41,7 @@ mod align;
 mod reference;
 mod relax;
 mod surface;
+mod trim;
 
 use crate::connection::vertex_normals;
 use crate::flow::{FlowError, MeshSequence};
@@ -107,6 +108,23 @@ pub struct TrackOptions {
     pub relaxation: Relaxation,
     /// The motion taken out between frames before tracking.
     pub alignment: Alignment,
+    /// Keep reference vertices beyond a frame's boundary (they take the closest point, on
+    /// the boundary) instead of trimming the reference to what every frame covers (`trim`).
+    pub keep_uncovered: bool,
+}
+
+/// What [`track_with_progress`] tells as it goes.
+#[derive(Clone, Debug)]
+pub enum TrackEvent<'a> {
+    /// A frame is done.
+    Frame(&'a FrameReport),
+    /// `uncovered` reference vertices lie beyond frame `frame`'s boundary: the reference was
+    /// trimmed to `remaining` vertices and tracking starts again from frame 0.
+    Trimmed {
+        frame: usize,
+        uncovered: usize,
+        remaining: usize,
+    },
 }
 
 /// What tracking did from the previous frame to this one (frame 0: from the reference onto
@@ -138,6 +156,9 @@ pub struct FrameReport {
     pub worst_area_change: f64,
     /// Triangles whose normal turned by more than 90° in this step.
     pub flipped_triangles: usize,
+    /// The largest distance of a tracked vertex from the frame's surface (a check: the
+    /// tracked vertices are put on it).
+    pub max_off_surface: f64,
     /// The motion between this frame and the previous one (frames after the first).
     pub alignment: Option<AlignmentReport>,
 }
@@ -150,6 +171,8 @@ pub struct TrackReport {
     pub alignment: Alignment,
     /// Vertices of the reference: frame 0's, the one given, or made to the asked size.
     pub reference_vertices: usize,
+    /// Reference vertices trimmed away because some frame does not cover them.
+    pub trimmed_vertices: usize,
     pub frames: Vec<FrameReport>,
     /// Frames that look misaligned against the previous one, and other things to know.
     pub warnings: Vec<String>,
@@ -223,9 +246,10 @@ pub enum TrackError {
         at: Location,
     },
     #[error(
-        "frame {frame}: {count} triangles flipped, first triangle {face} ({at}): the tracked \
-         mesh folds where the step is large against the surface's curvature; use frames closer \
-         in time, a coarser reference (--reference-vertices) or --align rigid; --keep-going to \
+        "frame {frame}: {count} triangles flipped, first triangle {face} ({at}; its smallest \
+         angle was {smallest_angle:.1}°): the tracked mesh folds where the step is large \
+         against the surface's curvature or a triangle is a sliver; use frames closer in time, \
+         a clean coarser reference (--reference-vertices) or --align rigid; --keep-going to \
          continue anyway"
     )]
     Flipped {
@@ -233,6 +257,8 @@ pub enum TrackError {
         face: usize,
         count: usize,
         at: Location,
+        /// Degrees, in the previous frame.
+        smallest_angle: f64,
     },
     #[error(
         "frame {frame}: tracked triangle {face} ({at}) collapsed to zero area (its vertices \
@@ -243,6 +269,18 @@ pub enum TrackError {
         frame: usize,
         face: usize,
         at: Location,
+    },
+    #[error(
+        "frame {frame}: {} reference vertices lie beyond the frame's boundary (first: vertex \
+         {})", vertices.len(), vertices[0]
+    )]
+    Uncovered { frame: usize, vertices: Vec<usize> },
+    #[error("frame {frame} covers none of the reference: nothing is left to track")]
+    NothingCovered { frame: usize },
+    #[error("{source}; note: {warning}")]
+    AfterWarning {
+        warning: String,
+        source: Box<TrackError>,
     },
     #[error("the step bound must be a positive number, got {0}")]
     BadMaxStep(f64),
@@ -266,13 +304,13 @@ pub fn track(
     track_with_progress(frames, times, options, &mut |_| {})
 }
 
-/// [`track`], calling `on_frame` with each frame's report as soon as the frame is done (the
-/// frames done before a failure are thus known to the caller).
+/// [`track`], telling `on_event` of each frame as soon as it is done (the frames done before
+/// a failure are thus known to the caller) and of each trimming of the reference.
 pub fn track_with_progress(
     frames: &[TrackFrame],
     times: Option<Vec<f64>>,
     options: &TrackOptions,
-    on_frame: &mut dyn FnMut(&FrameReport),
+    on_event: &mut dyn FnMut(TrackEvent),
 ) -> Result<Tracked, TrackError> {
     let first = frames.first().ok_or(TrackError::NoFrames)?;
     for (k, frame) in frames.iter().enumerate() {
@@ -283,8 +321,60 @@ pub fn track_with_progress(
         Some(s) => return Err(TrackError::BadMaxStep(s)),
         None => 0.1 * bounding_diagonal(&first.positions),
     };
-    let reference = reference_surface(first, options)?;
-    let mesh = Mesh::new(reference.positions.len(), reference.faces)?;
+    let mut reference = reference_surface(first, options)?;
+    let made = reference.positions.len();
+    let mut notes = Vec::new();
+    loop {
+        match track_reference(frames, &reference, bound, options, on_event) {
+            Err(TrackError::Uncovered { frame, vertices }) if !options.keep_uncovered => {
+                let next =
+                    trim::trimmed(&reference, &vertices).ok_or(TrackError::NothingCovered { frame })?;
+                let remaining = next.positions.len();
+                on_event(TrackEvent::Trimmed {
+                    frame,
+                    uncovered: vertices.len(),
+                    remaining,
+                });
+                notes.push(format!(
+                    "frame {frame} does not cover {} reference vertices (beyond its boundary): \
+                     the reference was trimmed to {remaining} vertices",
+                    vertices.len()
+                ));
+                reference = next;
+            }
+            Err(e) => return Err(e),
+            Ok(mut run) => {
+                run.report.reference_vertices = made;
+                run.report.trimmed_vertices = made - reference.positions.len();
+                run.report.warnings.splice(0..0, notes);
+                let mesh = Mesh::new(reference.positions.len(), reference.faces)?;
+                let sequence = MeshSequence::new(mesh, run.positions, run.intensities, times)?;
+                return Ok(Tracked {
+                    sequence,
+                    report: run.report,
+                    landings: run.landings,
+                });
+            }
+        }
+    }
+}
+
+/// One tracking run of every frame from `reference`.
+struct Run {
+    positions: Vec<Vec<Vector3<f64>>>,
+    intensities: Vec<Vec<f64>>,
+    landings: Vec<Vec<SurfacePoint>>,
+    report: TrackReport,
+}
+
+fn track_reference(
+    frames: &[TrackFrame],
+    reference: &Surface,
+    bound: f64,
+    options: &TrackOptions,
+    on_event: &mut dyn FnMut(TrackEvent),
+) -> Result<Run, TrackError> {
+    let mesh = Mesh::new(reference.positions.len(), reference.faces.clone())?;
     let relaxer = match options.relaxation {
         Relaxation::Arap { iterations } if iterations > 0 => Some(Relaxer::new(&mesh, iterations)),
         _ => None,
@@ -294,41 +384,51 @@ pub fn track_with_progress(
         reference: &reference.positions,
         bound,
         keep_going: options.keep_going,
+        keep_uncovered: options.keep_uncovered,
         relaxer,
     };
-    let mut report = TrackReport {
-        max_step_bound: bound,
-        relaxation: tracker.relaxer.is_some().then_some(options.relaxation),
-        alignment: options.alignment,
-        reference_vertices: mesh.n_vertices(),
-        ..Default::default()
+    let mut run = Run {
+        positions: Vec::with_capacity(frames.len()),
+        intensities: Vec::with_capacity(frames.len()),
+        landings: Vec::with_capacity(frames.len()),
+        report: TrackReport {
+            max_step_bound: bound,
+            relaxation: tracker.relaxer.is_some().then_some(options.relaxation),
+            alignment: options.alignment,
+            ..Default::default()
+        },
     };
-    let mut positions = Vec::with_capacity(frames.len());
-    let mut intensities = Vec::with_capacity(frames.len());
-    let mut landings = Vec::with_capacity(frames.len());
     let mut current = reference.positions.clone();
     let mut previous: Option<TrackFrame> = None;
     for (k, frame) in frames.iter().enumerate() {
+        let warnings_before = run.report.warnings.len();
         let (frame, alignment) = match &previous {
-            Some(before) => align_to(k, frame, before, options.alignment, &mut report.warnings)?,
+            Some(before) => align_to(k, frame, before, options.alignment, &mut run.report.warnings)?,
             None => (frame.clone(), None),
         };
-        let mut step = tracker.step(k, &current, &frame)?;
+        let mut step = match tracker.step(k, &current, &frame) {
+            Ok(step) => step,
+            Err(e @ TrackError::Uncovered { .. }) => return Err(e),
+            Err(e) => match run.report.warnings.get(warnings_before) {
+                Some(warning) => {
+                    return Err(TrackError::AfterWarning {
+                        warning: warning.clone(),
+                        source: Box::new(e),
+                    })
+                }
+                None => return Err(e),
+            },
+        };
         step.report.alignment = alignment;
-        on_frame(&step.report);
+        on_event(TrackEvent::Frame(&step.report));
         current = step.positions;
-        positions.push(current.clone());
-        intensities.push(step.intensity);
-        landings.push(step.landing);
-        report.frames.push(step.report);
+        run.positions.push(current.clone());
+        run.intensities.push(step.intensity);
+        run.landings.push(step.landing);
+        run.report.frames.push(step.report);
         previous = Some(frame);
     }
-    let sequence = MeshSequence::new(mesh, positions, intensities, times)?;
-    Ok(Tracked {
-        sequence,
-        report,
-        landings,
-    })
+    Ok(run)
 }
 
 /// The mesh to track: the given reference or frame 0's, simplified if asked.
@@ -392,6 +492,12 @@ fn align_to(
 /// missed the nearby surface (a thin feature that moved sideways) and met another part.
 pub const FAR_HIT_RATIO: f64 = 3.0;
 
+/// A vertex whose normal line misses the frame and whose closest point lies on the frame's
+/// boundary, farther along the surface than this many mean edge lengths, is uncovered
+/// (`trim`): farther than round-off, since boundary vertices that merely slide onto the
+/// frame's edge crowd there.
+const UNCOVERED_DISTANCE: f64 = 1e-6;
+
 /// Area, relative to the reference's, below which a tracked triangle counts as collapsed.
 const COLLAPSED_AREA: f64 = 1e-9;
 
@@ -401,6 +507,7 @@ struct Tracker<'a> {
     reference: &'a [Vector3<f64>],
     bound: f64,
     keep_going: bool,
+    keep_uncovered: bool,
     relaxer: Option<Relaxer>,
 }
 
@@ -434,6 +541,15 @@ impl Tracker<'_> {
             .zip(&normals)
             .map(|(x, n)| self.land(&surface, x, n))
             .collect();
+        if !self.keep_uncovered {
+            let uncovered = self.uncovered(&surface, current, &landings);
+            if !uncovered.is_empty() {
+                return Err(TrackError::Uncovered {
+                    frame: k,
+                    vertices: uncovered,
+                });
+            }
+        }
         let mut report = FrameReport {
             frame: k,
             ..Default::default()
@@ -466,9 +582,16 @@ impl Tracker<'_> {
         }
         let normal_step: Vec<Vector3<f64>> = samples.iter().map(|p| p.position).collect();
         if let Some(relaxer) = &self.relaxer {
-            samples = relaxer
+            let relaxed = relaxer
                 .relax(self.mesh, current, samples, &surface)
                 .map_err(|detail| TrackError::Relaxation { frame: k, detail })?;
+            if !self.keep_uncovered && !relaxed.clamped.is_empty() {
+                return Err(TrackError::Uncovered {
+                    frame: k,
+                    vertices: relaxed.clamped,
+                });
+            }
+            samples = relaxed.samples;
         }
         let (next, grey): (Vec<_>, Vec<_>) =
             samples.into_iter().map(|p| (p.position, p.intensity)).unzip();
@@ -480,6 +603,9 @@ impl Tracker<'_> {
             report.mean_relaxation += relaxed / n;
             report.max_relaxation = report.max_relaxation.max(relaxed);
         }
+        report.max_off_surface = (next.par_iter())
+            .map(|y| (surface.closest_point(y).position - y).norm())
+            .reduce(|| 0.0, f64::max);
         self.measure_quality(k, current, &next, &mut report)?;
         Ok(Step {
             landing: next.par_iter().map(|y| surface.locate(y)).collect(),
@@ -505,6 +631,36 @@ impl Tracker<'_> {
             None if distance <= self.bound => Landing::Fallback(closest),
             None => Landing::Beyond(closest),
         }
+    }
+
+    /// Vertices whose normal line misses the frame and whose closest point lies on the frame's
+    /// boundary, farther along the surface than [`UNCOVERED_DISTANCE`] mean edges (see `trim`).
+    fn uncovered(
+        &self,
+        surface: &FrameSurface,
+        current: &[Vector3<f64>],
+        landings: &[Landing],
+    ) -> Vec<usize> {
+        let edges = self.mesh.edges();
+        let mean_edge = (edges.iter())
+            .map(|&[i, j]| (current[i as usize] - current[j as usize]).norm())
+            .sum::<f64>()
+            / edges.len().max(1) as f64;
+        (landings.iter().enumerate())
+            .filter_map(|(i, landing)| match landing {
+                Landing::Fallback(p) | Landing::Beyond(p) => Some((i, p.position)),
+                Landing::Hit(_) => None,
+            })
+            .filter(|(i, p)| {
+                // Beyond the edge, the way to the closest point has a part along the surface;
+                // off a surface that moved along its normal, it has none.
+                let (_, normal) = surface.closest_point_and_normal(p);
+                let offset = current[*i] - p;
+                let along = (offset - normal * normal.dot(&offset)).norm();
+                along > UNCOVERED_DISTANCE * mean_edge && surface.closest_point_is_on_boundary(p)
+            })
+            .map(|(i, _)| i)
+            .collect()
     }
 
     /// The mean of `vertices`' positions, and whether any of them is on the boundary.
@@ -553,16 +709,37 @@ impl Tracker<'_> {
         }
         (report.edge_log_ratio_p99, report.edge_log_ratio_max) = percentile_and_max(log_ratios, 0.99);
         report.flipped_triangles = flipped.len();
+        // A fold at the mesh's edge is where the frame's own edge cut in: trimmed like
+        // uncovered vertices (`trim`) rather than reported.
+        let at_edge: Vec<usize> = (flipped.iter())
+            .flat_map(|&f| corners(&self.mesh.faces()[f]))
+            .filter(|&v| self.mesh.is_boundary_vertex(v))
+            .collect();
+        if !self.keep_uncovered && !at_edge.is_empty() {
+            return Err(TrackError::Uncovered {
+                frame: k,
+                vertices: at_edge,
+            });
+        }
         match flipped.first() {
             Some(&face) if !self.keep_going => Err(TrackError::Flipped {
                 frame: k,
                 face,
                 count: flipped.len(),
                 at: self.location(&corners(&self.mesh.faces()[face]), after),
+                smallest_angle: smallest_angle(self.mesh.faces()[face].map(|v| before[v as usize])),
             }),
             _ => Ok(()),
         }
     }
+}
+
+/// The smallest corner angle of a triangle, in degrees.
+fn smallest_angle(x: [Vector3<f64>; 3]) -> f64 {
+    (0..3)
+        .map(|c| (x[(c + 1) % 3] - x[c]).angle(&(x[(c + 2) % 3] - x[c])))
+        .fold(f64::INFINITY, f64::min)
+        .to_degrees()
 }
 
 /// The `q`-quantile (nearest rank) and the largest of `values` (0 for none).

@@ -165,26 +165,6 @@ fn used_vertices(n: usize, indices: impl Iterator<Item = u32>) -> usize {
     used.iter().filter(|&&u| u).count()
 }
 
-/// The vertices `faces` use, renumbered in their original order.
 fn compact(positions: &[Vector3<f64>], faces: Vec<[u32; 3]>) -> Surface {
-    let mut new_index = vec![u32::MAX; positions.len()];
-    let mut kept = Vec::new();
-    for &v in faces.iter().flatten() {
-        if new_index[v as usize] == u32::MAX {
-            new_index[v as usize] = 0;
-        }
-    }
-    for (old, slot) in new_index.iter_mut().enumerate() {
-        if *slot == 0 {
-            *slot = kept.len() as u32;
-            kept.push(positions[old]);
-        }
-    }
-    Surface {
-        positions: kept,
-        faces: faces
-            .into_iter()
-            .map(|f| f.map(|v| new_index[v as usize]))
-            .collect(),
-    }
+    super::trim::compact(positions, &faces, &mut Vec::new())
 }

@@ -14,8 +14,8 @@
 //! ```
 //!
 //! with `D_f` the previous triangle's edge vectors in its own 2-D layout and `A_f` its area.
-//! The targets are rotations scaled by the change of the whole surface's area,
-//! `σ = (area(y) / area(x))^½`: a surface that grows or shrinks uniformly (a pulsating
+//! The targets are rotations scaled by the change of the whole surface's area under the normal
+//! step, `σ = (area(y⁰) / area(x))^½`: a surface that grows or shrinks uniformly (a pulsating
 //! sphere) costs nothing and is left to normal motion; plain ARAP would pull such a mesh
 //! tangentially, like a membrane under tension, a little more with every step.
 //! Local step: `R_f` is the rotation nearest to `J_f` in the face's plane (oriented like the
@@ -66,6 +66,20 @@ pub(super) struct Relaxer {
     iterations: usize,
 }
 
+/// The relaxed mesh: where each vertex is on the surface, and the vertices that the last step
+/// would have moved over the surface's edge (they were held on its boundary instead).
+pub(super) struct Relaxed {
+    pub samples: Vec<SurfaceSample>,
+    pub clamped: Vec<usize>,
+}
+
+/// One vertex's move in a step.
+struct Move {
+    sample: SurfaceSample,
+    length: f64,
+    clamped: bool,
+}
+
 /// One previous triangle: area and the map from corner positions to the face's Jacobian.
 struct RestFace {
     area: f64,
@@ -93,14 +107,25 @@ impl Relaxer {
         rest: &[Vector3<f64>],
         start: Vec<SurfaceSample>,
         surface: &FrameSurface,
-    ) -> Result<Vec<SurfaceSample>, String> {
+    ) -> Result<Relaxed, String> {
         let faces = rest_faces(mesh, rest);
         let total_area: f64 = faces.iter().map(|f| f.area).sum();
         let mean_edge = mean_edge_length(mesh, rest);
+        // From the normal step, once: recomputed from the iterates, a surface with a free
+        // boundary would shrink a little more with every step.
+        let start_positions: Vec<Vector3<f64>> = start.iter().map(|s| s.position).collect();
+        let growth = (surface_area(mesh, &start_positions) / total_area).sqrt();
         let mut samples = start;
+        let mut clamped = Vec::new();
         for step in 0..EXTRA_FOR_FOLDS * self.iterations {
-            let (next, largest_step) = self.iterate(mesh, &faces, total_area, &samples, surface)?;
-            samples = next;
+            let (next, largest_step) = self.iterate(mesh, &faces, total_area, growth, &samples, surface)?;
+            clamped = next
+                .iter()
+                .enumerate()
+                .filter(|(_, m)| m.clamped)
+                .map(|(i, _)| i)
+                .collect();
+            samples = next.into_iter().map(|m| m.sample).collect();
             // Folds left after a round of steps get whole further rounds, not a stop at the
             // first step that happens to unfold them.
             let settled = (step + 1) % self.iterations == 0 || largest_step <= CONVERGED_STEP * mean_edge;
@@ -108,7 +133,7 @@ impl Relaxer {
                 break;
             }
         }
-        Ok(samples)
+        Ok(Relaxed { samples, clamped })
     }
 
     /// One local and one global step, then the projection onto the surface; the largest
@@ -118,9 +143,10 @@ impl Relaxer {
         mesh: &Mesh,
         faces: &[RestFace],
         total_area: f64,
+        growth: f64,
         samples: &[SurfaceSample],
         surface: &FrameSurface,
-    ) -> Result<(Vec<SurfaceSample>, f64), String> {
+    ) -> Result<(Vec<Move>, f64), String> {
         let p: Vec<Vector3<f64>> = samples.iter().map(|s| s.position).collect();
         let bases: Vec<Matrix3x2<f64>> = p
             .par_iter()
@@ -134,7 +160,6 @@ impl Relaxer {
             })
             .collect();
         let proximal = PROXIMAL_WEIGHT / total_area;
-        let growth = (surface_area(mesh, &p) / total_area).sqrt();
         let mut values = vec![0.0; self.pattern.nnz()];
         let mut rhs = vec![0.0; 2 * p.len()];
         for (f, face) in mesh.faces().iter().enumerate() {
@@ -162,14 +187,23 @@ impl Relaxer {
         }
         let factor = CholeskyFactor::<f64>::new(&self.symbolic, self.pattern.view(&values), Par::Seq)?;
         factor.solve_in_place(&mut rhs, Par::Seq);
-        let moved: Vec<(SurfaceSample, f64)> = (p.par_iter().zip(&bases).enumerate())
+        let clamp_tolerance = 1e-6 * mean_edge_length(mesh, &p);
+        let moved: Vec<Move> = (p.par_iter().zip(&bases).enumerate())
             .map(|(i, (x, basis))| {
                 let step = basis * Vector2::new(rhs[2 * i], rhs[2 * i + 1]);
-                (surface.closest_point(&(x + step)), step.norm())
+                let wanted = x + step;
+                let sample = surface.closest_point(&wanted);
+                let clamped = (sample.position - wanted).norm() > clamp_tolerance + 1e-3 * step.norm()
+                    && surface.closest_point_is_on_boundary(&wanted);
+                Move {
+                    sample,
+                    length: step.norm(),
+                    clamped,
+                }
             })
             .collect();
-        let largest = moved.iter().map(|m| m.1).fold(0.0, f64::max);
-        Ok((moved.into_iter().map(|m| m.0).collect(), largest))
+        let largest = moved.iter().map(|m| m.length).fold(0.0, f64::max);
+        Ok((moved, largest))
     }
 }
 

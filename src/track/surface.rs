@@ -10,6 +10,7 @@ use nalgebra::Vector3;
 use parry3d_f64::math::Vector;
 use parry3d_f64::query::{PointQueryWithLocation, Ray, RayCast};
 use parry3d_f64::shape::TriMesh;
+use std::collections::{HashMap, HashSet};
 
 /// A frame's triangles with a grey value per vertex.
 pub struct FrameSurface<'a> {
@@ -17,6 +18,9 @@ pub struct FrameSurface<'a> {
     faces: &'a [[u32; 3]],
     intensity: &'a [f64],
     bvh: TriMesh,
+    /// Edges `(min, max)` with one triangle only, and their vertices.
+    boundary: HashSet<(u32, u32)>,
+    boundary_vertices: HashSet<u32>,
 }
 
 /// A point on a frame's surface: where it is and the grey value there (the mesh-independent
@@ -40,11 +44,23 @@ impl<'a> FrameSurface<'a> {
             frame,
             detail: e.to_string(),
         })?;
+        let mut count: HashMap<(u32, u32), u32> = HashMap::new();
+        for f in faces {
+            for c in 0..3 {
+                let (a, b) = (f[c], f[(c + 1) % 3]);
+                *count.entry((a.min(b), a.max(b))).or_default() += 1;
+            }
+        }
+        let boundary: HashSet<(u32, u32)> =
+            count.into_iter().filter(|&(_, n)| n == 1).map(|(e, _)| e).collect();
+        let boundary_vertices = boundary.iter().flat_map(|&(a, b)| [a, b]).collect();
         Ok(Self {
             positions,
             faces,
             intensity,
             bvh,
+            boundary,
+            boundary_vertices,
         })
     }
 
@@ -92,6 +108,22 @@ impl<'a> FrameSurface<'a> {
         let normal = (b - a).cross(&(c - a));
         let unit = normal.try_normalize(0.0).unwrap_or_else(Vector3::z);
         (self.sample(face, position), unit)
+    }
+
+    /// Whether the closest point of the surface to `point` lies on its boundary.
+    pub fn closest_point_is_on_boundary(&self, point: &Vector3<f64>) -> bool {
+        let (face, position) = self.project(point);
+        let weights = self.barycentric_on(face, &position);
+        let corners = self.faces[face];
+        let on_edge = (0..3).any(|c| {
+            let (a, b) = (corners[(c + 1) % 3], corners[(c + 2) % 3]);
+            weights[c] <= 1e-9 && self.boundary.contains(&(a.min(b), a.max(b)))
+        });
+        // At a corner, the face found need not be the one along the boundary.
+        let at_boundary_vertex = (0..3).any(|c| {
+            weights[c] >= 1.0 - 1e-9 && self.boundary_vertices.contains(&corners[c])
+        });
+        on_edge || at_boundary_vertex
     }
 
     /// The face and position of the closest point of the surface to `point`.

@@ -491,6 +491,10 @@ struct TrackArgs {
     /// similarity (also uniform scale) or none; the transforms are in track.json
     #[arg(long, value_name = "KIND", default_value = "none")]
     align: meshflow::track::Alignment,
+    /// Keep reference vertices beyond a frame's boundary (they take the closest point on it)
+    /// instead of trimming the reference to the part every frame covers
+    #[arg(long)]
+    keep_uncovered: bool,
     /// The image as a float .npy of shape (frames, vertices) or (frames, vertices, channels)
     /// when every frame has as many vertices, or a directory of one .npy per frame, (vertices,)
     /// or (vertices, channels), in natural order; instead of the files' colours
@@ -528,6 +532,7 @@ impl TrackArgs {
                 RelaxKind::None => Relaxation::None,
             },
             alignment: self.align,
+            keep_uncovered: self.keep_uncovered,
         }
     }
 

@@ -11,7 +11,7 @@ use meshflow::io::{
     Overwrite, SequenceSource, StagedDir, VertexValues,
 };
 use meshflow::shapes::Surface;
-use meshflow::track::{track_with_progress, FrameReport, TrackFrame, TrackOptions, Tracked};
+use meshflow::track::{track_with_progress, FrameReport, TrackEvent, TrackFrame, TrackOptions, Tracked};
 use meshflow::Error;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -50,12 +50,27 @@ pub fn run(request: TrackRequest) -> Result<(), Error> {
     };
     print_header(request.input, &frames, &options);
     let bar = count_progress(frames.len() as u64, "tracking frames");
-    let mut on_frame = |report: &FrameReport| {
-        bar.suspend(|| println!("  {}", describe(report)));
-        bar.inc(1);
+    let mut on_event = |event: TrackEvent| match event {
+        TrackEvent::Frame(report) => {
+            bar.suspend(|| println!("  {}", describe(report)));
+            bar.inc(1);
+        }
+        TrackEvent::Trimmed {
+            frame,
+            uncovered,
+            remaining,
+        } => {
+            bar.suspend(|| {
+                println!(
+                    "  frame {frame:3}: {uncovered} reference vertices lie beyond the frame's \
+                     boundary: trimmed to {remaining} vertices, tracking again from frame 0"
+                )
+            });
+            bar.set_position(0);
+        }
     };
     let times = request.times.or(input.times);
-    let tracked = track_with_progress(&frames, times, &options, &mut on_frame);
+    let tracked = track_with_progress(&frames, times, &options, &mut on_event);
     bar.finish_and_clear();
     let tracked = tracked?;
     let image = channels
@@ -359,6 +374,7 @@ fn describe(r: &FrameReport) -> String {
     let mut line = format!(
         "frame {:3}: mean_step {:.3e} max_step {:.3e}; mean_relaxation {:.3e} max_relaxation \
          {:.3e}; edge_log_ratio_p99 {:.3} edge_log_ratio_max {:.3}; flipped_triangles {}; \
+         max_off_surface {:.1e}; \
          misses {} (fallbacks {}, beyond_max_step {}); worst_edge_change {:.1} %, \
          worst_area_change {:.1} %",
         r.frame,
@@ -369,6 +385,7 @@ fn describe(r: &FrameReport) -> String {
         r.edge_log_ratio_p99,
         r.edge_log_ratio_max,
         r.flipped_triangles,
+        r.max_off_surface,
         r.misses,
         r.fallbacks,
         r.beyond_max_step,
