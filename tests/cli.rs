@@ -632,6 +632,7 @@ fn solve_reruns_replace_the_earlier_output_as_a_whole() {
         "flow_intrinsic.npy",
         "meshflow_run.json",
         "summary.json",
+        "velocity.npy",
     ];
     assert_eq!(listing(&out), first);
     // Three frames, NPY only: nothing of the five-slab run is left.
@@ -642,6 +643,7 @@ fn solve_reruns_replace_the_earlier_output_as_a_whole() {
         "flow_intrinsic.npy",
         "meshflow_run.json",
         "summary.json",
+        "velocity.npy",
     ];
     assert_eq!(listing(&out), second);
     assert_eq!(read_npy(&out.join("flow.npy")).unwrap().shape, [2, 642, 3]);
@@ -683,7 +685,8 @@ fn solve_reruns_replace_the_earlier_output_as_a_whole() {
             "flow_intrinsic.npy",
             "meshflow_run.json",
             "notes.txt",
-            "summary.json"
+            "summary.json",
+            "velocity.npy"
         ]
     );
 }

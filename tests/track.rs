@@ -99,7 +99,13 @@ fn identical_frames_give_zero_motion() {
         );
     }
     // Relaxation against an identical frame stays put, up to the round-off of its solves.
-    for (x, y) in tracked.sequence.positions(2).unwrap().iter().zip(&sphere.positions) {
+    for (x, y) in tracked
+        .sequence
+        .positions(2)
+        .unwrap()
+        .iter()
+        .zip(&sphere.positions)
+    {
         assert!((x - y).norm() < 1e-14, "{x:?} moved from {y:?}");
     }
 }
@@ -315,7 +321,11 @@ fn rigid_alignment_recovers_a_turned_and_moved_remeshed_ellipsoid() {
     let shift = Vector3::new(0.15, -0.1, 0.05);
     let frames = vec![
         frame(&icosphere(3), |x| x.component_mul(&radii), linear_grey),
-        frame(&icosphere(4), |x| turn * x.component_mul(&radii) + shift, linear_grey),
+        frame(
+            &icosphere(4),
+            |x| turn * x.component_mul(&radii) + shift,
+            linear_grey,
+        ),
     ];
     let options = TrackOptions {
         alignment: Alignment::Rigid,
@@ -324,21 +334,44 @@ fn rigid_alignment_recovers_a_turned_and_moved_remeshed_ellipsoid() {
     let tracked = track(&frames, None, &options).unwrap();
     let alignment = tracked.report.frames[1].alignment.clone().unwrap();
     assert!(alignment.applied);
-    assert!((alignment.rotation_degrees - 20.0).abs() < 0.2, "{alignment:?}");
+    assert!(
+        (alignment.rotation_degrees - 20.0).abs() < 0.2,
+        "{alignment:?}"
+    );
     assert!(alignment.median_distance_after < 2e-3, "{alignment:?}");
     // The finer frame's facets lie within 1e-3 of the coarse one's vertices.
-    let (before, after) = (tracked.sequence.positions(0).unwrap(), tracked.sequence.positions(1).unwrap());
-    let largest = before.iter().zip(after).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    let (before, after) = (
+        tracked.sequence.positions(0).unwrap(),
+        tracked.sequence.positions(1).unwrap(),
+    );
+    let largest = before
+        .iter()
+        .zip(after)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
     assert!(largest < 5e-3, "tracked vertices moved by up to {largest}");
-    assert!(tracked.report.warnings.is_empty(), "{:?}", tracked.report.warnings);
+    assert!(
+        tracked.report.warnings.is_empty(),
+        "{:?}",
+        tracked.report.warnings
+    );
 
-    let unaligned = track(&frames, None, &TrackOptions { keep_going: true, ..Default::default() });
+    let unaligned = track(
+        &frames,
+        None,
+        &TrackOptions {
+            keep_going: true,
+            ..Default::default()
+        },
+    );
     let warnings = match unaligned {
         Ok(t) => t.report.warnings,
         Err(e) => vec![e.to_string()],
     };
     assert!(
-        warnings.iter().any(|w| w.contains("frame 1 looks misaligned") && w.contains("--align rigid")),
+        warnings
+            .iter()
+            .any(|w| w.contains("frame 1 looks misaligned") && w.contains("--align rigid")),
         "{warnings:?}"
     );
 }
@@ -362,8 +395,13 @@ fn relaxation_prevents_the_fold_of_normal_steps_beyond_the_radius_of_curvature()
         max_step: Some(2.0),
         ..normal_motion()
     };
-    let error = track(&frames, None, &normal_only).err().expect("normal motion folds");
-    assert!(matches!(error, TrackError::Flipped { frame: 1, .. }), "{error}");
+    let error = track(&frames, None, &normal_only)
+        .err()
+        .expect("normal motion folds");
+    assert!(
+        matches!(error, TrackError::Flipped { frame: 1, .. }),
+        "{error}"
+    );
     let relaxed = TrackOptions {
         max_step: Some(2.0),
         ..Default::default()
@@ -389,7 +427,10 @@ fn a_reference_of_a_chosen_size_is_a_clean_mesh_on_frame_0() {
     for target in [300, 1000] {
         let reference = simplified_reference(&sphere.positions, &sphere.faces, target);
         let n = reference.positions.len();
-        assert!(n.abs_diff(target) * 20 <= target, "{n} vertices for {target}");
+        assert!(
+            n.abs_diff(target) * 20 <= target,
+            "{n} vertices for {target}"
+        );
         let mesh = Mesh::new(n, reference.faces.clone()).unwrap();
         assert!(mesh.is_closed() && mesh.euler_characteristic() == 2);
         let zeros = vec![0.0; sphere.positions.len()];
@@ -403,7 +444,11 @@ fn a_reference_of_a_chosen_size_is_a_clean_mesh_on_frame_0() {
             .map(|f| {
                 let x = f.map(|v| reference.positions[v as usize]);
                 (0..3)
-                    .map(|c| (x[(c + 1) % 3] - x[c]).angle(&(x[(c + 2) % 3] - x[c])).to_degrees())
+                    .map(|c| {
+                        (x[(c + 1) % 3] - x[c])
+                            .angle(&(x[(c + 2) % 3] - x[c]))
+                            .to_degrees()
+                    })
                     .fold(180.0, f64::min)
             })
             .fold(180.0, f64::min);
@@ -425,21 +470,39 @@ fn a_reference_beyond_a_frame_boundary_is_trimmed_to_the_covered_part() {
         frame(&smaller, |x| x + Vector3::new(0.0, 0.0, 0.05), linear_grey),
     ];
     let mut trims = Vec::new();
-    let tracked = meshflow::track::track_with_progress(&frames, None, &TrackOptions::default(), &mut |event| {
-        if let meshflow::track::TrackEvent::Trimmed { frame, remaining, .. } = event {
-            trims.push((frame, remaining));
-        }
-    })
+    let tracked = meshflow::track::track_with_progress(
+        &frames,
+        None,
+        &TrackOptions::default(),
+        &mut |event| {
+            if let meshflow::track::TrackEvent::Trimmed {
+                frame, remaining, ..
+            } = event
+            {
+                trims.push((frame, remaining));
+            }
+        },
+    )
     .unwrap();
     let n = tracked.sequence.mesh().n_vertices();
-    assert!(!trims.is_empty() && trims.iter().all(|&(frame, _)| frame == 1), "{trims:?}");
+    assert!(
+        !trims.is_empty() && trims.iter().all(|&(frame, _)| frame == 1),
+        "{trims:?}"
+    );
     assert_eq!(trims.last().unwrap().1, n);
     assert_eq!(tracked.report.trimmed_vertices, 21 * 21 - n);
     assert!((n as f64) > 0.3 * 21.0 * 21.0, "only {n} vertices left");
     for x in tracked.sequence.positions(1).unwrap() {
-        assert!(x.x <= 0.7 + 1e-12 && x.y <= 0.7 + 1e-12 && (x.z - 0.05).abs() < 1e-12, "{x:?}");
+        assert!(
+            x.x <= 0.7 + 1e-12 && x.y <= 0.7 + 1e-12 && (x.z - 0.05).abs() < 1e-12,
+            "{x:?}"
+        );
     }
-    assert!(tracked.report.warnings[0].contains("frame 1 does not cover"), "{:?}", tracked.report.warnings);
+    assert!(
+        tracked.report.warnings[0].contains("frame 1 does not cover"),
+        "{:?}",
+        tracked.report.warnings
+    );
     let kept = TrackOptions {
         keep_uncovered: true,
         keep_going: true,
@@ -447,4 +510,39 @@ fn a_reference_beyond_a_frame_boundary_is_trimmed_to_the_covered_part() {
     };
     let untrimmed = track(&frames, None, &kept);
     assert!(untrimmed.map_or(true, |t| t.sequence.mesh().n_vertices() == 21 * 21));
+}
+
+/// The material's velocity is the mesh's own motion plus the flow relative to it: a grid
+/// sliding along x at 0.2 per unit time carrying a flow (0, 0.1, 0) moves at (0.2, 0.1, 0).
+#[test]
+fn tissue_velocity_is_the_mesh_motion_plus_the_flow() {
+    use meshflow::flow::MeshSequence;
+    let patch = grid(3, 3, 1.0, 1.0);
+    let positions: Vec<Vec<Vector3<f64>>> = (0..3)
+        .map(|k| {
+            patch
+                .positions
+                .iter()
+                .map(|x| x + Vector3::new(0.1 * k as f64, 0.0, 0.0))
+                .collect()
+        })
+        .collect();
+    let grey = vec![vec![0.0; patch.positions.len()]; 3];
+    let sequence = MeshSequence::new(
+        patch.mesh().unwrap(),
+        positions,
+        grey,
+        Some(vec![0.0, 0.5, 1.5]),
+    )
+    .unwrap();
+    let flow = vec![vec![Vector3::new(0.0, 0.1, 0.0); patch.positions.len()]; 2];
+    let velocity = meshflow::io::tissue_velocity(&sequence, &flow);
+    for (s, expected) in [
+        (0, Vector3::new(0.2, 0.1, 0.0)),
+        (1, Vector3::new(0.1, 0.1, 0.0)),
+    ] {
+        for v in &velocity[s] {
+            assert!((v - expected).norm() < 1e-14, "slab {s}: {v:?}");
+        }
+    }
 }

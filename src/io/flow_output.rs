@@ -153,7 +153,11 @@ fn write_flow_npy(dir: &Path, loaded: &LoadedSequence, result: &FlowResult) -> R
             .iter()
             .flat_map(|slab| map.file_rows(slab, Vector3::repeat(f64::NAN)))
             .collect();
-        write_npy(&dir.join("velocity.npy"), &[s, v, 3], &flatten3(rows.iter()))?;
+        write_npy(
+            &dir.join("velocity.npy"),
+            &[s, v, 3],
+            &flatten3(rows.iter()),
+        )?;
     }
     if !map.is_identity() {
         let table = map.to_npy();
@@ -183,17 +187,22 @@ fn write_error_npy(dir: &Path, map: &VertexMap, errors: &FlowErrors) -> Result<(
 /// `(x_{s+1} − x_s) / (t_{s+1} − t_s)` plus the flow `u`, which the model measures relative
 /// to the mesh (a mesh moved only along its normals has a normal motion, and the sum is then
 /// normal velocity plus flow; a tracked or animated mesh that also slides brings its sliding).
-pub fn tissue_velocity(sequence: &MeshSequence, flow: &[Vec<Vector3<f64>>]) -> Vec<Vec<Vector3<f64>>> {
+pub fn tissue_velocity(
+    sequence: &MeshSequence,
+    flow: &[Vec<Vector3<f64>>],
+) -> Vec<Vec<Vector3<f64>>> {
     (flow.iter().enumerate())
-        .map(|(s, u)| match (sequence.positions(s), sequence.positions(s + 1)) {
-            (Some(x0), Some(x1)) => {
-                let dt = sequence.slab_duration(s);
-                (x0.iter().zip(x1).zip(u))
-                    .map(|((a, b), u)| (b - a) / dt + u)
-                    .collect()
-            }
-            _ => u.clone(),
-        })
+        .map(
+            |(s, u)| match (sequence.positions(s), sequence.positions(s + 1)) {
+                (Some(x0), Some(x1)) => {
+                    let dt = sequence.slab_duration(s);
+                    (x0.iter().zip(x1).zip(u))
+                        .map(|((a, b), u)| (b - a) / dt + u)
+                        .collect()
+                }
+                _ => u.clone(),
+            },
+        )
         .collect()
 }
 

@@ -36,8 +36,8 @@ mod weld;
 pub use atomic::{write_atomically, Overwrite, RunManifest, StagedDir, RUN_MANIFEST};
 pub use channels::{select_channels, Channels, VertexValues};
 pub use flow_output::{
-    summary_json, tissue_velocity, track_scores_json, write_flow_outputs, write_slab_vtus, GroundTruthReport,
-    OutputFormat, Scores, TrackReport,
+    summary_json, tissue_velocity, track_scores_json, write_flow_outputs, write_slab_vtus,
+    GroundTruthReport, OutputFormat, Scores, TrackReport,
 };
 pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use ground_truth::read_ground_truth;
@@ -51,8 +51,8 @@ pub use npy::{
 pub use obj::{read_obj, write_obj, ObjMesh};
 pub use prepare::{load_mesh, mesh_from_arrays, read_mesh_geometry, LoadedMesh};
 pub use sequence::{
-    load_geometry, load_sequence, natural_order, read_mesh, read_mesh_with, read_times_file, sequence_from_arrays,
-    LoadOptions, LoadedGeometry, LoadedSequence,
+    load_geometry, load_sequence, natural_order, read_mesh, read_mesh_with, read_times_file,
+    sequence_from_arrays, LoadOptions, LoadedGeometry, LoadedSequence,
 };
 pub use texture::Texture;
 pub use vertex_map::VertexMap;

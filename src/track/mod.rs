@@ -48,12 +48,12 @@ use crate::flow::{FlowError, MeshSequence};
 use crate::geometry::SurfacePoint;
 use crate::mesh::{ConnectivityError, Mesh};
 use crate::shapes::Surface;
+pub use align::{Alignment, AlignmentReport, Motion};
 use nalgebra::Vector3;
 use rayon::prelude::*;
-pub use align::{Alignment, AlignmentReport, Motion};
 pub use reference::simplified_reference;
-pub use surface::{barycentric, FrameSurface, SurfaceSample};
 use relax::Relaxer;
+pub use surface::{barycentric, FrameSurface, SurfaceSample};
 
 /// One frame as read, with its own vertices and triangles.
 #[derive(Clone, Debug, Default)]
@@ -327,8 +327,8 @@ pub fn track_with_progress(
     loop {
         match track_reference(frames, &reference, bound, options, on_event) {
             Err(TrackError::Uncovered { frame, vertices }) if !options.keep_uncovered => {
-                let next =
-                    trim::trimmed(&reference, &vertices).ok_or(TrackError::NothingCovered { frame })?;
+                let next = trim::trimmed(&reference, &vertices)
+                    .ok_or(TrackError::NothingCovered { frame })?;
                 let remaining = next.positions.len();
                 on_event(TrackEvent::Trimmed {
                     frame,
@@ -403,7 +403,13 @@ fn track_reference(
     for (k, frame) in frames.iter().enumerate() {
         let warnings_before = run.report.warnings.len();
         let (frame, alignment) = match &previous {
-            Some(before) => align_to(k, frame, before, options.alignment, &mut run.report.warnings)?,
+            Some(before) => align_to(
+                k,
+                frame,
+                before,
+                options.alignment,
+                &mut run.report.warnings,
+            )?,
             None => (frame.clone(), None),
         };
         let mut step = match tracker.step(k, &current, &frame) {
@@ -456,7 +462,12 @@ fn align_to(
     alignment: Alignment,
     warnings: &mut Vec<String>,
 ) -> Result<(TrackFrame, Option<AlignmentReport>), TrackError> {
-    let target = FrameSurface::new(k - 1, &previous.positions, &previous.faces, &previous.intensity)?;
+    let target = FrameSurface::new(
+        k - 1,
+        &previous.positions,
+        &previous.faces,
+        &previous.intensity,
+    )?;
     let (motion, report) = align::fit(&frame.positions, &target, alignment);
     let spacing = median_edge_length(&frame.positions, &frame.faces);
     let (before, after) = (report.median_distance_before, report.median_distance_after);
@@ -593,8 +604,10 @@ impl Tracker<'_> {
             }
             samples = relaxed.samples;
         }
-        let (next, grey): (Vec<_>, Vec<_>) =
-            samples.into_iter().map(|p| (p.position, p.intensity)).unzip();
+        let (next, grey): (Vec<_>, Vec<_>) = samples
+            .into_iter()
+            .map(|p| (p.position, p.intensity))
+            .unzip();
         let n = current.len() as f64;
         for ((x, y), z) in current.iter().zip(&next).zip(&normal_step) {
             let (step, relaxed) = ((y - x).norm(), (y - z).norm());
@@ -691,7 +704,11 @@ impl Tracker<'_> {
             let (reference, now) = (normal(self.reference, face), normal(after, face));
             if now.norm() <= COLLAPSED_AREA * reference.norm() {
                 let at = self.location(&corners(face), after);
-                return Err(TrackError::Collapsed { frame: k, face: f, at });
+                return Err(TrackError::Collapsed {
+                    frame: k,
+                    face: f,
+                    at,
+                });
             }
             let change = (now.norm() / reference.norm() - 1.0).abs();
             report.worst_area_change = report.worst_area_change.max(change);
@@ -707,7 +724,8 @@ impl Tracker<'_> {
             report.worst_edge_change = report.worst_edge_change.max(change);
             log_ratios.push((length / (before[i] - before[j]).norm()).ln().abs());
         }
-        (report.edge_log_ratio_p99, report.edge_log_ratio_max) = percentile_and_max(log_ratios, 0.99);
+        (report.edge_log_ratio_p99, report.edge_log_ratio_max) =
+            percentile_and_max(log_ratios, 0.99);
         report.flipped_triangles = flipped.len();
         // A fold at the mesh's edge is where the frame's own edge cut in: trimmed like
         // uncovered vertices (`trim`) rather than reported.

@@ -93,7 +93,10 @@ fn flip_to_delaunay(x: &[Vector3<f64>], faces: &mut [[u32; 3]]) -> usize {
         (b - a).cross(&(c - a))
     };
     let angle = |at: u32, p: u32, q: u32| {
-        let (u, v) = (x[p as usize] - x[at as usize], x[q as usize] - x[at as usize]);
+        let (u, v) = (
+            x[p as usize] - x[at as usize],
+            x[q as usize] - x[at as usize],
+        );
         u.angle(&v)
     };
     let mut touched = vec![false; faces.len()];
@@ -152,7 +155,9 @@ fn smooth_on(mesh: &mut Surface, positions: &[Vector3<f64>], faces: &[[u32; 3]])
                     / neighbours[i].len() as f64;
                 let (_, n) = surface.closest_point_and_normal(&x[i]);
                 let shift = centroid - x[i];
-                surface.closest_point(&(x[i] + 0.5 * (shift - n * n.dot(&shift)))).position
+                surface
+                    .closest_point(&(x[i] + 0.5 * (shift - n * n.dot(&shift))))
+                    .position
             })
             .collect();
         mesh.positions = next;

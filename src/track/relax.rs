@@ -118,7 +118,8 @@ impl Relaxer {
         let mut samples = start;
         let mut clamped = Vec::new();
         for step in 0..EXTRA_FOR_FOLDS * self.iterations {
-            let (next, largest_step) = self.iterate(mesh, &faces, total_area, growth, &samples, surface)?;
+            let (next, largest_step) =
+                self.iterate(mesh, &faces, total_area, growth, &samples, surface)?;
             clamped = next
                 .iter()
                 .enumerate()
@@ -128,7 +129,8 @@ impl Relaxer {
             samples = next.into_iter().map(|m| m.sample).collect();
             // Folds left after a round of steps get whole further rounds, not a stop at the
             // first step that happens to unfold them.
-            let settled = (step + 1) % self.iterations == 0 || largest_step <= CONVERGED_STEP * mean_edge;
+            let settled =
+                (step + 1) % self.iterations == 0 || largest_step <= CONVERGED_STEP * mean_edge;
             if settled && !any_flipped(mesh, &faces, &samples) {
                 break;
             }
@@ -173,7 +175,9 @@ impl Relaxer {
                 let mut force = targets.column(a).into_owned();
                 for b in 0..3 {
                     let block: Matrix2<f64> = stiffness[(a, b)] * ta.transpose() * bases[corner(b)];
-                    element.fixed_view_mut::<2, 2>(2 * a, 2 * b).copy_from(&block);
+                    element
+                        .fixed_view_mut::<2, 2>(2 * a, 2 * b)
+                        .copy_from(&block);
                     force -= stiffness[(a, b)] * p[corner(b)];
                 }
                 let reduced = ta.transpose() * force;
@@ -185,7 +189,8 @@ impl Relaxer {
             }
             self.pattern.add_element(f, &element, &mut values);
         }
-        let factor = CholeskyFactor::<f64>::new(&self.symbolic, self.pattern.view(&values), Par::Seq)?;
+        let factor =
+            CholeskyFactor::<f64>::new(&self.symbolic, self.pattern.view(&values), Par::Seq)?;
         factor.solve_in_place(&mut rhs, Par::Seq);
         let clamp_tolerance = 1e-6 * mean_edge_length(mesh, &p);
         let moved: Vec<Move> = (p.par_iter().zip(&bases).enumerate())
@@ -193,7 +198,8 @@ impl Relaxer {
                 let step = basis * Vector2::new(rhs[2 * i], rhs[2 * i + 1]);
                 let wanted = x + step;
                 let sample = surface.closest_point(&wanted);
-                let clamped = (sample.position - wanted).norm() > clamp_tolerance + 1e-3 * step.norm()
+                let clamped = (sample.position - wanted).norm()
+                    > clamp_tolerance + 1e-3 * step.norm()
                     && surface.closest_point_is_on_boundary(&wanted);
                 Move {
                     sample,

@@ -51,8 +51,11 @@ impl<'a> FrameSurface<'a> {
                 *count.entry((a.min(b), a.max(b))).or_default() += 1;
             }
         }
-        let boundary: HashSet<(u32, u32)> =
-            count.into_iter().filter(|&(_, n)| n == 1).map(|(e, _)| e).collect();
+        let boundary: HashSet<(u32, u32)> = count
+            .into_iter()
+            .filter(|&(_, n)| n == 1)
+            .map(|(e, _)| e)
+            .collect();
         let boundary_vertices = boundary.iter().flat_map(|&(a, b)| [a, b]).collect();
         Ok(Self {
             positions,
@@ -120,9 +123,8 @@ impl<'a> FrameSurface<'a> {
             weights[c] <= 1e-9 && self.boundary.contains(&(a.min(b), a.max(b)))
         });
         // At a corner, the face found need not be the one along the boundary.
-        let at_boundary_vertex = (0..3).any(|c| {
-            weights[c] >= 1.0 - 1e-9 && self.boundary_vertices.contains(&corners[c])
-        });
+        let at_boundary_vertex = (0..3)
+            .any(|c| weights[c] >= 1.0 - 1e-9 && self.boundary_vertices.contains(&corners[c]));
         on_edge || at_boundary_vertex
     }
 

@@ -56,7 +56,10 @@ fn drop_ears(faces: &mut Vec<[u32; 3]>) {
             let f = *f;
             (0..3).map(move |c| (f[c].min(f[(c + 1) % 3]), f[c].max(f[(c + 1) % 3])))
         };
-        faces.iter().flat_map(edges).for_each(|e| *count.entry(e).or_default() += 1);
+        faces
+            .iter()
+            .flat_map(edges)
+            .for_each(|e| *count.entry(e).or_default() += 1);
         let before = faces.len();
         faces.retain(|f| edges(f).filter(|e| count[e] == 1).count() < 2);
         if faces.len() == before {
@@ -79,9 +82,16 @@ fn largest_piece(mesh: &Mesh, surface: Surface) -> Option<Surface> {
 }
 
 /// The vertices `faces` use, renumbered in their order; `kept[new] = old`.
-pub(super) fn compact(positions: &[nalgebra::Vector3<f64>], faces: &[[u32; 3]], kept: &mut Vec<usize>) -> Surface {
+pub(super) fn compact(
+    positions: &[nalgebra::Vector3<f64>],
+    faces: &[[u32; 3]],
+    kept: &mut Vec<usize>,
+) -> Surface {
     let mut new_index = vec![u32::MAX; positions.len()];
-    faces.iter().flatten().for_each(|&v| new_index[v as usize] = 0);
+    faces
+        .iter()
+        .flatten()
+        .for_each(|&v| new_index[v as usize] = 0);
     kept.clear();
     for (old, slot) in new_index.iter_mut().enumerate() {
         if *slot == 0 {
@@ -91,6 +101,9 @@ pub(super) fn compact(positions: &[nalgebra::Vector3<f64>], faces: &[[u32; 3]], 
     }
     Surface {
         positions: kept.iter().map(|&v| positions[v]).collect(),
-        faces: faces.iter().map(|f| f.map(|v| new_index[v as usize])).collect(),
+        faces: faces
+            .iter()
+            .map(|f| f.map(|v| new_index[v as usize]))
+            .collect(),
     }
 }

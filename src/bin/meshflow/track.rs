@@ -11,7 +11,9 @@ use meshflow::io::{
     Overwrite, SequenceSource, StagedDir, VertexValues,
 };
 use meshflow::shapes::Surface;
-use meshflow::track::{track_with_progress, FrameReport, TrackEvent, TrackFrame, TrackOptions, Tracked};
+use meshflow::track::{
+    track_with_progress, FrameReport, TrackEvent, TrackFrame, TrackOptions, Tracked,
+};
 use meshflow::Error;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -151,7 +153,10 @@ fn read_frames(input: &Path, load: &LoadOptions) -> Result<InputFrames, Error> {
 
 /// Each frame's image channels `[c][i]` as `--intensity` and `--channels` choose; `None` for
 /// frames without an image.
-fn frame_channels(input: &InputFrames, load: &LoadOptions) -> Result<Vec<Option<Vec<Vec<f64>>>>, Error> {
+fn frame_channels(
+    input: &InputFrames,
+    load: &LoadOptions,
+) -> Result<Vec<Option<Vec<Vec<f64>>>>, Error> {
     let sizes: Vec<usize> = input.frames.iter().map(|f| f.positions.len()).collect();
     let (values, file) = match &load.intensity {
         Some(file) => (intensity_values(file, &sizes)?, file.as_path()),
@@ -164,7 +169,10 @@ fn frame_channels(input: &InputFrames, load: &LoadOptions) -> Result<Vec<Option<
                 .into())
             }
             Some(_) => return Ok(vec![None; sizes.len()]),
-            None => (input.images.iter().flatten().cloned().collect(), input.files[0].as_path()),
+            None => (
+                input.images.iter().flatten().cloned().collect(),
+                input.files[0].as_path(),
+            ),
         },
     };
     for (k, (v, &n)) in values.iter().zip(&sizes).enumerate() {
@@ -199,7 +207,10 @@ fn intensity_values(path: &Path, sizes: &[usize]) -> Result<Vec<VertexValues>, E
                     [v] => (v as usize, 1),
                     [v, c] => (v as usize, c as usize),
                     _ => {
-                        let message = format!("shape {:?}, expected (vertices,) or (vertices, channels)", array.shape);
+                        let message = format!(
+                            "shape {:?}, expected (vertices,) or (vertices, channels)",
+                            array.shape
+                        );
                         return Err(IoError::format(file, message).into());
                     }
                 };
@@ -212,7 +223,10 @@ fn intensity_values(path: &Path, sizes: &[usize]) -> Result<Vec<VertexValues>, E
         [k, v] => (k as usize, v as usize, 1),
         [k, v, c] => (k as usize, v as usize, c as usize),
         _ => {
-            let message = format!("shape {:?}, expected (frames, vertices) or (frames, vertices, channels)", array.shape);
+            let message = format!(
+                "shape {:?}, expected (frames, vertices) or (frames, vertices, channels)",
+                array.shape
+            );
             return Err(IoError::format(path, message).into());
         }
     };
@@ -312,7 +326,13 @@ fn write_outputs(
     let positions: Vec<_> = (0..sequence.n_frames())
         .map(|f| sequence.positions(f).expect("tracked in R^3").to_vec())
         .collect();
-    write_npy_sequence(dir, &positions, sequence.mesh().faces(), None, sequence.times())?;
+    write_npy_sequence(
+        dir,
+        &positions,
+        sequence.mesh().faces(),
+        None,
+        sequence.times(),
+    )?;
     if let Some(image) = image {
         let (k, c, v) = (image.len(), image[0].len(), positions[0].len());
         let values: Vec<f64> = (image.iter())
