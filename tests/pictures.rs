@@ -115,7 +115,7 @@ fn render_errors_name_the_file() {
     meshflow_ok(&["solve", &input, "--out", dir.to_str().unwrap()]);
     let vtu = dir.join("flow_0003.vtu");
     let text = std::fs::read_to_string(&vtu).unwrap();
-    std::fs::write(&vtu, text.replace("Name=\"flow\"", "Name=\"velocity\"")).unwrap();
+    std::fs::write(&vtu, text.replace("Name=\"flow\"", "Name=\"motion\"")).unwrap();
     let run = meshflow(&["render", dir.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(1));

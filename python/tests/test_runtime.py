@@ -95,3 +95,24 @@ def test_track_follows_frames_with_their_own_meshes(sample):
     assert flow.vectors.shape == (5, 642, 3)
     with pytest.raises(ValueError, match="step bound"):
         meshflow.track(frames, max_step=-1)
+
+
+def test_track_options_reach_the_library(sample):
+    # Frame 1 is frame 0 turned by 10° about z and moved: rigid alignment finds the motion.
+    angle = np.radians(10.0)
+    turn = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0], [0, 0, 1]])
+    squashed = sample.positions[0] * [1.0, 0.8, 0.6]   # an ellipsoid: rotations are seen
+    frames = [(squashed, sample.faces, None), (squashed @ turn.T + [0.1, 0.0, 0.0], sample.faces, None)]
+    tracked = meshflow.track(frames, align="rigid", reference_vertices=300)
+    report = tracked.report
+    assert 280 <= report["reference_vertices"] <= 320
+    alignment = report["frames"][1]["alignment"]
+    assert alignment["applied"] and abs(alignment["rotation_degrees"] - 10.0) < 0.1
+    assert np.abs(tracked.positions[1] - tracked.positions[0]).max() < 1e-6
+    plain = meshflow.track(frames, relax="none", keep_going=True)
+    assert plain.report["relaxation"] is None
+    assert any("looks misaligned" in w for w in plain.report["warnings"])
+    with pytest.raises(ValueError, match="align must be"):
+        meshflow.track(frames, align="affine")
+    with pytest.raises(ValueError, match="relax must be"):
+        meshflow.track(frames, relax="laplace")
