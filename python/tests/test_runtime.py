@@ -102,7 +102,7 @@ def test_track_options_reach_the_library(sample):
     angle = np.radians(10.0)
     turn = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0], [0, 0, 1]])
     squashed = sample.positions[0] * [1.0, 0.8, 0.6]   # an ellipsoid: rotations are seen
-    frames = [(squashed, sample.faces, None), (squashed @ turn.T + [0.1, 0.0, 0.0], sample.faces, None)]
+    frames = [(squashed, sample.faces, None), (squashed @ turn.T + [0.3, 0.0, 0.0], sample.faces, None)]
     tracked = meshflow.track(frames, align="rigid", reference_vertices=300)
     report = tracked.report
     assert 280 <= report["reference_vertices"] <= 320

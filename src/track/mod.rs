@@ -471,7 +471,8 @@ fn align_to(
     let (motion, report) = align::fit(&frame.positions, &target, alignment);
     let spacing = median_edge_length(&frame.positions, &frame.faces);
     let (before, after) = (report.median_distance_before, report.median_distance_after);
-    if alignment == Alignment::None && before > spacing && after < 0.5 * before {
+    // A drift of a quarter edge or more that a rigid motion explains away.
+    if alignment == Alignment::None && before > 0.25 * spacing && after < 0.5 * before {
         warnings.push(format!(
             "frame {k} looks misaligned against frame {}: a rigid motion ({:.1}°, translation \
              {:.3e}) brings its median distance from {before:.3e} to {after:.3e} (the median \
