@@ -154,9 +154,14 @@ fn a_surface_beyond_the_step_bound_is_an_error_naming_frame_and_vertex() {
         ..Default::default()
     };
     let error = track(&frames, None, &options).err().expect("too far");
+    // The whole patch moved as one: the error also says that it looks like a drift.
+    let TrackError::AfterWarning { warning, source } = &error else {
+        panic!("{error}");
+    };
+    assert!(warning.contains("frame 1 looks misaligned"), "{warning}");
     assert!(
         matches!(
-            error,
+            **source,
             TrackError::TooFar {
                 frame: 1,
                 vertex: 0,

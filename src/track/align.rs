@@ -70,7 +70,10 @@ pub const SAMPLES: usize = 4000;
 /// Pairs farther apart than this many median distances are left out of a fit.
 pub const TRIM: f64 = 2.5;
 
-const MAX_ITERATIONS: usize = 100;
+const MAX_ITERATIONS: usize = 50;
+
+/// Iterations stop when a step moves the points by less than this fraction of their extent.
+const SETTLED: f64 = 1e-9;
 
 /// A similarity transform `x ↦ s R x + t`.
 #[derive(Clone, Copy, Debug)]
@@ -123,10 +126,19 @@ pub fn fit(
     target: &FrameSurface,
     alignment: Alignment,
 ) -> (Motion, AlignmentReport) {
-    let stride = points.len().div_ceil(SAMPLES).max(1);
+    // Only measured: fewer points tell a drift apart as well.
+    let samples = match alignment {
+        Alignment::None => SAMPLES / 4,
+        _ => SAMPLES,
+    };
+    let stride = points.len().div_ceil(samples).max(1);
     let sample: Vec<Vector3<f64>> = points.iter().step_by(stride).copied().collect();
     let with_scale = alignment == Alignment::Similarity;
     let before = median_distance(&sample, target, &Motion::identity());
+    let extent = sample
+        .iter()
+        .map(|p| (p - sample[0]).norm())
+        .fold(0.0, f64::max);
     let mut motion = Motion::identity();
     for _ in 0..MAX_ITERATIONS {
         let moved: Vec<Vector3<f64>> = sample.iter().map(|p| motion.apply(p)).collect();
@@ -135,10 +147,10 @@ pub fn fit(
             break;
         };
         motion = step.after(&motion);
-        let settled = step.rotation_degrees() < 1e-7
+        let negligible = step.rotation_degrees() < 1e-6
             && (step.scale - 1.0).abs() < 1e-9
-            && step.translation.norm() <= 1e-9 * (1.0 + before);
-        if settled {
+            && step.translation.norm() <= SETTLED * (extent + before);
+        if negligible {
             break;
         }
     }
@@ -199,6 +211,10 @@ fn linearized_step(pairs: &[Pair], with_scale: bool) -> Option<Motion> {
         normal += &row * row.transpose();
         rhs += &row * n.dot(&(q - p));
     }
+    // A little damping: directions the surface does not pin (a sphere's rotations, a
+    // cylinder's slide) stay put instead of taking round-off for a motion.
+    let damping = 1e-9 * normal.trace() / dimension as f64;
+    normal += nalgebra::DMatrix::<f64>::identity(dimension, dimension) * damping;
     let x = normal.cholesky()?.solve(&rhs);
     let omega = Vector3::new(x[0], x[1], x[2]);
     let rotation = nalgebra::Rotation3::new(omega).into_inner();

@@ -399,7 +399,8 @@ fn track_reference(
         },
     };
     let mut current = reference.positions.clone();
-    let mut previous: Option<TrackFrame> = None;
+    // Each frame's surface is built once: for its own step, then as the next frame's target.
+    let mut previous: Option<FrameSurface> = None;
     for (k, frame) in frames.iter().enumerate() {
         let warnings_before = run.report.warnings.len();
         let (frame, alignment) = match &previous {
@@ -409,10 +410,11 @@ fn track_reference(
                 before,
                 options.alignment,
                 &mut run.report.warnings,
-            )?,
+            ),
             None => (frame.clone(), None),
         };
-        let mut step = match tracker.step(k, &current, &frame) {
+        let surface = FrameSurface::new(k, &frame.positions, &frame.faces, &frame.intensity)?;
+        let mut step = match tracker.step(k, &current, &surface) {
             Ok(step) => step,
             Err(e @ TrackError::Uncovered { .. }) => return Err(e),
             Err(e) => match run.report.warnings.get(warnings_before) {
@@ -432,7 +434,7 @@ fn track_reference(
         run.intensities.push(step.intensity);
         run.landings.push(step.landing);
         run.report.frames.push(step.report);
-        previous = Some(frame);
+        previous = Some(surface);
     }
     Ok(run)
 }
@@ -458,17 +460,11 @@ fn reference_surface(first: &TrackFrame, options: &TrackOptions) -> Result<Surfa
 fn align_to(
     k: usize,
     frame: &TrackFrame,
-    previous: &TrackFrame,
+    target: &FrameSurface,
     alignment: Alignment,
     warnings: &mut Vec<String>,
-) -> Result<(TrackFrame, Option<AlignmentReport>), TrackError> {
-    let target = FrameSurface::new(
-        k - 1,
-        &previous.positions,
-        &previous.faces,
-        &previous.intensity,
-    )?;
-    let (motion, report) = align::fit(&frame.positions, &target, alignment);
+) -> (TrackFrame, Option<AlignmentReport>) {
+    let (motion, report) = align::fit(&frame.positions, target, alignment);
     let spacing = median_edge_length(&frame.positions, &frame.faces);
     let (before, after) = (report.median_distance_before, report.median_distance_after);
     // A drift of a quarter edge or more that a rigid motion explains away.
@@ -496,7 +492,7 @@ fn align_to(
             ..frame.clone()
         },
     };
-    Ok((aligned, Some(report)))
+    (aligned, Some(report))
 }
 
 /// How much farther than the closest point a hit along the normal may be: a surface tilted by
@@ -544,17 +540,16 @@ impl Tracker<'_> {
         &self,
         k: usize,
         current: &[Vector3<f64>],
-        frame: &TrackFrame,
+        surface: &FrameSurface,
     ) -> Result<Step, TrackError> {
-        let surface = FrameSurface::new(k, &frame.positions, &frame.faces, &frame.intensity)?;
         let normals = vertex_normals(self.mesh, current);
         let landings: Vec<Landing> = current
             .par_iter()
             .zip(&normals)
-            .map(|(x, n)| self.land(&surface, x, n))
+            .map(|(x, n)| self.land(surface, x, n))
             .collect();
         if !self.keep_uncovered {
-            let uncovered = self.uncovered(&surface, current, &landings);
+            let uncovered = self.uncovered(surface, current, &landings);
             if !uncovered.is_empty() {
                 return Err(TrackError::Uncovered {
                     frame: k,
@@ -595,7 +590,7 @@ impl Tracker<'_> {
         let normal_step: Vec<Vector3<f64>> = samples.iter().map(|p| p.position).collect();
         if let Some(relaxer) = &self.relaxer {
             let relaxed = relaxer
-                .relax(self.mesh, current, samples, &surface)
+                .relax(self.mesh, current, samples, surface)
                 .map_err(|detail| TrackError::Relaxation { frame: k, detail })?;
             if !self.keep_uncovered && !relaxed.clamped.is_empty() {
                 return Err(TrackError::Uncovered {

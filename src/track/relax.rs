@@ -88,6 +88,13 @@ struct RestFace {
     normal: Vector3<f64>,
 }
 
+impl RestFace {
+    /// `A_f G_f G_fᵀ`: the face's P1 stiffness matrix.
+    fn stiffness(&self) -> Matrix3<f64> {
+        self.area * self.gradient * self.gradient.transpose()
+    }
+}
+
 impl Relaxer {
     pub(super) fn new(mesh: &Mesh, iterations: usize) -> Self {
         let pattern = VertexPattern::new(mesh, 2);
@@ -115,11 +122,18 @@ impl Relaxer {
         // boundary would shrink a little more with every step.
         let start_positions: Vec<Vector3<f64>> = start.iter().map(|s| s.position).collect();
         let growth = (surface_area(mesh, &start_positions) / total_area).sqrt();
+        // The tangent planes of the normal step serve every step of the frame, so the matrix
+        // is factored once; the projection onto the surface takes up their slow turning.
+        let bases: Vec<Matrix3x2<f64>> = start_positions
+            .par_iter()
+            .map(|x| tangent_basis(&surface.closest_point_and_normal(x).1))
+            .collect();
+        let factor = self.factor(mesh, &faces, total_area, &bases)?;
         let mut samples = start;
         let mut clamped = Vec::new();
         for step in 0..EXTRA_FOR_FOLDS * self.iterations {
             let (next, largest_step) =
-                self.iterate(mesh, &faces, total_area, growth, &samples, surface)?;
+                iterate(mesh, &faces, growth, &bases, &factor, &samples, surface);
             clamped = next
                 .iter()
                 .enumerate()
@@ -138,79 +152,91 @@ impl Relaxer {
         Ok(Relaxed { samples, clamped })
     }
 
-    /// One local and one global step, then the projection onto the surface; the largest
-    /// tangential move.
-    fn iterate(
+    /// `Tᵀ (K ⊗ I₃) T + μ M`, factored.
+    fn factor(
         &self,
         mesh: &Mesh,
         faces: &[RestFace],
         total_area: f64,
-        growth: f64,
-        samples: &[SurfaceSample],
-        surface: &FrameSurface,
-    ) -> Result<(Vec<Move>, f64), String> {
-        let p: Vec<Vector3<f64>> = samples.iter().map(|s| s.position).collect();
-        let bases: Vec<Matrix3x2<f64>> = p
-            .par_iter()
-            .map(|x| tangent_basis(&surface.closest_point_and_normal(x).1))
-            .collect();
-        let rotations: Vec<Matrix3x2<f64>> = (mesh.faces().par_iter().zip(faces))
-            .map(|(face, rest)| {
-                let y = face.map(|v| p[v as usize]);
-                let jacobian = Matrix3::from_columns(&y) * rest.gradient;
-                nearest_rotation_in_plane(&jacobian, &target_plane(&y, &rest.normal))
-            })
-            .collect();
+        bases: &[Matrix3x2<f64>],
+    ) -> Result<CholeskyFactor, String> {
         let proximal = PROXIMAL_WEIGHT / total_area;
         let mut values = vec![0.0; self.pattern.nnz()];
-        let mut rhs = vec![0.0; 2 * p.len()];
         for (f, face) in mesh.faces().iter().enumerate() {
             let rest = &faces[f];
-            let stiffness: Matrix3<f64> = rest.area * rest.gradient * rest.gradient.transpose();
-            let targets = (rest.area * growth) * rotations[f] * rest.gradient.transpose();
-            let corner = |a: usize| face[a] as usize;
+            let stiffness = rest.stiffness();
             let mut element = SMatrix::<f64, 6, 6>::zeros();
             for a in 0..3 {
-                let ta = bases[corner(a)];
-                let mut force = targets.column(a).into_owned();
+                let ta = bases[face[a] as usize];
                 for b in 0..3 {
-                    let block: Matrix2<f64> = stiffness[(a, b)] * ta.transpose() * bases[corner(b)];
+                    let block: Matrix2<f64> =
+                        stiffness[(a, b)] * ta.transpose() * bases[face[b] as usize];
                     element
                         .fixed_view_mut::<2, 2>(2 * a, 2 * b)
                         .copy_from(&block);
-                    force -= stiffness[(a, b)] * p[corner(b)];
                 }
-                let reduced = ta.transpose() * force;
-                rhs[2 * corner(a)] += reduced.x;
-                rhs[2 * corner(a) + 1] += reduced.y;
                 let lumped = proximal * rest.area / 3.0;
                 element[(2 * a, 2 * a)] += lumped;
                 element[(2 * a + 1, 2 * a + 1)] += lumped;
             }
             self.pattern.add_element(f, &element, &mut values);
         }
-        let factor =
-            CholeskyFactor::<f64>::new(&self.symbolic, self.pattern.view(&values), Par::Seq)?;
-        factor.solve_in_place(&mut rhs, Par::Seq);
-        let clamp_tolerance = 1e-6 * mean_edge_length(mesh, &p);
-        let moved: Vec<Move> = (p.par_iter().zip(&bases).enumerate())
-            .map(|(i, (x, basis))| {
-                let step = basis * Vector2::new(rhs[2 * i], rhs[2 * i + 1]);
-                let wanted = x + step;
-                let sample = surface.closest_point(&wanted);
-                let clamped = (sample.position - wanted).norm()
-                    > clamp_tolerance + 1e-3 * step.norm()
-                    && surface.closest_point_is_on_boundary(&wanted);
-                Move {
-                    sample,
-                    length: step.norm(),
-                    clamped,
-                }
-            })
-            .collect();
-        let largest = moved.iter().map(|m| m.length).fold(0.0, f64::max);
-        Ok((moved, largest))
+        CholeskyFactor::<f64>::new(&self.symbolic, self.pattern.view(&values), Par::Seq)
     }
+}
+
+/// One local and one global step, then the projection onto the surface; the largest
+/// tangential move.
+fn iterate(
+    mesh: &Mesh,
+    faces: &[RestFace],
+    growth: f64,
+    bases: &[Matrix3x2<f64>],
+    factor: &CholeskyFactor,
+    samples: &[SurfaceSample],
+    surface: &FrameSurface,
+) -> (Vec<Move>, f64) {
+    let p: Vec<Vector3<f64>> = samples.iter().map(|s| s.position).collect();
+    let rotations: Vec<Matrix3x2<f64>> = (mesh.faces().par_iter().zip(faces))
+        .map(|(face, rest)| {
+            let y = face.map(|v| p[v as usize]);
+            let jacobian = Matrix3::from_columns(&y) * rest.gradient;
+            nearest_rotation_in_plane(&jacobian, &target_plane(&y, &rest.normal))
+        })
+        .collect();
+    let mut rhs = vec![0.0; 2 * p.len()];
+    for (f, face) in mesh.faces().iter().enumerate() {
+        let rest = &faces[f];
+        let stiffness = rest.stiffness();
+        let targets = (rest.area * growth) * rotations[f] * rest.gradient.transpose();
+        for a in 0..3 {
+            let mut force = targets.column(a).into_owned();
+            for b in 0..3 {
+                force -= stiffness[(a, b)] * p[face[b] as usize];
+            }
+            let reduced = bases[face[a] as usize].transpose() * force;
+            rhs[2 * face[a] as usize] += reduced.x;
+            rhs[2 * face[a] as usize + 1] += reduced.y;
+        }
+    }
+    factor.solve_in_place(&mut rhs, Par::Seq);
+    let clamp_tolerance = 1e-6 * mean_edge_length(mesh, &p);
+    let moved: Vec<Move> = (p.par_iter().zip(bases).enumerate())
+        .map(|(i, (x, basis))| {
+            let step = basis * Vector2::new(rhs[2 * i], rhs[2 * i + 1]);
+            let wanted = x + step;
+            let sample = surface.closest_point(&wanted);
+            let clamped = (sample.position - wanted).norm() > clamp_tolerance + 1e-3 * step.norm()
+                && surface.closest_point_is_on_boundary(&wanted);
+            Move {
+                sample,
+                length: step.norm(),
+                clamped,
+            }
+        })
+        .collect();
+    let largest = moved.iter().map(|m| m.length).fold(0.0, f64::max);
+    (moved, largest)
 }
 
 /// Whether a triangle's normal turned by more than 90° from the previous frame's.

@@ -10,13 +10,13 @@ use nalgebra::Vector3;
 use parry3d_f64::math::Vector;
 use parry3d_f64::query::{PointQueryWithLocation, Ray, RayCast};
 use parry3d_f64::shape::TriMesh;
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 
 /// A frame's triangles with a grey value per vertex.
-pub struct FrameSurface<'a> {
-    positions: &'a [Vector3<f64>],
-    faces: &'a [[u32; 3]],
-    intensity: &'a [f64],
+pub struct FrameSurface {
+    positions: Vec<Vector3<f64>>,
+    faces: Vec<[u32; 3]>,
+    intensity: Vec<f64>,
     bvh: TriMesh,
     /// Edges `(min, max)` with one triangle only, and their vertices.
     boundary: HashSet<(u32, u32)>,
@@ -31,36 +31,32 @@ pub struct SurfaceSample {
     pub intensity: f64,
 }
 
-impl<'a> FrameSurface<'a> {
+impl FrameSurface {
     /// `frame` is the frame's number, for errors.
     pub fn new(
         frame: usize,
-        positions: &'a [Vector3<f64>],
-        faces: &'a [[u32; 3]],
-        intensity: &'a [f64],
+        positions: &[Vector3<f64>],
+        faces: &[[u32; 3]],
+        intensity: &[f64],
     ) -> Result<Self, TrackError> {
         let vertices = positions.iter().map(to_glam).collect();
         let bvh = TriMesh::new(vertices, faces.to_vec()).map_err(|e| TrackError::Surface {
             frame,
             detail: e.to_string(),
         })?;
-        let mut count: HashMap<(u32, u32), u32> = HashMap::new();
-        for f in faces {
-            for c in 0..3 {
-                let (a, b) = (f[c], f[(c + 1) % 3]);
-                *count.entry((a.min(b), a.max(b))).or_default() += 1;
-            }
-        }
-        let boundary: HashSet<(u32, u32)> = count
-            .into_iter()
-            .filter(|&(_, n)| n == 1)
-            .map(|(e, _)| e)
+        let mut edges: Vec<(u32, u32)> = (faces.iter())
+            .flat_map(|f| (0..3).map(move |c| (f[c].min(f[(c + 1) % 3]), f[c].max(f[(c + 1) % 3]))))
+            .collect();
+        edges.sort_unstable();
+        let boundary: HashSet<(u32, u32)> = (edges.chunk_by(|a, b| a == b))
+            .filter(|run| run.len() == 1)
+            .map(|run| run[0])
             .collect();
         let boundary_vertices = boundary.iter().flat_map(|&(a, b)| [a, b]).collect();
         Ok(Self {
-            positions,
-            faces,
-            intensity,
+            positions: positions.to_vec(),
+            faces: faces.to_vec(),
+            intensity: intensity.to_vec(),
             bvh,
             boundary,
             boundary_vertices,
