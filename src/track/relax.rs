@@ -57,7 +57,10 @@ const CONVERGED_STEP: f64 = 1e-3;
 
 /// Rounds of the asked number of steps go on, up to this many, while triangles remain flipped
 /// against the previous frame.
-const EXTRA_FOR_FOLDS: usize = 5;
+const ROUNDS_FOR_FOLDS: usize = 5;
+
+/// Steps between new tangent planes (and a new factorization).
+const STEPS_PER_FACTOR: usize = 4;
 
 /// The factorization plan for one connectivity.
 pub(super) struct Relaxer {
@@ -122,30 +125,34 @@ impl Relaxer {
         // boundary would shrink a little more with every step.
         let start_positions: Vec<Vector3<f64>> = start.iter().map(|s| s.position).collect();
         let growth = (surface_area(mesh, &start_positions) / total_area).sqrt();
-        // The tangent planes of the normal step serve every step of the frame, so the matrix
-        // is factored once; the projection onto the surface takes up their slow turning.
-        let bases: Vec<Matrix3x2<f64>> = start_positions
-            .par_iter()
-            .map(|x| tangent_basis(&surface.closest_point_and_normal(x).1))
-            .collect();
-        let factor = self.factor(mesh, &faces, total_area, &bases)?;
         let mut samples = start;
         let mut clamped = Vec::new();
-        for step in 0..EXTRA_FOR_FOLDS * self.iterations {
-            let (next, largest_step) =
-                iterate(mesh, &faces, growth, &bases, &factor, &samples, surface);
-            clamped = next
-                .iter()
-                .enumerate()
-                .filter(|(_, m)| m.clamped)
-                .map(|(i, _)| i)
-                .collect();
-            samples = next.into_iter().map(|m| m.sample).collect();
-            // Folds left after a round of steps get whole further rounds, not a stop at the
-            // first step that happens to unfold them.
-            let settled =
-                (step + 1) % self.iterations == 0 || largest_step <= CONVERGED_STEP * mean_edge;
-            if settled && !any_flipped(mesh, &faces, &samples) {
+        // Rounds of steps; a further round only while triangles remain flipped. The tangent
+        // planes serve [`STEPS_PER_FACTOR`] steps, so the matrix is factored once for them;
+        // the projection onto the surface takes up the planes' slow turning meanwhile.
+        for _ in 0..ROUNDS_FOR_FOLDS {
+            let mut planes = None;
+            for step in 0..self.iterations {
+                if step % STEPS_PER_FACTOR == 0 {
+                    let bases: Vec<Matrix3x2<f64>> = (samples.par_iter())
+                        .map(|s| tangent_basis(&surface.closest_point_and_normal(&s.position).1))
+                        .collect();
+                    let factor = self.factor(mesh, &faces, total_area, &bases)?;
+                    planes = Some((bases, factor));
+                }
+                let (bases, factor) = planes.as_ref().expect("set at step 0");
+                let (next, largest_step) =
+                    iterate(mesh, &faces, growth, bases, factor, &samples, surface);
+                clamped = (next.iter().enumerate())
+                    .filter(|(_, m)| m.clamped)
+                    .map(|(i, _)| i)
+                    .collect();
+                samples = next.into_iter().map(|m| m.sample).collect();
+                if largest_step <= CONVERGED_STEP * mean_edge {
+                    break;
+                }
+            }
+            if !any_flipped(mesh, &faces, &samples) {
                 break;
             }
         }
