@@ -55,12 +55,14 @@ enum Command {
     /// pictures of `meshflow render`.
     Solve(Box<SolveArgs>),
     /// Turn frames that each have their own triangulation (a segmentation meshed per time
-    /// point, a 4D scan, a remeshing simulation) into one moving mesh with fixed connectivity,
-    /// by normal motion: from frame to frame every vertex of the reference mesh moves along its
-    /// (corner-angle-weighted) normal to the next frame's surface, nearest hit of the two
-    /// directions, and takes that frame's grey value there. Writes positions.npy, faces.npy,
-    /// intensity.npy and times.txt, which `meshflow solve DIR` reads, and track.json (misses,
-    /// steps, worst edge and area change, flipped triangles per frame).
+    /// point, a 4D scan, a remeshing simulation) into one moving mesh with fixed connectivity:
+    /// from frame to frame every vertex of the reference mesh moves along its
+    /// (corner-angle-weighted) normal to the next frame's surface, then the mesh is relaxed on
+    /// that surface as rigidly as possible against the previous frame so that it does not fold
+    /// (--relax none: normal motion only); --align takes a sample's drift out, and reference
+    /// vertices beyond a frame's boundary are trimmed away. Writes positions.npy, faces.npy,
+    /// intensity.npy and times.txt, which `meshflow solve DIR` reads, and track.json (per
+    /// frame: steps, relaxation, edge-length changes, flipped triangles, misses, alignment).
     Track(Box<TrackArgs>),
     /// Follow points through a finished `solve` run along its flow (straightest geodesics of
     /// each slab, from every mesh vertex): writes trajectories.npy (frames × vertices × 3, on
