@@ -16,7 +16,9 @@
 use meshflow::accuracy::compare_result;
 use meshflow::flow::{compute_flow, FlowParams};
 use meshflow::io::write_obj;
-use meshflow::render::{grey_picture, write_png, Camera, PictureStyle, Surface, View};
+use meshflow::render::{
+    grey_picture, mosaic_values, write_png, Camera, PictureStyle, Surface, View,
+};
 use meshflow::shapes::uv_sphere;
 use meshflow::synth::{remeshed_pulsating_sphere, turning_flow, RemeshedScene};
 use meshflow::track::{track, Relaxation, TrackOptions};
@@ -104,14 +106,6 @@ fn draw_meshes(scene: &RemeshedScene, dir: &Path) -> Result<(), meshflow::Error>
         &TrackOptions::default(),
     )?;
     let faces = tracked.sequence.mesh().faces();
-    let mosaic = |n: usize| -> Vec<f64> {
-        (0..n as u64)
-            .map(|i| {
-                let x = i.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-                ((x ^ (x >> 29)) >> 11) as f64 / (1u64 << 53) as f64
-            })
-            .collect()
-    };
     let mut sheet = image::RgbImage::new(3 * 480, 2 * 480);
     for k in 0..3 {
         let given = &scene.frames[k];
@@ -132,7 +126,7 @@ fn draw_meshes(scene: &RemeshedScene, dir: &Path) -> Result<(), meshflow::Error>
             let picture = grey_picture(
                 &camera,
                 surface,
-                &mosaic(positions.len()),
+                &mosaic_values(positions.len()),
                 (0.0, 1.0),
                 &style,
             )?;

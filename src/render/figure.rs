@@ -83,6 +83,17 @@ impl PictureStyle {
     }
 }
 
+/// A pseudo-random grey in [0, 1) for each of `n` vertices (a fixed hash of the index), so that
+/// a [`grey_picture`] shows the triangulation itself: how meshes of one surface differ.
+pub fn mosaic_values(n: usize) -> Vec<f64> {
+    (0..n as u64)
+        .map(|i| {
+            let x = i.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+            ((x ^ (x >> 29)) >> 11) as f64 / (1u64 << 53) as f64
+        })
+        .collect()
+}
+
 /// The surface shaded in grey: `intensity` (one per vertex) mapped over `range` = (black,
 /// white).
 pub fn grey_picture(
