@@ -16,9 +16,7 @@
 use meshflow::accuracy::compare_result;
 use meshflow::flow::{compute_flow, FlowParams};
 use meshflow::io::write_obj;
-use meshflow::render::{
-    grey_picture, mosaic_values, write_png, Camera, PictureStyle, Surface, View,
-};
+use meshflow::render::{mosaic_picture, write_png, Camera, Surface, View};
 use meshflow::shapes::uv_sphere;
 use meshflow::synth::{remeshed_pulsating_sphere, turning_flow, RemeshedScene};
 use meshflow::track::{track, Relaxation, TrackOptions};
@@ -118,18 +116,8 @@ fn draw_meshes(scene: &RemeshedScene, dir: &Path) -> Result<(), meshflow::Error>
         .into_iter()
         .enumerate()
         {
-            let surface = Surface { positions, faces };
-            let style = PictureStyle {
-                label: Some(format!("{name} {k}: {} faces", faces.len())),
-                ..Default::default()
-            };
-            let picture = grey_picture(
-                &camera,
-                surface,
-                &mosaic_values(positions.len()),
-                (0.0, 1.0),
-                &style,
-            )?;
+            let label = format!("{name} {k}: {} faces", faces.len());
+            let picture = mosaic_picture(&camera, Surface { positions, faces }, label)?;
             image::imageops::replace(&mut sheet, &picture, 480 * k as i64, 480 * row as i64);
         }
     }

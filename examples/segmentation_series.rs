@@ -16,9 +16,7 @@
 //! pseudo-random grey so that the triangulations show, into `out/segmentation_series/`.
 
 use meshflow::io::{frame_files, read_mesh, FrameFormat};
-use meshflow::render::{
-    grey_picture, mosaic_values, write_png, Camera, PictureStyle, Surface, View,
-};
+use meshflow::render::{mosaic_picture, write_png, Camera, Surface, View};
 use meshflow::track::{track, Relaxation, TrackFrame, TrackOptions, Tracked};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -129,18 +127,8 @@ fn draw(
             ("tracked", moved, faces),
         ];
         for (row, (name, positions, faces)) in rows.into_iter().enumerate() {
-            let style = PictureStyle {
-                label: Some(format!("{name} {k}: {} faces", faces.len())),
-                ..Default::default()
-            };
-            let surface = Surface { positions, faces };
-            let picture = grey_picture(
-                &camera,
-                surface,
-                &mosaic_values(positions.len()),
-                (0.0, 1.0),
-                &style,
-            )?;
+            let label = format!("{name} {k}: {} faces", faces.len());
+            let picture = mosaic_picture(&camera, Surface { positions, faces }, label)?;
             image::imageops::replace(
                 &mut sheet,
                 &picture,

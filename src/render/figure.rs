@@ -94,6 +94,21 @@ pub fn mosaic_values(n: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The surface with every vertex a [`mosaic_values`] grey, labelled: a picture of the
+/// triangulation (how a tracked mesh rides along, how remeshed frames differ).
+pub fn mosaic_picture(
+    camera: &Camera,
+    surface: Surface,
+    label: String,
+) -> Result<RgbImage, RenderError> {
+    let style = PictureStyle {
+        label: Some(label),
+        ..Default::default()
+    };
+    let values = mosaic_values(surface.positions.len());
+    grey_picture(camera, surface, &values, (0.0, 1.0), &style)
+}
+
 /// The surface shaded in grey: `intensity` (one per vertex) mapped over `range` = (black,
 /// white).
 pub fn grey_picture(

@@ -65,9 +65,9 @@ pub mod text;
 pub use camera::{Camera, UpAxis, View};
 pub use error::RenderError;
 pub use figure::{
-    arrow_picture, chart_picture, flow_picture, grey_picture, mosaic_values, scalar_picture,
-    screen_flow_colors, tracks_picture, trajectory_picture, write_png, PictureStyle, Surface,
-    TRACK_ARROW_COLOUR,
+    arrow_picture, chart_picture, flow_picture, grey_picture, mosaic_picture, mosaic_values,
+    scalar_picture, screen_flow_colors, tracks_picture, trajectory_picture, write_png,
+    PictureStyle, Surface, TRACK_ARROW_COLOUR,
 };
 pub use raster::Canvas;
 pub use shading::Lighting;
