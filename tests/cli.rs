@@ -297,7 +297,7 @@ fn solve_rejects_bad_sequences_and_parameters() {
 }
 
 #[test]
-fn solve_reports_undetermined_flow_and_suggests_beta() {
+fn solve_reports_undetermined_flow_and_suggests_a_speed_penalty() {
     // A flat square whose image varies along x only: nothing fixes the y component.
     let dir = tempfile::tempdir().unwrap();
     let surface = meshflow::shapes::grid(4, 4, 1.0, 1.0);
@@ -316,15 +316,15 @@ fn solve_reports_undetermined_flow_and_suggests_beta() {
         .unwrap();
     }
     let stderr = failing_solve(dir.path(), &[]);
-    assert!(stderr.contains("beta > 0"), "{stderr}");
+    assert!(stderr.contains("--speed-penalty 0.01"), "{stderr}");
     let out = tempfile::tempdir().unwrap();
     meshflow_ok(&[
         "solve",
         dir.path().to_str().unwrap(),
         "--out",
         out.path().to_str().unwrap(),
-        "--beta",
-        "0.001",
+        "--speed-penalty",
+        "0.01",
     ]);
 }
 

@@ -262,7 +262,7 @@ fn stripes(n_frames: usize) -> MeshSequence {
 }
 
 #[test]
-fn undetermined_flow_is_an_error_that_suggests_beta() {
+fn undetermined_flow_is_an_error_that_suggests_a_speed_penalty() {
     for alpha in [1.0, f64::INFINITY] {
         let err = compute_flow(
             &stripes(3),
@@ -273,7 +273,10 @@ fn undetermined_flow_is_an_error_that_suggests_beta() {
         )
         .unwrap_err();
         assert!(matches!(err, FlowError::Singular { .. }), "{err:?}");
-        assert!(err.to_string().contains("beta > 0"), "{err}");
+        // The README's unit-free option first, then β in the data's units.
+        let message = err.to_string();
+        assert!(message.contains("--speed-penalty 0.01"), "{message}");
+        assert!(message.contains("(--beta)"), "{message}");
     }
     // Remedies: a speed penalty, or Dirichlet boundary values.
     assert!(compute_flow(

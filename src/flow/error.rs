@@ -59,9 +59,9 @@ pub enum FlowError {
     },
     #[error("the grey values do not vary over the surface in any frame, so no flow can be measured; relative weights (--spread, --time-scale, --speed-penalty) need an image gradient")]
     NoImageGradient,
-    #[error("the energy has no unique minimizer ({reason}); set beta > 0 (e.g. --beta 1e-3) to penalize the undetermined field")]
+    #[error("the energy has no unique minimizer ({reason}); a speed penalty fixes the undetermined field: --speed-penalty 0.01 (relative to the data's scales), or β > 0 in the data's units (--beta)")]
     Singular { reason: String },
-    #[error("the sparse Cholesky factorization of {what} failed ({detail}); the system is not numerically positive definite: try beta > 0")]
+    #[error("the sparse Cholesky factorization of {what} failed ({detail}); the system is not numerically positive definite: try a speed penalty (--speed-penalty 0.01, or --beta in the data's units)")]
     Factorization { what: String, detail: String },
     #[error("the solver stopped after {iterations} iterations at relative residual {residual:.3e}, above the tolerance {tolerance:.1e}")]
     NotConverged {
