@@ -986,6 +986,15 @@ fn large_motion_flags_choose_coarse_to_fine_warping() {
         "{stderr}"
     );
     assert!(stderr.contains("warps"), "{stderr}");
+    // Each warp is a whole solve: a count no one means is refused before any work.
+    let run = meshflow(&["solve", &input, "--out", &out("many"), "--warps", "100000"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("warps") && stderr.contains("at most 20"),
+        "{stderr}"
+    );
 }
 
 /// `meshflow advect` follows every vertex of a run along its flow: on the shipped rotating

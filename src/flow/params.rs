@@ -197,6 +197,9 @@ impl Warping {
         warps: 2,
     };
 
+    /// The most warps per level [`FlowParams::validate`] accepts.
+    pub const MAX_WARPS: usize = 20;
+
     /// The CLI's `--levels`, `--warps` and `--large-motion` (and the Python keywords) as one
     /// setting: the preset's values unless given; without the preset, one warp per level once
     /// there are several levels.
@@ -364,6 +367,12 @@ impl FlowParams {
             self.warping.warps as f64,
             self.warping.warps > 0 || self.warping.levels == 1,
             "at least 1 with more than one level (coarse levels are only used by warping)",
+        )?;
+        check(
+            "warps",
+            self.warping.warps as f64,
+            self.warping.warps <= Warping::MAX_WARPS,
+            "at most 20 per level (each warp is a whole solve)",
         )
     }
 
