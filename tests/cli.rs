@@ -1146,3 +1146,44 @@ fn channels_choose_what_the_data_term_sees() {
         "{stderr}"
     );
 }
+
+/// Broken NPY arrays are reported against the file at fault: a NaN grey value names
+/// `intensity.npy` (frame, vertex), a face index out of range names `faces.npy`.
+#[test]
+fn npy_errors_name_the_array_at_fault() {
+    let dir = tempfile::tempdir().unwrap();
+    let surface = meshflow::shapes::grid(3, 3, 1.0, 1.0);
+    let positions = vec![surface.positions.clone(); 3];
+    let mut grey: Vec<Vec<f64>> = (0..3).map(|k| vec![0.1 * k as f64 + 0.2; 16]).collect();
+    grey[2][7] = f64::NAN;
+    meshflow::io::write_npy_sequence(
+        dir.path(),
+        &positions,
+        &surface.faces,
+        Some(&grey),
+        &[0.0, 1.0, 2.0],
+    )
+    .unwrap();
+    let stderr = failing_solve(dir.path(), &[]);
+    assert!(
+        stderr.contains("intensity.npy: frame 2: intensity at vertex 7 is NaN"),
+        "{stderr}"
+    );
+
+    let mut faces = surface.faces.clone();
+    faces[5][1] = 9999;
+    grey[2][7] = 0.5;
+    meshflow::io::write_npy_sequence(
+        dir.path(),
+        &positions,
+        &faces,
+        Some(&grey),
+        &[0.0, 1.0, 2.0],
+    )
+    .unwrap();
+    let stderr = failing_solve(dir.path(), &[]);
+    assert!(
+        stderr.contains("faces.npy: face 5 refers to vertex 9999"),
+        "{stderr}"
+    );
+}

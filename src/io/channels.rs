@@ -53,7 +53,7 @@ impl VertexValues {
     }
 
     /// The values as channels `[c][i]`.
-    fn into_channels(self) -> Vec<Vec<f64>> {
+    pub(crate) fn into_channels(self) -> Vec<Vec<f64>> {
         match self {
             VertexValues::Grey(v) => vec![v],
             VertexValues::Colors(v) => (0..3).map(|c| v.iter().map(|x| x[c]).collect()).collect(),

@@ -558,15 +558,26 @@ fn read_npy_sequence(dir: &Path) -> Result<RawSequence, Error> {
             IoError::format(&faces_file, format!("shape {shape:?}, expected (faces, 3)")).into(),
         );
     }
-    let faces = indices
+    let faces: Vec<[u32; 3]> = indices
         .chunks_exact(3)
         .map(|f| [f[0], f[1], f[2]])
         .collect();
+    // Checked here, so that the error names the file at fault, not positions.npy.
+    if let Some((face, &vertex)) = (faces.iter().enumerate())
+        .find_map(|(f, corners)| Some((f, corners.iter().find(|&&i| i as u64 >= v)?)))
+    {
+        let message =
+            format!("face {face} refers to vertex {vertex}, but positions.npy has {v} vertices");
+        return Err(IoError::format(&faces_file, message).into());
+    }
     let intensity_file = dir.join("intensity.npy");
     let images = match intensity_file.exists() {
         true => Some(intensity_array(&intensity_file, k as usize, v as usize)?),
         false => None,
     };
+    if let Some(message) = images.as_deref().and_then(first_non_finite) {
+        return Err(IoError::format(&intensity_file, message).into());
+    }
     Ok(RawSequence {
         faces,
         positions,
@@ -574,6 +585,23 @@ fn read_npy_sequence(dir: &Path) -> Result<RawSequence, Error> {
         times: None,
         sources: vec![positions_file; k as usize],
         warnings: Vec::new(),
+    })
+}
+
+/// Where the first value that is not a finite number is, as a sentence.
+fn first_non_finite(frames: &[VertexValues]) -> Option<String> {
+    frames.iter().enumerate().find_map(|(k, frame)| {
+        let channels = frame.clone().into_channels();
+        channels.iter().enumerate().find_map(|(c, values)| {
+            let (i, value) = values.iter().enumerate().find(|(_, x)| !x.is_finite())?;
+            let channel = match channels.len() {
+                1 => String::new(),
+                _ => format!(", channel {c}"),
+            };
+            Some(format!(
+                "frame {k}: intensity at vertex {i}{channel} is {value}"
+            ))
+        })
     })
 }
 
