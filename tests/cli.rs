@@ -1187,3 +1187,86 @@ fn npy_errors_name_the_array_at_fault() {
         "{stderr}"
     );
 }
+
+/// Microscopes write integer images: a uint16 `intensity.npy` beside NPY arrays and a uint8
+/// `--intensity` give the flow of the same values as float64.
+#[test]
+fn integer_images_are_read_like_their_float_values() {
+    use npyz::WriterBuilder;
+    let write_u = |path: &Path, shape: &[u64], values: &[u64], bits: u32| {
+        let mut file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+        if bits == 8 {
+            let mut w = npyz::WriteOptions::<u8>::new()
+                .default_dtype()
+                .shape(shape)
+                .writer(&mut file)
+                .begin_nd()
+                .unwrap();
+            w.extend(values.iter().map(|&v| v as u8)).unwrap();
+            w.finish().unwrap();
+        } else {
+            let mut w = npyz::WriteOptions::<u16>::new()
+                .default_dtype()
+                .shape(shape)
+                .writer(&mut file)
+                .begin_nd()
+                .unwrap();
+            w.extend(values.iter().map(|&v| v as u16)).unwrap();
+            w.finish().unwrap();
+        }
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let sphere = meshflow::shapes::icosphere(2);
+    let n = sphere.positions.len();
+    let values: Vec<u64> = (0..3)
+        .flat_map(|k| {
+            sphere
+                .positions
+                .iter()
+                .map(move |p| (120.0 + 100.0 * (3.0 * p.x + 0.2 * k as f64).sin()) as u64)
+        })
+        .collect();
+    let floats: Vec<Vec<f64>> = values
+        .chunks(n)
+        .map(|f| f.iter().map(|&v| v as f64).collect())
+        .collect();
+    let positions = vec![sphere.positions.clone(); 3];
+    let (float_dir, int_dir) = (dir.path().join("float"), dir.path().join("u16"));
+    for d in [&float_dir, &int_dir] {
+        std::fs::create_dir(d).unwrap();
+        meshflow::io::write_npy_sequence(
+            d,
+            &positions,
+            &sphere.faces,
+            Some(&floats),
+            &[0.0, 1.0, 2.0],
+        )
+        .unwrap();
+    }
+    write_u(&int_dir.join("intensity.npy"), &[3, n as u64], &values, 16);
+    let u8_file = dir.path().join("grey_u8.npy");
+    write_u(&u8_file, &[3, n as u64], &values, 8);
+    let flow_of = |input: &Path, extra: &[&str]| {
+        let out = dir.path().join(format!(
+            "run_{}",
+            extra.len() + input.to_string_lossy().len()
+        ));
+        let mut args = vec![
+            "solve",
+            input.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--format",
+            "npy",
+        ];
+        args.extend_from_slice(extra);
+        meshflow_ok(&args);
+        read_npy(&out.join("flow.npy")).unwrap().data
+    };
+    let float_flow = flow_of(&float_dir, &[]);
+    assert_eq!(flow_of(&int_dir, &[]), float_flow);
+    assert_eq!(
+        flow_of(&float_dir, &["--intensity", u8_file.to_str().unwrap()]),
+        float_flow
+    );
+}

@@ -45,8 +45,8 @@ pub use input::{frame_files, FrameFormat, SequenceSource};
 pub use mtl::{texture_colors, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};
 pub use npy::{
-    read_npy, read_npy_f32, read_npy_float, read_npy_indices, write_npy, write_npy_sequence,
-    write_npy_vectors, NpyArray,
+    read_npy, read_npy_f32, read_npy_float, read_npy_image, read_npy_indices, write_npy,
+    write_npy_sequence, write_npy_vectors, NpyArray,
 };
 pub use obj::{read_obj, write_obj, ObjMesh};
 pub use prepare::{load_mesh, mesh_from_arrays, read_mesh_geometry, LoadedMesh};

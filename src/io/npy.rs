@@ -72,34 +72,59 @@ fn read_floats(path: &Path, sizes: &[u64], expected: &str) -> Result<NpyArray, I
     Ok(NpyArray { shape, data })
 }
 
-/// Reads a float32, float64, uint8 or uint16 `.npy` (microscope volumes) as `f32` values in C
-/// order, with its shape; float64 values are rounded to the nearest `f32`.
-pub fn read_npy_f32(path: &Path) -> Result<(Vec<u64>, Vec<f32>), IoError> {
+/// The element types of images and volumes: what microscopes and image tools write.
+const IMAGE_TYPES: &str = "float32, float64, uint8 or uint16";
+
+fn is_image_type(t: &npyz::TypeStr) -> bool {
     use npyz::TypeChar::{Float, Uint};
-    let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
-    let accepted = |t: &npyz::TypeStr| match t.type_char() {
+    match t.type_char() {
         Float => matches!(t.size_field(), 4 | 8),
         Uint => matches!(t.size_field(), 1 | 2),
         _ => false,
-    };
-    let file = open_npy(path, &bytes, accepted, "float32, float64, uint8 or uint16")?;
+    }
+}
+
+/// Reads a float32, float64, uint8 or uint16 `.npy` (microscope volumes) as `f32` values in C
+/// order, with its shape; float64 values are rounded to the nearest `f32`.
+pub fn read_npy_f32(path: &Path) -> Result<(Vec<u64>, Vec<f32>), IoError> {
+    read_image(path, |v| v, |v| v as f32, f32::from, f32::from)
+}
+
+/// Reads a float32, float64, uint8 or uint16 `.npy` (per-vertex images: what microscopes and
+/// image tools write) as `f64` values in C order, exactly, with its shape.
+pub fn read_npy_image(path: &Path) -> Result<NpyArray, IoError> {
+    let (shape, data) = read_image(path, f64::from, |v| v, f64::from, f64::from)?;
+    Ok(NpyArray { shape, data })
+}
+
+/// An image `.npy` ([`IMAGE_TYPES`]) with each element type converted by its function.
+fn read_image<U>(
+    path: &Path,
+    from_f32: fn(f32) -> U,
+    from_f64: fn(f64) -> U,
+    from_u8: fn(u8) -> U,
+    from_u16: fn(u16) -> U,
+) -> Result<(Vec<u64>, Vec<U>), IoError> {
+    use npyz::TypeChar::Float;
+    let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
+    let file = open_npy(path, &bytes, is_image_type, IMAGE_TYPES)?;
     let shape = file.shape().to_vec();
     let corrupt =
         |e: std::io::Error| IoError::format(path, format!("truncated or corrupt data ({e})"));
     let npyz::DType::Plain(dtype) = file.dtype() else {
         unreachable!("open_npy accepts plain types only")
     };
-    let values: Vec<f32> = match (dtype.type_char(), dtype.size_field()) {
-        (Float, 4) => file.into_vec::<f32>().map_err(corrupt)?,
-        (Float, _) => narrow(file.into_vec::<f64>().map_err(corrupt)?, |v| v as f32),
-        (_, 1) => narrow(file.into_vec::<u8>().map_err(corrupt)?, f32::from),
-        _ => narrow(file.into_vec::<u16>().map_err(corrupt)?, f32::from),
+    let values = match (dtype.type_char(), dtype.size_field()) {
+        (Float, 4) => convert(file.into_vec::<f32>().map_err(corrupt)?, from_f32),
+        (Float, _) => convert(file.into_vec::<f64>().map_err(corrupt)?, from_f64),
+        (_, 1) => convert(file.into_vec::<u8>().map_err(corrupt)?, from_u8),
+        _ => convert(file.into_vec::<u16>().map_err(corrupt)?, from_u16),
     };
     Ok((shape, values))
 }
 
-fn narrow<T>(values: Vec<T>, to_f32: impl Fn(T) -> f32) -> Vec<f32> {
-    values.into_iter().map(to_f32).collect()
+fn convert<T, U>(values: Vec<T>, to: impl Fn(T) -> U) -> Vec<U> {
+    values.into_iter().map(to).collect()
 }
 
 /// Reads an integer `.npy` of vertex indices (int8…int64 or uint8…uint64, either byte order,

@@ -6,7 +6,7 @@
 //! repair, dropping unused vertices; the [`VertexMap`] keeps the files' numbering) and validated
 //! as a [`MeshSequence`]. Errors name the file, and the frame, vertex or face at fault.
 //!
-//! The image comes from `--intensity` (a float32 or float64 `.npy` of shape (K, V), or (K, V, C)
+//! The image comes from `--intensity` (a float32, float64, uint8 or uint16 `.npy` of shape (K, V), or (K, V, C)
 //! for `C` channels, over the files' vertices) when given, else from each format's own data: OBJ
 //! vertex colours or `map_Kd` texture, a PLY scalar property (`intensity_attribute`) or its
 //! colours, glTF `COLOR_0` or base-colour texture, `intensity.npy` next to NPY arrays.
@@ -19,7 +19,9 @@ use super::input::{FrameFormat, SequenceSource};
 use super::ply::read_ply;
 use super::prepare::{prepare_mesh, Prepared};
 use super::warning::STATIC_IMAGE_TOLERANCE;
-use super::{read_npy_float, read_npy_indices, read_obj, select_channels, texture_colors};
+use super::{
+    read_npy_float, read_npy_image, read_npy_indices, read_obj, select_channels, texture_colors,
+};
 use super::{Channels, VertexValues};
 use super::{FrameMesh, IoError, LoadWarning, RawSequence, TextureCache, VertexMap};
 use crate::flow::{check_finite_intensities, FlowError, Images, MeshSequence};
@@ -34,7 +36,7 @@ use std::path::{Path, PathBuf};
 /// files, welded at the default tolerance, not repaired".
 #[derive(Clone, Debug)]
 pub struct LoadOptions {
-    /// The image from this float32 or float64 `.npy` of shape (frames, file vertices), or
+    /// The image from this float32, float64, uint8 or uint16 `.npy` of shape (frames, file vertices), or
     /// (frames, file vertices, channels).
     pub intensity: Option<PathBuf>,
     /// Which channels of the image to use (`--channels`): all of them by default.
@@ -673,7 +675,7 @@ fn intensity_array(
     n_frames: usize,
     n_vertices: usize,
 ) -> Result<Vec<VertexValues>, IoError> {
-    let array = read_npy_float(path)?;
+    let array = read_npy_image(path)?;
     let (k, v) = (n_frames as u64, n_vertices as u64);
     match array.shape[..] {
         [a, b] if (a, b) == (k, v) => Ok(split_frames(&array.data, n_frames, n_vertices)

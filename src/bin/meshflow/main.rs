@@ -231,7 +231,7 @@ struct SolveArgs {
     /// Relative residual at which the iterative solver stops
     #[arg(long, default_value_t = FlowParams::default().tolerance, allow_negative_numbers = true)]
     tolerance: f64,
-    /// The image as a float32 or float64 .npy of shape (frames, file vertices), or (frames,
+    /// The image as a float32, float64, uint8 or uint16 .npy of shape (frames, file vertices), or (frames,
     /// file vertices, channels), instead of the files' colours
     #[arg(long)]
     intensity: Option<PathBuf>,

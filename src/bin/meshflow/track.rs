@@ -6,7 +6,7 @@
 
 use crate::progress::count_progress;
 use meshflow::io::{
-    load_mesh, load_sequence, natural_order, read_mesh_with, read_npy_float, read_times_file,
+    load_mesh, load_sequence, natural_order, read_mesh_with, read_npy_image, read_times_file,
     select_channels, write_atomically, write_npy, write_npy_sequence, IoError, LoadOptions,
     Overwrite, SequenceSource, StagedDir, VertexValues,
 };
@@ -202,7 +202,7 @@ fn intensity_values(path: &Path, sizes: &[usize]) -> Result<Vec<VertexValues>, E
         return files
             .iter()
             .map(|file| {
-                let array = read_npy_float(file)?;
+                let array = read_npy_image(file)?;
                 let (rows, columns) = match array.shape[..] {
                     [v] => (v as usize, 1),
                     [v, c] => (v as usize, c as usize),
@@ -218,7 +218,7 @@ fn intensity_values(path: &Path, sizes: &[usize]) -> Result<Vec<VertexValues>, E
             })
             .collect();
     }
-    let array = read_npy_float(path)?;
+    let array = read_npy_image(path)?;
     let (k, v, c) = match array.shape[..] {
         [k, v] => (k as usize, v as usize, 1),
         [k, v, c] => (k as usize, v as usize, c as usize),
