@@ -1270,3 +1270,48 @@ fn integer_images_are_read_like_their_float_values() {
         float_flow
     );
 }
+
+/// An output directory that is the input or holds it is refused, even with `--force`, before
+/// anything is written: the frames stay as they were and the next run still reads them.
+#[test]
+fn an_output_that_is_or_holds_the_input_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("frames");
+    std::fs::create_dir(&frames).unwrap();
+    let sphere = meshflow::shapes::icosphere(2);
+    for k in 0..3 {
+        let grey: Vec<[f64; 3]> = (sphere.positions.iter())
+            .map(|p| [(3.0 * p.x + 0.1 * k as f64).sin() * 0.4 + 0.5; 3])
+            .collect();
+        let path = frames.join(format!("f{k}.obj"));
+        meshflow::io::write_obj(&path, &sphere.positions, &sphere.faces, Some(&grey)).unwrap();
+    }
+    let before = listing(&frames);
+    let input = frames.to_str().unwrap();
+    let glob = format!("{input}/f*.obj");
+    let parent = dir.path().to_str().unwrap();
+    for (source, out, relation) in [
+        (input, input, "is the input"),
+        (glob.as_str(), input, "is the input"),
+        (input, parent, "holds the input"),
+    ] {
+        let run = meshflow(&["solve", source, "--out", out, "--force"]);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(
+            stderr.contains(relation) && stderr.contains("choose another output directory"),
+            "{stderr}"
+        );
+        assert_eq!(listing(&frames), before);
+    }
+    let run = meshflow(&["track", input, "--out", input, "--force"]);
+    assert_eq!(run.status.code(), Some(1));
+    assert_eq!(listing(&frames), before);
+    meshflow_ok(&[
+        "solve",
+        input,
+        "--out",
+        dir.path().join("run").to_str().unwrap(),
+    ]);
+}

@@ -189,6 +189,18 @@ impl StagedDir {
         Self::create(target, Overwrite::EarlierRun)
     }
 
+    /// [`StagedDir::create`] for a command that reads `input`: refused, before anything is
+    /// written, when `target` is the input or holds it (its outputs would mix with the
+    /// input's files, and e.g. a `flow.glb` among OBJ frames breaks the next run).
+    pub fn create_apart_from(
+        input: &Path,
+        target: &Path,
+        overwrite: Overwrite,
+    ) -> Result<Self, IoError> {
+        check_apart(input, target)?;
+        Self::create(target, overwrite)
+    }
+
     /// A new output at `target`, replacing what `overwrite` allows.
     pub fn create(target: &Path, overwrite: Overwrite) -> Result<Self, IoError> {
         Self::stage(target, overwrite, None)
@@ -398,4 +410,38 @@ fn relabel(mut error: IoError, from: &Path, to: &Path) -> IoError {
         *path = to.join(relative);
     }
     error
+}
+
+/// `Err` when the directory `target` exists and is `input` or holds it (a glob input: its
+/// directory part).
+fn check_apart(input: &Path, target: &Path) -> Result<(), IoError> {
+    let Ok(out) = std::fs::canonicalize(target) else {
+        return Ok(()); // not there yet: it holds nothing
+    };
+    let location: PathBuf = match input.exists() {
+        true => input.to_path_buf(),
+        false => (input.components())
+            .take_while(|c| !c.as_os_str().to_string_lossy().contains(['*', '?', '[']))
+            .collect(),
+    };
+    let location = match location.as_os_str().is_empty() {
+        true => PathBuf::from("."),
+        false => location,
+    };
+    let Ok(read) = std::fs::canonicalize(&location) else {
+        return Ok(());
+    };
+    let relation = match (read == out, read.starts_with(&out)) {
+        (true, _) => "is",
+        (false, true) => "holds",
+        (false, false) => return Ok(()),
+    };
+    Err(IoError::format(
+        target,
+        format!(
+            "{relation} the input {}: the outputs would mix with the input's files; choose \
+             another output directory",
+            input.display()
+        ),
+    ))
 }

@@ -43,7 +43,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
     params.validate()?;
     // Before any long computation: fail now if the output cannot be written or would replace
     // files that are not an earlier meshflow output.
-    let mut out = StagedDir::create(&args.out, args.force.overwrite())?;
+    let mut out = StagedDir::create_apart_from(&args.input, &args.out, args.force.overwrite())?;
     out.record_command(crate::command_line());
     let loaded = during(format!("reading {}", args.input.display()), || {
         load_sequence(&args.input, &args.load_options())

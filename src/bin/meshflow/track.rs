@@ -30,7 +30,7 @@ pub struct TrackRequest<'a> {
 }
 
 pub fn run(request: TrackRequest) -> Result<(), Error> {
-    let mut staged = StagedDir::create(request.out, request.overwrite)?;
+    let mut staged = StagedDir::create_apart_from(request.input, request.out, request.overwrite)?;
     staged.record_command(crate::command_line());
     let input = crate::progress::during(format!("reading {}", request.input.display()), || {
         read_frames(request.input, &request.load)
