@@ -109,6 +109,26 @@ fn render_errors_name_the_file() {
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(stderr.contains("nothing/flow.pvd"), "{stderr}");
 
+    // A run solved with --format npy: render says why it has nothing to read and what to do.
+    let npy_only = out.path().join("npy_only");
+    let input = shipped("rotating_sphere");
+    meshflow_ok(&[
+        "solve",
+        &input,
+        "--out",
+        npy_only.to_str().unwrap(),
+        "--format",
+        "npy",
+    ]);
+    let run = meshflow(&["render", npy_only.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1));
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("no ParaView files") && stderr.contains("--png"),
+        "{stderr}"
+    );
+
     // A slab file without the flow array.
     let dir = out.path().join("run");
     let input = shipped("rotating_sphere");

@@ -158,6 +158,12 @@ pub fn render_output(
     args: &PictureArgs,
 ) -> Result<(), Error> {
     let pvd = dir.join("flow.pvd");
+    if !pvd.exists() && dir.join("flow.npy").exists() {
+        let message = "this run has no ParaView files (solved with --format npy?); render reads \
+                       flow.pvd and its flow_SSSS.vtu: solve again with vtu among the formats \
+                       (the default), or with --png";
+        return Err(IoError::format(dir, message).into());
+    }
     let datasets = read_pvd(&pvd)?;
     let into_run = out.is_none_or(|out| same_directory(out, dir));
     let target = out.unwrap_or(dir);
