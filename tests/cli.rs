@@ -1315,3 +1315,53 @@ fn an_output_that_is_or_holds_the_input_is_refused() {
         dir.path().join("run").to_str().unwrap(),
     ]);
 }
+
+/// A run solved with a relative input path is advected from any directory: the manifest
+/// records where the solve ran, and `advect` reads the input from there.
+#[test]
+fn advect_finds_a_relative_input_from_another_directory() {
+    let work = tempfile::tempdir().unwrap();
+    let copy = work.path().join("data");
+    std::fs::create_dir(&copy).unwrap();
+    let shipped_dir = std::path::PathBuf::from(shipped("rotating_sphere"));
+    for entry in std::fs::read_dir(&shipped_dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "obj" || e == "txt") {
+            std::fs::copy(&path, copy.join(path.file_name().unwrap())).unwrap();
+        }
+    }
+    let run_in = |dir: &Path, args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_meshflow"))
+            .current_dir(dir)
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let solve = run_in(
+        work.path(),
+        &["solve", "data", "--out", "run", "--format", "npy"],
+    );
+    assert!(
+        solve.status.success(),
+        "{}",
+        String::from_utf8_lossy(&solve.stderr)
+    );
+    let elsewhere = tempfile::tempdir().unwrap();
+    let run = work.path().join("run");
+    let out = elsewhere.path().join("advected");
+    let advect = run_in(
+        elsewhere.path(),
+        &[
+            "advect",
+            run.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert!(
+        advect.status.success(),
+        "{}",
+        String::from_utf8_lossy(&advect.stderr)
+    );
+    assert!(out.join("trajectories.npy").exists());
+}

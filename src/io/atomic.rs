@@ -64,11 +64,23 @@ pub struct RunManifest {
     pub commands: Vec<Vec<String>>,
     /// The directory's entries (besides the manifest), sorted.
     pub files: Vec<String>,
+    /// The working directory of the first command: its relative paths are relative to it
+    /// (absent in manifests of earlier versions).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub directory: Option<PathBuf>,
 }
 
 const MANIFEST_FORMAT: &str = "meshflow run";
 
 impl RunManifest {
+    /// `path` as the first command meant it: relative paths against [`Self::directory`].
+    pub fn resolve(&self, path: &Path) -> PathBuf {
+        match (&self.directory, path.is_relative()) {
+            (Some(directory), true) => directory.join(path),
+            _ => path.to_path_buf(),
+        }
+    }
+
     /// The manifest of `dir`, if it has one that reads as a manifest.
     pub fn read(dir: &Path) -> Option<Self> {
         let text = std::fs::read(dir.join(RUN_MANIFEST)).ok()?;
@@ -177,6 +189,8 @@ pub struct StagedDir {
     staging: PathBuf,
     overwrite: Overwrite,
     commands: Vec<Vec<String>>,
+    /// Where the first command ran.
+    directory: Option<PathBuf>,
     /// Files of the earlier output that stay (see [`StagedDir::update`]).
     kept: Vec<String>,
     committed: bool,
@@ -241,6 +255,7 @@ impl StagedDir {
             staging,
             overwrite,
             commands: Vec::new(),
+            directory: std::env::current_dir().ok(),
             kept: Vec::new(),
             committed: false,
         };
@@ -251,6 +266,7 @@ impl StagedDir {
         };
         if let (Some(keep), Some(manifest)) = (keep, manifest) {
             staged.commands = manifest.commands.clone();
+            staged.directory = manifest.directory.clone();
             staged.kept = manifest.files.iter().filter(|n| keep(n)).cloned().collect();
         }
         // A whole directory is swapped in: the kept files must be in it. (Forced into a
@@ -314,6 +330,7 @@ impl StagedDir {
             version: env!("CARGO_PKG_VERSION").into(),
             commands: std::mem::take(&mut self.commands),
             files: files.into_iter().collect(),
+            directory: self.directory.take(),
         };
         write_atomically(&self.staging.join(RUN_MANIFEST), |w| {
             serde_json::to_writer_pretty(&mut *w, &manifest).map_err(std::io::Error::other)?;

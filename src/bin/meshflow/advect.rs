@@ -99,7 +99,12 @@ fn solve_command(run: &Path) -> Result<Box<crate::SolveArgs>, Error> {
         .first()
         .ok_or_else(|| not_a_run("its manifest lists no command"))?;
     match Cli::try_parse_from(command).map(|cli| cli.command) {
-        Ok(Command::Solve(args)) => Ok(args),
+        // Its paths as the solve meant them, wherever `advect` runs from.
+        Ok(Command::Solve(mut args)) => {
+            args.input = manifest.resolve(&args.input);
+            args.intensity = args.intensity.map(|file| manifest.resolve(&file));
+            Ok(args)
+        }
         _ => Err(not_a_run("not the output of `meshflow solve`")),
     }
 }
