@@ -1365,3 +1365,31 @@ fn advect_finds_a_relative_input_from_another_directory() {
     );
     assert!(out.join("trajectories.npy").exists());
 }
+
+/// A run that was killed leaves its staging directory behind; the next run into the same
+/// output removes it when its process is gone, and leaves a live process's staging alone.
+#[test]
+fn staging_left_by_a_killed_run_is_removed_by_the_next_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let dead = dir.path().join(".run.partial-4000000000");
+    let alive = dir
+        .path()
+        .join(format!(".run.partial-{}", std::process::id()));
+    for stale in [&dead, &alive] {
+        std::fs::create_dir(stale).unwrap();
+        std::fs::write(stale.join("flow.npy"), "half-written").unwrap();
+    }
+    let out = dir.path().join("run");
+    let input = shipped("rotating_sphere");
+    meshflow_ok(&[
+        "solve",
+        &input,
+        "--out",
+        out.to_str().unwrap(),
+        "--format",
+        "npy",
+    ]);
+    assert!(!dead.exists(), "the dead run's staging is removed");
+    assert!(alive.exists(), "a live process's staging stays");
+    assert_eq!(listing(dir.path()).len(), 2, "{:?}", listing(dir.path()));
+}

@@ -245,6 +245,7 @@ impl StagedDir {
         };
         let existing = Existing::of(&resolved).map_err(|e| relabel(e, &resolved, target))?;
         existing.check(target, overwrite)?;
+        remove_stale_staging(&resolved);
         let staging = sibling(&resolved, "partial").map_err(|e| relabel(e, &resolved, target))?;
         let parent = staging.parent().expect("a sibling has a parent");
         std::fs::create_dir_all(parent).map_err(|e| IoError::file(target, e))?;
@@ -418,6 +419,46 @@ fn sibling(target: &Path, role: &str) -> Result<PathBuf, IoError> {
         name.to_string_lossy(),
         std::process::id()
     )))
+}
+
+/// Removes the staging directories (`.NAME.partial-PID`) that runs into `target` left when they
+/// were killed: those whose process is gone. A live process's staging stays; so does any
+/// other entry.
+fn remove_stale_staging(target: &Path) {
+    let (Some(name), Ok(pattern)) = (target.file_name(), sibling(target, "partial")) else {
+        return;
+    };
+    let prefix = format!(".{}.partial-", name.to_string_lossy());
+    let parent = pattern.parent().unwrap_or(Path::new("."));
+    let Ok(entries) = std::fs::read_dir(parent) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file_name = entry.file_name().to_string_lossy().into_owned();
+        let pid = file_name
+            .strip_prefix(&prefix)
+            .and_then(|p| p.parse::<u32>().ok());
+        if pid.is_some_and(|pid| !process_is_alive(pid)) {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+}
+
+/// Whether a process with this id exists (signal 0 checks without sending anything).
+#[cfg(unix)]
+fn process_is_alive(pid: u32) -> bool {
+    let Ok(pid) = libc::pid_t::try_from(pid) else {
+        return false;
+    };
+    // SAFETY: kill with signal 0 sends nothing; it only reports whether `pid` exists.
+    let status = unsafe { libc::kill(pid, 0) };
+    status == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+}
+
+/// Elsewhere no process is known to be gone: nothing is removed.
+#[cfg(not(unix))]
+fn process_is_alive(_pid: u32) -> bool {
+    true
 }
 
 /// `error` with a path under `from` moved under `to`.
