@@ -308,8 +308,13 @@ fn invalid_parameters_are_named() {
     let sequence = stripes(2);
     type Spoil = fn(&mut FlowParams);
     // Values carry the paper's names, relative scales the command line's.
-    let cases: [(Spoil, &str); 11] = [
+    let cases: [(Spoil, &str); 14] = [
         (|p| p.alpha = Weight::Value(0.0), "alpha"),
+        // Coupling in time so strong that the system is numerically singular (it failed in
+        // the Cholesky factorization, NonPositivePivot, before it was refused by name).
+        (|p| p.alpha = Weight::Value(1e-300), "alpha"),
+        (|p| p.alpha = Weight::Value(1e-100), "alpha"),
+        (|p| p.alpha = Weight::Relative(1e300), "time-scale"),
         (|p| p.alpha = Weight::Value(f64::NAN), "alpha"),
         (|p| p.alpha = Weight::Relative(-1.0), "time-scale"),
         (|p| p.alpha = Weight::Relative(f64::INFINITY), "time-scale"),

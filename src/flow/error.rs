@@ -51,7 +51,7 @@ pub enum FlowError {
     },
     #[error("frame time t[{frame}] = {value} is not a finite number")]
     NonFiniteTime { frame: usize, value: f64 },
-    #[error("parameter {name} = {value} is invalid: it must be {requirement}")]
+    #[error("parameter {name} = {} is invalid: it must be {requirement}", readable(*value))]
     InvalidParameter {
         name: &'static str,
         value: f64,
@@ -69,4 +69,12 @@ pub enum FlowError {
         residual: f64,
         tolerance: f64,
     },
+}
+
+/// A number as a person writes it: plainly between 10⁻⁴ and 10⁶, else in scientific notation.
+fn readable(value: f64) -> String {
+    match value.abs() {
+        a if a == 0.0 || !a.is_finite() || (1e-4..1e6).contains(&a) => format!("{value}"),
+        _ => format!("{value:e}"),
+    }
 }
