@@ -376,3 +376,38 @@ fn gltf_input_is_drawn_upright() {
     let (width, height) = extent(&picture(&run.join("grey_0000.png")));
     assert!(height < width, "{width} x {height}: not lying");
 }
+
+/// `--slabs` chooses which pictures to draw, not how they look: one camera and one flow scale
+/// for the whole run, so slab 3 drawn alone is the same picture as slab 3 drawn with all.
+#[test]
+fn a_slab_drawn_alone_is_the_picture_drawn_with_all() {
+    let work = tempfile::tempdir().unwrap();
+    let run = work.path().join("run");
+    meshflow_ok(&[
+        "solve",
+        &shipped("rotating_sphere"),
+        "--out",
+        run.to_str().unwrap(),
+    ]);
+    let (all, alone) = (work.path().join("all"), work.path().join("alone"));
+    meshflow_ok(&[
+        "render",
+        run.to_str().unwrap(),
+        "--out",
+        all.to_str().unwrap(),
+    ]);
+    meshflow_ok(&[
+        "render",
+        run.to_str().unwrap(),
+        "--out",
+        alone.to_str().unwrap(),
+        "--slabs",
+        "3",
+    ]);
+    for name in ["grey_0003.png", "flow_0003.png", "arrows_0003.png"] {
+        let a = std::fs::read(all.join(name)).unwrap();
+        let b = std::fs::read(alone.join(name)).unwrap();
+        assert!(a == b, "{name} differs when drawn alone");
+    }
+    assert!(!alone.join("flow_0002.png").exists());
+}

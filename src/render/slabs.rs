@@ -160,14 +160,29 @@ pub fn write_slab_pictures(
     options: &FigureOptions,
     progress: &(dyn Fn() + Sync),
 ) -> Result<Vec<PathBuf>, Error> {
-    if slabs.is_empty() {
+    let all: Vec<usize> = (0..slabs.len()).collect();
+    write_chosen_slab_pictures(dir, faces, slabs, &all, options, progress)
+}
+
+/// [`write_slab_pictures`] for the slabs `chosen` (indices into `slabs`) only, with the
+/// camera, flow scale and value ranges of all `slabs`: a picture of slab 3 is the same whether
+/// it is drawn alone or with the others.
+pub fn write_chosen_slab_pictures(
+    dir: &Path,
+    faces: &[[u32; 3]],
+    slabs: &[SlabView],
+    chosen: &[usize],
+    options: &FigureOptions,
+    progress: &(dyn Fn() + Sync),
+) -> Result<Vec<PathBuf>, Error> {
+    if slabs.is_empty() || chosen.is_empty() {
         return Ok(Vec::new());
     }
     let shared = Shared::new(slabs, options);
-    let written: Vec<Result<Vec<PathBuf>, Error>> = slabs
+    let written: Vec<Result<Vec<PathBuf>, Error>> = chosen
         .par_iter()
-        .map(|view| {
-            let files = write_one_slab(dir, faces, view, &shared, &options.style);
+        .map(|&k| {
+            let files = write_one_slab(dir, faces, &slabs[k], &shared, &options.style);
             progress();
             files
         })

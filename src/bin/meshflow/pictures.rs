@@ -6,7 +6,7 @@ use crate::progress::{count_progress, during};
 use meshflow::io::vtk::{read_pvd, read_vtu, VtuMesh};
 use meshflow::io::{IoError, Overwrite, StagedDir};
 use meshflow::render::{
-    write_slab_pictures, FigureOptions, RenderError, SlabSelection, SlabView, UpAxis, View,
+    write_chosen_slab_pictures, FigureOptions, RenderError, SlabSelection, SlabView, UpAxis, View,
 };
 use meshflow::Error;
 use nalgebra::Vector3;
@@ -87,17 +87,19 @@ fn parse_speed(text: &str) -> Result<f64, String> {
     }
 }
 
-/// Draws the slabs of `views` into `out` as seen from `view`, with a progress bar.
+/// Draws the slabs `chosen` of `views` (all of the run's slabs, which share one camera and one
+/// flow scale) into `out` as seen from `view`, with a progress bar.
 pub fn draw(
     out: &Path,
     faces: &[[u32; 3]],
     views: &[SlabView],
+    chosen: &[usize],
     args: &PictureArgs,
     view: View,
 ) -> Result<Vec<PathBuf>, Error> {
     let options = args.options(view);
-    let bar = count_progress(views.len() as u64, "drawing slabs");
-    let written = write_slab_pictures(out, faces, views, &options, &|| bar.inc(1));
+    let bar = count_progress(chosen.len() as u64, "drawing slabs");
+    let written = write_chosen_slab_pictures(out, faces, views, chosen, &options, &|| bar.inc(1));
     bar.finish_and_clear();
     written
 }
@@ -197,11 +199,10 @@ pub fn render_output(
     }
     let chosen = args.slabs(slabs.len())?;
     let view = args.view(solved_view(dir)?);
-    let flows: Vec<Vec<Vector3<f64>>> = chosen.iter().map(|&s| slabs[s].flow()).collect();
-    let views: Vec<SlabView> = chosen
-        .iter()
+    let flows: Vec<Vec<Vector3<f64>>> = slabs.iter().map(SlabFile::flow).collect();
+    let views: Vec<SlabView> = (0..slabs.len())
         .zip(&flows)
-        .map(|(&s, flow)| SlabView {
+        .map(|(s, flow)| SlabView {
             slab: s,
             time: slabs[s].time,
             positions: &slabs[s].mesh.points,
@@ -211,8 +212,15 @@ pub fn render_output(
             warped_residual: slabs[s].array("warped_residual"),
         })
         .collect();
-    let written = draw(staged.path(), &first.mesh.triangles, &views, args, view)
-        .map_err(|e| staged.error_in_target(e))?;
+    let written = draw(
+        staged.path(),
+        &first.mesh.triangles,
+        &views,
+        &chosen,
+        args,
+        view,
+    )
+    .map_err(|e| staged.error_in_target(e))?;
     staged.commit()?;
     let drawn = match chosen.len() == slabs.len() {
         true => format!("{} slabs", slabs.len()),

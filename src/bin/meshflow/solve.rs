@@ -247,13 +247,14 @@ impl Pictures<'_> {
             .as_ref()
             .expect("sequences read from files are embedded");
         let errors = report.map(|r| r.errors.angular_degrees.as_slice());
-        let mut views = sequence_views(sequence, vectors, errors, self.slabs.iter().copied())?;
+        let mut views = sequence_views(sequence, vectors, errors, 0..sequence.n_slabs())?;
         if let Some(residual) = &result.warped_residual {
             views
                 .iter_mut()
                 .for_each(|v| v.warped_residual = Some(&residual[v.slab]));
         }
-        pictures::draw(dir, sequence.mesh().faces(), &views, self.args, self.view)?;
+        let faces = sequence.mesh().faces();
+        pictures::draw(dir, faces, &views, self.slabs, self.args, self.view)?;
         Ok(())
     }
 }
