@@ -1393,3 +1393,50 @@ fn staging_left_by_a_killed_run_is_removed_by_the_next_run() {
     assert!(alive.exists(), "a live process's staging stays");
     assert_eq!(listing(dir.path()).len(), 2, "{:?}", listing(dir.path()));
 }
+
+/// A frame file cut short (a copy interrupted, a disk full) is reported as truncated, whether
+/// it stops inside a vertex line, inside a face line or between face lines.
+#[test]
+fn a_truncated_obj_frame_is_reported_as_truncated() {
+    let dir = tempfile::tempdir().unwrap();
+    let sphere = meshflow::shapes::icosphere(2);
+    let grey: Vec<[f64; 3]> = sphere
+        .positions
+        .iter()
+        .map(|p| [0.5 + 0.4 * p.x; 3])
+        .collect();
+    for k in 0..3 {
+        let path = dir.path().join(format!("f{k}.obj"));
+        meshflow::io::write_obj(&path, &sphere.positions, &sphere.faces, Some(&grey)).unwrap();
+    }
+    let whole = std::fs::read_to_string(dir.path().join("f2.obj")).unwrap();
+    let last_vertex = whole.rfind("\nv ").unwrap() + 1;
+    let first_face = whole.find("\nf ").unwrap() + 1;
+    let tenth_face = first_face + whole[first_face..].match_indices("\nf ").nth(9).unwrap().0 + 1;
+    let cuts = [
+        // Inside the last vertex line, after its position: the colour is missing.
+        whole[..last_vertex + whole[last_vertex..].find(' ').unwrap() + 1].len() + 20,
+        // Inside a face line.
+        tenth_face + 4,
+        // Between face lines.
+        tenth_face,
+    ];
+    for cut in cuts {
+        let cut = whole.floor_char_boundary(cut);
+        std::fs::write(dir.path().join("f2.obj"), &whole[..cut]).unwrap();
+        let out = dir.path().join("out");
+        let run = meshflow(&[
+            "solve",
+            dir.path().to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains("f2.obj") && stderr.contains("truncated"),
+            "cut at {cut}: {stderr}"
+        );
+        assert!(!stderr.contains("meshflow track"), "{stderr}");
+    }
+}

@@ -38,7 +38,15 @@ pub struct ObjMesh {
 pub fn read_obj(path: &Path) -> Result<ObjMesh, IoError> {
     let text = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
     let text = String::from_utf8_lossy(&text);
-    parse_obj(&text).map_err(|e| IoError::at_line(path, e))
+    parse_obj(&text).map_err(|(line, message)| {
+        // A statement that breaks off where the file does: the file was cut short.
+        let cut = line > 0 && line == text.lines().count() && !text.ends_with('\n');
+        let message = match cut && !message.contains("truncated") {
+            true => format!("{message} (the file ends inside this line: it looks truncated)"),
+            false => message,
+        };
+        IoError::at_line(path, (line, message))
+    })
 }
 
 /// Writes positions, triangles and optional per-vertex colours; numbers are printed in their
@@ -117,6 +125,14 @@ fn parse_obj(text: &str) -> Result<ObjMesh, ParseError> {
     mesh.colors = match colors.len() {
         0 => None,
         k if k == n => Some(colors),
+        // Only the very last vertex lacks its colour and the file stops in mid-line: the
+        // file was cut short, not written with colours for some vertices.
+        k if k + 1 == n && !text.ends_with('\n') && last_line_starts(text, "v ") => {
+            return Err((
+                text.lines().count(),
+                "the file ends inside a vertex line: it looks truncated".into(),
+            ))
+        }
         k => {
             return Err((
                 0,
@@ -125,6 +141,13 @@ fn parse_obj(text: &str) -> Result<ObjMesh, ParseError> {
         }
     };
     Ok(mesh)
+}
+
+/// Whether the last line of `text` starts with `keyword`.
+fn last_line_starts(text: &str, keyword: &str) -> bool {
+    text.lines()
+        .last()
+        .is_some_and(|l| l.trim_start().starts_with(keyword))
 }
 
 /// The text after a keyword of `len` bytes, trimmed: names may contain spaces.

@@ -644,6 +644,19 @@ const TRACK_HINT: &str =
     "frames meshed each on its own: run `meshflow track` on them first, then solve its output";
 
 fn check_same_connectivity(first: &FrameMesh, frame: &FrameMesh, k: usize) -> Result<(), String> {
+    // A file cut short while it was written or copied: its faces are the first of frame 0's,
+    // or it stops before its faces.
+    let (faces, all) = (frame.faces.len(), first.faces.len());
+    let prefix = faces < all && frame.faces[..] == first.faces[..faces];
+    let cut_in_vertices = faces == 0 && frame.positions.len() < first.positions.len();
+    if prefix || cut_in_vertices {
+        return Err(format!(
+            "frame {k} looks truncated: it has {} vertices and {faces} faces, the first {faces} \
+             of frame 0's {all} faces (frame 0 has {} vertices); the file was probably cut short",
+            frame.positions.len(),
+            first.positions.len()
+        ));
+    }
     if frame.positions.len() != first.positions.len() {
         return Err(format!(
             "frame {k} has {} vertices, frame 0 has {} ({TRACK_HINT})",
