@@ -45,6 +45,22 @@
 //! # Ok::<(), meshflow::Error>(())
 //! ```
 
+/// Parses the lowercase names used on the command line (`neumann`, `rigid`, …): a `FromStr`
+/// whose error lists the names. Defined before the modules so that all of them can use it.
+macro_rules! parse_by_name {
+    ($type:ty, $($name:literal => $value:expr),+) => {
+        impl std::str::FromStr for $type {
+            type Err = String;
+            fn from_str(s: &str) -> Result<Self, String> {
+                match s {
+                    $($name => Ok($value),)+
+                    other => Err(format!("'{other}' is not one of: {}", [$($name),+].join(", "))),
+                }
+            }
+        }
+    };
+}
+
 pub mod accuracy;
 pub mod chart;
 pub mod connection;

@@ -480,21 +480,6 @@ fn check(
     }
 }
 
-/// Parses the lowercase names used on the command line (`neumann`, `dirichlet`, …).
-macro_rules! parse_by_name {
-    ($type:ty, $($name:literal => $value:expr),+) => {
-        impl std::str::FromStr for $type {
-            type Err = String;
-            fn from_str(s: &str) -> Result<Self, String> {
-                match s {
-                    $($name => Ok($value),)+
-                    other => Err(format!("'{other}' is not one of: {}", [$($name),+].join(", "))),
-                }
-            }
-        }
-    };
-}
-
 parse_by_name!(Boundary, "neumann" => Boundary::Neumann, "dirichlet" => Boundary::Dirichlet);
 parse_by_name!(TimeCoupling, "lumped" => TimeCoupling::Lumped, "consistent" => TimeCoupling::Consistent);
 parse_by_name!(

@@ -36,17 +36,12 @@ pub enum Alignment {
     Similarity,
 }
 
-impl std::str::FromStr for Alignment {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "none" => Ok(Alignment::None),
-            "rigid" => Ok(Alignment::Rigid),
-            "similarity" => Ok(Alignment::Similarity),
-            other => Err(format!("'{other}' is not one of: none, rigid, similarity")),
-        }
-    }
-}
+parse_by_name!(
+    Alignment,
+    "none" => Alignment::None,
+    "rigid" => Alignment::Rigid,
+    "similarity" => Alignment::Similarity
+);
 
 /// The motion found between a frame and the previous one, and how close they are.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
