@@ -232,7 +232,7 @@ fn median_distance(points: &[Vector3<f64>], target: &FrameSurface, motion: &Moti
     )
 }
 
-fn median(mut values: Vec<f64>) -> f64 {
+pub(super) fn median(mut values: Vec<f64>) -> f64 {
     if values.is_empty() {
         return 0.0;
     }

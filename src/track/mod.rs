@@ -612,12 +612,13 @@ impl Tracker<'_> {
             report.mean_relaxation += relaxed / n;
             report.max_relaxation = report.max_relaxation.max(relaxed);
         }
-        report.max_off_surface = (next.par_iter())
-            .map(|y| (surface.closest_point(y).position - y).norm())
-            .reduce(|| 0.0, f64::max);
+        let (landing, off): (Vec<SurfacePoint>, Vec<f64>) = (next.par_iter())
+            .map(|y| surface.locate_with_distance(y))
+            .unzip();
+        report.max_off_surface = off.into_iter().fold(0.0, f64::max);
         self.measure_quality(k, current, &next, &mut report)?;
         Ok(Step {
-            landing: next.par_iter().map(|y| surface.locate(y)).collect(),
+            landing,
             positions: next,
             intensity: grey,
             report,
@@ -650,11 +651,7 @@ impl Tracker<'_> {
         current: &[Vector3<f64>],
         landings: &[Landing],
     ) -> Vec<usize> {
-        let edges = self.mesh.edges();
-        let mean_edge = (edges.iter())
-            .map(|&[i, j]| (current[i as usize] - current[j as usize]).norm())
-            .sum::<f64>()
-            / edges.len().max(1) as f64;
+        let mean_edge = relax::mean_edge_length(self.mesh, current);
         (landings.iter().enumerate())
             .filter_map(|(i, landing)| match landing {
                 Landing::Fallback(p) | Landing::Beyond(p) => Some((i, p.position)),
@@ -767,15 +764,11 @@ fn percentile_and_max(mut values: Vec<f64>, q: f64) -> (f64, f64) {
 }
 
 fn median_edge_length(positions: &[Vector3<f64>], faces: &[[u32; 3]]) -> f64 {
-    let mut lengths: Vec<f64> = faces
-        .iter()
-        .map(|f| (positions[f[0] as usize] - positions[f[1] as usize]).norm())
-        .collect();
-    let middle = lengths.len() / 2;
-    match lengths.is_empty() {
-        true => 0.0,
-        false => *lengths.select_nth_unstable_by(middle, f64::total_cmp).1,
-    }
+    align::median(
+        (faces.iter())
+            .map(|f| (positions[f[0] as usize] - positions[f[1] as usize]).norm())
+            .collect(),
+    )
 }
 
 /// Non-empty, finite, faces in range, one grey value per vertex.

@@ -291,7 +291,7 @@ fn surface_area(mesh: &Mesh, x: &[Vector3<f64>]) -> f64 {
         .sum()
 }
 
-fn mean_edge_length(mesh: &Mesh, x: &[Vector3<f64>]) -> f64 {
+pub(super) fn mean_edge_length(mesh: &Mesh, x: &[Vector3<f64>]) -> f64 {
     let edges = mesh.edges();
     let total: f64 = edges
         .iter()

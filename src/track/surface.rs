@@ -92,11 +92,17 @@ impl FrameSurface {
 
     /// The closest point of the surface to `point` as a face and barycentric coordinates.
     pub fn locate(&self, point: &Vector3<f64>) -> SurfacePoint {
+        self.locate_with_distance(point).0
+    }
+
+    /// [`Self::locate`] and the distance from `point` to that closest point, from one query.
+    pub fn locate_with_distance(&self, point: &Vector3<f64>) -> (SurfacePoint, f64) {
         let (face, position) = self.project(point);
-        SurfacePoint {
+        let located = SurfacePoint {
             face,
             barycentric: self.barycentric_on(face, &position),
-        }
+        };
+        (located, (position - point).norm())
     }
 
     /// The closest point of the surface to `point` and the unit normal of the triangle it lies
