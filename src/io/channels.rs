@@ -52,6 +52,19 @@ impl VertexValues {
         }
     }
 
+    /// Row-major values of the vertices: one grey value each (`channels` = `None`), or
+    /// `channels` values each (an `(V, C)` array row by row).
+    pub fn from_rows(values: Vec<f64>, channels: Option<usize>) -> Self {
+        match channels {
+            None => VertexValues::Grey(values),
+            Some(c) => VertexValues::Channels(
+                (0..c)
+                    .map(|j| values.iter().skip(j).step_by(c).copied().collect())
+                    .collect(),
+            ),
+        }
+    }
+
     /// The values as channels `[c][i]`.
     pub(crate) fn into_channels(self) -> Vec<Vec<f64>> {
         match self {

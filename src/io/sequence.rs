@@ -158,7 +158,7 @@ fn build_sequence(
     let vertex_map = prepared.vertex_map;
     let (images, images_file) = match &options.intensity {
         Some(file) => (
-            intensity_array(file, positions.len(), n_file_vertices)?,
+            read_intensity_array(file, positions.len(), n_file_vertices)?,
             file.as_path(),
         ),
         None => (
@@ -574,7 +574,11 @@ fn read_npy_sequence(dir: &Path) -> Result<RawSequence, Error> {
     }
     let intensity_file = dir.join("intensity.npy");
     let images = match intensity_file.exists() {
-        true => Some(intensity_array(&intensity_file, k as usize, v as usize)?),
+        true => Some(read_intensity_array(
+            &intensity_file,
+            k as usize,
+            v as usize,
+        )?),
         false => None,
     };
     if let Some(message) = images.as_deref().and_then(first_non_finite) {
@@ -683,33 +687,26 @@ fn check_same_connectivity(first: &FrameMesh, frame: &FrameMesh, k: usize) -> Re
 
 /// The image of an intensity `.npy`: (frames, vertices) grey values or (frames, vertices,
 /// channels).
-fn intensity_array(
+pub fn read_intensity_array(
     path: &Path,
     n_frames: usize,
     n_vertices: usize,
 ) -> Result<Vec<VertexValues>, IoError> {
     let array = read_npy_image(path)?;
     let (k, v) = (n_frames as u64, n_vertices as u64);
-    match array.shape[..] {
-        [a, b] if (a, b) == (k, v) => Ok(split_frames(&array.data, n_frames, n_vertices)
-            .into_iter()
-            .map(VertexValues::Grey)
-            .collect()),
-        [a, b, c] if (a, b) == (k, v) && c > 0 => {
-            let c = c as usize;
-            Ok(split_frames(&array.data, n_frames, n_vertices * c)
-                .into_iter()
-                .map(|frame| {
-                    let channel = |j: usize| frame.iter().skip(j).step_by(c).copied().collect();
-                    VertexValues::Channels((0..c).map(channel).collect())
-                })
-                .collect())
-        }
-        _ => Err(IoError::format(
+    let channels = match array.shape[..] {
+        [a, b] if (a, b) == (k, v) => None,
+        [a, b, c] if (a, b) == (k, v) && c > 0 => Some(c as usize),
+        _ => return Err(IoError::format(
             path,
             format!("intensity array has shape {:?}, expected ({n_frames}, {n_vertices}) = (frames, vertices) or ({n_frames}, {n_vertices}, channels)", array.shape),
         )),
-    }
+    };
+    let row = n_vertices * channels.unwrap_or(1);
+    Ok(split_frames(&array.data, n_frames, row)
+        .into_iter()
+        .map(|frame| VertexValues::from_rows(frame, channels))
+        .collect())
 }
 
 /// `n_frames` rows of `row_length` values (which may be 0) from a C-order array.

@@ -6,9 +6,9 @@
 
 use crate::progress::count_progress;
 use meshflow::io::{
-    load_mesh, load_sequence, natural_order, read_mesh_with, read_npy_image, read_times_file,
-    select_channels, write_atomically, write_npy, write_npy_sequence, IoError, LoadOptions,
-    Overwrite, SequenceSource, StagedDir, VertexValues,
+    frame_files, load_mesh, load_sequence, read_intensity_array, read_mesh_with, read_npy_image,
+    read_times_file, select_channels, write_atomically, write_npy, write_npy_sequence, IoError,
+    LoadOptions, Overwrite, SequenceSource, StagedDir, VertexValues,
 };
 use meshflow::shapes::Surface;
 use meshflow::track::{
@@ -39,7 +39,7 @@ pub fn run(request: TrackRequest) -> Result<(), Error> {
     let frames: Vec<TrackFrame> = (input.frames.iter().zip(&channels))
         .map(|(frame, channels)| TrackFrame {
             intensity: match channels {
-                Some(c) => mean(c),
+                Some(c) => VertexValues::Channels(c.clone()).to_grey(),
                 None => vec![0.0; frame.positions.len()],
             },
             positions: frame.positions.clone(),
@@ -186,50 +186,18 @@ fn frame_channels(
 }
 
 /// `--intensity`: one array (K, V) or (K, V, C) when every frame has V vertices, or a
-/// directory of one array per frame, (V_k,) or (V_k, C).
+/// directory of one array per frame, (V_k,) or (V_k, C) (their sizes are checked by the
+/// caller, with the frames').
 fn intensity_values(path: &Path, sizes: &[usize]) -> Result<Vec<VertexValues>, Error> {
     if path.is_dir() {
-        let mut files: Vec<PathBuf> = std::fs::read_dir(path)
-            .map_err(|e| IoError::file(path, e))?
-            .filter_map(|entry| entry.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "npy"))
-            .collect();
-        files.sort_by(|a, b| natural_order(&a.to_string_lossy(), &b.to_string_lossy()));
+        let is_npy = |p: &Path| p.extension().is_some_and(|e| e == "npy");
+        let files = frame_files(path, is_npy, ".npy arrays")?;
         if files.len() != sizes.len() {
             let message = format!("{} .npy files for {} frames", files.len(), sizes.len());
             return Err(IoError::format(path, message).into());
         }
-        return files
-            .iter()
-            .map(|file| {
-                let array = read_npy_image(file)?;
-                let (rows, columns) = match array.shape[..] {
-                    [v] => (v as usize, 1),
-                    [v, c] => (v as usize, c as usize),
-                    _ => {
-                        let message = format!(
-                            "shape {:?}, expected (vertices,) or (vertices, channels)",
-                            array.shape
-                        );
-                        return Err(IoError::format(file, message).into());
-                    }
-                };
-                Ok(channels_of(&array.data, rows, columns))
-            })
-            .collect();
+        return files.iter().map(|file| frame_values(file)).collect();
     }
-    let array = read_npy_image(path)?;
-    let (k, v, c) = match array.shape[..] {
-        [k, v] => (k as usize, v as usize, 1),
-        [k, v, c] => (k as usize, v as usize, c as usize),
-        _ => {
-            let message = format!(
-                "shape {:?}, expected (frames, vertices) or (frames, vertices, channels)",
-                array.shape
-            );
-            return Err(IoError::format(path, message).into());
-        }
-    };
     if let Some(other) = sizes.iter().position(|&n| n != sizes[0]) {
         let message = format!(
             "one array cannot hold frames of different sizes (frame 0 has {} vertices, frame \
@@ -238,41 +206,24 @@ fn intensity_values(path: &Path, sizes: &[usize]) -> Result<Vec<VertexValues>, E
         );
         return Err(IoError::format(path, message).into());
     }
-    if k != sizes.len() || v != sizes[0] {
-        let message = format!(
-            "shape {:?}, expected ({}, {}) or ({}, {}, channels) = (frames, vertices[, channels])",
-            array.shape,
-            sizes.len(),
-            sizes[0],
-            sizes.len(),
-            sizes[0]
-        );
-        return Err(IoError::format(path, message).into());
-    }
-    Ok(array
-        .data
-        .chunks_exact(v * c)
-        .map(|frame| channels_of(frame, v, c))
-        .collect())
+    Ok(read_intensity_array(path, sizes.len(), sizes[0])?)
 }
 
-/// Row-major `(rows, columns)` values as `columns` channels.
-fn channels_of(data: &[f64], rows: usize, columns: usize) -> VertexValues {
-    match columns {
-        1 => VertexValues::Grey(data[..rows].to_vec()),
-        _ => VertexValues::Channels(
-            (0..columns)
-                .map(|c| (0..rows).map(|i| data[i * columns + c]).collect())
-                .collect(),
-        ),
-    }
-}
-
-fn mean(channels: &[Vec<f64>]) -> Vec<f64> {
-    let n = channels.len() as f64;
-    (0..channels[0].len())
-        .map(|i| channels.iter().map(|c| c[i]).sum::<f64>() / n)
-        .collect()
+/// One frame's image from its own `.npy`, (V,) or (V, C).
+fn frame_values(file: &Path) -> Result<VertexValues, Error> {
+    let array = read_npy_image(file)?;
+    let channels = match array.shape[..] {
+        [_] => None,
+        [_, c] => Some(c as usize),
+        _ => {
+            let message = format!(
+                "shape {:?}, expected (vertices,) or (vertices, channels)",
+                array.shape
+            );
+            return Err(IoError::format(file, message).into());
+        }
+    };
+    Ok(VertexValues::from_rows(array.data, channels))
 }
 
 /// `--reference`, read as `solve` reads a mesh.
