@@ -111,15 +111,16 @@ fn write_all(
 ) -> Result<(), IoError> {
     let sequence = &loaded.sequence;
     let errors = scores.flow.map(|g| &g.errors);
+    let velocity = (result.vectors.as_ref()).map(|vectors| tissue_velocity(sequence, vectors));
     if formats.contains(&OutputFormat::Npy) {
-        write_flow_npy(dir, loaded, result)?;
+        write_flow_npy(dir, loaded, result, velocity.as_deref())?;
         if let Some(errors) = errors {
             write_error_npy(dir, &loaded.vertex_map, errors)?;
         }
     }
-    if let Some(vectors) = &result.vectors {
+    if let (Some(vectors), Some(velocity)) = (&result.vectors, &velocity) {
         if formats.contains(&OutputFormat::Vtu) {
-            write_flow_vtk(dir, sequence, result, vectors, errors)?;
+            write_flow_vtk(dir, sequence, result, vectors, velocity, errors)?;
         }
         if formats.contains(&OutputFormat::Glb) {
             write_flow_glb(&dir.join("flow.glb"), sequence, result, view)?;
@@ -133,7 +134,12 @@ fn write_all(
     })
 }
 
-fn write_flow_npy(dir: &Path, loaded: &LoadedSequence, result: &FlowResult) -> Result<(), IoError> {
+fn write_flow_npy(
+    dir: &Path,
+    loaded: &LoadedSequence,
+    result: &FlowResult,
+    velocity: Option<&[Vec<Vector3<f64>>]>,
+) -> Result<(), IoError> {
     let map = &loaded.vertex_map;
     let (s, v) = (result.intrinsic.len() as u64, map.n_file_vertices() as u64);
     let intrinsic: Vec<f64> = result
@@ -143,21 +149,15 @@ fn write_flow_npy(dir: &Path, loaded: &LoadedSequence, result: &FlowResult) -> R
         .flat_map(|u| [u.x, u.y])
         .collect();
     write_npy(&dir.join("flow_intrinsic.npy"), &[s, v, 2], &intrinsic)?;
-    if let Some(vectors) = &result.vectors {
-        let rows: Vec<Vector3<f64>> = vectors
-            .iter()
-            .flat_map(|slab| map.file_rows(slab, Vector3::repeat(f64::NAN)))
-            .collect();
-        write_npy(&dir.join("flow.npy"), &[s, v, 3], &flatten3(rows.iter()))?;
-        let rows: Vec<Vector3<f64>> = tissue_velocity(&loaded.sequence, vectors)
-            .iter()
-            .flat_map(|slab| map.file_rows(slab, Vector3::repeat(f64::NAN)))
-            .collect();
-        write_npy(
-            &dir.join("velocity.npy"),
-            &[s, v, 3],
-            &flatten3(rows.iter()),
-        )?;
+    if let (Some(vectors), Some(velocity)) = (&result.vectors, velocity) {
+        let write_vectors = |name: &str, slabs: &[Vec<Vector3<f64>>]| {
+            let rows: Vec<Vector3<f64>> = (slabs.iter())
+                .flat_map(|slab| map.file_rows(slab, Vector3::repeat(f64::NAN)))
+                .collect();
+            write_npy(&dir.join(name), &[s, v, 3], &flatten3(rows.iter()))
+        };
+        write_vectors("flow.npy", vectors)?;
+        write_vectors("velocity.npy", velocity)?;
     }
     if !map.is_identity() {
         let table = map.to_npy();
@@ -216,9 +216,9 @@ fn write_flow_vtk(
     sequence: &MeshSequence,
     result: &FlowResult,
     vectors: &[Vec<Vector3<f64>>],
+    velocity: &[Vec<Vector3<f64>>],
     errors: Option<&FlowErrors>,
 ) -> Result<(), IoError> {
-    let velocity = tissue_velocity(sequence, vectors);
     write_slab_vtus(dir, "flow", sequence, |s| {
         let speed: Vec<f64> = vectors[s].iter().map(|u| u.norm()).collect();
         let mut arrays = vec![
