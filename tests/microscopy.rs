@@ -44,6 +44,24 @@ fn cells(k: usize) -> Vec<Vector3<f64>> {
         .collect()
 }
 
+/// The library's pipeline on the recording: the surface fitted through the cells of `frames`,
+/// every frame's volume sampled onto it with the defaults (frames at times 0, 1, 2, …); with
+/// the vertices outside the volumes per frame and the smoothing used.
+fn library_pipeline(frames: &[Vec<Vector3<f64>>]) -> (MeshSequence, Vec<usize>, f64) {
+    let fitted = fit_surface(frames, &fit_options()).unwrap();
+    let volumes: Vec<Volume> = (0..FRAMES)
+        .map(|k| {
+            let values = recording(k).into_iter().map(|v| v as f32).collect();
+            Volume::new(SHAPE, values, VOXEL.into(), Vector3::zeros()).unwrap()
+        })
+        .collect();
+    let mesh = Mesh::new(fitted.positions[0].len(), fitted.faces.clone()).unwrap();
+    let options = SampleOptions::default();
+    let sampled = sample_sequence(&volumes, &mesh, &fitted.positions, &options).unwrap();
+    let sequence = MeshSequence::new(mesh, fitted.positions, sampled.values, None).unwrap();
+    (sequence, sampled.outside, sampled.smoothing)
+}
+
 /// Frame `k`'s volume: the cells as Gaussians, in voxels of [`VOXEL`].
 fn recording(k: usize) -> Vec<f64> {
     let centres = cells(k);
@@ -79,24 +97,9 @@ fn fit_options() -> FitOptions {
 #[test]
 fn the_pipeline_finds_the_turning_of_cells_on_a_sphere() {
     let frames: Vec<Vec<Vector3<f64>>> = (0..FRAMES).map(cells).collect();
-    let fitted = fit_surface(&frames, &fit_options()).unwrap();
-    let volumes: Vec<Volume> = (0..FRAMES)
-        .map(|k| {
-            let values = recording(k).into_iter().map(|v| v as f32).collect();
-            Volume::new(SHAPE, values, VOXEL.into(), Vector3::zeros()).unwrap()
-        })
-        .collect();
-    let mesh = Mesh::new(fitted.positions[0].len(), fitted.faces.clone()).unwrap();
-    let sampled = sample_sequence(
-        &volumes,
-        &mesh,
-        &fitted.positions,
-        &SampleOptions::default(),
-    )
-    .unwrap();
-    assert_eq!(sampled.outside, vec![0; FRAMES]);
-    assert_eq!(sampled.smoothing, 2.0);
-    let sequence = MeshSequence::new(mesh, fitted.positions, sampled.values, None).unwrap();
+    let (sequence, outside, smoothing) = library_pipeline(&frames);
+    assert_eq!(outside, vec![0; FRAMES]);
+    assert_eq!(smoothing, 2.0);
     let flow = compute_flow(&sequence, &FlowParams::default()).unwrap();
     let scores = score_result(&sequence, &flow, &tracks()).unwrap();
     let s = &scores.overall;
@@ -175,23 +178,7 @@ fn the_cli_pipeline_gives_the_library_numbers() {
     let cli = &summary["ground_truth_tracks"];
 
     // The library on the same input.
-    let fitted = fit_surface(&frames, &fit_options()).unwrap();
-    let mesh = Mesh::new(fitted.positions[0].len(), fitted.faces.clone()).unwrap();
-    let volumes: Vec<Volume> = (0..FRAMES)
-        .map(|k| {
-            let values = recording(k).into_iter().map(|v| v as f32).collect();
-            Volume::new(SHAPE, values, VOXEL.into(), Vector3::zeros()).unwrap()
-        })
-        .collect();
-    let sampled = sample_sequence(
-        &volumes,
-        &mesh,
-        &fitted.positions,
-        &SampleOptions::default(),
-    )
-    .unwrap();
-    let times = (0..FRAMES).map(|k| k as f64).collect();
-    let sequence = MeshSequence::new(mesh, fitted.positions, sampled.values, Some(times)).unwrap();
+    let (sequence, _, _) = library_pipeline(&frames);
     let flow = compute_flow(&sequence, &FlowParams::default()).unwrap();
     let library = score_result(&sequence, &flow, &tracks()).unwrap().overall;
     assert_eq!(cli["points"].as_u64(), Some(library.points as u64));
