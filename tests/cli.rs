@@ -3,10 +3,11 @@
 
 mod common;
 
-use common::{listing, meshflow, meshflow_ok, shipped};
+use common::{is_progress_line, listing, meshflow, meshflow_ok, meshflow_with_progress, shipped};
 use meshflow::accuracy::{compare_result, FlowErrors};
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::fem;
+use meshflow::flow::Warping;
 use meshflow::geometry::IntrinsicGeometry;
 use meshflow::io::{read_matrix_market, read_npy, read_obj};
 use std::path::Path;
@@ -933,15 +934,16 @@ fn track_command_writes_the_library_tracking_for_solve() {
     assert!(!refused.exists(), "no output for a failed run");
 }
 
-/// `--large-motion` warps (its flow differs from
-/// the single solve's); `--levels` above 1 with `--warps 0` is refused in one line.
+/// `--large-motion` warps (its flow differs from the single solve's), says each warp in the
+/// log and reports every solve's share; `--levels` above 1 with `--warps 0` is refused in one
+/// line.
 #[test]
 fn large_motion_flags_choose_coarse_to_fine_warping() {
     let work = tempfile::tempdir().unwrap();
     let input = shipped("rotating_sphere");
     let out = |name: &str| work.path().join(name).to_str().unwrap().to_string();
     meshflow_ok(&["solve", &input, "--out", &out("linear"), "--format", "npy"]);
-    meshflow_ok(&[
+    let warped = meshflow_with_progress(&[
         "solve",
         &input,
         "--out",
@@ -953,11 +955,42 @@ fn large_motion_flags_choose_coarse_to_fine_warping() {
         "--slabs",
         "0",
     ]);
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&warped.stdout),
+        String::from_utf8_lossy(&warped.stderr),
+    );
+    assert!(warped.status.success(), "{stderr}");
+    let solves = Warping::LARGE_MOTION.solves();
+    // stderr is a pipe here: plain progress lines, one per warp.
+    for k in 1..=solves {
+        let said = format!("] warping: solve {k} of {solves} (level");
+        assert!(
+            stderr.lines().any(|l| l.contains(&said)),
+            "{said}: {stderr}"
+        );
+    }
+    assert!(stderr.lines().all(is_progress_line), "{stderr}");
+    let summary = summary(&work.path().join("warped"));
+    let steps = summary["seconds"]["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), solves, "{summary}");
+    let step_seconds: f64 = steps.iter().map(|s| s["seconds"].as_f64().unwrap()).sum();
+    let total = summary["seconds"]["total"].as_f64().unwrap();
+    assert!(step_seconds <= total, "{step_seconds} > {total}");
+    assert!(
+        stdout.contains(&format!("{solves} solves (level ")),
+        "{stdout}"
+    );
     let written = listing(&work.path().join("warped"));
     assert!(
         written.contains(&"residual_0000.png".to_string()),
         "{written:?}"
     );
+    let pictures = written.iter().filter(|f| f.ends_with(".png")).count();
+    let said = format!(
+        "pictures: {pictures} PNG files for 1 slab in {}",
+        out("warped")
+    );
+    assert!(stdout.contains(&said), "{said}: {stdout}");
     let flow = |name: &str| {
         read_npy(&work.path().join(name).join("flow.npy"))
             .unwrap()
@@ -986,6 +1019,12 @@ fn large_motion_flags_choose_coarse_to_fine_warping() {
         "{stderr}"
     );
     assert!(stderr.contains("warps"), "{stderr}");
+    // --quiet: no progress at all.
+    let quiet = meshflow_with_progress(&["solve", &input, "--out", &out("quiet"), "--quiet"]);
+    assert!(
+        quiet.status.success() && quiet.stderr.is_empty(),
+        "{quiet:?}"
+    );
     // Each warp is a whole solve: a count no one means is refused before any work.
     let run = meshflow(&["solve", &input, "--out", &out("many"), "--warps", "100000"]);
     let stderr = String::from_utf8_lossy(&run.stderr);

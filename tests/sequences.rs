@@ -16,7 +16,8 @@ fn shipped_sphere() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/rotating_sphere")
 }
 
-/// Runs `meshflow solve INPUT --out OUT --gamma 0.01` with `extra` arguments.
+/// Runs `meshflow solve INPUT --out OUT --gamma 0.01 --quiet` with `extra` arguments (stderr:
+/// only warnings and errors).
 fn run_solve(input: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_meshflow"))
         .args([
@@ -25,7 +26,7 @@ fn run_solve(input: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
             "--out",
             out.to_str().unwrap(),
         ])
-        .args(["--gamma", "0.01"])
+        .args(["--gamma", "0.01", "--quiet"])
         .args(extra)
         .output()
         .unwrap()

@@ -42,7 +42,12 @@ fn check_case(case: &Path) -> Option<String> {
         .args(&args)
         .output()
         .unwrap();
-    let stderr = String::from_utf8_lossy(&run.stderr).trim_end().to_string();
+    // Without the plain progress lines (`meshflow: [  0.1 s] …`) written when stderr is a pipe.
+    let stderr: String = String::from_utf8_lossy(&run.stderr)
+        .lines()
+        .filter(|line| !line.starts_with("meshflow: ["))
+        .collect::<Vec<_>>()
+        .join("\n");
     let missing: Vec<String> = read_lines(&case.join("expected.txt"))
         .into_iter()
         .filter(|e| !stderr.contains(e.as_str()))

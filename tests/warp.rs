@@ -138,3 +138,34 @@ fn warping_is_deterministic() {
     let pyramids: Vec<_> = (0..4).map(pyramid).collect();
     assert!(pyramids.iter().all(|p| *p == pyramids[0]));
 }
+
+/// A run of several solves reports the whole run: `total` is the wall time of assembly plus
+/// all warps (within 10 %), and each warp's share is listed with its iterations.
+#[test]
+fn warping_reports_the_time_of_every_warp() {
+    let scene = rotating_sphere(4, 4, 1.0, 0.5).unwrap();
+    let params = FlowParams {
+        warping: Warping::LARGE_MOTION,
+        ..FlowParams::paper(1.0, 0.0, 1e-4)
+    };
+    let start = std::time::Instant::now();
+    let result = compute_flow(&scene.sequence, &params).unwrap();
+    let wall = start.elapsed().as_secs_f64();
+    let timings = &result.timings;
+    println!(
+        "wall {wall:.3} s, total {:.3} s, steps {:?}",
+        timings.total, timings.steps
+    );
+    assert!(
+        (timings.total - wall).abs() <= 0.1 * wall,
+        "{} vs {wall}",
+        timings.total
+    );
+    assert_eq!(timings.steps.len(), Warping::LARGE_MOTION.solves());
+    let shares: f64 = timings.steps.iter().map(|s| s.seconds).sum();
+    assert!(shares <= timings.total && shares >= 0.8 * (timings.total - timings.assembly));
+    let iterations: usize = timings.steps.iter().map(|s| s.iterations).sum();
+    assert_eq!(result.iterations_in_all(), iterations);
+    assert!(iterations >= timings.steps.len());
+    assert_eq!(timings.steps.last().unwrap().label, "level 0, warp 2");
+}

@@ -70,8 +70,10 @@ use slab::TimeLink;
 use std::borrow::Cow;
 use std::time::Instant;
 
-/// Wall-clock seconds spent in each phase.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+/// Wall-clock seconds spent in each phase. A run of several linear solves (coarse-to-fine
+/// warping, robust reweighting) sums the phases over all of them, `total` is the whole run's
+/// wall time, and `steps` lists each solve's share.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Timings {
     /// Slab geometry, connection, element matrices and global assembly.
     pub assembly: f64,
@@ -79,6 +81,34 @@ pub struct Timings {
     pub factorization: f64,
     pub solve: f64,
     pub total: f64,
+    /// The solves of a run of several, in order (empty for a single solve).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub steps: Vec<SolveStep>,
+}
+
+/// One linear solve of a run of several: what it was, its wall time (including what it
+/// needed first, e.g. warping the images) and its solver iterations.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SolveStep {
+    /// E.g. `"level 1, warp 2"` or `"reweighting 3"`.
+    pub label: String,
+    pub seconds: f64,
+    pub iterations: usize,
+}
+
+impl Timings {
+    /// Adds the phases of `part` (one solve of this run, taking `seconds` in all) and records
+    /// it as a step called `label`; nested steps of `part` (a warp's reweightings) count as one.
+    pub fn add_step(&mut self, label: String, seconds: f64, part: &FlowResult) {
+        self.assembly += part.timings.assembly;
+        self.factorization += part.timings.factorization;
+        self.solve += part.timings.solve;
+        self.steps.push(SolveStep {
+            label,
+            seconds,
+            iterations: part.iterations_in_all(),
+        });
+    }
 }
 
 /// The flow of a sequence and how it was computed.
@@ -108,6 +138,7 @@ pub struct FlowResult {
     /// The data's scales that resolved them.
     pub scales: DataScales,
     pub relative_residual: f64,
+    /// Iterations of the (last) linear solve; [`FlowResult::iterations_in_all`] counts all.
     pub iterations: usize,
     pub method: SolverMethod,
     /// Why `method`: the rule the `auto` choice applied, with the figures it compared.
@@ -117,6 +148,16 @@ pub struct FlowResult {
     /// Stored entries of the Cholesky factors the solver used.
     pub factor_entries: usize,
     pub timings: Timings,
+}
+
+impl FlowResult {
+    /// Solver iterations over all the run's solves (`iterations` is the last solve's).
+    pub fn iterations_in_all(&self) -> usize {
+        match self.timings.steps.as_slice() {
+            [] => self.iterations,
+            steps => steps.iter().map(|s| s.iterations).sum(),
+        }
+    }
 }
 
 /// Slab geometry and connection kept after assembly up to this many bytes (an estimate: about
@@ -264,6 +305,11 @@ impl<'a> FlowProblem<'a> {
         &self.params
     }
 
+    /// Wall-clock seconds the assembly took.
+    pub(crate) fn assembly_seconds(&self) -> f64 {
+        self.assembly_seconds
+    }
+
     /// Minimizes the energy (coarse to fine when [`FlowParams::warping`] asks for it);
     /// `observer` receives progress reports.
     pub fn solve(&self, observer: &dyn SolveObserver) -> Result<FlowResult, FlowError> {
@@ -300,6 +346,7 @@ impl<'a> FlowProblem<'a> {
                 factorization: solution.factor_seconds,
                 solve: solve_seconds,
                 total: self.assembly_seconds + start.elapsed().as_secs_f64(),
+                steps: Vec::new(),
             },
             intrinsic,
             vectors,

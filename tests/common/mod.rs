@@ -13,8 +13,27 @@ use nalgebra::{DMatrix, Rotation3, Vector3};
 use std::path::Path;
 use std::process::{Command, Output};
 
-/// Runs the `meshflow` binary with `args`.
+/// Runs the `meshflow` binary with `args`; its stderr without the plain progress lines
+/// (`meshflow: [  1.2 s] …`) that it writes when stderr is a pipe, leaving warnings and errors.
 pub fn meshflow(args: &[&str]) -> Output {
+    let mut run = meshflow_with_progress(args);
+    let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+    run.stderr = stderr
+        .lines()
+        .filter(|line| !is_progress_line(line))
+        .flat_map(|line| [line, "\n"])
+        .collect::<String>()
+        .into_bytes();
+    run
+}
+
+/// Whether `line` of stderr is a plain progress line.
+pub fn is_progress_line(line: &str) -> bool {
+    line.starts_with("meshflow: [")
+}
+
+/// Runs the `meshflow` binary with `args`, its stderr as written.
+pub fn meshflow_with_progress(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_meshflow"))
         .args(args)
         .output()

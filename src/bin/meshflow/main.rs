@@ -25,6 +25,10 @@ use std::process::ExitCode;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// No progress on stderr (results, warnings and errors still print). Without it, progress
+    /// is drawn as bars on a terminal and written as plain time-stamped lines to a log or pipe
+    #[arg(long, global = true)]
+    quiet: bool,
 }
 
 #[derive(Subcommand)]
@@ -607,6 +611,7 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(error) => return usage_error(error),
     };
+    progress::configure(cli.quiet);
     let result = match cli.command {
         Command::Operators {
             mesh,

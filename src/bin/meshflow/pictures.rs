@@ -100,7 +100,7 @@ pub fn draw(
     let options = args.options(view);
     let bar = count_progress(chosen.len() as u64, "drawing slabs");
     let written = write_chosen_slab_pictures(out, faces, views, chosen, &options, &|| bar.inc(1));
-    bar.finish_and_clear();
+    bar.finish();
     written
 }
 

@@ -84,7 +84,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
     })?;
     let progress = solver_progress(params.tolerance);
     let result = problem.solve(&|event| match event {
-        SolveEvent::Factorizing { slabs } => progress.set_message(match slabs {
+        SolveEvent::Factorizing { slabs } => progress.announce(match slabs {
             0 => "factorizing the space-time system".to_string(),
             n => format!("factorizing {n} slabs"),
         }),
@@ -107,7 +107,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
             ));
         }
     });
-    progress.finish_and_clear();
+    progress.finish();
     let result = result?;
     let report = truth
         .map(|(file, truth)| -> Result<_, Error> {
@@ -135,16 +135,16 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
     during(format!("writing {}", args.out.display()), || {
         write_flow_outputs(&out, &loaded, &params, &result, &args.format, scores, &view)
     })?;
-    if args.png {
-        let pictures = Pictures {
+    let pictures = match args.png {
+        true => Pictures {
             slabs: &slabs,
             view,
             args: &args.pictures,
-        };
-        pictures
-            .draw(out.path(), &loaded, &result, report.as_ref())
-            .map_err(|e| out.error_in_target(e))?;
-    }
+        }
+        .draw(out.path(), &loaded, &result, report.as_ref())
+        .map_err(|e| out.error_in_target(e))?,
+        false => Vec::new(),
+    };
     out.commit()?;
     println!(
         "{}: {} frames x {} vertices -> {} slabs; {} solver, {} iterations, residual {:.1e}; energy {:.4e} (zero flow {:.4e}); {:.2} s -> {}",
@@ -153,7 +153,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         sequence.mesh().n_vertices(),
         sequence.n_slabs(),
         result.method,
-        result.iterations,
+        result.iterations_in_all(),
         result.relative_residual,
         result.energy,
         result.energy_at_zero,
@@ -162,6 +162,18 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
     );
     println!("{}", describe_weights(&result.weights, &params));
     println!("solver: {}", describe_solver(&result));
+    if !result.timings.steps.is_empty() {
+        println!("{}", describe_steps(&result));
+    }
+    if args.png {
+        println!(
+            "pictures: {} PNG files for {} slab{} in {}",
+            pictures.len(),
+            slabs.len(),
+            if slabs.len() == 1 { "" } else { "s" },
+            args.out.display()
+        );
+    }
     if result.reweightings > 0 {
         println!(
             "robust smoothness: {} reweighted solves until the energy settled",
@@ -240,7 +252,7 @@ impl Pictures<'_> {
         loaded: &LoadedSequence,
         result: &FlowResult,
         report: Option<&GroundTruthReport>,
-    ) -> Result<(), Error> {
+    ) -> Result<Vec<PathBuf>, Error> {
         let sequence = &loaded.sequence;
         let vectors = result
             .vectors
@@ -254,8 +266,7 @@ impl Pictures<'_> {
                 .for_each(|v| v.warped_residual = Some(&residual[v.slab]));
         }
         let faces = sequence.mesh().faces();
-        pictures::draw(dir, faces, &views, self.slabs, self.args, self.view)?;
-        Ok(())
+        pictures::draw(dir, faces, &views, self.slabs, self.args, self.view)
     }
 }
 
@@ -286,6 +297,22 @@ fn describe_errors(label: &str, errors: &FlowErrors) -> String {
         100.0 * errors.relative_endpoint,
         errors.median_speed_ratio,
     )
+}
+
+/// `6 solves (level 1, warp 1: 5.1 s, 40 iterations; …)`: each solve's share of a run of several.
+fn describe_steps(result: &FlowResult) -> String {
+    let steps: Vec<String> = result
+        .timings
+        .steps
+        .iter()
+        .map(|s| {
+            format!(
+                "{}: {:.2} s, {} iterations",
+                s.label, s.seconds, s.iterations
+            )
+        })
+        .collect();
+    format!("{} solves ({})", steps.len(), steps.join("; "))
 }
 
 /// `PCG (multigrid in time), 5 time levels: <why>`.

@@ -73,7 +73,7 @@ pub fn run(request: TrackRequest) -> Result<(), Error> {
     };
     let times = request.times.or(input.times);
     let tracked = track_with_progress(&frames, times, &options, &mut on_event);
-    bar.finish_and_clear();
+    bar.finish();
     let tracked = tracked?;
     let image = channels
         .iter()
