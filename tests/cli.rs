@@ -1433,6 +1433,90 @@ fn staging_left_by_a_killed_run_is_removed_by_the_next_run() {
     assert_eq!(listing(dir.path()).len(), 2, "{:?}", listing(dir.path()));
 }
 
+/// Interrupted (SIGINT, Ctrl-C) or terminated (SIGTERM, e.g. by a batch system) in the middle
+/// of a run, meshflow removes its staging directory and exits with 130: nothing is left.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_run_leaves_nothing_behind() {
+    for signal in [libc::SIGINT, libc::SIGTERM] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("run");
+        // Twenty warps of eight levels: seconds of work, so the signal comes in the middle.
+        let child = std::process::Command::new(env!("CARGO_BIN_EXE_meshflow"))
+            .args(["solve", &shipped("rotating_sphere"), "--out"])
+            .arg(&out)
+            .args(["--levels", "8", "--warps", "20", "--quiet"])
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let staging = dir.path().join(format!(".run.partial-{}", child.id()));
+        let start = std::time::Instant::now();
+        while !staging.exists() && start.elapsed().as_secs() < 30 {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        assert!(staging.exists(), "the run stages its output");
+        // SAFETY: sends a signal to the child process started above.
+        assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, signal) }, 0);
+        let run = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(130), "signal {signal}: {stderr}");
+        assert_eq!(stderr.trim(), "meshflow: interrupted: nothing was written");
+        assert!(listing(dir.path()).is_empty(), "{:?}", listing(dir.path()));
+    }
+}
+
+/// An output directory that is a mount point (a Docker volume) cannot be renamed or removed:
+/// the run stages inside it and moves its files in, for a new output, a rerun and new pictures
+/// alike. Needs a private mount namespace (`unshare -m`, as root); skipped where there is none.
+#[cfg(target_os = "linux")]
+#[test]
+fn output_into_a_mount_point_is_written_in_place() {
+    let namespace = std::process::Command::new("unshare")
+        .args(["-m", "true"])
+        .output();
+    if !namespace.is_ok_and(|o| o.status.success()) {
+        println!("skipped: no private mount namespace here (unshare -m)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let volume = dir.path().join("volume");
+    std::fs::create_dir(&volume).unwrap();
+    let (bin, input) = (env!("CARGO_BIN_EXE_meshflow"), shipped("rotating_sphere"));
+    let v = volume.display();
+    let script = format!(
+        "set -e; mount -t tmpfs tmpfs {v}; \
+         {bin} solve {input} --out {v} --format npy,vtu --quiet; \
+         {bin} solve {input} --out {v} --format npy,vtu --gamma 0.01 --quiet; \
+         {bin} render {v} --slabs 0 --quiet; \
+         ls -A {v}; grep -c '\"solve\"' {v}/meshflow_run.json"
+    );
+    let run = std::process::Command::new("unshare")
+        .args(["-m", "sh", "-c", &script])
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&run.stdout),
+        String::from_utf8_lossy(&run.stderr),
+    );
+    assert!(run.status.success(), "{stdout}\n{stderr}");
+    let entries: Vec<&str> = stdout.lines().collect();
+    for expected in [
+        "flow.npy",
+        "flow_0004.vtu",
+        "summary.json",
+        "meshflow_run.json",
+    ] {
+        assert!(entries.contains(&expected), "{expected}: {entries:?}");
+    }
+    assert!(
+        entries.contains(&"flow_0000.png"),
+        "render's pictures: {entries:?}"
+    );
+    assert!(!stdout.contains(".meshflow.partial"), "{entries:?}");
+    // The rerun replaced the first run (one solve command recorded, then the render).
+    assert_eq!(entries.last(), Some(&"1"), "{stdout}");
+}
+
 /// A frame file cut short (a copy interrupted, a disk full) is reported as truncated, whether
 /// it stops inside a vertex line, inside a face line or between face lines.
 #[test]

@@ -13,6 +13,15 @@
 //! (renaming the old one back if that fails), remove `.OUT.previous-PID`. An update
 //! ([`StagedDir::update`], e.g. new pictures of a solve output) hard-links the files it keeps
 //! into the staging directory first (copies them where hard links are not possible).
+//!
+//! A mount point (a Docker volume, a bind mount) cannot be renamed or removed (`EBUSY`), and
+//! its parent may be another file system or read-only. There the files are staged inside the
+//! target, in `OUT/.meshflow.partial-PID`, and moved into place one by one, the manifest last:
+//! each file appears whole, though not the directory at once.
+//!
+//! Staging directories of processes that are gone (killed, or the machine went down) are
+//! removed by the next run into the same target. The command line also removes its own on
+//! SIGINT, SIGTERM and SIGHUP ([`remove_live_staging`], called from its signal handler).
 
 use super::IoError;
 use serde::{Deserialize, Serialize};
@@ -20,6 +29,25 @@ use std::collections::BTreeSet;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// The name of a staging directory inside its target (a mount point), without the PID.
+const INSIDE_STAGING: &str = ".meshflow.partial-";
+
+/// The staging directories of this process's uncommitted outputs.
+static LIVE_STAGING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn live_staging() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    LIVE_STAGING.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Removes the staging directories of all uncommitted outputs of this process, for a signal
+/// handler that is about to end the process (a dropped [`StagedDir`] removes its own).
+pub fn remove_live_staging() {
+    for staging in live_staging().drain(..) {
+        let _ = std::fs::remove_dir_all(staging);
+    }
+}
 
 /// Writes `path` through `write`, atomically: a temporary file in the same directory is filled,
 /// flushed and synced, then renamed onto `path`. On any error the temporary file is removed and
@@ -121,7 +149,11 @@ enum Existing {
 impl Existing {
     fn of(target: &Path) -> Result<Self, IoError> {
         let mut names = match entry_names(target) {
-            Ok(names) => names,
+            // Staging inside a mount point is not part of the output.
+            Ok(names) => names
+                .into_iter()
+                .filter(|n| !n.starts_with(INSIDE_STAGING))
+                .collect::<BTreeSet<_>>(),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Self::Missing),
             Err(e) => return Err(IoError::file(target, e)),
         };
@@ -187,6 +219,8 @@ pub struct StagedDir {
     /// The same with a symbolic link resolved, where the renames happen.
     resolved: PathBuf,
     staging: PathBuf,
+    /// Whether `staging` is inside the target (a mount point; see the module docs).
+    inside: bool,
     overwrite: Overwrite,
     commands: Vec<Vec<String>>,
     /// Where the first command ran.
@@ -245,15 +279,21 @@ impl StagedDir {
         };
         let existing = Existing::of(&resolved).map_err(|e| relabel(e, &resolved, target))?;
         existing.check(target, overwrite)?;
-        remove_stale_staging(&resolved);
-        let staging = sibling(&resolved, "partial").map_err(|e| relabel(e, &resolved, target))?;
-        let parent = staging.parent().expect("a sibling has a parent");
+        let inside = is_mount_point(&resolved);
+        let staging = match inside {
+            true => resolved.join(format!("{INSIDE_STAGING}{}", std::process::id())),
+            false => sibling(&resolved, "partial").map_err(|e| relabel(e, &resolved, target))?,
+        };
+        let parent = staging.parent().expect("a staging directory has a parent");
+        remove_stale_staging(parent, &staging);
         std::fs::create_dir_all(parent).map_err(|e| IoError::file(target, e))?;
         std::fs::create_dir_all(&staging).map_err(|e| IoError::file(target, e))?;
+        live_staging().push(staging.clone());
         let mut staged = Self {
             target: target.to_path_buf(),
             resolved,
             staging,
+            inside,
             overwrite,
             commands: Vec::new(),
             directory: std::env::current_dir().ok(),
@@ -271,8 +311,8 @@ impl StagedDir {
             staged.kept = manifest.files.iter().filter(|n| keep(n)).cloned().collect();
         }
         // A whole directory is swapped in: the kept files must be in it. (Forced into a
-        // foreign directory, they stay where they are.)
-        if let Existing::Run(_) = existing {
+        // foreign directory or moved into a mount point file by file, they stay where they are.)
+        if let (Existing::Run(_), false) = (&existing, inside) {
             for name in &staged.kept {
                 staged.link_earlier(name)?;
             }
@@ -342,6 +382,12 @@ impl StagedDir {
         let existing = Existing::of(&self.resolved).map_err(|e| self.in_target(e))?;
         existing.check(&self.target, self.overwrite)?;
         match existing {
+            Existing::Run(manifest)
+            | Existing::Foreign {
+                manifest: Some(manifest),
+                ..
+            } if self.inside => self.merge(manifest.files)?,
+            _ if self.inside => self.merge(Vec::new())?,
             Existing::Missing => std::fs::rename(&self.staging, &self.resolved).map_err(fail)?,
             Existing::Empty => {
                 std::fs::remove_dir(&self.resolved).map_err(fail)?;
@@ -353,6 +399,7 @@ impl StagedDir {
             }
         }
         self.committed = true;
+        live_staging().retain(|s| *s != self.staging);
         Ok(())
     }
 
@@ -370,8 +417,9 @@ impl StagedDir {
         Ok(())
     }
 
-    /// [`Overwrite::Force`] into a directory with other files: removes the files an earlier
-    /// run listed (but those kept), then moves the staged files in one by one.
+    /// [`Overwrite::Force`] into a directory with other files, or into a mount point: removes
+    /// the files an earlier run listed (but those kept), then moves the staged files in one by
+    /// one, the manifest last.
     fn merge(&self, earlier: Vec<String>) -> Result<(), IoError> {
         let fail = |e| IoError::file(&self.target, e);
         for name in earlier.iter().filter(|n| !self.kept.contains(n)) {
@@ -381,10 +429,10 @@ impl StagedDir {
                     .map_err(|e| IoError::file(self.target.join(name), e))?;
             }
         }
-        for entry in std::fs::read_dir(&self.staging).map_err(fail)? {
-            let file = entry.map_err(fail)?.path();
-            let name = file.file_name().expect("directory entries have names");
-            std::fs::rename(&file, self.resolved.join(name)).map_err(fail)?;
+        let mut names = entry_names(&self.staging).map_err(fail)?;
+        names.remove(RUN_MANIFEST);
+        for name in names.iter().map(String::as_str).chain([RUN_MANIFEST]) {
+            std::fs::rename(self.staging.join(name), self.resolved.join(name)).map_err(fail)?;
         }
         std::fs::remove_dir(&self.staging).map_err(fail)
     }
@@ -394,6 +442,7 @@ impl Drop for StagedDir {
     fn drop(&mut self) {
         if !self.committed {
             let _ = std::fs::remove_dir_all(&self.staging);
+            live_staging().retain(|s| *s != self.staging);
         }
     }
 }
@@ -421,15 +470,20 @@ fn sibling(target: &Path, role: &str) -> Result<PathBuf, IoError> {
     )))
 }
 
-/// Removes the staging directories (`.NAME.partial-PID`) that runs into `target` left when they
-/// were killed: those whose process is gone. A live process's staging stays; so does any
-/// other entry.
-fn remove_stale_staging(target: &Path) {
-    let (Some(name), Ok(pattern)) = (target.file_name(), sibling(target, "partial")) else {
+/// Removes the staging directories in `parent` named like `staging` (`.NAME.partial-PID` or
+/// `.meshflow.partial-PID`) that runs left when they were killed: those whose process is gone.
+/// A live process's staging stays; so does any other entry.
+fn remove_stale_staging(parent: &Path, staging: &Path) {
+    let Some(name) = staging
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+    else {
         return;
     };
-    let prefix = format!(".{}.partial-", name.to_string_lossy());
-    let parent = pattern.parent().unwrap_or(Path::new("."));
+    let Some((prefix, _pid)) = name.rsplit_once('-') else {
+        return;
+    };
+    let prefix = format!("{prefix}-");
     let Ok(entries) = std::fs::read_dir(parent) else {
         return;
     };
@@ -442,6 +496,41 @@ fn remove_stale_staging(target: &Path) {
             let _ = std::fs::remove_dir_all(entry.path());
         }
     }
+}
+
+/// Whether the existing directory `dir` is a mount point: on another device than its parent,
+/// or listed as one in `/proc/self/mountinfo` (a bind mount within one file system).
+#[cfg(unix)]
+fn is_mount_point(dir: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(dir) = std::fs::canonicalize(dir) else {
+        return false; // missing: it will be made
+    };
+    let Some(parent) = dir.parent() else {
+        return true; // the root
+    };
+    let device = |p: &Path| std::fs::metadata(p).map(|m| m.dev()).ok();
+    if device(&dir) != device(parent) {
+        return true;
+    }
+    let Ok(mounts) = std::fs::read_to_string("/proc/self/mountinfo") else {
+        return false;
+    };
+    // Field 5 is the mount point, with space, tab, newline and backslash as octal escapes.
+    let escaped = dir
+        .to_string_lossy()
+        .replace('\\', "\\134")
+        .replace(' ', "\\040")
+        .replace('\t', "\\011")
+        .replace('\n', "\\012");
+    mounts
+        .lines()
+        .any(|line| line.split(' ').nth(4) == Some(escaped.as_str()))
+}
+
+#[cfg(not(unix))]
+fn is_mount_point(_dir: &Path) -> bool {
+    false
 }
 
 /// Whether a process with this id exists (signal 0 checks without sending anything).

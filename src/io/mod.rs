@@ -33,7 +33,8 @@ pub mod vtk;
 mod warning;
 mod weld;
 
-pub use atomic::{write_atomically, Overwrite, RunManifest, StagedDir, RUN_MANIFEST};
+pub use atomic::RUN_MANIFEST;
+pub use atomic::{remove_live_staging, write_atomically, Overwrite, RunManifest, StagedDir};
 pub use channels::{select_channels, Channels, VertexValues};
 pub use flow_output::{
     summary_json, tissue_velocity, track_scores_json, write_flow_outputs, write_slab_vtus,

@@ -612,6 +612,7 @@ fn main() -> ExitCode {
         Err(error) => return usage_error(error),
     };
     progress::configure(cli.quiet);
+    remove_staging_on_signals();
     let result = match cli.command {
         Command::Operators {
             mesh,
@@ -661,6 +662,19 @@ fn main() -> ExitCode {
             eprintln!("meshflow: error: {error}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// On SIGINT (Ctrl-C), SIGTERM or SIGHUP: remove the outputs being staged, say so in one line
+/// and exit with 130, instead of leaving `.OUT.partial-PID` behind.
+fn remove_staging_on_signals() {
+    let installed = ctrlc::set_handler(|| {
+        meshflow::io::remove_live_staging();
+        eprintln!("meshflow: interrupted: nothing was written");
+        std::process::exit(130);
+    });
+    if let Err(error) = installed {
+        eprintln!("meshflow: warning: cannot handle interruptions ({error})");
     }
 }
 
