@@ -291,3 +291,59 @@ fn tolerances_that_join_neighbours_are_refused() {
         assert!(refused.contains("must be a finite number ≥ 0"), "{refused}");
     }
 }
+
+/// A grey-value file for welded frames may have a row per file vertex (15 here) or per mesh
+/// vertex (12: what `load_sequence` returns); both give the same image, and any other length
+/// is refused with both counts named.
+#[test]
+fn intensity_files_may_follow_the_files_or_the_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let (positions, faces) = seam_grid(0.0);
+    for k in 0..2 {
+        let frame: Vec<Vector3<f64>> = positions
+            .iter()
+            .map(|p| p + Vector3::new(0.0, 0.0, 0.1 * k as f64 * p.x))
+            .collect();
+        write_obj(&dir.path().join(format!("f{k}.obj")), &frame, &faces, None).unwrap();
+    }
+    let grey = |p: &Vector3<f64>, k: usize| p.x + 0.3 * p.y + 0.1 * k as f64;
+    let file_rows: Vec<f64> = (0..2)
+        .flat_map(|k| positions.iter().map(move |p| grey(p, k)))
+        .collect();
+    let mesh_rows: Vec<f64> = (0..2)
+        .flat_map(|k| positions[..12].iter().map(move |p| grey(p, k)))
+        .collect();
+    let load = |rows: &[f64], n: u64| {
+        let file = dir.path().join(format!("grey_{n}.npy"));
+        write_npy(&file, &[2, n], rows).unwrap();
+        let options = LoadOptions {
+            intensity: Some(file),
+            ..LoadOptions::default()
+        };
+        load_sequence(dir.path(), &options)
+    };
+    let by_file = load(&file_rows, 15).unwrap();
+    let by_mesh = load(&mesh_rows, 12).unwrap();
+    assert_eq!(by_file.sequence.mesh().n_vertices(), 12);
+    for k in 0..2 {
+        assert_eq!(
+            by_file.sequence.intensities(k),
+            by_mesh.sequence.intensities(k)
+        );
+    }
+    let error = load(&file_rows[..26], 13).unwrap_err().to_string();
+    assert!(
+        error.contains("grey_13.npy")
+            && error.contains("expected (2, 15) = (frames, vertices in the files) or (2, 12)")
+            && error.contains("as load_sequence returns them"),
+        "{error}"
+    );
+    // NaN in the grey-value file is reported in that file, at the vertex of its numbering.
+    let mut broken = mesh_rows.clone();
+    broken[12 + 7] = f64::NAN;
+    let error = load(&broken, 12).unwrap_err().to_string();
+    assert!(
+        error.contains("grey_12.npy") && error.contains("frame 1") && error.contains("vertex 7"),
+        "{error}"
+    );
+}

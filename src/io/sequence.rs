@@ -7,7 +7,7 @@
 //! as a [`MeshSequence`]. Errors name the file, and the frame, vertex or face at fault.
 //!
 //! The image comes from `--intensity` (a float32, float64, uint8 or uint16 `.npy` of shape (K, V), or (K, V, C)
-//! for `C` channels, over the files' vertices) when given, else from each format's own data: OBJ
+//! for `C` channels, over the files' vertices, or over the mesh's where their counts differ) when given, else from each format's own data: OBJ
 //! vertex colours or `map_Kd` texture, a PLY scalar property (`intensity_attribute`) or its
 //! colours, glTF `COLOR_0` or base-colour texture, `intensity.npy` next to NPY arrays.
 //! [`LoadOptions::channels`] chooses the channels (see [`super::channels`]). Frame times come from `--times`, else a glTF animation's keyframes, else a
@@ -156,11 +156,15 @@ fn build_sequence(
     check_frame_sizes(&positions, images.as_deref(), &files)?;
     let prepared = prepare_geometry(&faces, &positions, &files, options)?;
     let vertex_map = prepared.vertex_map;
-    let (images, images_file) = match &options.intensity {
-        Some(file) => (
-            read_intensity_array(file, positions.len(), n_file_vertices)?,
-            file.as_path(),
-        ),
+    let counts = [
+        VertexCount::new(n_file_vertices, "vertices in the files"),
+        VertexCount::new(prepared.mesh.n_vertices(), MESH_VERTICES),
+    ];
+    let (images, images_file, on_mesh) = match &options.intensity {
+        Some(file) => {
+            let (images, count) = read_intensity_rows(file, positions.len(), &counts)?;
+            (images, file.as_path(), count == 1)
+        }
         None => (
             images.ok_or_else(|| {
                 IoError::format(
@@ -169,13 +173,18 @@ fn build_sequence(
                 )
             })?,
             files[0].as_path(),
+            false,
         ),
     };
     let images = select_channels(images, options.channels)
         .map_err(|message| IoError::format(images_file, message))?;
     // Dropped vertices' values are never used.
-    check_finite_intensities(&images, |i| vertex_map.mesh_vertex(i).is_some())
-        .map_err(|e| in_frame_file(e, &files))?;
+    check_finite_intensities(&images, |i| on_mesh || vertex_map.mesh_vertex(i).is_some()).map_err(
+        |e| match &options.intensity {
+            Some(file) => Error::from(e).in_file(file),
+            None => in_frame_file(e, &files),
+        },
+    )?;
     let times_file = source.times_file();
     let (times, times_from_file) = match (&options.times, times, &times_file) {
         (Some(times), _, _) => (Some(times.clone()), false),
@@ -188,9 +197,13 @@ fn build_sequence(
         (None, None, None) => (None, false),
     };
     let positions = positions.iter().map(|p| vertex_map.positions(p)).collect();
+    let on_vertices = |values: &Vec<f64>| match on_mesh {
+        true => values.clone(),
+        false => vertex_map.mean_values(values),
+    };
     let images = Images::from_channels(
         (images.into_frames().iter())
-            .map(|channels| channels.iter().map(|c| vertex_map.mean_values(c)).collect())
+            .map(|channels| channels.iter().map(on_vertices).collect())
             .collect(),
     );
     let sequence =
@@ -685,6 +698,23 @@ fn check_same_connectivity(first: &FrameMesh, frame: &FrameMesh, k: usize) -> Re
     Ok(())
 }
 
+/// What a `--intensity` array of mesh vertices is called in messages.
+const MESH_VERTICES: &str =
+    "vertices of the mesh, welded and cleaned, as load_sequence returns them";
+
+/// A number of vertices an image may have rows for, and what they are.
+#[derive(Clone, Copy, Debug)]
+struct VertexCount {
+    n: usize,
+    what: &'static str,
+}
+
+impl VertexCount {
+    fn new(n: usize, what: &'static str) -> Self {
+        VertexCount { n, what }
+    }
+}
+
 /// The image of an intensity `.npy`: (frames, vertices) grey values or (frames, vertices,
 /// channels).
 pub fn read_intensity_array(
@@ -692,21 +722,52 @@ pub fn read_intensity_array(
     n_frames: usize,
     n_vertices: usize,
 ) -> Result<Vec<VertexValues>, IoError> {
+    let counts = [VertexCount::new(n_vertices, "vertices")];
+    Ok(read_intensity_rows(path, n_frames, &counts)?.0)
+}
+
+/// [`read_intensity_array`] with rows for any of the vertex `counts` (say, the files' and the
+/// mesh's, when they differ): the image and which count its rows matched. The first matching
+/// count wins, so equal counts are never ambiguous.
+fn read_intensity_rows(
+    path: &Path,
+    n_frames: usize,
+    counts: &[VertexCount],
+) -> Result<(Vec<VertexValues>, usize), IoError> {
     let array = read_npy_image(path)?;
-    let (k, v) = (n_frames as u64, n_vertices as u64);
-    let channels = match array.shape[..] {
-        [a, b] if (a, b) == (k, v) => None,
-        [a, b, c] if (a, b) == (k, v) && c > 0 => Some(c as usize),
-        _ => return Err(IoError::format(
-            path,
-            format!("intensity array has shape {:?}, expected ({n_frames}, {n_vertices}) = (frames, vertices) or ({n_frames}, {n_vertices}, channels)", array.shape),
-        )),
+    let matches = |v: u64| counts.iter().position(|c| c.n as u64 == v);
+    let k = n_frames as u64;
+    let (count, channels) = match array.shape[..] {
+        [a, b] if a == k && matches(b).is_some() => (matches(b), None),
+        [a, b, c] if a == k && matches(b).is_some() && c > 0 => (matches(b), Some(c as usize)),
+        _ => {
+            return Err(IoError::format(
+                path,
+                intensity_shape_error(&array.shape, n_frames, counts),
+            ))
+        }
     };
-    let row = n_vertices * channels.unwrap_or(1);
-    Ok(split_frames(&array.data, n_frames, row)
+    let count = count.expect("matched above");
+    let row = counts[count].n * channels.unwrap_or(1);
+    let images = split_frames(&array.data, n_frames, row)
         .into_iter()
         .map(|frame| VertexValues::from_rows(frame, channels))
-        .collect())
+        .collect();
+    Ok((images, count))
+}
+
+/// `intensity array has shape (4, 10), expected (3, 1528) = (frames, vertices in the files) or
+/// (3, 1224) = (frames, …), each optionally with a third axis of channels`.
+fn intensity_shape_error(shape: &[u64], n_frames: usize, counts: &[VertexCount]) -> String {
+    let expected: Vec<String> = (counts.iter().enumerate())
+        .filter(|(i, c)| counts[..*i].iter().all(|earlier| earlier.n != c.n))
+        .map(|(_, c)| c)
+        .map(|c| format!("({n_frames}, {}) = (frames, {})", c.n, c.what))
+        .collect();
+    format!(
+        "intensity array has shape {shape:?}, expected {}, or with a third axis of channels",
+        expected.join(" or ")
+    )
 }
 
 /// `n_frames` rows of `row_length` values (which may be 0) from a C-order array.
