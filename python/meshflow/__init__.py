@@ -14,8 +14,11 @@ Functions (NumPy arrays in, NumPy/SciPy out):
 
 - :func:`compute_flow` — the flow of a sequence given as arrays;
 - :func:`operators` — the finite-element operators of one mesh as ``scipy.sparse`` matrices;
-- :func:`load_sequence` — read a sequence as ``meshflow solve`` reads it (OBJ, PLY, glTF, NPY);
+- :func:`load_sequence` — read a sequence as ``meshflow solve`` reads it (OBJ, PLY, glTF, NPY),
+  with or without its image (``image=False``, or :func:`load_mesh_sequence`);
 - :func:`write_outputs` — write a flow as the CLI does (NPY, ParaView VTU/PVD, glTF);
+- :func:`render` — the PNG pictures of a flow, as ``meshflow render`` draws them;
+- :func:`advect` — points (or every vertex) carried along a flow, as ``meshflow advect``;
 - :func:`track` — turn frames meshed each on its own into one moving mesh;
 - :func:`match_tracks`, :func:`score_tracks` — tracks from point clouds (cells, beads), and a
   flow scored at them;
@@ -25,7 +28,8 @@ Functions (NumPy arrays in, NumPy/SciPy out):
 Keyword names and defaults are the command line's (``meshflow solve --help``). Errors are
 ``ValueError`` (bad data, broken files, bad parameters) or ``OSError`` and its subclasses
 (``FileNotFoundError``, ``PermissionError``) when the operating system refuses a file, with
-the command line's one-line message. Long computations release the GIL, report to an optional
+the command line's one-line message in Python's words (``give intensity='FILE.npy'``, ``add
+force=True`` where the command line says ``--intensity FILE.npy``, ``--force``). Long computations release the GIL, report to an optional
 ``progress`` callable and stop on Ctrl-C (``KeyboardInterrupt``) within one solver iteration.
 """
 
@@ -44,11 +48,15 @@ from ._meshflow import Flow
 __all__ = [
     "Flow",
     "Sequence",
+    "Trajectories",
+    "advect",
     "compute_flow",
     "fit_surface",
+    "load_mesh_sequence",
     "load_sequence",
     "match_tracks",
     "operators",
+    "render",
     "sample_volume",
     "score_tracks",
     "track",
@@ -304,7 +312,7 @@ class Sequence:
     """A moving mesh with its image, as :func:`load_sequence` or :func:`track` return it.
 
     ``positions`` (K, V, 3), ``faces`` (F, 3) int64, ``intensity`` (K, V) grey values or
-    (K, V, C) channels (colours), ``times`` (K,).
+    (K, V, C) channels (colours), or ``None`` when read without an image, ``times`` (K,).
     ``vertex_map`` (V_file,) int64 is the mesh vertex of each vertex of the files (−1 if
     dropped), ``warnings`` what the loader noticed, ``source`` what was read, ``report``
     tracking's per-frame report (``None`` when not tracked).
@@ -312,7 +320,7 @@ class Sequence:
 
     positions: np.ndarray
     faces: np.ndarray
-    intensity: np.ndarray
+    intensity: Optional[np.ndarray]
     times: np.ndarray
     vertex_map: Optional[np.ndarray] = None
     warnings: List[str] = field(default_factory=list)
@@ -321,6 +329,11 @@ class Sequence:
 
     def compute_flow(self, **options: Any) -> Flow:
         """:func:`compute_flow` of this sequence (keywords as there)."""
+        if self.intensity is None:
+            raise ValueError(
+                "this sequence was read without an image (image=False): set its intensity "
+                "(K, V) first, e.g. sequence.intensity = values"
+            )
         return compute_flow(self.positions, self.faces, self.intensity, self.times, **options)
 
 
@@ -336,6 +349,7 @@ def load_sequence(
     weld: bool = True,
     weld_tolerance: float = DEFAULT_WELD_TOLERANCE,
     repair: bool = False,
+    image: bool = True,
 ) -> Sequence:
     """Reads a sequence as ``meshflow solve PATH`` does.
 
@@ -347,7 +361,21 @@ def load_sequence(
     one channel for grey colours and values); times from ``times``,
     the animation (resampled at ``fps``), a times.txt beside the frames, or 0, 1, 2, ….
     The arrays are the mesh's (welded); ``vertex_map`` relates them to the files' vertices.
+    With ``image=False`` only the surfaces are read (:func:`load_mesh_sequence`): files
+    without colours are fine, and ``intensity`` is ``None`` until you set it.
     """
+    if not image:
+        if intensity is not None or intensity_attribute is not None:
+            raise ValueError("image=False reads no image: drop intensity and intensity_attribute")
+        return load_mesh_sequence(
+            path,
+            times=times,
+            fps=fps,
+            animation=animation,
+            weld=weld,
+            weld_tolerance=weld_tolerance,
+            repair=repair,
+        )
     loaded = _meshflow.load_sequence(
         _path(path),
         None if intensity is None else _path(intensity),
@@ -361,6 +389,105 @@ def load_sequence(
     return Sequence(positions, faces, grey, frame_times, vertex_map, warnings, source)
 
 
+def load_mesh_sequence(
+    path: Union[str, PathLike],
+    *,
+    times: Optional[SequenceOf[float]] = None,
+    fps: Optional[float] = None,
+    animation: Optional[Union[str, int]] = None,
+    weld: bool = True,
+    weld_tolerance: float = DEFAULT_WELD_TOLERANCE,
+    repair: bool = False,
+) -> Sequence:
+    """The surfaces of a sequence as :func:`load_sequence` reads them, without an image: for
+    values you bring yourself (a simulation, a measurement, :func:`sample_volume`). The
+    :class:`Sequence` has ``intensity=None``; set it to a (K, V) array of the mesh's vertices
+    before :meth:`Sequence.compute_flow`."""
+    loaded = _meshflow.load_mesh_sequence(
+        _path(path),
+        None if times is None else [float(t) for t in times],
+        _optional_float("fps", fps),
+        None if animation is None else str(animation),
+        _mesh_args(weld, weld_tolerance, repair, "auto"),
+    )
+    positions, faces, frame_times, vertex_map, warnings, source = loaded
+    if frame_times is None:
+        frame_times = np.arange(positions.shape[0], dtype=np.float64)
+    return Sequence(
+        positions, faces, None, np.asarray(frame_times, dtype=np.float64), vertex_map, warnings,
+        source,
+    )
+
+
+@dataclass
+class Trajectories:
+    """Points carried along a flow (:func:`advect`): ``positions`` (K, N, 3) on each frame,
+    ``faces`` (K, N) int64 and ``barycentric`` (K, N, 3) (where they are as mesh points),
+    ``intensity`` (K, N) (the image they see: for vertex seeds the sequence reparametrized by
+    the flow, nearly static for a good flow), ``reached_boundary`` (N,) bool, and for vertex
+    seeds ``sequence``, the mesh riding on the flow."""
+
+    positions: np.ndarray
+    faces: np.ndarray
+    barycentric: np.ndarray
+    intensity: np.ndarray
+    reached_boundary: np.ndarray
+    sequence: Optional[Sequence] = None
+
+
+def advect(flow: Flow, seeds: Any = None) -> Trajectories:
+    """Follows points through the frames along ``flow`` (``meshflow advect``): each slab's flow
+    moves them along straightest geodesics of the surface, in 4 substeps.
+
+    ``seeds`` (N, 3) are taken to their closest points of frame 0's surface; by default every
+    mesh vertex is followed, and then ``sequence`` is the mesh moved by the flow (positions,
+    the flow's faces, the image the vertices see, the times): a :class:`Sequence` to solve,
+    write or compare.
+    """
+    points = None if seeds is None else _floats("seeds", seeds, 2, 3, "(points, 3)")
+    positions, faces, barycentric, grey, boundary = flow.advect(points)
+    result = Trajectories(positions, faces, barycentric, grey, boundary)
+    if seeds is None:
+        result.sequence = Sequence(
+            positions, flow.mesh_faces, grey, flow.times, source="advected"
+        )
+    return result
+
+
+def render(
+    flow: Flow,
+    out: Union[str, PathLike],
+    *,
+    slabs: Optional[Union[str, SequenceOf[int]]] = None,
+    size: Tuple[int, int] = (960, 720),
+    view: Optional[Tuple[float, ...]] = None,
+    up: Optional[str] = None,
+    flow_scale: Optional[float] = None,
+    force: bool = False,
+) -> List[str]:
+    """Draws the pictures of ``meshflow render`` into the new directory ``out`` and returns
+    their paths: per slab ``grey_SSSS.png``, ``flow_SSSS.png`` (colour wheel),
+    ``arrows_SSSS.png`` (and ``residual_SSSS.png`` after warping), all slabs from one camera
+    with one flow scale. ``slabs``: a list of slab numbers or ``"0,5,10-20,last"`` (default
+    all); ``view`` (azimuth, elevation[, roll]) in degrees; ``up`` ``"x"``, ``"y"``, ``"z"``
+    (or negated); ``flow_scale`` the speed at the wheel's rim (default: the 99th percentile).
+    ``out`` is replaced if it is an earlier meshflow output; any other non-empty directory is
+    refused unless ``force``."""
+    if slabs is not None and not isinstance(slabs, str):
+        slabs = ",".join(str(_count("slabs", s)) for s in slabs)
+    width, height = (int(x) for x in size)
+    angles = None
+    if view is not None:
+        if len(view) not in (2, 3):
+            raise ValueError(f"view must be (azimuth, elevation[, roll]) in degrees, got {view!r}")
+        angles = ",".join(str(float(a)) for a in view)
+    written = flow.render(
+        _path(out), slabs, (width, height), angles, up,
+        _optional_float("flow_scale", flow_scale), bool(force),
+    )
+    return [_path(p) for p in written]
+
+
 def write_outputs(
     flow: Flow,
     out: Union[str, PathLike],
@@ -371,7 +498,9 @@ def write_outputs(
     """Writes ``flow`` as ``meshflow solve --out OUT`` does: flow.npy, flow_intrinsic.npy,
     flow_SSSS.vtu + flow.pvd (ParaView), flow.glb and summary.json, staged and renamed into
     place whole. A directory holding files meshflow did not write is refused unless
-    ``force``; an earlier meshflow output there is replaced."""
+    ``force``; an earlier meshflow output there is replaced. The run also holds the sequence
+    (positions.npy, faces.npy, intensity.npy, times.txt), so ``meshflow advect OUT`` and
+    ``meshflow render OUT`` work on it as on a run of the command line."""
     if isinstance(formats, str):
         formats = [formats]
     flow.write(_path(out), [str(f) for f in formats], bool(force))

@@ -49,7 +49,16 @@ class Flow:
     def solver_reason(self) -> str: ...
     @property
     def seconds(self) -> Dict[str, float]:
-        """``assembly``, ``factorization``, ``solve``, ``total``."""
+        """``assembly``, ``factorization``, ``solve``, ``total`` (of all solves)."""
+    @property
+    def solves(self) -> List[Dict[str, Any]]:
+        """Each solve of a run of several: ``label``, ``seconds``, ``iterations``."""
+    @property
+    def mesh_faces(self) -> npt.NDArray[np.int64]:
+        """(F, 3): the triangles over the mesh's (welded) vertices."""
+    @property
+    def times(self) -> npt.NDArray[np.float64]:
+        """(K,): the frame times."""
     @property
     def weights(self) -> Dict[str, float]:
         """``alpha``, ``beta``, ``gamma`` as used, in the data's units."""
@@ -58,6 +67,18 @@ class Flow:
     def write(self, out: Union[str, PathLike[str]], formats: List[str], force: bool) -> None: ...
     def score_tracks(self, tracks: npt.NDArray[np.float64]) -> Tuple[str, Dict[str, Any]]:
         """Summary JSON and per-point arrays of the flow scored at tracks (K, N, 3)."""
+    def advect(self, seeds: Optional[npt.NDArray[np.float64]]) -> Tuple[Any, ...]:
+        """Positions, faces, barycentric, intensity, reached_boundary of the trajectories."""
+    def render(
+        self,
+        out: str,
+        slabs: Optional[str],
+        size: Tuple[int, int],
+        view: Optional[str],
+        up: Optional[str],
+        flow_scale: Optional[float],
+        force: bool,
+    ) -> List[str]: ...
 
 def compute_flow(
     positions: npt.NDArray[np.float64],
@@ -82,6 +103,14 @@ def load_sequence(
     animation: Optional[str],
     mesh: Dict[str, Any],
 ) -> Tuple[Any, ...]: ...
+def load_mesh_sequence(
+    path: str,
+    times: Optional[List[float]],
+    fps: Optional[float],
+    animation: Optional[str],
+    mesh: Dict[str, Any],
+) -> Tuple[Any, ...]: ...
+def python_words(message: str) -> str: ...
 def track(
     frames: List[Tuple[Any, Any, Any]],
     times: Optional[List[float]],

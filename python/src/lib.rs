@@ -11,6 +11,8 @@
 //! the `progress` callback and to check for Ctrl-C (`PyErr_CheckSignals`); either raising stops
 //! the solve within one iteration, and the exception is re-raised ([`PythonObserver`]).
 
+mod keywords;
+
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::flow::{
     Boundary, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence, Regularizer,
@@ -18,12 +20,14 @@ use meshflow::flow::{
 };
 use meshflow::geometry::IntrinsicGeometry;
 use meshflow::io::{
-    load_sequence as load_files, mesh_from_arrays, sequence_from_arrays, write_flow_outputs,
-    IoError, LoadOptions, LoadedSequence, OutputFormat, Overwrite, StagedDir, VertexMap,
-    VertexValues,
+    load_geometry, load_sequence as load_files, mesh_from_arrays, sequence_from_arrays,
+    write_flow_outputs, write_run_input, IoError, LoadOptions, LoadedSequence, OutputFormat,
+    Overwrite, StagedDir, VertexMap, VertexValues,
 };
 use meshflow::mesh::Mesh;
-use meshflow::render::View;
+use meshflow::render::{
+    result_views, write_chosen_slab_pictures, FigureOptions, SlabSelection, UpAxis, View,
+};
 use meshflow::surface::{FitOptions, Reference, Resolution, Shape};
 use meshflow::volume::{Reduce, SampleOptions, SampledSequence, Shell, Volume};
 use meshflow::{accuracy, fem, shapes, surface, track as tracking, volume, Error};
@@ -42,7 +46,7 @@ use std::sync::Mutex;
 /// when the operating system refused a file, `ValueError` for everything else (bad data,
 /// broken files, bad parameters). The message is the library's one line.
 fn to_py_err(error: Error) -> PyErr {
-    let message = error.to_string();
+    let message = keywords::in_python_words(&error.to_string());
     match os_error(&error).map(std::io::Error::kind) {
         Some(std::io::ErrorKind::NotFound) => PyFileNotFoundError::new_err(message),
         Some(std::io::ErrorKind::PermissionDenied) => PyPermissionError::new_err(message),
@@ -181,6 +185,17 @@ fn frame_rows(frames: &[Matrix3x2<f64>]) -> Vec<[f64; 6]> {
             ]
         })
         .collect()
+}
+
+/// `rows[k][n]` as a (K, N, 3) array.
+fn frames_array(rows: &[Vec<Vector3<f64>>]) -> Array3<f64> {
+    let n = rows.first().map_or(0, Vec::len);
+    let values = rows
+        .iter()
+        .flatten()
+        .flat_map(|p| [p.x, p.y, p.z])
+        .collect();
+    Array3::from_shape_vec((rows.len(), n, 3), values).expect("K × N × 3 values")
 }
 
 fn points_array(points: &[Vector3<f64>]) -> Array2<f64> {
@@ -516,6 +531,34 @@ impl Flow {
         Ok(dict)
     }
 
+    /// (F, 3): the triangles over the mesh's vertices (welded numbering, as :func:`advect`'s
+    /// vertex trajectories).
+    #[getter]
+    fn mesh_faces<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray2<i64>> {
+        faces_array(self.loaded.sequence.mesh().faces()).into_pyarray(py)
+    }
+
+    /// (K,): the frame times.
+    #[getter]
+    fn times<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray1<f64>> {
+        self.loaded.sequence.times().to_vec().into_pyarray(py)
+    }
+
+    /// The solves of a run of several (warps of `large_motion`, reweightings of
+    /// `robust_smoothness`), each `{"label", "seconds", "iterations"}`; empty for one solve.
+    #[getter]
+    fn solves<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        (self.result.timings.steps.iter())
+            .map(|step| {
+                let dict = PyDict::new(py);
+                dict.set_item("label", &step.label)?;
+                dict.set_item("seconds", step.seconds)?;
+                dict.set_item("iterations", step.iterations)?;
+                Ok(dict)
+            })
+            .collect()
+    }
+
     /// `alpha`, `beta`, `gamma` as used, in the data's units (relative weights resolved;
     /// `alpha` may be `inf`).
     #[getter]
@@ -598,8 +641,11 @@ impl Flow {
         };
         py.detach(|| -> Result<(), Error> {
             let mut staged = StagedDir::create(&out, overwrite)?;
-            staged.record_command(["python", "-c", "meshflow.write_outputs(...)"]);
-            let view = View::default().with_up(self.loaded.source.up());
+            // The run holds its input, so `meshflow advect OUT` reads it from there.
+            let out_text = out.to_string_lossy().into_owned();
+            staged.record_command(["meshflow", "solve", &out_text, "--out", &out_text]);
+            write_run_input(staged.path(), &self.loaded).map_err(|e| staged.in_target(e))?;
+            let view = self.view();
             write_flow_outputs(
                 &staged,
                 &self.loaded,
@@ -613,6 +659,124 @@ impl Flow {
             Ok(())
         })
         .map_err(to_py_err)
+    }
+
+    /// The points `seeds` (N, 3; default: every mesh vertex) carried through all slabs along
+    /// the flow, as `meshflow advect`.
+    #[pyo3(signature = (seeds))]
+    fn advect<'py>(
+        &self,
+        py: Python<'py>,
+        seeds: Option<PyReadonlyArray2<'py, f64>>,
+    ) -> PyResult<TrajectoryArrays<'py>> {
+        let points = seeds.as_ref().map(read_points);
+        let sequence = &self.loaded.sequence;
+        let (positions, trajectories, grey) = py
+            .detach(|| -> Result<_, Error> {
+                let seeds = match &points {
+                    Some(points) => meshflow::flow::closest_seeds(sequence, points)?,
+                    None => meshflow::flow::vertex_seeds(sequence),
+                };
+                let trajectories =
+                    meshflow::flow::advect(sequence, &self.result.intrinsic, &seeds)?;
+                let positions = trajectories
+                    .positions(sequence)
+                    .ok_or(FlowError::Intrinsic)?;
+                let grey = trajectories.intensities(sequence);
+                Ok((positions, trajectories, grey))
+            })
+            .map_err(to_py_err)?;
+        let (k, n) = (positions.len(), positions[0].len());
+        let points = || trajectories.points.iter().flatten();
+        let faces = points().map(|p| p.face as i64).collect();
+        let barycentric = points().flat_map(|p| p.barycentric).collect();
+        Ok((
+            frames_array(&positions).into_pyarray(py),
+            Array2::from_shape_vec((k, n), faces)
+                .expect("K × N")
+                .into_pyarray(py),
+            Array3::from_shape_vec((k, n, 3), barycentric)
+                .expect("K × N × 3")
+                .into_pyarray(py),
+            Array2::from_shape_vec((k, n), grey.concat())
+                .expect("K × N")
+                .into_pyarray(py),
+            Array1::from(trajectories.reached_boundary.clone()).into_pyarray(py),
+        ))
+    }
+
+    /// Draws the chosen slabs (`"0,5,10-20,last"`, default all) as `meshflow render` does into
+    /// the new output directory `out`: one camera and flow scale for the whole run. Returns
+    /// the files written.
+    #[pyo3(signature = (out, slabs, size, view, up, flow_scale, force))]
+    #[allow(clippy::too_many_arguments)] // the Python signature
+    fn render(
+        &self,
+        py: Python<'_>,
+        out: PathBuf,
+        slabs: Option<String>,
+        size: (u32, u32),
+        view: Option<String>,
+        up: Option<String>,
+        flow_scale: Option<f64>,
+        force: bool,
+    ) -> PyResult<Vec<PathBuf>> {
+        let chosen = match slabs {
+            Some(text) => parse::<SlabSelection>(&text, "slabs")?,
+            None => SlabSelection::all(),
+        };
+        let mut seen = match view {
+            Some(text) => parse::<View>(&text, "view")?,
+            None => self.view(),
+        };
+        if let Some(text) = up {
+            seen = seen.with_up(parse::<UpAxis>(&text, "up")?);
+        }
+        let options = FigureOptions {
+            width: size.0,
+            height: size.1,
+            view: seen,
+            flow_scale,
+            ..FigureOptions::default()
+        };
+        let overwrite = match force {
+            true => Overwrite::Force,
+            false => Overwrite::EarlierRun,
+        };
+        let sequence = &self.loaded.sequence;
+        py.detach(|| -> Result<Vec<PathBuf>, Error> {
+            let chosen = chosen.resolve(sequence.n_slabs())?;
+            let mut staged = StagedDir::create(&out, overwrite)?;
+            staged.record_command(["python", "-c", "meshflow.render(...)"]);
+            let views = result_views(sequence, &self.result, None)?;
+            let faces = sequence.mesh().faces();
+            let written =
+                write_chosen_slab_pictures(staged.path(), faces, &views, &chosen, &options, &|| {})
+                    .map_err(|e| staged.error_in_target(e))?;
+            staged.commit()?;
+            Ok(written
+                .iter()
+                .map(|file| out.join(file.file_name().expect("pictures are files")))
+                .collect())
+        })
+        .map_err(to_py_err)
+    }
+}
+
+/// Trajectories: positions (K, N, 3), faces (K, N), barycentric coordinates (K, N, 3), the
+/// image at the points (K, N) and whether each reached the boundary (N,).
+type TrajectoryArrays<'py> = (
+    Bound<'py, numpy::PyArray3<f64>>,
+    Bound<'py, numpy::PyArray2<i64>>,
+    Bound<'py, numpy::PyArray3<f64>>,
+    Bound<'py, numpy::PyArray2<f64>>,
+    Bound<'py, numpy::PyArray1<bool>>,
+);
+
+impl Flow {
+    /// The view of the pictures: the default angles and the input's up axis.
+    fn view(&self) -> View {
+        View::default().with_up(self.loaded.source.up())
     }
 }
 
@@ -730,19 +894,14 @@ type SequenceArrays<'py> = (
 
 fn sequence_arrays<'py>(py: Python<'py>, loaded: &LoadedSequence) -> SequenceArrays<'py> {
     let sequence = &loaded.sequence;
-    let (k, v) = (sequence.n_frames(), sequence.mesh().n_vertices());
-    let positions: Vec<f64> = (0..k)
-        .flat_map(|f| {
-            sequence
-                .positions(f)
-                .expect("sequences from files are embedded")
+    let positions: Vec<Vec<Vector3<f64>>> = (0..sequence.n_frames())
+        .map(|f| {
+            let frame = sequence.positions(f);
+            frame.expect("sequences from files are embedded").to_vec()
         })
-        .flat_map(|p| [p.x, p.y, p.z])
         .collect();
     (
-        Array3::from_shape_vec((k, v, 3), positions)
-            .expect("K × V × 3")
-            .into_pyarray(py),
+        frames_array(&positions).into_pyarray(py),
         faces_array(sequence.mesh().faces()).into_pyarray(py),
         image_array(py, sequence),
         sequence.times().to_vec().into_pyarray(py),
@@ -803,6 +962,53 @@ fn load_sequence<'py>(
         .detach(|| load_files(&path, &options))
         .map_err(to_py_err)?;
     Ok(sequence_arrays(py, &loaded))
+}
+
+/// A sequence's geometry without an image: positions (K, V, 3), faces (F, 3), times (K,) or
+/// `None`, the vertex map, the loader's warnings and a description of the source.
+type GeometryArrays<'py> = (
+    Bound<'py, numpy::PyArray3<f64>>,
+    Bound<'py, numpy::PyArray2<i64>>,
+    Option<Vec<f64>>,
+    Bound<'py, numpy::PyArray1<i64>>,
+    Vec<String>,
+    String,
+);
+
+/// Reads the surfaces `meshflow solve INPUT` reads, without an image (which they need not have).
+#[pyfunction]
+#[pyo3(signature = (path, times, fps, animation, mesh))]
+fn load_mesh_sequence<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    times: Option<Vec<f64>>,
+    fps: Option<f64>,
+    animation: Option<String>,
+    mesh: MeshArgs,
+) -> PyResult<GeometryArrays<'py>> {
+    let options = LoadOptions {
+        times,
+        fps,
+        animation,
+        ..mesh.options()?
+    };
+    let loaded = py
+        .detach(|| load_geometry(&path, &options))
+        .map_err(to_py_err)?;
+    Ok((
+        frames_array(&loaded.positions).into_pyarray(py),
+        faces_array(loaded.mesh.faces()).into_pyarray(py),
+        loaded.times,
+        Array1::from(loaded.vertex_map.to_npy()).into_pyarray(py),
+        loaded.warnings.iter().map(ToString::to_string).collect(),
+        loaded.source.describe(),
+    ))
+}
+
+/// The library's message `message` in the Python package's words (for tests).
+#[pyfunction]
+fn python_words(message: &str) -> String {
+    keywords::in_python_words(message)
 }
 
 /// One frame for `track`: its own positions (V_k, 3), faces (F_k, 3) and grey values (V_k,).
@@ -1113,6 +1319,8 @@ fn _meshflow(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(compute_flow, m)?)?;
     m.add_function(wrap_pyfunction!(operators, m)?)?;
     m.add_function(wrap_pyfunction!(load_sequence, m)?)?;
+    m.add_function(wrap_pyfunction!(load_mesh_sequence, m)?)?;
+    m.add_function(wrap_pyfunction!(python_words, m)?)?;
     m.add_function(wrap_pyfunction!(track, m)?)?;
     m.add_function(wrap_pyfunction!(match_tracks, m)?)?;
     m.add_function(wrap_pyfunction!(fit_surface, m)?)?;

@@ -30,7 +30,7 @@ def test_channel_choices_and_weights(sample):
     luma = meshflow.compute_flow(sample.positions, sample.faces, stack, sample.times,
                                  channels="luma")
     assert json.loads(luma.summary_json())["channels"] == 1
-    with pytest.raises(ValueError, match="--channels rgb needs colours"):
+    with pytest.raises(ValueError, match="channels='rgb' needs colours"):
         meshflow.compute_flow(sample.positions, sample.faces, sample.intensity, channels="rgb")
     with pytest.raises(ValueError, match="channels: 'hsv' is not one of"):
         meshflow.compute_flow(sample.positions, sample.faces, stack, channels="hsv")

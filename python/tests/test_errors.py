@@ -53,7 +53,7 @@ def test_non_manifold_input_is_refused_and_repaired_on_request():
     # Three triangles on one edge (0, 1).
     positions = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1]], float)
     faces = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])
-    with pytest.raises(ValueError, match="--repair"):
+    with pytest.raises(ValueError, match="repair=True"):
         meshflow.operators(positions, faces)
     ops = meshflow.operators(positions, faces, repair=True)
     assert ops["cotan"].shape[0] > 5  # the edge was cut: vertices split

@@ -17,6 +17,7 @@
 use super::{FlowError, MeshSequence};
 use crate::connection::Connection;
 use crate::geometry::{trace, IntrinsicGeometry, SurfacePoint};
+use crate::track::FrameSurface;
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
 
@@ -75,6 +76,22 @@ pub fn vertex_seeds(sequence: &MeshSequence) -> Vec<SurfacePoint> {
             SurfacePoint::corner(corner.face as usize, corner.local as usize)
         })
         .collect()
+}
+
+/// Seeds at the closest points of frame 0's surface to `points` (in R³; e.g. cells to follow).
+/// Fails for an intrinsic sequence (no surface to find them on) and for non-finite points,
+/// naming the point.
+pub fn closest_seeds(
+    sequence: &MeshSequence,
+    points: &[Vector3<f64>],
+) -> Result<Vec<SurfacePoint>, crate::Error> {
+    let positions = sequence.positions(0).ok_or(FlowError::Intrinsic)?;
+    if let Some(i) = points.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
+        return Err(FlowError::NonFinitePoint { point: i }.into());
+    }
+    let faces = sequence.mesh().faces();
+    let surface = FrameSurface::new(0, positions, faces, sequence.intensities(0))?;
+    Ok(points.iter().map(|p| surface.locate(p)).collect())
 }
 
 /// Carries `seeds` (points of frame 0) through all slabs along `flow` (`flow[s][i]`: the

@@ -15,6 +15,10 @@ pub enum FlowError {
     },
     #[error("interrupted")]
     Interrupted,
+    #[error("the sequence has edge lengths only (no vertex positions): there is no surface in R^3 to place points on")]
+    Intrinsic,
+    #[error("point {point} has a non-finite coordinate")]
+    NonFinitePoint { point: usize },
     #[error("the embedded regularizer differentiates the flow in R^3 and needs vertex positions; this sequence has edge lengths only (use the covariant or strain regularizer)")]
     NeedsEmbedding,
     #[error("frame {frame}: {source}")]

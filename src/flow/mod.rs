@@ -48,7 +48,7 @@ mod system;
 mod uniqueness;
 pub mod warp;
 
-pub use advect::{advect, vertex_seeds, Trajectories, SUBSTEPS};
+pub use advect::{advect, closest_seeds, vertex_seeds, Trajectories, SUBSTEPS};
 pub use energy::EnergyTerms;
 pub use error::FlowError;
 pub use params::{Boundary, FlowParams, SolverChoice, TimeCoupling, Weight, Weights};

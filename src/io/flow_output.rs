@@ -17,6 +17,11 @@
 //! | `summary.json` | energy and its terms, residual, iterations, image `channels`, solver with the reason for it (`solver_reason`) and its `time_levels`, sizes, input, timings, dropped vertices and warnings, the `view` of the pictures and colours; the parameters as given (`params`, each weight `{"value": x}` or `{"relative": x}`), the weights used (`weights`: α, β, γ in the data's units) and the data's scales that resolved them (`scales`); with a ground truth, `ground_truth`: its file, the space-time means (AE, direction error, relative EPE, speed ratio, EPE) and maxima, per slab the same, and `zero_flow`, the zero flow's scores; with tracked points (`--ground-truth-tracks`), `ground_truth_tracks`: its file, points, moving points, mean and median endpoint error of the flow and of the zero flow (`zero_mean_endpoint`, …), `endpoint_ratio`, mean and median direction error, median speed ratio, median distance of the points from the surface, and the same per slab |
 //!
 //! Slab `s` spans `[t_s, t_{s+1}]`; `S = K − 1` slabs for `K` frames.
+//!
+//! A flow computed from arrays (the Python package) has no input file to read again; its run
+//! also holds the sequence, in the files' numbering ([`write_run_input`]: `positions.npy`,
+//! `faces.npy`, `intensity.npy`, `times.txt`), and records `meshflow solve OUT --out OUT`, so
+//! that `meshflow advect OUT` finds its input in the run itself.
 
 use super::gltf_write::{write_glb_animation, AnimationFrame};
 use super::vtk::{write_pvd, write_vtu, NamedArray, PointArray};
@@ -441,4 +446,30 @@ fn finite_or_null(x: f64) -> serde_json::Value {
         true => x.into(),
         false => serde_json::Value::Null,
     }
+}
+
+/// Writes `loaded`'s sequence into `dir` as an NPY sequence in the files' numbering:
+/// positions of the file vertices (welded copies at their mesh vertex, dropped vertices at the
+/// origin: they stay unused), the faces over each mesh vertex's representative file vertex, the
+/// grey values and `times.txt`. Read again, it gives the same mesh, and the run's
+/// `flow_intrinsic.npy` rows fit it.
+pub fn write_run_input(dir: &Path, loaded: &LoadedSequence) -> Result<(), IoError> {
+    let (sequence, map) = (&loaded.sequence, &loaded.vertex_map);
+    let frames = 0..sequence.n_frames();
+    let positions: Vec<Vec<Vector3<f64>>> = frames
+        .clone()
+        .map(|k| {
+            let mesh_positions = sequence.positions(k).ok_or_else(|| {
+                IoError::format(dir, "a sequence of edge lengths has no positions to write")
+            })?;
+            Ok(map.file_rows(mesh_positions, Vector3::zeros()))
+        })
+        .collect::<Result<_, IoError>>()?;
+    let faces: Vec<[u32; 3]> = (sequence.mesh().faces().iter())
+        .map(|f| f.map(|m| map.representative(m as usize) as u32))
+        .collect();
+    let grey: Vec<Vec<f64>> = frames
+        .map(|k| map.file_rows(sequence.intensities(k), 0.0))
+        .collect();
+    super::write_npy_sequence(dir, &positions, &faces, Some(&grey), sequence.times())
 }

@@ -37,8 +37,8 @@ pub use atomic::RUN_MANIFEST;
 pub use atomic::{remove_live_staging, write_atomically, Overwrite, RunManifest, StagedDir};
 pub use channels::{select_channels, Channels, VertexValues};
 pub use flow_output::{
-    summary_json, tissue_velocity, track_scores_json, write_flow_outputs, write_slab_vtus,
-    GroundTruthReport, OutputFormat, Scores, TrackReport,
+    summary_json, tissue_velocity, track_scores_json, write_flow_outputs, write_run_input,
+    write_slab_vtus, GroundTruthReport, OutputFormat, Scores, TrackReport,
 };
 pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use ground_truth::read_ground_truth;

@@ -186,16 +186,7 @@ fn build_sequence(
         },
     )?;
     let times_file = source.times_file();
-    let (times, times_from_file) = match (&options.times, times, &times_file) {
-        (Some(times), _, _) => (Some(times.clone()), false),
-        (None, Some(times), _) => (Some(times), false),
-        (None, None, Some(file)) => {
-            let times = read_times_file(file)?;
-            let from_file = times.is_some();
-            (times, from_file)
-        }
-        (None, None, None) => (None, false),
-    };
+    let (times, times_from_file) = frame_times(&source, options, times)?;
     let positions = positions.iter().map(|p| vertex_map.positions(p)).collect();
     let on_vertices = |values: &Vec<f64>| match on_mesh {
         true => values.clone(),
@@ -226,6 +217,26 @@ fn build_sequence(
     })
 }
 
+/// The frame times: `options.times`, else the file's own (`read`, a glTF animation's), else a
+/// `times.txt` beside the frames (`None` without any: 0, 1, 2, …); and whether they came from
+/// that `times.txt`.
+fn frame_times(
+    source: &SequenceSource,
+    options: &LoadOptions,
+    read: Option<Vec<f64>>,
+) -> Result<(Option<Vec<f64>>, bool), IoError> {
+    Ok(match (&options.times, read, source.times_file()) {
+        (Some(times), _, _) => (Some(times.clone()), false),
+        (None, Some(times), _) => (Some(times), false),
+        (None, None, Some(file)) => {
+            let times = read_times_file(&file)?;
+            let from_file = times.is_some();
+            (times, from_file)
+        }
+        (None, None, None) => (None, false),
+    })
+}
+
 /// A sequence's surfaces without an image, read and built as [`load_sequence`] builds them.
 #[derive(Clone, Debug)]
 pub struct LoadedGeometry {
@@ -237,6 +248,8 @@ pub struct LoadedGeometry {
     pub source: SequenceSource,
     /// The file each frame came from.
     pub frame_files: Vec<PathBuf>,
+    /// The frame times as [`load_sequence`] finds them (`None`: 0, 1, 2, …); not validated.
+    pub times: Option<Vec<f64>>,
     pub warnings: Vec<LoadWarning>,
 }
 
@@ -256,12 +269,14 @@ pub fn load_geometry(path: &Path, options: &LoadOptions) -> Result<LoadedGeometr
         .collect();
     let mut warnings = raw.warnings;
     warnings.extend(prepared.warnings);
+    let (times, _) = frame_times(&source, options, raw.times)?;
     Ok(LoadedGeometry {
         mesh: prepared.mesh,
         positions,
         vertex_map,
         source,
         frame_files: raw.sources,
+        times,
         warnings,
     })
 }

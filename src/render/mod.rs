@@ -72,6 +72,6 @@ pub use figure::{
 pub use raster::Canvas;
 pub use shading::Lighting;
 pub use slabs::{
-    sequence_views, write_chosen_slab_pictures, write_slab_pictures, FigureOptions, SlabSelection,
-    SlabView,
+    result_views, sequence_views, write_chosen_slab_pictures, write_slab_pictures, FigureOptions,
+    SlabSelection, SlabView,
 };

@@ -26,7 +26,7 @@ use super::{
     arrow_picture, flow_picture, grey_picture, scalar_picture, write_png, Camera, PictureStyle,
     Surface, View,
 };
-use crate::flow::MeshSequence;
+use crate::flow::{FlowResult, MeshSequence};
 use crate::Error;
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -72,6 +72,23 @@ pub fn sequence_views<'a>(
             })
         })
         .collect()
+}
+
+/// The views of all slabs of a computed `result` on its `sequence`: [`sequence_views`] with the
+/// result's R³ flow and, after warping, the grey-value change it left.
+pub fn result_views<'a>(
+    sequence: &'a MeshSequence,
+    result: &'a FlowResult,
+    angular_errors: Option<&'a [Vec<f64>]>,
+) -> Result<Vec<SlabView<'a>>, RenderError> {
+    let vectors = result.vectors.as_deref().ok_or(RenderError::Intrinsic)?;
+    let mut views = sequence_views(sequence, vectors, angular_errors, 0..sequence.n_slabs())?;
+    if let Some(residual) = &result.warped_residual {
+        for view in &mut views {
+            view.warped_residual = Some(&residual[view.slab]);
+        }
+    }
+    Ok(views)
 }
 
 /// Size, view and style of the pictures of [`write_slab_pictures`].

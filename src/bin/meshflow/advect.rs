@@ -4,7 +4,7 @@
 use crate::progress::during;
 use crate::{Cli, Command};
 use clap::Parser;
-use meshflow::flow::{advect as carry, vertex_seeds, MeshSequence, Trajectories};
+use meshflow::flow::{advect as carry, closest_seeds, vertex_seeds, MeshSequence, Trajectories};
 use meshflow::geometry::SurfacePoint;
 use meshflow::io::{
     load_sequence, read_npy_float, write_npy, write_npy_sequence, write_npy_vectors, IoError,
@@ -12,7 +12,6 @@ use meshflow::io::{
 };
 use meshflow::render::colormap::finite_range;
 use meshflow::render::{trajectory_picture, write_png, Camera, PictureStyle, Surface, View};
-use meshflow::track::FrameSurface;
 use meshflow::Error;
 use nalgebra::{Vector2, Vector3};
 use std::path::Path;
@@ -72,21 +71,10 @@ fn located_seeds(file: &Path, sequence: &MeshSequence) -> Result<Vec<SurfacePoin
         let shape = format!("shape {:?}, expected (points, 3)", array.shape);
         return Err(IoError::format(file, shape).into());
     }
-    if let Some(i) = array.data.iter().position(|x| !x.is_finite()) {
-        let what = format!("point {} has a non-finite coordinate", i / 3);
-        return Err(IoError::format(file, what).into());
-    }
-    let positions = sequence
-        .positions(0)
-        .ok_or_else(|| IoError::format(file, "an intrinsic sequence has no points to locate"))?;
-    let faces = sequence.mesh().faces();
-    let grey = sequence.intensities(0);
-    let surface = FrameSurface::new(0, positions, faces, grey)?;
-    Ok(array
-        .data
-        .chunks_exact(3)
-        .map(|p| surface.locate(&Vector3::new(p[0], p[1], p[2])))
-        .collect())
+    let points: Vec<Vector3<f64>> = (array.data.chunks_exact(3))
+        .map(|p| Vector3::new(p[0], p[1], p[2]))
+        .collect();
+    closest_seeds(sequence, &points).map_err(|e| e.in_file(file))
 }
 
 /// The `solve` arguments that made `run`, from its manifest.
@@ -100,6 +88,11 @@ fn solve_command(run: &Path) -> Result<Box<crate::SolveArgs>, Error> {
         .ok_or_else(|| not_a_run("its manifest lists no command"))?;
     match Cli::try_parse_from(command).map(|cli| cli.command) {
         // Its paths as the solve meant them, wherever `advect` runs from.
+        // A flow computed from arrays holds its input itself (`meshflow::io::write_run_input`).
+        Ok(Command::Solve(mut args)) if args.input == args.out => {
+            args.input = run.to_path_buf();
+            Ok(args)
+        }
         Ok(Command::Solve(mut args)) => {
             args.input = manifest.resolve(&args.input);
             args.intensity = args.intensity.map(|file| manifest.resolve(&file));

@@ -13,7 +13,7 @@ use meshflow::io::{
     load_sequence, read_npy_float, write_flow_outputs, Scores, StagedDir, TrackReport,
 };
 use meshflow::io::{read_ground_truth, GroundTruthReport, LoadedSequence};
-use meshflow::render::{sequence_views, View};
+use meshflow::render::{result_views, View};
 use meshflow::Error;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
@@ -254,17 +254,8 @@ impl Pictures<'_> {
         report: Option<&GroundTruthReport>,
     ) -> Result<Vec<PathBuf>, Error> {
         let sequence = &loaded.sequence;
-        let vectors = result
-            .vectors
-            .as_ref()
-            .expect("sequences read from files are embedded");
         let errors = report.map(|r| r.errors.angular_degrees.as_slice());
-        let mut views = sequence_views(sequence, vectors, errors, 0..sequence.n_slabs())?;
-        if let Some(residual) = &result.warped_residual {
-            views
-                .iter_mut()
-                .for_each(|v| v.warped_residual = Some(&residual[v.slab]));
-        }
+        let views = result_views(sequence, result, errors)?;
         let faces = sequence.mesh().faces();
         pictures::draw(dir, faces, &views, self.slabs, self.args, self.view)
     }
