@@ -5,7 +5,7 @@ use base64::Engine;
 use meshflow::io::gltf_read::{read_gltf_animation, read_gltf_frame};
 use meshflow::io::gltf_write::{write_glb_animation, AnimationFrame};
 use meshflow::io::{IoError, LoadOptions};
-use nalgebra::Vector3;
+use nalgebra::{Matrix4, Quaternion, UnitQuaternion, Vector3, Vector4};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
@@ -182,7 +182,7 @@ fn a_single_frame_is_a_static_mesh_without_animation() {
         .unwrap_err()
         .to_string();
     assert!(error.contains("moving.glb"), "{error}");
-    assert!(error.contains("no morph-target animation"), "{error}");
+    assert!(error.contains("no animation moves the mesh"), "{error}");
 }
 
 #[test]
@@ -298,6 +298,11 @@ impl HandMade {
 
     /// An index accessor of unsigned integers of `size` bytes (1, 2 or 4).
     fn indices(&mut self, values: &[u32], size: usize) -> usize {
+        self.integers("SCALAR", values, size)
+    }
+
+    /// An accessor of `kind` of unsigned integers of `size` bytes (1, 2 or 4).
+    fn integers(&mut self, kind: &str, values: &[u32], size: usize) -> usize {
         let bytes: Vec<u8> = values
             .iter()
             .flat_map(|x| x.to_le_bytes()[..size].to_vec())
@@ -305,8 +310,8 @@ impl HandMade {
         let component_type = [5121, 5123, 0, 5125][size - 1];
         let view = self.view(&bytes);
         self.accessor(json!({
-            "bufferView": view, "componentType": component_type, "count": values.len(),
-            "type": "SCALAR",
+            "bufferView": view, "componentType": component_type,
+            "count": values.len() / width(kind), "type": kind,
         }))
     }
 
@@ -347,6 +352,7 @@ fn width(kind: &str) -> usize {
         "SCALAR" => 1,
         "VEC2" => 2,
         "VEC3" => 3,
+        "MAT4" => 16,
         _ => 4,
     }
 }
@@ -732,7 +738,7 @@ fn unsupported_or_inconsistent_meshes_give_clear_errors() {
         .unwrap_err()
         .to_string();
     assert!(
-        error.contains("static.gltf: the mesh has no morph targets"),
+        error.contains("static.gltf: no animation moves the mesh"),
         "{error}"
     );
     assert!(
@@ -835,7 +841,7 @@ fn animations_are_chosen_by_name_or_index_else_the_first_that_moves_the_mesh() {
     assert_eq!(
         warning.to_string(),
         format!(
-            "{}: 4 animations (0: \"Idle\" (no morph weights), 1: \"Lift\", 2: \"Slide\", \
+            "{}: 4 animations (0: \"Idle\" (does not move the mesh), 1: \"Lift\", 2: \"Slide\", \
              3: (unnamed)); read 1: \"Lift\", the first that moves the mesh; choose one with \
              --animation NAME|INDEX",
             path.display()
@@ -857,7 +863,7 @@ fn animations_are_chosen_by_name_or_index_else_the_first_that_moves_the_mesh() {
         &[[0.0, 0.0, 0.5], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
     );
 
-    let listing = "0: \"Idle\" (no morph weights), 1: \"Lift\", 2: \"Slide\", 3: (unnamed)";
+    let listing = "0: \"Idle\" (does not move the mesh), 1: \"Lift\", 2: \"Slide\", 3: (unnamed)";
     for (choice, message) in [
         (
             "Jump",
@@ -866,10 +872,7 @@ fn animations_are_chosen_by_name_or_index_else_the_first_that_moves_the_mesh() {
         ("4", format!("no animation \"4\": the file has {listing}")),
         (
             "Idle",
-            format!(
-                "animation 0: \"Idle\" (no morph weights) does not animate the morph weights \
-                 of the mesh: the file has {listing}"
-            ),
+            format!("animation 0: \"Idle\" does not move the mesh: the file has {listing}"),
         ),
     ] {
         let error = read_gltf_animation(&path, &choosing(choice))
@@ -889,4 +892,545 @@ fn animations_are_chosen_by_name_or_index_else_the_first_that_moves_the_mesh() {
 /// The grey value (luma) of every frame's colours.
 fn greys(images: Vec<meshflow::io::VertexValues>) -> Vec<Vec<f64>> {
     images.iter().map(|v| v.to_grey()).collect()
+}
+
+// Skinned meshes: a strip of 2 × 6 vertices bent by two joints.
+
+/// The strip's triangles: vertex `6 row + col` is at `(col, row, 0)`.
+fn strip_faces() -> Vec<u32> {
+    (0..5)
+        .flat_map(|c| [c, c + 1, c + 7, c, c + 7, c + 6])
+        .collect()
+}
+
+/// The skin weights (hip, knee) of the strip's columns as stored: they blend across the
+/// middle, and column 2's sum to 0.8 (normalized when read).
+const COLUMN_WEIGHTS: [[f32; 2]; 6] = [
+    [1.0, 0.0],
+    [1.0, 0.0],
+    [0.6, 0.2],
+    [0.25, 0.75],
+    [0.0, 1.0],
+    [0.0, 1.0],
+];
+
+// The rig: "root" (node 0) → "hip" (node 1, joint 0) → "knee" (node 2, joint 1); the strip is
+// on node 3, whose own translation a skinned mesh ignores.
+const ROOT_TRANSLATION: [f32; 3] = [1.0, 2.0, 3.0];
+/// 0.4 rad about x.
+const ROOT_ROTATION: [f32; 4] = [0.198_669_33, 0.0, 0.0, 0.980_066_6];
+const ROOT_SCALE: [f32; 3] = [2.0, 2.0, 2.0];
+/// 0.1 rad about z.
+const HIP_ROTATION: [f32; 4] = [0.0, 0.0, 0.049_979_17, 0.998_750_3];
+const KNEE_TRANSLATION: [f32; 3] = [2.5, 0.0, 0.0];
+/// Column-major, as glTF stores matrices; neither is the inverse of the bind pose, and the
+/// second is not even a rigid motion.
+const INVERSE_BINDS: [[f32; 16]; 2] = [
+    [
+        1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., -0.5, -0.5, 0., 1.,
+    ],
+    [
+        0.98, -0.2, 0., 0., 0.2, 0.98, 0., 0., 0., 0., 1.1, 0., -2.4, -0.1, 0.05, 1.,
+    ],
+];
+
+// Animation 1, "Bend".
+/// Hip rotation, LINEAR (slerp): 0.3 and 1.2 rad about z, then 2 rad about (0, 1, 1)/√2
+/// stored with the opposite sign (the shorter arc turns it back).
+const HIP_TIMES: [f32; 3] = [0.0, 1.0, 2.0];
+const HIP_ROTATIONS: [[f32; 4]; 3] = [
+    [0.0, 0.0, 0.149_438_13, 0.988_771_1],
+    [0.0, 0.0, 0.564_642_5, 0.825_335_6],
+    [0.0, -0.595_009_8, -0.595_009_8, -0.540_302_3],
+];
+/// Knee rotation, CUBICSPLINE: per keyframe in-tangent, value (−0.2, then 0.9 rad about z),
+/// out-tangent.
+const KNEE_TIMES: [f32; 2] = [0.0, 1.5];
+const KNEE_ROTATIONS: [[f32; 4]; 6] = [
+    [0.0, 0.0, 0.0, 0.0],
+    [0.0, 0.0, -0.099_833_42, 0.995_004_2],
+    [0.0, 0.1, 0.3, -0.05],
+    [0.1, 0.0, 0.2, 0.0],
+    [0.0, 0.0, 0.434_965_53, 0.900_447_1],
+    [0.0, 0.0, 0.0, 0.0],
+];
+/// Knee translation, STEP.
+const STEP_TIMES: [f32; 3] = [0.0, 0.5, 2.0];
+const KNEE_TRANSLATIONS: [[f32; 3]; 3] = [[2.5, 0.0, 0.0], [2.5, 0.5, 0.0], [3.0, 0.0, 0.25]];
+/// Root translation and scale, LINEAR; also the morph weight (0 to 1) of the morphed strip.
+const ROOT_TIMES: [f32; 2] = [0.0, 2.0];
+const ROOT_TRANSLATIONS: [[f32; 3]; 2] = [[1.0, 2.0, 3.0], [0.0, -1.0, 1.0]];
+const ROOT_SCALES: [[f32; 3]; 2] = [[2.0, 2.0, 2.0], [1.0, 1.5, 2.5]];
+/// The union of the keyframe times above; "Bend" also moves the strip's node at 0.25 and 3,
+/// which does not count.
+const BEND_TIMES: [f64; 5] = [0.0, 0.5, 1.0, 1.5, 2.0];
+
+/// A stored weight as the morphed strip stores it: normalized `u8`.
+fn as_u8(weight: f32) -> u8 {
+    (weight * 255.0).round() as u8
+}
+
+/// The skinned strip with animations 0 "Idle" (moves only the strip's node) and 1 "Bend".
+/// With `morphed`, a morph target lifts column `c` by `c/8` in z, its weight animated by
+/// "Bend" too, and the skin weights are normalized `u8` in two sets: `JOINTS_0`/`WEIGHTS_0`
+/// for the hip (`u8` joints), `JOINTS_1`/`WEIGHTS_1` for the knee (`u16` joints).
+fn skinned_strip(morphed: bool) -> (HandMade, Value) {
+    let mut gltf = HandMade::default();
+    let corners: Vec<f32> = (0..12)
+        .flat_map(|v| [(v % 6) as f32, (v / 6) as f32, 0.0])
+        .collect();
+    let position = gltf.floats("VEC3", &corners);
+    let indices = gltf.indices(&strip_faces(), 1);
+    let mut primitive = json!({ "attributes": { "POSITION": position }, "indices": indices });
+    let attributes = &mut primitive["attributes"];
+    let per_vertex = |weight: &dyn Fn([f32; 2]) -> [f32; 4]| -> Vec<f32> {
+        (0..12)
+            .flat_map(|v| weight(COLUMN_WEIGHTS[v % 6]))
+            .collect()
+    };
+    if morphed {
+        let set = |joint: usize| -> Vec<u8> {
+            per_vertex(&|w| [w[joint], 0.0, 0.0, 0.0])
+                .into_iter()
+                .map(as_u8)
+                .collect()
+        };
+        attributes["JOINTS_0"] = json!(gltf.integers("VEC4", &[0; 48], 1));
+        attributes["WEIGHTS_0"] = json!(gltf.normalized_u8("VEC4", &set(0)));
+        attributes["JOINTS_1"] = json!(gltf.integers("VEC4", &[1, 0, 0, 0].repeat(12), 2));
+        attributes["WEIGHTS_1"] = json!(gltf.normalized_u8("VEC4", &set(1)));
+        let lift: Vec<f32> = (0..12)
+            .flat_map(|v| [0.0, 0.0, (v % 6) as f32 / 8.0])
+            .collect();
+        primitive["targets"] = json!([{ "POSITION": gltf.floats("VEC3", &lift) }]);
+    } else {
+        attributes["JOINTS_0"] = json!(gltf.integers("VEC4", &[0, 1, 0, 0].repeat(12), 1));
+        let weights = per_vertex(&|[hip, knee]| [hip, knee, 0.0, 0.0]);
+        attributes["WEIGHTS_0"] = json!(gltf.floats("VEC4", &weights));
+    }
+    let inverse_binds = gltf.floats("MAT4", &INVERSE_BINDS.concat());
+    let mut sampler = |times: &[f32], kind: &str, values: &[f32], interpolation: &str| {
+        json!({
+            "input": gltf.floats("SCALAR", times), "output": gltf.floats(kind, values),
+            "interpolation": interpolation,
+        })
+    };
+    let mut bend = vec![
+        sampler(&HIP_TIMES, "VEC4", &HIP_ROTATIONS.concat(), "LINEAR"),
+        sampler(&KNEE_TIMES, "VEC4", &KNEE_ROTATIONS.concat(), "CUBICSPLINE"),
+        sampler(&STEP_TIMES, "VEC3", &KNEE_TRANSLATIONS.concat(), "STEP"),
+        sampler(&ROOT_TIMES, "VEC3", &ROOT_TRANSLATIONS.concat(), "LINEAR"),
+        sampler(&ROOT_TIMES, "VEC3", &ROOT_SCALES.concat(), "LINEAR"),
+        sampler(&[0.25, 3.0], "VEC3", &[0., 0., 0., 5., 5., 5.], "LINEAR"),
+    ];
+    let idle = sampler(&[0.0, 1.0], "VEC3", &[0., 0., 0., 1., 1., 1.], "LINEAR");
+    let mut targets = vec![
+        (1, "rotation"),
+        (2, "rotation"),
+        (2, "translation"),
+        (0, "translation"),
+        (0, "scale"),
+        (3, "translation"),
+    ];
+    if morphed {
+        bend.push(sampler(&ROOT_TIMES, "SCALAR", &[0.0, 1.0], "LINEAR"));
+        targets.push((3, "weights"));
+    }
+    let channels: Vec<Value> = targets
+        .iter()
+        .enumerate()
+        .map(|(i, (node, path))| json!({ "sampler": i, "target": { "node": node, "path": path } }))
+        .collect();
+    let document = json!({
+        "scenes": [{ "nodes": [0, 3] }],
+        "nodes": [
+            {
+                "name": "root", "children": [1], "translation": ROOT_TRANSLATION,
+                "rotation": ROOT_ROTATION, "scale": ROOT_SCALE,
+            },
+            { "name": "hip", "children": [2], "rotation": HIP_ROTATION },
+            { "name": "knee", "translation": KNEE_TRANSLATION },
+            { "name": "strip", "mesh": 0, "skin": 0, "translation": [100, 0, 0] },
+        ],
+        "meshes": [{ "primitives": [primitive] }],
+        "skins": [{ "joints": [1, 2], "inverseBindMatrices": inverse_binds }],
+        "animations": [
+            {
+                "name": "Idle", "samplers": [idle],
+                "channels": [{ "sampler": 0, "target": { "node": 3, "path": "translation" } }],
+            },
+            { "name": "Bend", "samplers": bend, "channels": channels },
+        ],
+    });
+    (gltf, document)
+}
+
+fn vec3(v: [f32; 3]) -> Vector3<f64> {
+    Vector3::from(v.map(f64::from))
+}
+
+/// A stored quaternion `(x, y, z, w)`, normalized.
+fn rotation(q: [f32; 4]) -> UnitQuaternion<f64> {
+    let [x, y, z, w] = q.map(f64::from);
+    UnitQuaternion::new_normalize(Quaternion::new(w, x, y, z))
+}
+
+/// `T · R · S`.
+fn trs(
+    translation: Vector3<f64>,
+    rotation: UnitQuaternion<f64>,
+    scale: Vector3<f64>,
+) -> Matrix4<f64> {
+    Matrix4::new_translation(&translation)
+        * rotation.to_homogeneous()
+        * Matrix4::new_nonuniform_scaling(&scale)
+}
+
+/// The keyframe interval `[t_k, t_{k+1}]` of `t` and the fraction `s` of it (0 before the
+/// first keyframe, 1 after the last).
+fn segment(times: &[f32], t: f64) -> (usize, f64) {
+    let k = times
+        .iter()
+        .rposition(|&tk| f64::from(tk) <= t)
+        .unwrap_or(0)
+        .min(times.len() - 2);
+    let (t0, t1) = (f64::from(times[k]), f64::from(times[k + 1]));
+    (k, ((t - t0) / (t1 - t0)).clamp(0.0, 1.0))
+}
+
+/// The knee's CUBICSPLINE rotation at `t` (one interval), normalized.
+fn knee_rotation(t: f64) -> UnitQuaternion<f64> {
+    let (_, s) = segment(&KNEE_TIMES, t);
+    let dt = f64::from(KNEE_TIMES[1] - KNEE_TIMES[0]);
+    let key = |i: usize| Vector4::from(KNEE_ROTATIONS[i].map(f64::from));
+    let (v0, out0, in1, v1) = (key(1), key(2), key(3), key(4));
+    let (s2, s3) = (s * s, s * s * s);
+    let q = v0 * (2.0 * s3 - 3.0 * s2 + 1.0)
+        + out0 * (dt * (s3 - 2.0 * s2 + s))
+        + v1 * (-2.0 * s3 + 3.0 * s2)
+        + in1 * (dt * (s3 - s2));
+    UnitQuaternion::new_normalize(Quaternion::from(q))
+}
+
+/// The strip by an independent linear-blend skinning: joint matrices built with nalgebra
+/// straight from the stored values, at time `t` of "Bend" (`None`: the nodes' own transforms,
+/// no morph).
+fn bent_strip(t: Option<f64>, morphed: bool) -> Vec<[f64; 3]> {
+    let one = Vector3::repeat(1.0);
+    let (root_translation, root_scale, hip_rotation, knee_translation, knee, morph) = match t {
+        None => (
+            vec3(ROOT_TRANSLATION),
+            vec3(ROOT_SCALE),
+            rotation(HIP_ROTATION),
+            vec3(KNEE_TRANSLATION),
+            UnitQuaternion::identity(),
+            0.0,
+        ),
+        Some(t) => {
+            let (k, s) = segment(&HIP_TIMES, t);
+            let hip = rotation(HIP_ROTATIONS[k]).slerp(&rotation(HIP_ROTATIONS[k + 1]), s);
+            let (k, s) = segment(&STEP_TIMES, t);
+            let knee_translation = vec3(KNEE_TRANSLATIONS[if s < 1.0 { k } else { k + 1 }]);
+            let (_, s) = segment(&ROOT_TIMES, t);
+            let lerp = |[a, b]: [[f32; 3]; 2]| vec3(a) * (1.0 - s) + vec3(b) * s;
+            let (translation, scale) = (lerp(ROOT_TRANSLATIONS), lerp(ROOT_SCALES));
+            (
+                translation,
+                scale,
+                hip,
+                knee_translation,
+                knee_rotation(t),
+                s,
+            )
+        }
+    };
+    let root = trs(root_translation, rotation(ROOT_ROTATION), root_scale);
+    let hip = root * trs(Vector3::zeros(), hip_rotation, one);
+    let knee = hip * trs(knee_translation, knee, one);
+    let inverse_bind = |j: usize| Matrix4::from_column_slice(&INVERSE_BINDS[j].map(f64::from));
+    let joints = [hip * inverse_bind(0), knee * inverse_bind(1)];
+    (0..12)
+        .map(|v| {
+            let column = v % 6;
+            let lift = if morphed {
+                morph * column as f64 / 8.0
+            } else {
+                0.0
+            };
+            let stored = |w: f32| match morphed {
+                true => f64::from(as_u8(w)) / 255.0,
+                false => f64::from(w),
+            };
+            let [hip, knee] = COLUMN_WEIGHTS[column].map(stored);
+            let blended = (joints[0] * hip + joints[1] * knee) / (hip + knee);
+            let p = blended * Vector4::new(column as f64, (v / 6) as f64, lift, 1.0);
+            [p.x, p.y, p.z]
+        })
+        .collect()
+}
+
+#[test]
+fn skinned_meshes_follow_linear_blend_skinning_at_keyframes_and_between() {
+    let dir = tempfile::tempdir().unwrap();
+    let (gltf, document) = skinned_strip(false);
+    let path = gltf.write(dir.path(), "strip.gltf", document);
+    let frame = read_gltf_frame(&path).unwrap();
+    assert_close(&frame.positions, &bent_strip(None, false));
+    assert_eq!(
+        frame.faces,
+        strip_faces()
+            .chunks(3)
+            .map(|f| [f[0], f[1], f[2]])
+            .collect::<Vec<_>>()
+    );
+    let sequence = read_gltf_animation(&path, &LoadOptions::default()).unwrap();
+    assert_eq!(sequence.times.as_deref(), Some(BEND_TIMES.as_slice()));
+    for (&t, positions) in BEND_TIMES.iter().zip(&sequence.positions) {
+        assert_close(positions, &bent_strip(Some(t), false));
+    }
+    let warning = sequence.warnings[0].to_string();
+    assert!(
+        warning.contains("(0: \"Idle\" (does not move the mesh), 1: \"Bend\"); read 1: \"Bend\""),
+        "{warning}"
+    );
+    // Between keyframes: slerp, the cubic spline, the step and the linear root.
+    let resampled = read_gltf_animation(&path, &at_fps(8.0)).unwrap();
+    let times = resampled.times.unwrap();
+    assert_eq!(times, (0..=16).map(|i| i as f64 / 8.0).collect::<Vec<_>>());
+    for (&t, positions) in times.iter().zip(&resampled.positions) {
+        assert_close(positions, &bent_strip(Some(t), false));
+    }
+    // The bend is real: the tip moves far, relative to the hip, between the keyframes.
+    let tip = |f: usize| Vector3::from(bent_strip(Some(times[f]), false)[5]);
+    assert!((tip(4) - tip(12)).norm() > 1.0);
+}
+
+#[test]
+fn morph_targets_are_applied_before_skinning() {
+    let dir = tempfile::tempdir().unwrap();
+    let (gltf, document) = skinned_strip(true);
+    let path = gltf.write(dir.path(), "morphed.gltf", document);
+    assert_close(
+        &read_gltf_frame(&path).unwrap().positions,
+        &bent_strip(None, true),
+    );
+    for options in [LoadOptions::default(), at_fps(8.0)] {
+        let sequence = read_gltf_animation(&path, &options).unwrap();
+        for (&t, positions) in sequence.times.unwrap().iter().zip(&sequence.positions) {
+            assert_close(positions, &bent_strip(Some(t), true));
+        }
+    }
+}
+
+#[test]
+fn animated_node_transforms_move_a_mesh_without_skin() {
+    // transformed_triangle, its parent also turning from 90° to 180° about z over [0, 2].
+    let dir = tempfile::tempdir().unwrap();
+    let (mut gltf, mut document) = lifted_triangle("LINEAR", &[0.0, 1.0]);
+    let half_turn = std::f32::consts::FRAC_1_SQRT_2;
+    let turn = json!({
+        "input": gltf.floats("SCALAR", &[0.0, 2.0]),
+        "output": gltf.floats("VEC4", &[0., 0., half_turn, half_turn, 0., 0., 1., 0.]),
+    });
+    document["nodes"] = json!([
+        { "children": [1], "translation": [10, 20, 30], "rotation": [0, 0, half_turn, half_turn] },
+        { "mesh": 0, "translation": [1, 0, 0], "scale": [2, 3, 4] },
+    ]);
+    let animation = &mut document["animations"][0];
+    animation["channels"][0]["target"]["node"] = json!(1);
+    animation["samplers"].as_array_mut().unwrap().push(turn);
+    animation["channels"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({ "sampler": 1, "target": { "node": 0, "path": "rotation" } }));
+    let path = gltf.write(dir.path(), "turning.gltf", document);
+    let sequence = read_gltf_animation(&path, &LoadOptions::default()).unwrap();
+    assert_eq!(sequence.times.as_deref(), Some([0.0, 1.0, 2.0].as_slice()));
+    for (&t, positions) in [0.0, 1.0, 2.0].iter().zip(&sequence.positions) {
+        let angle = std::f64::consts::FRAC_PI_2 * (1.0 + t / 2.0);
+        let parent = trs(
+            Vector3::new(10.0, 20.0, 30.0),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle),
+            Vector3::repeat(1.0),
+        );
+        let world = parent
+            * trs(
+                Vector3::x(),
+                UnitQuaternion::identity(),
+                Vector3::new(2.0, 3.0, 4.0),
+            );
+        let lift = t.min(1.0);
+        let expected: Vec<[f64; 3]> = [[0.0, 0.0, lift], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+            .iter()
+            .map(|&[x, y, z]| {
+                let p = world * Vector4::new(x, y, z, 1.0);
+                [p.x, p.y, p.z]
+            })
+            .collect();
+        assert_close(positions, &expected);
+    }
+}
+
+/// [`skinned_strip`] (not morphed) changed by `edit`, written to `dir/name`.
+fn broken_strip(dir: &Path, name: &str, edit: impl FnOnce(&mut Value, &mut HandMade)) -> PathBuf {
+    let (mut gltf, mut document) = skinned_strip(false);
+    edit(&mut document, &mut gltf);
+    gltf.write(dir, name, document)
+}
+
+/// The per-vertex weights of the strip (hip, knee) with vertex `v`'s replaced by `weights`.
+fn strip_weights(v: usize, weights: [f32; 4]) -> Vec<f32> {
+    let mut all: Vec<f32> = (0..12)
+        .flat_map(|u| {
+            let [hip, knee] = COLUMN_WEIGHTS[u % 6];
+            [hip, knee, 0.0, 0.0]
+        })
+        .collect();
+    all[4 * v..4 * v + 4].copy_from_slice(&weights);
+    all
+}
+
+#[test]
+fn broken_skins_give_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    fn attributes(document: &mut Value) -> &mut Value {
+        &mut document["meshes"][0]["primitives"][0]["attributes"]
+    }
+    let prefix = "mesh 0, primitive 0";
+    // Accessors 0 POSITION, 1 indices, 2 JOINTS_0, 3 WEIGHTS_0, 4 inverseBindMatrices, then
+    // the animations' and those the edits add (from 19).
+    let cases = [
+        (
+            broken_strip(d, "joint.gltf", |doc, g| {
+                let mut joints = [0, 1, 0, 0].repeat(12);
+                joints[4 * 5 + 1] = 2;
+                attributes(doc)["JOINTS_0"] = json!(g.integers("VEC4", &joints, 1));
+            }),
+            format!(
+                "{prefix}: JOINTS_0 (accessor 19): vertex 5 names joint 2, but the skin has 2 \
+                 joints"
+            ),
+        ),
+        (
+            broken_strip(d, "zero.gltf", |doc, g| {
+                let weights = strip_weights(7, [0.0; 4]);
+                attributes(doc)["WEIGHTS_0"] = json!(g.floats("VEC4", &weights));
+            }),
+            format!("{prefix}: vertex 7 has no joint: its skin weights are all zero"),
+        ),
+        (
+            broken_strip(d, "negative.gltf", |doc, g| {
+                let weights = strip_weights(3, [1.5, -0.5, 0.0, 0.0]);
+                attributes(doc)["WEIGHTS_0"] = json!(g.floats("VEC4", &weights));
+            }),
+            format!("{prefix}: WEIGHTS_0 (accessor 19): vertex 3 has the negative weight -0.5"),
+        ),
+        (
+            broken_strip(d, "infinite.gltf", |doc, g| {
+                let weights = strip_weights(4, [f32::INFINITY, 0.0, 0.0, 0.0]);
+                attributes(doc)["WEIGHTS_0"] = json!(g.floats("VEC4", &weights));
+            }),
+            format!("{prefix}, WEIGHTS_0 (accessor 19): element 4 is not finite"),
+        ),
+        (
+            broken_strip(d, "float.gltf", |doc, g| {
+                let joints = [0., 1., 0., 0.].repeat(12);
+                attributes(doc)["JOINTS_0"] = json!(g.floats("VEC4", &joints));
+            }),
+            format!(
+                "{prefix}: JOINTS_0 (accessor 19) has components of type F32; joint indices \
+                 are unsigned bytes or shorts"
+            ),
+        ),
+        (
+            broken_strip(d, "unweighted.gltf", |doc, _| {
+                attributes(doc).as_object_mut().unwrap().remove("WEIGHTS_0");
+            }),
+            format!("{prefix}: JOINTS_0 without WEIGHTS_0"),
+        ),
+        (
+            broken_strip(d, "unjointed.gltf", |doc, _| {
+                attributes(doc).as_object_mut().unwrap().remove("WEIGHTS_0");
+                attributes(doc).as_object_mut().unwrap().remove("JOINTS_0");
+            }),
+            format!("{prefix}: its node has a skin, but it has no JOINTS_0 and WEIGHTS_0"),
+        ),
+        (
+            broken_strip(d, "binds.gltf", |doc, g| {
+                doc["skins"][0]["inverseBindMatrices"] = json!(g.floats("MAT4", &INVERSE_BINDS[0]));
+            }),
+            "skin 0, inverseBindMatrices (accessor 19) has 1 elements, expected 2".to_string(),
+        ),
+        (
+            broken_strip(d, "jointless.gltf", |doc, _| {
+                doc["skins"][0] = json!({ "joints": [] });
+            }),
+            "skin 0 has no joints".to_string(),
+        ),
+    ];
+    for (path, message) in cases {
+        let error = read_error(&path);
+        assert_eq!(error, format!("{}: {message}", path.display()));
+    }
+}
+
+#[test]
+fn animations_of_skins_are_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    fn bend(document: &mut Value) -> &mut Value {
+        &mut document["animations"][1]
+    }
+    let cases = [
+        (
+            broken_strip(d, "matrix.gltf", |doc, _| {
+                let matrix = [
+                    1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 2.5, 0., 0., 1.,
+                ];
+                doc["nodes"][2] = json!({ "name": "knee", "matrix": matrix });
+            }),
+            "animation 1 animates the rotation of node 2 (\"knee\"), which has a matrix; glTF \
+             animates only nodes given by translation, rotation and scale",
+        ),
+        (
+            broken_strip(d, "twice.gltf", |doc, _| {
+                let channel = bend(doc)["channels"][0].clone();
+                bend(doc)["channels"].as_array_mut().unwrap().push(channel);
+            }),
+            "animation 1 animates the rotation of node 1 (\"hip\") twice",
+        ),
+        (
+            broken_strip(d, "unmorphed.gltf", |doc, g| {
+                let times = g.floats("SCALAR", &[0.0, 1.0]);
+                let sampler = json!({ "input": times, "output": g.floats("SCALAR", &[0.0, 1.0]) });
+                bend(doc)["samplers"].as_array_mut().unwrap().push(sampler);
+                let channel = json!({ "sampler": 6, "target": { "node": 3, "path": "weights" } });
+                bend(doc)["channels"].as_array_mut().unwrap().push(channel);
+            }),
+            "animation 1 animates the weights of node 3 (\"strip\"), whose mesh has no morph \
+             targets",
+        ),
+        (
+            broken_strip(d, "null.gltf", |doc, g| {
+                let mut rotations = HIP_ROTATIONS.concat();
+                rotations[4..8].fill(0.0);
+                bend(doc)["samplers"][0]["output"] = json!(g.floats("VEC4", &rotations));
+            }),
+            "animation 1, sampler 0, output: the rotation of keyframe 1 is the zero quaternion",
+        ),
+        (
+            broken_strip(d, "still.gltf", |doc, _| {
+                doc["animations"] = json!([doc["animations"][0].clone()]);
+            }),
+            "no animation moves the mesh (its morph weights, skin joints or node transforms); \
+             for one file per frame use a directory",
+        ),
+    ];
+    for (path, message) in cases {
+        let error = read_gltf_animation(&path, &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert_eq!(error, format!("{}: {message}", path.display()));
+    }
 }

@@ -354,8 +354,8 @@ def load_sequence(
     """Reads a sequence as ``meshflow solve PATH`` does.
 
     ``path`` is a directory of .obj/.ply/.gltf/.glb frames, a glob (``"dir/frame_*.ply"``),
-    one .gltf/.glb morph animation, or a directory with positions.npy, faces.npy and
-    intensity.npy. The image comes from vertex colours, textures, a PLY property
+    one .gltf/.glb animation (morph targets, skin), or a directory with positions.npy,
+    faces.npy and intensity.npy. The image comes from vertex colours, textures, a PLY property
     (``intensity_attribute``) or ``intensity`` (a (K, V_file) or (K, V_file, C) .npy), its
     channels chosen by ``channels`` as the CLI's ``--channels`` (``auto``: RGB for colours,
     one channel for grey colours and values); times from ``times``,

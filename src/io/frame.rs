@@ -15,7 +15,7 @@ pub struct FrameMesh {
     pub image: Option<VertexValues>,
 }
 
-/// A sequence read from one file (a glTF morph animation): one connectivity, positions and
+/// A sequence read from one file (a glTF animation): one connectivity, positions and
 /// optional grey values or colours per frame, and the frame times when the file defines them.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RawSequence {

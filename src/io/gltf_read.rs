@@ -1,77 +1,96 @@
 //! Moving triangle meshes from glTF 2.0 files (`.gltf` JSON or `.glb` binary).
 //!
-//! A sequence is one mesh with morph targets whose weights an animation drives. At time `t`
+//! A sequence is one mesh moved by an animation: through the morph weights of its node, the
+//! joints of its skin, or the transforms of its node and the node's ancestors. At time `t`
 //! vertex `i` is
 //!
 //! ```text
-//! p_i(t) = M (b_i + Σ_j w_j(t) δ_ij),    M = M_root ⋯ M_parent M_node
+//! p_i(t) = M(t) p̃_i(t)                              (no skin)
+//! p_i(t) = Σ_k ω_ik J_{j_ik}(t) B_{j_ik} p̃_i(t)     (skinned: linear-blend skinning)
+//! p̃_i(t) = b_i + Σ_j w_j(t) δ_ij
 //! ```
 //!
-//! with `b` the base POSITION, `δ_j` the POSITION deltas of target `j` and `M` the world
-//! transform of the mesh's node. The weights `w(t)` come from the animation sampler of the
-//! node's `weights`, interpolated between keyframes `t_k ≤ t ≤ t_{k+1}` as glTF specifies:
-//! LINEAR `(1 − s) w_k + s w_{k+1}`, STEP `w_k`, CUBICSPLINE the cubic Hermite spline of
-//! Appendix C (values and tangents); before the first and after the last keyframe the end
-//! values hold.
+//! with `b` the base POSITION, `δ_j` the POSITION deltas of target `j` (morphing comes before
+//! skinning, as glTF specifies), `M = L_root ⋯ L_parent L_node` the world transform of the
+//! mesh's node, `J_j` that of joint `j`'s node, `B_j` the skin's inverse bind matrix of joint
+//! `j` and `ω_ik` the weights of vertex `i`'s joints `j_ik`, normalized to sum 1 (module
+//! `skin`). As glTF specifies, the mesh node's own transform is ignored for a skinned mesh:
+//! the joints place it. Local transforms `L = T · R · S` come from a node's translation,
+//! rotation and scale, each replaced by the value of its animation channel at `t` (module
+//! `nodes`); the weights `w(t)` from the sampler of the mesh node's `weights`, else the node's
+//! or mesh's default weights. Samplers interpolate between keyframes as glTF specifies (module
+//! `animation`): LINEAR (rotations by spherical linear interpolation along the shorter arc),
+//! STEP, CUBICSPLINE (the cubic Hermite spline of Appendix C, rotations normalized); before the
+//! first and after the last keyframe the end values hold.
 //!
 //! Colours (the image, see [`super::Channels`]) come from `COLOR_0` (RGB, alpha ignored) plus its
 //! morph-target deltas, the same weighted sum; without `COLOR_0`, from the material's
 //! base-colour texture sampled bilinearly (see [`Texture`], always with repeat wrapping) at
 //! the texture coordinates it names (`TEXCOORD_n` plus deltas, `t` from the top as glTF
 //! has it). Colours and texels are taken as stored: `baseColorFactor`, sampler wrap modes and
-//! texture transforms are ignored.
+//! texture transforms are ignored. Skinning and node motion carry them with the surface.
 //!
 //! # What a file must hold
 //!
-//! Exactly one node with a mesh (not skinned); all of that mesh's primitives triangle lists.
+//! Exactly one node with a mesh; all of that mesh's primitives triangle lists.
 //! Several primitives are merged into one mesh: their vertices follow each other in primitive
 //! order and their triangles are renumbered accordingly; they then have colours only if
 //! every primitive has a source for them. Vertices are returned as stored, one per glTF
 //! vertex: glTF splits vertices along texture and normal seams, so the caller welds
 //! coincident vertices. Indices may be `u8`, `u16` or `u32`, or absent (triangles
-//! `(0, 1, 2), (3, 4, 5), …`). For an animation, the one chosen by name or index is used, else
-//! the first with a `weights` channel on the mesh node (with a warning listing all of them
-//! when there are several); it must not also move that node or its ancestors.
+//! `(0, 1, 2), (3, 4, 5), …`). When the node has a skin, every primitive has `JOINTS_0` and
+//! `WEIGHTS_0` (and further sets in pairs). For an animation, the one chosen by name or index
+//! is used, else the first that moves the mesh (with a warning listing all of them when there
+//! are several); its frames are at the keyframes of all its channels that move the mesh. A
+//! static frame is the mesh with every node at its own transform.
 
 mod animation;
 mod file;
+mod nodes;
+mod skin;
 
 use super::{FrameMesh, IoError, LoadOptions, RawSequence, Texture, VertexValues};
 pub(crate) use animation::clip_list;
 pub use animation::AnimationClip;
-use animation::{resampled_times, WeightTrack};
+use animation::{resampled_times, Motion};
 use file::GltfFile;
 use gltf::mesh::{Mode, Semantic};
 use gltf::Node;
-use nalgebra::{Matrix3, Matrix4, Quaternion, Unit, Vector3};
+use nalgebra::Vector3;
+use nodes::{Nodes, Pose};
+use skin::{Influences, Skin};
 use std::collections::HashMap;
 use std::path::Path;
 use std::rc::Rc;
 
-/// Reads a morph-target animation (`options.animation`, by name or index, else the first
-/// that moves the mesh): one frame per keyframe of the animation (`options.fps = None`), or
-/// frames at `t₀, t₀ + 1/fps, …` up to the last keyframe with interpolated weights. See the
-/// module documentation for what the file must contain. `times` are the frame times,
-/// `sources` the path once per frame; the other options are not used here.
+/// Reads an animation (`options.animation`, by name or index, else the first that moves the
+/// mesh): one frame per keyframe of its channels that move the mesh (`options.fps = None`), or
+/// frames at `t₀, t₀ + 1/fps, …` up to the last keyframe, interpolated. See the module
+/// documentation for what the file must contain. `times` are the frame times, `sources` the
+/// path once per frame; the other options are not used here.
 pub fn read_gltf_animation(path: &Path, options: &LoadOptions) -> Result<RawSequence, IoError> {
     let file = GltfFile::open(path)?;
     let node = mesh_node(&file)?;
-    let surface = Surface::read(&file, &node, true)?;
-    let (track, warning) = WeightTrack::read(
+    let nodes = Nodes::read(&file);
+    let surface = Surface::read(&file, &nodes, &node, true)?;
+    let (motion, warning) = Motion::read(
         &file,
+        &nodes,
         &node,
+        &surface.placing(),
         surface.target_count,
         options.animation.as_deref(),
     )?;
     let times = match options.fps {
-        None => track.times.clone(),
-        Some(fps) => resampled_times(&track.times, fps).map_err(|m| file.error(m))?,
+        None => motion.times.clone(),
+        Some(fps) => resampled_times(&motion.times, fps).map_err(|m| file.error(m))?,
     };
+    let rest_weights = default_weights(&file, &node, surface.target_count)?;
     let mut positions = Vec::with_capacity(times.len());
     let mut images = Vec::with_capacity(times.len());
     for &t in &times {
-        let weights = track.at(t);
-        positions.push(surface.positions(&weights));
+        let weights = motion.weights(t).unwrap_or_else(|| rest_weights.clone());
+        positions.push(surface.positions(&weights, &nodes.pose(&motion, t), &file)?);
         images.push(surface.image(&weights, &file)?);
     }
     Ok(RawSequence {
@@ -85,9 +104,9 @@ pub fn read_gltf_animation(path: &Path, options: &LoadOptions) -> Result<RawSequ
 }
 
 /// Reads one static mesh (for sequences stored one file per frame): the mesh node's
-/// geometry in world coordinates, at the default morph weights of the node or mesh (zero
-/// if neither gives any), with colours as in [`read_gltf_animation`]. Animations are
-/// ignored.
+/// geometry in world coordinates (skinned by the joints at their nodes' own transforms), at
+/// the default morph weights of the node or mesh (zero if neither gives any), with colours as
+/// in [`read_gltf_animation`]. Animations are ignored.
 pub fn read_gltf_frame(path: &Path) -> Result<FrameMesh, IoError> {
     read_static(path, true)
 }
@@ -100,17 +119,19 @@ pub fn read_gltf_geometry(path: &Path) -> Result<FrameMesh, IoError> {
 fn read_static(path: &Path, colors: bool) -> Result<FrameMesh, IoError> {
     let file = GltfFile::open(path)?;
     let node = mesh_node(&file)?;
-    let surface = Surface::read(&file, &node, colors)?;
+    let nodes = Nodes::read(&file);
+    let surface = Surface::read(&file, &nodes, &node, colors)?;
     let weights = default_weights(&file, &node, surface.target_count)?;
     Ok(FrameMesh {
-        positions: surface.positions(&weights),
+        positions: surface.positions(&weights, &nodes.rest(), &file)?,
         image: surface.image(&weights, &file)?,
         faces: surface.faces,
     })
 }
 
-/// Advice for files without a morph-target animation.
-const NO_ANIMATION: &str = "no morph-target animation; for one file per frame use a directory";
+/// Advice for files without an animation of the mesh.
+const NO_ANIMATION: &str = "no animation moves the mesh (its morph weights, skin joints or \
+                            node transforms); for one file per frame use a directory";
 
 /// The one node carrying a mesh.
 fn mesh_node<'a>(file: &'a GltfFile) -> Result<Node<'a>, IoError> {
@@ -120,10 +141,6 @@ fn mesh_node<'a>(file: &'a GltfFile) -> Result<Node<'a>, IoError> {
         .filter(|n| n.mesh().is_some())
         .collect();
     match nodes.as_slice() {
-        [node] if node.skin().is_some() => Err(file.error(format!(
-            "{}: skinned meshes are not supported",
-            node_label(node)
-        ))),
         [node] => Ok(node.clone()),
         [] => Err(file.error("no mesh: no node of the file carries a mesh")),
         _ => Err(file.error(format!(
@@ -137,70 +154,6 @@ fn node_label(node: &Node) -> String {
     match node.name() {
         Some(name) => format!("node {} ({name:?})", node.index()),
         None => format!("node {}", node.index()),
-    }
-}
-
-/// `node` and its ancestors, node first.
-fn ancestry(file: &GltfFile, node: &Node) -> Result<Vec<usize>, IoError> {
-    let mut parents = vec![None; file.document.nodes().len()];
-    for parent in file.document.nodes() {
-        for child in parent.children() {
-            if let Some(slot) = parents.get_mut(child.index()) {
-                *slot = Some(parent.index());
-            }
-        }
-    }
-    let mut chain = vec![node.index()];
-    while let Some(parent) = parents.get(chain[chain.len() - 1]).copied().flatten() {
-        if chain.contains(&parent) {
-            return Err(file.error(format!(
-                "the node hierarchy has a cycle through node {parent}"
-            )));
-        }
-        chain.push(parent);
-    }
-    Ok(chain)
-}
-
-/// The world transform of `node`: the product of its ancestors' local transforms and its own.
-fn world_transform(file: &GltfFile, node: &Node) -> Result<Matrix4<f64>, IoError> {
-    let nodes: Vec<Node> = file.document.nodes().collect();
-    let mut world = Matrix4::identity();
-    for index in ancestry(file, node)? {
-        let node = &nodes[index];
-        world = local_transform(node).ok_or_else(|| {
-            file.error(format!(
-                "{} has a zero rotation quaternion",
-                node_label(node)
-            ))
-        })? * world;
-    }
-    if !world.iter().all(|x| x.is_finite()) {
-        return Err(file.error(format!(
-            "the world transform of {} is not finite",
-            node_label(node)
-        )));
-    }
-    Ok(world)
-}
-
-/// A node's local transform in `f64` (translation · rotation · scale, or its matrix).
-fn local_transform(node: &Node) -> Option<Matrix4<f64>> {
-    match node.transform() {
-        gltf::scene::Transform::Matrix { matrix } => Some(Matrix4::from(matrix).cast()),
-        gltf::scene::Transform::Decomposed {
-            translation: [tx, ty, tz],
-            rotation: [x, y, z, w],
-            scale,
-        } => {
-            let rotation = Unit::try_new(Quaternion::new(w, x, y, z).cast::<f64>(), 0.0)?;
-            let linear = rotation.to_rotation_matrix().into_inner()
-                * Matrix3::from_diagonal(&Vector3::from(scale).cast());
-            let mut m = linear.to_homogeneous();
-            m.fixed_view_mut::<3, 1>(0, 3)
-                .copy_from(&Vector3::new(tx, ty, tz).cast());
-            Some(m)
-        }
     }
 }
 
@@ -286,28 +239,46 @@ struct MorphPrimitive {
     colors: Option<ColorSource>,
 }
 
-/// The mesh of the mesh node, all primitives merged, in the node's world frame.
+/// The mesh of the mesh node, all primitives merged, and what places it in the world.
 struct Surface {
     faces: Vec<[u32; 3]>,
     primitives: Vec<MorphPrimitive>,
     target_count: usize,
-    transform: Matrix4<f64>,
+    placement: Placement,
+}
+
+/// How the mesh is placed in the world.
+enum Placement {
+    /// By the world transform of the mesh node, given by its ancestry (node first).
+    Node(Vec<usize>),
+    /// By the joints of the node's skin, with the influences of every vertex.
+    Skin {
+        skin: Skin,
+        influences: Vec<Influences>,
+    },
 }
 
 impl Surface {
     /// The surface of `node`, with the primitives' colour sources when `colors`.
-    fn read(file: &GltfFile, node: &Node, colors: bool) -> Result<Self, IoError> {
+    fn read(file: &GltfFile, nodes: &Nodes, node: &Node, colors: bool) -> Result<Self, IoError> {
         let mesh = node
             .mesh()
             .ok_or_else(|| file.error(format!("{} has no mesh", node_label(node))))?;
         if mesh.primitives().len() == 0 {
             return Err(file.error(format!("mesh {} has no primitives", mesh.index())));
         }
+        let placement = match node.skin() {
+            Some(skin) => Placement::Skin {
+                skin: Skin::read(file, nodes, &skin)?,
+                influences: Vec::new(),
+            },
+            None => Placement::Node(nodes.ancestry(file, node.index())?),
+        };
         let mut surface = Surface {
             faces: Vec::new(),
             primitives: Vec::new(),
             target_count: 0,
-            transform: world_transform(file, node)?,
+            placement,
         };
         let mut textures = HashMap::new();
         for primitive in mesh.primitives() {
@@ -327,8 +298,12 @@ impl Surface {
                 )));
             }
             surface.target_count = target_count;
+            let vertex_count = read.positions.base.len();
+            if let Placement::Skin { skin, influences } = &mut surface.placement {
+                influences.extend(reader.influences(skin.joint_count(), vertex_count)?);
+            }
             let first_vertex = surface.vertex_count();
-            if u32::try_from(first_vertex + read.positions.base.len()).is_err() {
+            if u32::try_from(first_vertex + vertex_count).is_err() {
                 return Err(file.error("more than 2³² vertices"));
             }
             let first_vertex = first_vertex as u32;
@@ -344,15 +319,37 @@ impl Surface {
         self.primitives.iter().map(|p| p.positions.base.len()).sum()
     }
 
-    /// World positions of all vertices at the given morph weights.
-    fn positions(&self, weights: &[f64]) -> Vec<Vector3<f64>> {
-        let linear = self.transform.fixed_view::<3, 3>(0, 0);
-        let translation = self.transform.fixed_view::<3, 1>(0, 3);
-        self.primitives
-            .iter()
-            .flat_map(|p| p.positions.at(weights))
-            .map(|p| linear * Vector3::from(p) + translation)
-            .collect()
+    /// The nodes whose transforms place the mesh.
+    fn placing(&self) -> Vec<usize> {
+        match &self.placement {
+            Placement::Node(chain) => chain.clone(),
+            Placement::Skin { skin, .. } => skin.placing(),
+        }
+    }
+
+    /// World positions of all vertices at the given morph weights and node pose.
+    fn positions(
+        &self,
+        weights: &[f64],
+        pose: &Pose,
+        file: &GltfFile,
+    ) -> Result<Vec<Vector3<f64>>, IoError> {
+        let morphed = self.primitives.iter().flat_map(|p| p.positions.at(weights));
+        match &self.placement {
+            Placement::Node(chain) => {
+                let world = pose.world(file, chain)?;
+                let linear = world.fixed_view::<3, 3>(0, 0);
+                let translation = world.fixed_view::<3, 1>(0, 3);
+                Ok(morphed
+                    .map(|p| linear * Vector3::from(p) + translation)
+                    .collect())
+            }
+            Placement::Skin { skin, influences } => Ok(skin::blend(
+                morphed,
+                influences,
+                &skin.matrices(file, pose)?,
+            )),
+        }
     }
 
     /// Colours of all vertices, if every primitive has a source for them.

@@ -5,7 +5,7 @@
 //! | directory with `positions.npy` | NPY arrays: `positions.npy` (K, V, 3), `faces.npy` (F, 3), `intensity.npy` (K, V) |
 //! | directory of `.obj`, `.ply`, `.gltf` or `.glb` files | one frame per file, natural order (`frame_2` before `frame_10`) |
 //! | glob such as `run/frame_*.ply` | the matching files, natural order |
-//! | one `.gltf` or `.glb` file | a morph-target animation, one frame per keyframe |
+//! | one `.gltf` or `.glb` file | an animation of its mesh (morph targets, skin, node transforms), one frame per keyframe |
 
 use super::{natural_order, IoError};
 use crate::render::UpAxis;
@@ -48,7 +48,8 @@ pub enum SequenceSource {
         format: FrameFormat,
         files: Vec<PathBuf>,
     },
-    /// One glTF/GLB file holding a morph-target animation.
+    /// One glTF/GLB file holding an animation of its mesh (morph targets, skin or node
+    /// transforms).
     GltfAnimation(PathBuf),
     /// A directory with `positions.npy`, `faces.npy` and optionally `intensity.npy`.
     Npy(PathBuf),
@@ -118,7 +119,7 @@ impl SequenceSource {
     pub fn describe(&self) -> String {
         match self {
             Self::Frames { format, files } => format!("{} {} frames", files.len(), format.name()),
-            Self::GltfAnimation(_) => "glTF morph animation".into(),
+            Self::GltfAnimation(_) => "glTF animation".into(),
             Self::Npy(_) => "NPY arrays".into(),
             Self::Arrays => "arrays in memory".into(),
         }

@@ -1,8 +1,8 @@
 //! Reading and writing files.
 //!
-//! In: mesh sequences as OBJ, PLY or glTF frames, one glTF morph animation, or NPY arrays
-//! ([`load_sequence`]); a known flow to compare with ([`read_ground_truth`]); single meshes
-//! ([`load_mesh`]). Both loaders weld seams, drop unused vertices, orient and optionally
+//! In: mesh sequences as OBJ, PLY or glTF frames, one glTF animation (morph targets, skin or
+//! node transforms), or NPY arrays ([`load_sequence`]); a known flow to compare with
+//! ([`read_ground_truth`]); single meshes ([`load_mesh`]). Both loaders weld seams, drop unused vertices, orient and optionally
 //! repair the faces, and keep a [`VertexMap`] between the files' vertices and the mesh's. Out: the flow (and its errors against a known one) as NPY, ParaView
 //! VTU/PVD and glTF ([`write_flow_outputs`]), operators as MatrixMarket.
 //!

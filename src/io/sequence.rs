@@ -51,7 +51,7 @@ pub struct LoadOptions {
     /// where the surface only touches itself (`docs/io.md`).
     pub weld: bool,
     /// The animation of a glTF file to read, by name, else by index (`"2"`); `None`: the first
-    /// that moves the mesh's morph weights.
+    /// that moves the mesh (its morph weights, skin joints or node transforms).
     pub animation: Option<String>,
     /// How close coincident vertices are, relative to the bounding-box diagonal of frame 0
     /// (0: bitwise equal).

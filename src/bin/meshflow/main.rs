@@ -50,8 +50,8 @@ enum Command {
         force: ForceArg,
     },
     /// Compute the optical flow of a mesh sequence. INPUT is a directory of .obj/.ply/.gltf/.glb
-    /// frames (natural order, same faces), a glob ('dir/frame_*.ply'), one .gltf/.glb morph
-    /// animation, or a directory with positions.npy, faces.npy, intensity.npy. Grey values come
+    /// frames (natural order, same faces), a glob ('dir/frame_*.ply'), one .gltf/.glb animation
+    /// (morph targets, skin), or a directory with positions.npy, faces.npy, intensity.npy. Grey values come
     /// from vertex colours, textures, a PLY property or --intensity; times from --times,
     /// the glTF animation, a times.txt beside the frames, or 0,1,2,… Writes flow.npy (S×V×3),
     /// flow_intrinsic.npy (S×V×2), flow_SSSS.vtu + flow.pvd (ParaView), flow.glb and
@@ -262,7 +262,7 @@ struct SolveArgs {
     #[arg(long, value_name = "N")]
     fps: Option<f64>,
     /// The glTF animation (clip) to read, by name or index (default: the first that moves the
-    /// mesh's morph weights)
+    /// mesh: its morph weights, skin joints or node transforms)
     #[arg(long, value_name = "NAME|INDEX")]
     animation: Option<String>,
     #[command(flatten)]
