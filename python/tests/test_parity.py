@@ -13,7 +13,7 @@ from conftest import SAMPLE, run
 
 def write_plain_obj(path, positions, faces):
     """An OBJ without colours: geometry only."""
-    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in positions]
+    lines = [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in positions]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
     path.write_text("\n".join(lines) + "\n")
 
