@@ -599,7 +599,7 @@ impl Flow {
         py.detach(|| -> Result<(), Error> {
             let mut staged = StagedDir::create(&out, overwrite)?;
             staged.record_command(["python", "-c", "meshflow.write_outputs(...)"]);
-            let view = View::default().with_up(self.loaded.source.up());
+            let view = View::default().with_up(self.loaded.default_up().axis);
             write_flow_outputs(
                 &staged,
                 &self.loaded,
