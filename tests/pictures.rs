@@ -317,64 +317,152 @@ fn extent(image: &image::RgbImage) -> (u32, u32) {
     (span(|p| p.0), span(|p| p.1))
 }
 
-#[test]
-fn gltf_input_is_drawn_upright() {
-    use meshflow::io::gltf_write::{write_glb_animation, AnimationFrame};
-    // A cigar along +y (the glTF up axis) rising slowly, with stripes turning about it.
+/// Three frames of a cigar (the level-3 icosphere stretched 5 times along axis `long`, 1 = y
+/// or 2 = z) rising slowly along its length, with grey stripes turning about it.
+struct Cigar {
+    faces: Vec<[u32; 3]>,
+    positions: Vec<Vec<nalgebra::Vector3<f64>>>,
+    colours: Vec<Vec<[f64; 3]>>,
+}
+
+fn cigar(long: usize) -> Cigar {
     let sphere = meshflow::shapes::icosphere(3);
-    let positions: Vec<Vec<nalgebra::Vector3<f64>>> = (0..3)
+    let (across, around) = ((long + 1) % 3, (long + 2) % 3);
+    let mut stretch = nalgebra::Vector3::repeat(0.3);
+    stretch[long] = 1.5;
+    let positions = (0..3)
         .map(|k| {
-            let lift = nalgebra::Vector3::new(0.0, 0.02 * k as f64, 0.0);
-            sphere
-                .positions
-                .iter()
-                .map(|p| p.component_mul(&nalgebra::Vector3::new(0.3, 1.5, 0.3)) + lift)
-                .collect()
+            let mut lift = nalgebra::Vector3::zeros();
+            lift[long] = 0.02 * k as f64;
+            let stretched = sphere.positions.iter().map(|p| p.component_mul(&stretch));
+            stretched.map(|p| p + lift).collect()
         })
         .collect();
-    let colours: Vec<Vec<[f64; 3]>> = (0..3)
+    let colours = (0..3)
         .map(|k| {
-            sphere
-                .positions
-                .iter()
-                .map(|p| [0.5 + 0.4 * (4.0 * p.z.atan2(p.x) + 0.1 * k as f64).sin(); 3])
-                .collect()
+            let stripe = |p: &nalgebra::Vector3<f64>| {
+                0.5 + 0.4 * (4.0 * p[across].atan2(p[around]) + 0.1 * k as f64).sin()
+            };
+            sphere.positions.iter().map(|p| [stripe(p); 3]).collect()
         })
         .collect();
-    let frames: Vec<AnimationFrame> = (0..3)
-        .map(|k| AnimationFrame {
-            time: k as f64,
-            positions: &positions[k],
-            colors: &colours[k],
-        })
-        .collect();
-    let out = tempfile::tempdir().unwrap();
-    let file = out.path().join("cigar.glb");
-    write_glb_animation(&file, &sphere.faces, &frames).unwrap();
-    let run = out.path().join("run");
-    let size = ["--size", "300x300", "--slabs", "0"];
+    Cigar {
+        faces: sphere.faces,
+        positions,
+        colours,
+    }
+}
+
+const ONE_SMALL_SLAB: [&str; 6] = ["--size", "300x300", "--slabs", "0", "--beta", "0.01"];
+
+/// `solve INPUT --out RUN --png` on slab 0 at 300 × 300, with `extra` arguments; its stdout.
+fn solve_one_slab(input: &Path, run: &Path, extra: &[&str]) -> String {
     let args = [
         "solve",
-        file.to_str().unwrap(),
+        input.to_str().unwrap(),
         "--out",
         run.to_str().unwrap(),
         "--png",
     ];
-    meshflow_ok(&[&args[..], &size, &["--beta", "0.01"]].concat());
+    let output = meshflow_ok(&[&args[..], &ONE_SMALL_SLAB, extra].concat());
+    String::from_utf8_lossy(&output.stdout).into_owned()
+}
+
+fn summary_up(run: &Path) -> String {
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
-    assert_eq!(summary["view"]["up"], "y");
+    summary["view"]["up"].as_str().unwrap().to_string()
+}
+
+#[test]
+fn gltf_input_is_drawn_upright() {
+    use meshflow::io::gltf_write::{write_glb_animation, AnimationFrame};
+    // Along +y, the glTF up axis.
+    let cigar = cigar(1);
+    let frames: Vec<AnimationFrame> = (0..3)
+        .map(|k| AnimationFrame {
+            time: k as f64,
+            positions: &cigar.positions[k],
+            colors: &cigar.colours[k],
+        })
+        .collect();
+    let out = tempfile::tempdir().unwrap();
+    let file = out.path().join("cigar.glb");
+    write_glb_animation(&file, &cigar.faces, &frames).unwrap();
+    let run = out.path().join("run");
+    let said = solve_one_slab(&file, &run, &[]);
+    assert!(
+        said.contains("view: up axis y (the glTF convention; --up z to change)"),
+        "{said}"
+    );
+    assert_eq!(summary_up(&run), "y");
     let upright = picture(&run.join("grey_0000.png"));
     let (width, height) = extent(&upright);
     assert!(height > 3 * width, "{width} x {height}: not upright");
 
     // render uses the solve's view: the same pixels; --up z lays it down.
     let render = ["render", run.to_str().unwrap()];
-    meshflow_ok(&[&render[..], &size].concat());
+    let size = &ONE_SMALL_SLAB[..4];
+    meshflow_ok(&[&render[..], size].concat());
     assert!(picture(&run.join("grey_0000.png")) == upright);
-    meshflow_ok(&[&render[..], &size, &["--up", "z"]].concat());
+    meshflow_ok(&[&render[..], size, &["--up", "z"]].concat());
     let (width, height) = extent(&picture(&run.join("grey_0000.png")));
     assert!(height < width, "{width} x {height}: not lying");
+}
+
+/// OBJ frames do not say which way is up: a cigar stands on its length whether that is y or
+/// z (a rod), says why, and an explicit `--up` wins.
+#[test]
+fn obj_input_stands_on_the_axis_its_shape_suggests() {
+    for (long, up, other) in [(1, "y", "z"), (2, "z", "y")] {
+        let cigar = cigar(long);
+        let out = tempfile::tempdir().unwrap();
+        let frames = out.path().join("frames");
+        std::fs::create_dir(&frames).unwrap();
+        for k in 0..3 {
+            let file = frames.join(format!("frame_{k}.obj"));
+            let colours = Some(cigar.colours[k].as_slice());
+            meshflow::io::write_obj(&file, &cigar.positions[k], &cigar.faces, colours).unwrap();
+        }
+        let run = out.path().join("run");
+        let said = solve_one_slab(&frames, &run, &[]);
+        let line = format!("view: up axis {up} (chosen from the data: a rod, spreads 0.");
+        assert!(said.contains(&line), "{said}");
+        let reason = format!(" : 1, its axis 0° from {up}; --up {other} to change)");
+        assert!(said.contains(&reason), "{said}");
+        assert_eq!(summary_up(&run), up);
+        let (width, height) = extent(&picture(&run.join("grey_0000.png")));
+        assert!(height > 3 * width, "{up}: {width} x {height}: not upright");
+
+        // A run whose summary has no view (an older one): render chooses from slab 0 alike.
+        let summary = run.join("summary.json");
+        let mut recorded: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+        recorded.as_object_mut().unwrap().remove("view");
+        std::fs::write(&summary, recorded.to_string()).unwrap();
+        let rendered =
+            meshflow_ok(&[&["render", run.to_str().unwrap()], &ONE_SMALL_SLAB[..4]].concat());
+        let said = String::from_utf8_lossy(&rendered.stdout);
+        assert!(said.contains(&line), "{said}");
+        let (width, height) = extent(&picture(&run.join("grey_0000.png")));
+        assert!(
+            height > 3 * width,
+            "render, {up}: {width} x {height}: not upright"
+        );
+
+        let given = out.path().join("given");
+        let said = solve_one_slab(&frames, &given, &["--up", other]);
+        assert!(
+            said.contains(&format!("view: up axis {other} (--up)")),
+            "{said}"
+        );
+        assert_eq!(summary_up(&given), other);
+        let (width, height) = extent(&picture(&given.join("grey_0000.png")));
+        assert!(
+            height < width,
+            "--up {other}: {width} x {height}: not lying"
+        );
+    }
 }
 
 /// `--slabs` chooses which pictures to draw, not how they look: one camera and one flow scale

@@ -401,6 +401,62 @@ fn textured_obj_frames_are_sampled_bilinearly_and_welded() {
     assert_eq!(split.sequence.mesh().n_vertices(), 3 * 2 * n * n);
 }
 
+/// Material libraries go through tobj for their `newmtl` and `map_Kd` statements only: colour
+/// statements it would reject or panic on do not matter, `map_Kd` options are skipped (the
+/// image name may have spaces), and a broken library is an error naming the OBJ file, the
+/// library and its line.
+#[test]
+fn material_libraries_are_read_leniently_and_their_errors_name_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let image = image::RgbImage::from_pixel(2, 2, image::Rgb([51, 102, 204]));
+    image.save(dir.path().join("wood grain.png")).unwrap();
+    for k in 0..2 {
+        let (text, _) = split_textured_square(2, 0.1 * k as f64);
+        std::fs::write(dir.path().join(format!("frame_{k}.obj")), text).unwrap();
+    }
+    let load_with = |library: &str| {
+        std::fs::write(dir.path().join("square.mtl"), library).unwrap();
+        load_sequence(dir.path(), &Default::default())
+    };
+    let loaded = load_with(
+        "# by hand\nnewmtl checker\nKd 0.8\nd -halo 0.5\nKa spectral paint.rfl\n\
+         map_Kd -s 1 1 1 -clamp on wood grain.png\n",
+    )
+    .unwrap();
+    for (channel, expected) in loaded.sequence.channels(0).iter().zip([0.2, 0.4, 0.8]) {
+        assert!(
+            channel.iter().all(|c| (c - expected).abs() < 1e-6),
+            "{channel:?}"
+        );
+    }
+    let broken = [
+        (
+            "map_Kd wood grain.png\nnewmtl checker\n",
+            "square.mtl, line 1: map_Kd before any newmtl",
+        ),
+        (
+            "newmtl checker\n\nmap_Kd\n",
+            "square.mtl, line 3: 'map_Kd': material parse error",
+        ),
+        (
+            "# none\nnewmtl\n",
+            "square.mtl, line 2: 'newmtl': invalid object name",
+        ),
+        (
+            "newmtl checker\nmap_Kd -s 1 1 1 -clamp on\n",
+            "square.mtl: material 'checker': map_Kd '-s 1 1 1 -clamp on' names no image",
+        ),
+    ];
+    for (library, expected) in broken {
+        let error = load_with(library).unwrap_err().to_string();
+        assert!(
+            error.contains(".obj: material library square.mtl: "),
+            "{error}"
+        );
+        assert!(error.contains(expected), "{error}");
+    }
+}
+
 /// A rotating, textured sphere whose numbers are exact in float32 (positions on a 1/1024 grid,
 /// grey values on a 1/256 grid), so glTF storage loses nothing.
 /// Faces, positions per frame, grey values per frame.

@@ -776,7 +776,7 @@ type TrajectoryArrays<'py> = (
 impl Flow {
     /// The view of the pictures: the default angles and the input's up axis.
     fn view(&self) -> View {
-        View::default().with_up(self.loaded.source.up())
+        View::default().with_up(self.loaded.default_up().axis)
     }
 }
 

@@ -90,7 +90,7 @@ pub struct Scores<'a> {
 
 /// Writes the outputs of `result` for `loaded` into `out` (see the module table), with the
 /// errors against a ground truth when there is one; `flow.glb` is coloured as pictures from
-/// `view` show the flow (e.g. `View::default().with_up(loaded.source.up())`), and
+/// `view` show the flow (e.g. `View::default().with_up(loaded.default_up().axis)`), and
 /// `summary.json` records `view`.
 pub fn write_flow_outputs(
     out: &StagedDir,

@@ -102,16 +102,17 @@ impl SequenceSource {
         Some(directory.join("times.txt"))
     }
 
-    /// The axis that is up by the input format's convention: +y for glTF (its specification
-    /// says so), +z for everything else (a guess: scanners and many tools write z up).
-    pub fn up(&self) -> UpAxis {
+    /// The axis that is up by the input format's convention, and the format: +y for glTF (its
+    /// specification says so); `None` for OBJ, PLY and NPY, which do not say (see
+    /// [`crate::render::upright`] for what the data then suggests).
+    pub fn up_convention(&self) -> Option<(UpAxis, &'static str)> {
         match self {
             Self::Frames {
                 format: FrameFormat::Gltf,
                 ..
             }
-            | Self::GltfAnimation(_) => UpAxis::Y,
-            Self::Frames { .. } | Self::Npy(_) | Self::Arrays => UpAxis::Z,
+            | Self::GltfAnimation(_) => Some((UpAxis::Y, FrameFormat::Gltf.name())),
+            Self::Frames { .. } | Self::Npy(_) | Self::Arrays => None,
         }
     }
 

@@ -5,6 +5,28 @@
 //! material. OBJ's `v` runs upwards, so a corner with `vt u v` samples at `(u, 1 − v)`. Averaging
 //! over corners makes vertices on a UV seam (one vertex, several `vt`) and vertices split at the
 //! seam and later welded give the same value.
+//!
+//! # Reading `.mtl` files
+//!
+//! Material libraries are parsed by `tobj` ([`tobj::load_mtl_buf`]); the OBJ geometry is not
+//! (see [`super::obj`]: tobj renumbers vertices by first use). Only the statements meshflow
+//! reads, `newmtl` and `map_Kd`, are handed to it (the others become blank lines, so line
+//! numbers stay): tobj 4.0 panics on a colour with fewer than three numbers (`Kd 0.8`) and
+//! rejects forms the MTL specification allows (`Kd spectral paint.rfl`, `d -halo 0.5`), none
+//! of which changes a texture. Three things stay by hand, because tobj does not do them:
+//!
+//! - **`map_Kd` options.** tobj keeps the whole rest of the line as the texture name, options
+//!   included (`-s 1 1 1 -clamp on wood grain.png`); [`map_file_name`] skips the options and
+//!   their values and keeps the name, which may contain spaces. The options themselves (scale,
+//!   offset, clamping) are not applied: the texture is sampled as it is.
+//! - **Which line is broken.** tobj rejects a malformed statement (an empty `newmtl` or
+//!   `map_Kd`) with a bare error kind; its statements are line by line, so the library is then
+//!   parsed again a line at a time to name the one tobj rejects.
+//! - **A `map_Kd` before the first `newmtl`.** tobj silently drops statements that belong to
+//!   no material, which would lose the texture without a word; it is refused, naming the line.
+//!
+//! The file is read here (so a missing one is an error naming it) and decoded leniently, so a
+//! file name in another encoding does not fail the whole library.
 
 use super::{IoError, ObjMesh, Texture};
 use std::collections::HashMap;
@@ -131,22 +153,74 @@ fn material_textures(
 
 /// Material name → absolute path of its `map_Kd` image, from one `.mtl` file.
 fn read_mtl(path: &Path) -> Result<HashMap<String, PathBuf>, IoError> {
-    let text = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
-    let base = path.parent().unwrap_or(Path::new(""));
-    let mut maps = HashMap::new();
-    let mut current = None;
-    for (number, line) in String::from_utf8_lossy(&text).lines().enumerate() {
-        let line = line.trim();
-        if let Some(name) = line.strip_prefix("newmtl") {
-            current = Some(name.trim().to_string());
-        } else if let Some(arguments) = line.strip_prefix("map_Kd") {
-            let material = current.clone().ok_or_else(|| {
-                IoError::at_line(path, (number + 1, "map_Kd before any newmtl".into()))
-            })?;
-            maps.insert(material, base.join(map_file_name(arguments)));
-        }
+    let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
+    let text = statements_read_here(&String::from_utf8_lossy(&bytes));
+    if let Some(line) = map_before_any_newmtl(&text) {
+        let message = "map_Kd before any newmtl".to_string();
+        return Err(IoError::at_line(path, (line, message)));
     }
-    Ok(maps)
+    let (materials, _) = tobj::load_mtl_buf(&mut text.as_bytes())
+        .map_err(|error| IoError::at_line(path, rejected_line(&text, error)))?;
+    let base = path.parent().unwrap_or(Path::new(""));
+    let textured = materials
+        .into_iter()
+        .filter_map(|m| Some((m.name, m.diffuse_texture?)));
+    textured
+        .map(|(name, map)| match map_file_name(&map) {
+            file if file.is_empty() => Err(IoError::format(
+                path,
+                format!("material '{name}': map_Kd '{map}' names no image, only options"),
+            )),
+            file => Ok((name, base.join(file))),
+        })
+        .collect()
+}
+
+/// `text` with every line but the `newmtl` and `map_Kd` statements blank.
+fn statements_read_here(text: &str) -> String {
+    let read_here = |line: &&str| matches!(keyword(line), Some("newmtl" | "map_Kd"));
+    let lines: Vec<&str> = text
+        .lines()
+        .map(|line| Some(line).filter(read_here).unwrap_or(""))
+        .collect();
+    lines.join("\n")
+}
+
+/// The first word of a line.
+fn keyword(line: &str) -> Option<&str> {
+    line.split_whitespace().next()
+}
+
+/// The line number of a `map_Kd` that comes before any `newmtl` in an `.mtl` text.
+fn map_before_any_newmtl(text: &str) -> Option<usize> {
+    statements(text)
+        .take_while(|(_, statement)| keyword(statement) != Some("newmtl"))
+        .find(|(_, statement)| keyword(statement) == Some("map_Kd"))
+        .map(|(number, _)| number)
+}
+
+/// `(line number, statement)` of the non-blank, non-comment lines, trimmed.
+fn statements(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    text.lines()
+        .map(str::trim)
+        .enumerate()
+        .filter(|(_, line)| !line.is_empty() && !line.starts_with('#'))
+        .map(|(i, line)| (i + 1, line))
+}
+
+/// The line of `text` that tobj rejects with `error`, parsed alone after a `newmtl`, and what
+/// is wrong with it (line 0 if no single line fails).
+fn rejected_line(text: &str, error: tobj::LoadError) -> (usize, String) {
+    let fails_alone = |statement: &str| {
+        let alone = format!("newmtl probe\n{statement}\n");
+        tobj::load_mtl_buf(&mut alone.as_bytes()).err()
+    };
+    statements(text)
+        .find_map(|(number, statement)| {
+            let error = fails_alone(statement)?;
+            Some((number, format!("'{statement}': {error}")))
+        })
+        .unwrap_or((0, error.to_string()))
 }
 
 /// The file name of a `map_Kd` statement: what follows its options (`-o 0 0 0`, `-clamp on`, …);

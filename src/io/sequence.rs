@@ -26,6 +26,7 @@ use super::{Channels, VertexValues};
 use super::{FrameMesh, IoError, LoadWarning, RawSequence, TextureCache, VertexMap};
 use crate::flow::{check_finite_intensities, FlowError, Images, MeshSequence};
 use crate::mesh::Mesh;
+use crate::render::UpChoice;
 use crate::Error;
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -93,6 +94,21 @@ pub struct LoadedSequence {
     pub frame_files: Vec<PathBuf>,
     /// What the loader noticed and worked around (see [`LoadWarning`]).
     pub warnings: Vec<LoadWarning>,
+}
+
+impl LoadedSequence {
+    /// The up axis of pictures when `--up` is not given: the format's convention (glTF: y),
+    /// else what frame 0's shape suggests ([`crate::render::upright`]), z for an intrinsic
+    /// sequence.
+    pub fn default_up(&self) -> UpChoice {
+        if let Some((axis, format)) = self.source.up_convention() {
+            return UpChoice::by_convention(axis, format);
+        }
+        match self.sequence.positions(0) {
+            Some(positions) => UpChoice::from_shape(positions, self.sequence.mesh().faces()),
+            None => UpChoice::without_shape(),
+        }
+    }
 }
 
 /// Reads the sequence that `path` names (a directory, a glob, a glTF animation; see

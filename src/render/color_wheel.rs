@@ -1,4 +1,4 @@
-//! The Middlebury optical-flow colour coding.
+//! The Middlebury optical-flow colour coding, with its seam closed.
 //!
 //! Baker, Scharstein, Lewis, Roth, Black & Szeliski, "A Database and Evaluation Methodology for
 //! Optical Flow", IJCV 92 (2011), code `computeColor.m` / `flowToColor`. A vector `(u, v)`,
@@ -12,8 +12,9 @@
 //!
 //! with `W` the 55-colour wheel: red → yellow in 15 steps, yellow → green 6, green → cyan 4,
 //! cyan → blue 11, blue → magenta 13, magenta → red 6, each entry `⌊255 i / n⌋ / 255` as in
-//! the reference. So the zero vector is white, `r = 1` gives the pure wheel colour, and longer
-//! vectors are dimmed.
+//! the reference except the last segment's (see *The seam, closed*); the index `⌊f_k⌋ + 1`
+//! is taken modulo 55. So the zero vector is white, `r = 1` gives the pure wheel colour, and
+//! longer vectors are dimmed.
 //!
 //! # Orientation
 //!
@@ -24,17 +25,26 @@
 //! green → cyan → blue → magenta *counter-clockwise*, whereas on a Middlebury picture (y down)
 //! they run clockwise on the screen: a surface picture is the mirror image of the usual key.
 //!
-//! The reference spreads the 55 entries over 54 intervals, so the last entry `(1, 0, 43/255)`
-//! and the first `(1, 0, 0)` are never blended: at the direction `+u` the blue channel jumps
-//! by `43/255`. This is kept for fidelity (exactly on that direction the sign of a zero `v`
-//! picks the side, as it does in the reference's `atan2`).
+//! # The seam, closed
+//!
+//! The reference spreads its 55 entries over 54 intervals, so its last entry `(1, 0, 43/255)`
+//! and its first `(1, 0, 0)` are never blended: at the direction `+u` the blue channel jumps by
+//! `43/255`, a seam on every picture of a rotating surface. Here the magenta → red segment
+//! instead ramps blue down in `⌊255 i / 5⌋` steps, so its 6 entries run `255, 204, …, 51, 0`
+//! and the last one *is* red: the wheel closes and the colour is Lipschitz in the angle
+//! everywhere (at most `(64/255) · 54/(2π) ≈ 2.2` per radian, the green → cyan steps). Entries
+//! 0–49, the first five segments and magenta itself, are the reference's, so every direction
+//! but the last 5/54 of the turn (33°, from magenta towards `+u` coming from `−v`) gets
+//! exactly the reference's colour.
 
 use std::f64::consts::PI;
 
 /// One segment of the wheel: `steps` entries from `start`, along which one channel ramps up
-/// (`rising`) or down in steps of `⌊255 i / steps⌋`.
+/// (`rising`) or down in steps of `⌊255 i / ramp⌋`. The reference's segments have
+/// `ramp = steps` and end one step short of the next segment's start.
 struct Segment {
     steps: usize,
+    ramp: usize,
     start: [usize; 3],
     channel: usize,
     rising: bool,
@@ -43,20 +53,29 @@ struct Segment {
 const fn segment(steps: usize, start: [usize; 3], channel: usize, rising: bool) -> Segment {
     Segment {
         steps,
+        ramp: steps,
         start,
         channel,
         rising,
     }
 }
 
-/// The reference's wheel, on a 0..=255 scale.
+/// A segment whose last entry reaches the ramp's end (`ramp = steps − 1`): the closing one.
+const fn closing_segment(steps: usize, start: [usize; 3], channel: usize, rising: bool) -> Segment {
+    Segment {
+        ramp: steps - 1,
+        ..segment(steps, start, channel, rising)
+    }
+}
+
+/// The wheel on a 0..=255 scale: the reference's, closed at red (see the module docs).
 const SEGMENTS: [Segment; 6] = [
     segment(15, [255, 0, 0], 1, true),    // red → yellow: green rises
     segment(6, [255, 255, 0], 0, false),  // yellow → green: red falls
     segment(4, [0, 255, 0], 2, true),     // green → cyan: blue rises
     segment(11, [0, 255, 255], 1, false), // cyan → blue: green falls
     segment(13, [0, 0, 255], 0, true),    // blue → magenta: red rises
-    segment(6, [255, 0, 255], 2, false),  // magenta → red: blue falls
+    closing_segment(6, [255, 0, 255], 2, false), // magenta → red: blue falls to 0
 ];
 const WHEEL_SIZE: usize = 55;
 
@@ -66,7 +85,7 @@ const OUT_OF_RANGE_DIMMING: f64 = 0.75;
 impl Segment {
     /// Entry `i < steps` of this segment, in `[0, 1]`; integer arithmetic as in the reference.
     fn entry(&self, i: usize) -> [f64; 3] {
-        let ramp = 255 * i / self.steps;
+        let ramp = 255 * i / self.ramp;
         let mut colour = self.start;
         colour[self.channel] = if self.rising { ramp } else { 255 - ramp };
         colour.map(|c| c as f64 / 255.0)
@@ -103,7 +122,8 @@ pub fn flow_color(u: f64, v: f64) -> [f64; 3] {
     })
 }
 
-/// The wheel colour at `a ∈ [−1, 1]`, linearly interpolated between neighbouring entries.
+/// The wheel colour at `a ∈ [−1, 1]`, linearly interpolated between neighbouring entries
+/// (`a = 1` is entry 54, red like entry 0, so both ends of the range give the same colour).
 fn wheel_color(a: f64) -> [f64; 3] {
     let position = (a + 1.0) / 2.0 * (WHEEL_SIZE - 1) as f64;
     let k0 = position.floor() as usize;

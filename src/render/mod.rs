@@ -19,6 +19,11 @@
 //! *Shading* ([`shading`]): Lambert with a light fixed to the camera,
 //! `colour · (ambient + diffuse · |n · l|)`, two-sided, with area-weighted vertex normals.
 //!
+//! *Up axis* ([`upright`]): without `--up`, glTF input is y up by its convention and other
+//! input gets the axis its frame-0 shape suggests from the area-weighted principal spreads:
+//! sheets and disks lie flat and rods stand when their axis is near y or z, balls keep z,
+//! everything else gets y, the convention of scanned and exported models.
+//!
 //! *Antialiasing*: everything, surface and overlays alike, is drawn at `s × s` samples per
 //! pixel (`s = 3` by default) and box-filtered down.
 //!
@@ -61,6 +66,7 @@ pub mod raster;
 pub mod shading;
 pub mod slabs;
 pub mod text;
+pub mod upright;
 
 pub use camera::{Camera, UpAxis, View};
 pub use error::RenderError;
@@ -75,3 +81,4 @@ pub use slabs::{
     result_views, sequence_views, write_chosen_slab_pictures, write_slab_pictures, FigureOptions,
     SlabSelection, SlabView,
 };
+pub use upright::{Shape, ShapeUp, UpChoice, UpReason};

@@ -49,7 +49,9 @@ pub fn advect(
         let (faces, times) = (sequence.mesh().faces(), sequence.times());
         write_npy_sequence(staged.path(), &positions, faces, Some(&grey), times)
             .map_err(|e| target(e.into()))?;
-        let view = View::default().with_up(loaded.source.up());
+        let up = loaded.default_up();
+        println!("{}", crate::pictures::up_axis_line(&up, None));
+        let view = View::default().with_up(up.axis);
         draw_paths(&staged, sequence, &trajectories, view).map_err(target)?;
     }
     staged.commit()?;

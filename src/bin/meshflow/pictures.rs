@@ -6,7 +6,8 @@ use crate::progress::{count_progress, during};
 use meshflow::io::vtk::{read_pvd, read_vtu, VtuMesh};
 use meshflow::io::{IoError, Overwrite, StagedDir};
 use meshflow::render::{
-    write_chosen_slab_pictures, FigureOptions, RenderError, SlabSelection, SlabView, UpAxis, View,
+    write_chosen_slab_pictures, FigureOptions, RenderError, SlabSelection, SlabView, UpAxis,
+    UpChoice, View,
 };
 use meshflow::Error;
 use nalgebra::Vector3;
@@ -24,7 +25,8 @@ pub struct PictureArgs {
     #[arg(long, allow_hyphen_values = true)]
     view: Option<View>,
     /// The world axis that points up in pictures: x, y, z, -x, -y or -z [default: y for glTF
-    /// input, else z (solve), the solve's axis (render)]
+    /// input, else chosen from frame 0's shape, printed with the reason (solve); the solve's
+    /// axis (render)]
     #[arg(long, allow_hyphen_values = true)]
     up: Option<UpAxis>,
     /// Flow speed at the rim of the colour wheel and of the reference arrow (default: the 99th
@@ -42,6 +44,16 @@ impl PictureArgs {
     pub fn view(&self, base: View) -> View {
         let up = self.up.unwrap_or(base.up);
         self.view.unwrap_or(base).with_up(up)
+    }
+
+    /// The default view about `default`'s up axis, with `--view` and `--up` where given; prints
+    /// the up axis and why it was chosen.
+    pub fn announced_view(&self, default: &UpChoice) -> View {
+        match self.up {
+            Some(up) => println!("view: up axis {up} (--up)"),
+            None => println!("{}", up_axis_line(default, Some(default.alternative()))),
+        }
+        self.view(View::default().with_up(default.axis))
     }
 
     /// The slabs of `--slabs` among `n_slabs`, all by default.
@@ -66,6 +78,15 @@ impl PictureArgs {
             ..FigureOptions::default()
         }
     }
+}
+
+/// "view: up axis y (chosen from the data: …; --up z to change)", the hint where `--up` can
+/// change it.
+pub fn up_axis_line(choice: &UpChoice, alternative: Option<UpAxis>) -> String {
+    let hint = alternative
+        .map(|axis| format!("; --up {axis} to change"))
+        .unwrap_or_default();
+    format!("view: up axis {} ({}{hint})", choice.axis, choice.reason)
 }
 
 fn parse_size(text: &str) -> Result<(u32, u32), String> {
@@ -198,7 +219,13 @@ pub fn render_output(
         .into());
     }
     let chosen = args.slabs(slabs.len())?;
-    let view = args.view(solved_view(dir)?);
+    let view = match solved_view(dir)? {
+        Some(view) => args.view(view),
+        None => args.announced_view(&UpChoice::from_shape(
+            &first.mesh.points,
+            &first.mesh.triangles,
+        )),
+    };
     let flows: Vec<Vec<Vector3<f64>>> = slabs.iter().map(SlabFile::flow).collect();
     let views: Vec<SlabView> = (0..slabs.len())
         .zip(&flows)
@@ -243,20 +270,20 @@ fn same_directory(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// The view that `meshflow solve` recorded in `DIR/summary.json`; the default view (+z up) for
-/// outputs without one.
-fn solved_view(dir: &Path) -> Result<View, Error> {
+/// The view that `meshflow solve` recorded in `DIR/summary.json`; `None` for outputs without
+/// one.
+fn solved_view(dir: &Path) -> Result<Option<View>, Error> {
     let file = dir.join("summary.json");
     let text = match std::fs::read(&file) {
         Ok(text) => text,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(View::default()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(IoError::file(&file, e).into()),
     };
     let summary: serde_json::Value = serde_json::from_slice(&text)
         .map_err(|e| IoError::format(&file, format!("not JSON ({e})")))?;
-    match summary.get("view") {
-        None => Ok(View::default()),
-        Some(view) => serde_json::from_value(view.clone())
-            .map_err(|e| IoError::format(&file, format!("'view' is not a view ({e})")).into()),
-    }
+    summary
+        .get("view")
+        .map(|view| serde_json::from_value(view.clone()))
+        .transpose()
+        .map_err(|e| IoError::format(&file, format!("'view' is not a view ({e})")).into())
 }

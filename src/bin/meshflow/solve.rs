@@ -66,9 +66,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         true => args.pictures.slabs(sequence.n_slabs())?,
         false => Vec::new(),
     };
-    let view = args
-        .pictures
-        .view(View::default().with_up(loaded.source.up()));
+    let view = args.pictures.announced_view(&loaded.default_up());
     let truth = args
         .ground_truth
         .as_deref()
