@@ -62,6 +62,7 @@ macro_rules! parse_by_name {
 }
 
 pub mod accuracy;
+pub mod analysis;
 pub mod chart;
 pub mod connection;
 pub mod fem;
