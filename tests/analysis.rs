@@ -413,3 +413,130 @@ fn a_mixture_decomposes_into_its_parts() {
     assert!(orders(&errors).iter().all(|&p| p > 0.9), "{errors:?}");
     assert!(errors[3] < 0.02, "{errors:?}");
 }
+
+/// A texture turning rigidly on a still sphere (the Killing field `ω × x`) has no strain rate:
+/// the face values go to zero at first order.
+#[test]
+fn a_rigid_rotation_of_the_texture_has_no_strain_rate() {
+    let omega = Vector3::new(0.3, -0.2, 1.0);
+    let mut largest = vec![];
+    for level in 2..=5 {
+        let surface = icosphere(level);
+        let sequence = still(&surface);
+        let a = analysis(&sequence, vertex_field(&sequence, |x| omega.cross(x)));
+        let worst = a.strain.iter().map(|d| d.tensor.norm()).fold(0.0, f64::max);
+        largest.push(worst / omega.norm());
+    }
+    println!(
+        "Killing field: largest |D| / |ω| {largest:.3?} orders {:.2?}",
+        orders(&largest)
+    );
+    assert!(orders(&largest).iter().all(|&p| p > 0.9), "{largest:?}");
+    assert!(largest[3] < 0.02, "{largest:?}");
+}
+
+/// A sphere growing from radius 1 to 1.1 in half a unit of time, carrying its texture (flow
+/// zero): areal rate `2ṙ/r̄` on every face (`r̄` the slab's mean radius), no shear.
+#[test]
+fn a_growing_sphere_has_areal_rate_two_rdot_over_r() {
+    let surface = icosphere(3);
+    let (r0, r1, dt) = (1.0, 1.1, 0.5);
+    let frames = [r0, r1]
+        .map(|r| surface.positions.iter().map(|x| x * r).collect())
+        .to_vec();
+    let sequence = sequence(&surface, frames, vec![0.0, dt]);
+    let a = analysis(&sequence, vec![Vector2::zeros(); surface.positions.len()]);
+    let expected = 2.0 * ((r1 - r0) / dt) / (0.5 * (r0 + r1));
+    for d in &a.strain {
+        assert!(
+            (d.areal - expected).abs() < 1e-12 * expected,
+            "{} vs {expected}",
+            d.areal
+        );
+        assert!(d.shear < 1e-12 * expected, "{}", d.shear);
+    }
+    assert!((a.totals.mean_areal_rate - expected).abs() < 1e-12 * expected);
+}
+
+/// A sphere stretched along z (`x ↦ diag(1, 1, 1 + εt) x`, flow zero): the rate of deformation
+/// is the tangential part of `diag(0, 0, ε)`, with principal rates `ε (1 − n_z²)` along the
+/// meridian and 0 along the parallel.
+#[test]
+fn a_stretched_sphere_has_the_analytic_principal_rates() {
+    let surface = icosphere(4);
+    let epsilon = 1e-3;
+    let stretched: Vec<Vector3<f64>> = (surface.positions.iter())
+        .map(|x| Vector3::new(x.x, x.y, x.z * (1.0 + epsilon)))
+        .collect();
+    let sequence = sequence(
+        &surface,
+        vec![surface.positions.clone(), stretched],
+        vec![0.0, 1.0],
+    );
+    let a = analysis(&sequence, vec![Vector2::zeros(); surface.positions.len()]);
+    let maps = face_frames(&sequence, 0).unwrap().unwrap();
+    let mut worst: f64 = 0.0;
+    for ((d, c), m) in a.strain.iter().zip(centroids(&surface)).zip(&maps) {
+        let n = c.normalize();
+        let expected = epsilon * (1.0 - n.z * n.z);
+        worst = worst
+            .max((d.principal[0] - expected).abs())
+            .max(d.principal[1].abs())
+            .max((d.areal - expected).abs());
+        // The stretching direction is the meridian, where the two rates differ.
+        if expected > 0.2 * epsilon {
+            let meridian = (Vector3::z() - n * n.z).normalize();
+            let direction = (m * d.directions[0]).normalize();
+            assert!(
+                direction.dot(&meridian).abs() > 0.99,
+                "{direction} vs {meridian}"
+            );
+        }
+    }
+    println!(
+        "stretched sphere: worst principal-rate error {:.2e} of ε",
+        worst / epsilon
+    );
+    assert!(worst < 0.03 * epsilon, "{worst}");
+}
+
+/// Moving the whole sequence rigidly (rotation and translation) changes no analysed number.
+#[test]
+fn the_analysis_is_invariant_under_rigid_motions() {
+    let surface = icosphere(3);
+    let frames: Vec<Vec<Vector3<f64>>> = (0..3)
+        .map(|k| {
+            let t = k as f64;
+            (surface.positions.iter())
+                .map(|x| Vector3::new(x.x * (1.0 + 0.1 * t * x.z), x.y, x.z * (1.0 + 0.05 * t)))
+                .collect()
+        })
+        .collect();
+    let motion = Rotation3::from_euler_angles(0.3, -1.1, 2.0);
+    let shift = Vector3::new(5.0, -2.0, 0.5);
+    let moved: Vec<Vec<Vector3<f64>>> = (frames.iter())
+        .map(|f| f.iter().map(|x| motion * x + shift).collect())
+        .collect();
+    let times = vec![0.0, 0.5, 1.25];
+    let (plain, turned) = (
+        sequence(&surface, frames, times.clone()),
+        sequence(&surface, moved, times),
+    );
+    let flows: Vec<Vec<Vector2<f64>>> = (0..2)
+        .map(|s| random_field(surface.positions.len(), s))
+        .collect();
+    let (a, b) = (
+        analyze_flow(&plain, &flows).unwrap(),
+        analyze_flow(&turned, &flows).unwrap(),
+    );
+    let close = |x: &[f64], y: &[f64]| x.iter().zip(y).all(|(p, q)| (p - q).abs() < 1e-9);
+    for (x, y) in a.iter().zip(&b) {
+        assert!(close(&x.face_divergence, &y.face_divergence));
+        assert!(close(&x.vertex_curl, &y.vertex_curl));
+        let areal = |s: &SlabAnalysis| s.strain.iter().map(|d| d.areal).collect::<Vec<_>>();
+        let shear = |s: &SlabAnalysis| s.strain.iter().map(|d| d.shear).collect::<Vec<_>>();
+        assert!(close(&areal(x), &areal(y)) && close(&shear(x), &shear(y)));
+        assert!(close(&x.hodge.potential, &y.hodge.potential));
+        assert!((x.totals.harmonic_energy - y.totals.harmonic_energy).abs() < 1e-9);
+    }
+}
