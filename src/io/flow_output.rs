@@ -24,7 +24,7 @@
 //! that `meshflow advect OUT` finds its input in the run itself.
 
 use super::gltf_write::{write_glb_animation, AnimationFrame};
-use super::vtk::{write_pvd, write_vtu, NamedArray, PointArray};
+use super::vtk::{write_pvd, write_vtu_with_cells, NamedArray, PointArray};
 use super::{write_atomically, write_npy, IoError, LoadedSequence, StagedDir, VertexMap};
 use crate::accuracy::{FlowErrors, TrackScores, TrackSummary};
 use crate::flow::{FlowParams, FlowResult, MeshSequence};
@@ -259,6 +259,17 @@ pub fn write_slab_vtus(
     sequence: &MeshSequence,
     mut arrays: impl FnMut(usize) -> Vec<NamedArray>,
 ) -> Result<(), IoError> {
+    write_slab_vtus_with_cells(dir, name, sequence, |s| (arrays(s), Vec::new()))
+}
+
+/// [`write_slab_vtus`] with per-triangle arrays: `arrays(s)` gives slab `s`'s point arrays and
+/// cell arrays.
+pub fn write_slab_vtus_with_cells(
+    dir: &Path,
+    name: &str,
+    sequence: &MeshSequence,
+    mut arrays: impl FnMut(usize) -> (Vec<NamedArray>, Vec<NamedArray>),
+) -> Result<(), IoError> {
     let mut datasets = Vec::with_capacity(sequence.n_slabs());
     for s in 0..sequence.n_slabs() {
         let file = format!("{name}_{s:04}.vtu");
@@ -268,13 +279,15 @@ pub fn write_slab_vtus(
                 "an intrinsic sequence has no positions to write",
             )
         })?;
-        let arrays = arrays(s);
-        let point_data: Vec<PointArray> = arrays.iter().map(NamedArray::as_point_array).collect();
-        write_vtu(
+        let (points, cells) = arrays(s);
+        let point_data: Vec<PointArray> = points.iter().map(NamedArray::as_point_array).collect();
+        let cell_data: Vec<PointArray> = cells.iter().map(NamedArray::as_point_array).collect();
+        write_vtu_with_cells(
             &dir.join(&file),
             positions,
             sequence.mesh().faces(),
             &point_data,
+            &cell_data,
         )?;
         datasets.push((sequence.times()[s], file));
     }

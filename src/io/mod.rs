@@ -11,6 +11,7 @@
 //! half-written output behind. Output directories are staged whole ([`StagedDir`]): each holds
 //! exactly one run, marked by its manifest [`RUN_MANIFEST`].
 
+mod analysis_output;
 mod atomic;
 mod channels;
 mod flow_output;
@@ -33,12 +34,14 @@ pub mod vtk;
 mod warning;
 mod weld;
 
+pub use analysis_output::{analysis_json, write_analysis_outputs};
 pub use atomic::RUN_MANIFEST;
 pub use atomic::{remove_live_staging, write_atomically, Overwrite, RunManifest, StagedDir};
 pub use channels::{select_channels, Channels, VertexValues};
 pub use flow_output::{
     summary_json, tissue_velocity, track_scores_json, write_flow_outputs, write_run_input,
-    write_slab_vtus, GroundTruthReport, OutputFormat, Scores, TrackReport,
+    write_slab_vtus, write_slab_vtus_with_cells, GroundTruthReport, OutputFormat, Scores,
+    TrackReport,
 };
 pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use ground_truth::read_ground_truth;

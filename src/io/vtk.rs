@@ -8,6 +8,7 @@
 //!   <UnstructuredGrid>
 //!     <Piece NumberOfPoints="n" NumberOfCells="m">
 //!       <PointData>   one Float64 DataArray per point array, NumberOfComponents="k"
+//!       <CellData>    the same per triangle, when there are cell arrays
 //!       <Points>      Float64, 3 components: x y z of each point
 //!       <Cells>       connectivity Int64: the 3 point indices of each triangle, 0-based
 //!                     offsets      Int64: where each cell ends in connectivity: 3, 6, 9, …
@@ -83,7 +84,23 @@ pub fn write_vtu(
     faces: &[[u32; 3]],
     point_data: &[PointArray],
 ) -> Result<(), IoError> {
-    check_vtu_input(positions.len(), faces, point_data)
+    write_vtu_with_cells(path, positions, faces, point_data, &[])
+}
+
+/// [`write_vtu`] with per-triangle arrays too (`<CellData>`, `faces.len() × components` values
+/// each, face-major), e.g. values that are constant on each face.
+pub fn write_vtu_with_cells(
+    path: &Path,
+    positions: &[Vector3<f64>],
+    faces: &[[u32; 3]],
+    point_data: &[PointArray],
+    cell_data: &[PointArray],
+) -> Result<(), IoError> {
+    check_arrays("point", positions.len(), point_data)
+        .and_then(|()| check_arrays("cell", faces.len(), cell_data))
+        .and_then(|()| {
+            crate::mesh::check_index_range(faces, positions.len()).map_err(|e| e.to_string())
+        })
         .map_err(|message| IoError::format(path, message))?;
     let points = le_bytes(
         positions
@@ -114,6 +131,14 @@ pub fn write_vtu(
             write_data_array(w, "Float64", array.name, array.components, &bytes)?;
         }
         writeln!(w, "      </PointData>")?;
+        if !cell_data.is_empty() {
+            writeln!(w, "      <CellData>")?;
+            for array in cell_data {
+                let bytes = le_bytes(array.values.iter().map(|v| v.to_le_bytes()));
+                write_data_array(w, "Float64", array.name, array.components, &bytes)?;
+            }
+            writeln!(w, "      </CellData>")?;
+        }
         writeln!(w, "      <Points>")?;
         write_data_array(w, "Float64", "Points", 3, &points)?;
         writeln!(w, "      </Points>")?;
@@ -156,29 +181,26 @@ pub fn write_pvd(path: &Path, datasets: &[(f64, String)]) -> Result<(), IoError>
     })
 }
 
-fn check_vtu_input(
-    n_points: usize,
-    faces: &[[u32; 3]],
-    point_data: &[PointArray],
-) -> Result<(), String> {
-    for (k, array) in point_data.iter().enumerate() {
+/// Each of the `kind` (point or cell) arrays has a name of its own and `n × components` values.
+fn check_arrays(kind: &str, n: usize, arrays: &[PointArray]) -> Result<(), String> {
+    for (k, array) in arrays.iter().enumerate() {
         let name = array.name;
         if array.components == 0 {
-            return Err(format!("point array '{name}' has 0 components"));
+            return Err(format!("{kind} array '{name}' has 0 components"));
         }
-        if point_data[..k].iter().any(|other| other.name == name) {
-            return Err(format!("two point arrays are named '{name}'"));
+        if arrays[..k].iter().any(|other| other.name == name) {
+            return Err(format!("two {kind} arrays are named '{name}'"));
         }
-        let expected = n_points.checked_mul(array.components);
+        let expected = n.checked_mul(array.components);
         if expected != Some(array.values.len()) {
             return Err(format!(
-                "point array '{name}' has {} values, expected {n_points} points × {} components",
+                "{kind} array '{name}' has {} values, expected {n} {kind}s × {} components",
                 array.values.len(),
                 array.components
             ));
         }
     }
-    crate::mesh::check_index_range(faces, n_points).map_err(|e| e.to_string())
+    Ok(())
 }
 
 fn le_bytes<const N: usize>(values: impl Iterator<Item = [u8; N]>) -> Vec<u8> {

@@ -2,18 +2,16 @@
 //! flow (`meshflow::flow::advect`), and the sequence reparametrized by them.
 
 use crate::progress::during;
-use crate::{Cli, Command};
-use clap::Parser;
+use crate::run::FinishedRun;
 use meshflow::flow::{advect as carry, closest_seeds, vertex_seeds, MeshSequence, Trajectories};
 use meshflow::geometry::SurfacePoint;
 use meshflow::io::{
-    load_sequence, read_npy_float, write_npy, write_npy_sequence, write_npy_vectors, IoError,
-    Overwrite, RunManifest, StagedDir,
+    read_npy_float, write_npy, write_npy_sequence, write_npy_vectors, IoError, Overwrite, StagedDir,
 };
 use meshflow::render::colormap::finite_range;
 use meshflow::render::{trajectory_picture, write_png, Camera, PictureStyle, Surface, View};
 use meshflow::Error;
-use nalgebra::{Vector2, Vector3};
+use nalgebra::Vector3;
 use std::path::Path;
 
 pub fn advect(
@@ -22,14 +20,10 @@ pub fn advect(
     seeds_file: Option<&Path>,
     overwrite: Overwrite,
 ) -> Result<(), Error> {
-    let args = solve_command(run)?;
     let mut staged = StagedDir::create(out, overwrite)?;
     staged.record_command(crate::command_line());
-    let loaded = during(format!("reading {}", args.input.display()), || {
-        load_sequence(&args.input, &args.load_options())
-    })?;
+    let FinishedRun { args, loaded, flow } = FinishedRun::read(run)?;
     let sequence = &loaded.sequence;
-    let flow = read_flow(run, &loaded)?;
     let seeds = match seeds_file {
         Some(file) => located_seeds(file, sequence)?,
         None => vertex_seeds(sequence),
@@ -77,62 +71,6 @@ fn located_seeds(file: &Path, sequence: &MeshSequence) -> Result<Vec<SurfacePoin
         .map(|p| Vector3::new(p[0], p[1], p[2]))
         .collect();
     closest_seeds(sequence, &points).map_err(|e| e.in_file(file))
-}
-
-/// The `solve` arguments that made `run`, from its manifest.
-fn solve_command(run: &Path) -> Result<Box<crate::SolveArgs>, Error> {
-    let not_a_run = |why: &str| Error::from(IoError::format(run, why.to_string()));
-    let manifest = RunManifest::read(run)
-        .ok_or_else(|| not_a_run("not a meshflow output (no meshflow_run.json)"))?;
-    let command = manifest
-        .commands
-        .first()
-        .ok_or_else(|| not_a_run("its manifest lists no command"))?;
-    match Cli::try_parse_from(command).map(|cli| cli.command) {
-        // Its paths as the solve meant them, wherever `advect` runs from.
-        // A flow computed from arrays holds its input itself (`meshflow::io::write_run_input`).
-        Ok(Command::Solve(mut args)) if args.input == args.out => {
-            args.input = run.to_path_buf();
-            Ok(args)
-        }
-        Ok(Command::Solve(mut args)) => {
-            args.input = manifest.resolve(&args.input);
-            args.intensity = args.intensity.map(|file| manifest.resolve(&file));
-            Ok(args)
-        }
-        _ => Err(not_a_run("not the output of `meshflow solve`")),
-    }
-}
-
-/// `flow_intrinsic.npy` of the run, per mesh vertex.
-fn read_flow(
-    run: &Path,
-    loaded: &meshflow::io::LoadedSequence,
-) -> Result<Vec<Vec<Vector2<f64>>>, Error> {
-    let file = run.join("flow_intrinsic.npy");
-    let array = read_npy_float(&file)?;
-    let map = &loaded.vertex_map;
-    let (s, v) = (loaded.sequence.n_slabs(), map.n_file_vertices());
-    if array.shape != [s as u64, v as u64, 2] {
-        return Err(IoError::format(
-            &file,
-            format!(
-                "shape {:?}, expected ({s}, {v}, 2) for the run's input (was it changed since?)",
-                array.shape
-            ),
-        )
-        .into());
-    }
-    Ok((0..s)
-        .map(|slab| {
-            (0..map.n_mesh_vertices())
-                .map(|m| {
-                    let row = 2 * (slab * v + map.representative(m));
-                    Vector2::new(array.data[row], array.data[row + 1])
-                })
-                .collect()
-        })
-        .collect())
 }
 
 /// `trajectories.npy` (K, N, 3: `positions`), `trajectory_faces.npy` (K, N),

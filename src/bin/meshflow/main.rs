@@ -1,9 +1,11 @@
 //! The `meshflow` command line. Every failure is one line on stderr and a non-zero exit code.
 
 mod advect;
+mod analyze;
 mod operators;
 mod pictures;
 mod progress;
+mod run;
 mod sample;
 mod solve;
 mod surface;
@@ -85,6 +87,22 @@ enum Command {
         /// to its closest point on frame 0's surface (then only the paths are written)
         #[arg(long, value_name = "FILE.npy")]
         seeds: Option<PathBuf>,
+        #[command(flatten)]
+        force: ForceArg,
+    },
+    /// What a finished `solve` run's flow tells, per slab on the slab's mean geometry:
+    /// divergence and curl (per face, and per vertex in the weak form), the Helmholtz–Hodge
+    /// parts of the face-wise flow (exact ∇φ, co-exact J∇ψ, harmonic) with their potentials,
+    /// and the tissue's rate of deformation (the mesh's own motion plus the flow: areal growth
+    /// rate, shear rate, principal rates and directions). Writes NPY arrays, analysis_SSSS.vtu
+    /// + analysis.pvd (point and cell data) and analysis.json (per slab: area, mean speed,
+    /// divergence, curl, areal and shear rate, energy of each Hodge part), and prints the table.
+    Analyze {
+        /// Output directory of `meshflow solve`
+        run: PathBuf,
+        /// Output directory
+        #[arg(long)]
+        out: PathBuf,
         #[command(flatten)]
         force: ForceArg,
     },
@@ -627,6 +645,7 @@ fn main() -> ExitCode {
             seeds,
             force,
         } => advect::advect(&run, &out, seeds.as_deref(), force.overwrite()),
+        Command::Analyze { run, out, force } => analyze::analyze(&run, &out, force.overwrite()),
         Command::Track(args) => track::run(track::TrackRequest {
             input: &args.input,
             out: &args.out,

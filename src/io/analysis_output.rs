@@ -1,0 +1,233 @@
+//! Writing what a flow tells ([`crate::analysis`]): `meshflow analyze RUN --out DIR`.
+//!
+//! Vertex arrays are in the files' numbering (as `flow.npy`; NaN at dropped vertices), face
+//! arrays follow `faces.npy`, the mesh's triangles over file vertices (each mesh vertex as its
+//! first file vertex). Vectors are in R³ on frame `s`; rates in 1/time.
+//!
+//! | file | contents |
+//! |---|---|
+//! | `divergence.npy`, `curl.npy` | (S, V_file): weak vertex divergence and curl |
+//! | `potential.npy`, `stream.npy` | (S, V_file): the Hodge potentials `φ` and `ψ` (`ψ` at a vertex: the mean of its edges' values) |
+//! | `face_divergence.npy`, `face_curl.npy` | (S, F): per face |
+//! | `areal_rate.npy`, `shear_rate.npy` | (S, F): `tr D`, `|dev D|` of the rate of deformation |
+//! | `principal_rates.npy` | (S, F, 2): `λ₁ ≥ λ₂` |
+//! | `stretch_direction.npy` | (S, F, 3): the unit direction of `λ₁` |
+//! | `hodge_exact.npy`, `hodge_coexact.npy`, `hodge_harmonic.npy` | (S, F, 3): `∇φ`, `J∇ψ`, `h` |
+//! | `faces.npy` | (F, 3) int64 |
+//! | `analysis_SSSS.vtu`, `analysis.pvd` | ParaView: frame `s` with the vertex arrays as point data (`divergence`, `curl`, `potential`, `stream`, `intensity`) and the face arrays as cell data (`divergence`, `curl`, `areal_rate`, `shear_rate`, `principal_rates`, `stretch_direction`, `field`, `exact`, `coexact`, `harmonic`) |
+//! | `analysis.json` | per slab: time, duration, total area, mean speed, mean divergence, curl, areal and shear rate, the energies `∫|·|²` of the field and its Hodge parts |
+
+use super::vtk::NamedArray;
+use super::{write_atomically, write_npy, write_slab_vtus_with_cells, IoError, LoadedSequence};
+use crate::analysis::{face_frames, in_r3, SlabAnalysis};
+use crate::flow::MeshSequence;
+use nalgebra::{Matrix3x2, Vector3};
+use std::path::Path;
+
+/// Writes the analysis of every slab of `loaded` into `dir` (see the module documentation);
+/// `input` names the run in `analysis.json`.
+pub fn write_analysis_outputs(
+    dir: &Path,
+    loaded: &LoadedSequence,
+    slabs: &[SlabAnalysis],
+    input: &Path,
+) -> Result<(), IoError> {
+    let sequence = &loaded.sequence;
+    let maps: Vec<Vec<Matrix3x2<f64>>> = (0..sequence.n_slabs())
+        .map(|s| match face_frames(sequence, s) {
+            Ok(Some(maps)) => Ok(maps),
+            _ => Err(IoError::format(
+                dir,
+                "the analysis needs an embedded sequence",
+            )),
+        })
+        .collect::<Result<_, _>>()?;
+    let fields = FaceFields::new(slabs, &maps);
+    write_vertex_arrays(dir, loaded, slabs)?;
+    write_face_arrays(dir, loaded, slabs, &fields)?;
+    write_slab_vtus_with_cells(dir, "analysis", sequence, |s| {
+        (
+            point_arrays(sequence, &slabs[s], s),
+            cell_arrays(&slabs[s], &fields, s),
+        )
+    })?;
+    write_summary(&dir.join("analysis.json"), sequence, slabs, input)
+}
+
+/// The R³ vectors of every slab's face fields.
+struct FaceFields {
+    field: Vec<Vec<Vector3<f64>>>,
+    exact: Vec<Vec<Vector3<f64>>>,
+    coexact: Vec<Vec<Vector3<f64>>>,
+    harmonic: Vec<Vec<Vector3<f64>>>,
+    stretch: Vec<Vec<Vector3<f64>>>,
+}
+
+impl FaceFields {
+    fn new(slabs: &[SlabAnalysis], maps: &[Vec<Matrix3x2<f64>>]) -> Self {
+        let each =
+            |part: fn(&SlabAnalysis) -> Vec<nalgebra::Vector2<f64>>| -> Vec<Vec<Vector3<f64>>> {
+                slabs
+                    .iter()
+                    .zip(maps)
+                    .map(|(a, m)| in_r3(m, &part(a)))
+                    .collect()
+            };
+        let stretch = slabs
+            .iter()
+            .zip(maps)
+            .map(|(a, m)| {
+                (a.strain.iter().zip(m))
+                    .map(|(d, m)| (m * d.directions[0]).try_normalize(0.0).unwrap_or_default())
+                    .collect()
+            })
+            .collect();
+        FaceFields {
+            field: each(|a| a.hodge.field.clone()),
+            exact: each(|a| a.hodge.exact.clone()),
+            coexact: each(|a| a.hodge.coexact.clone()),
+            harmonic: each(|a| a.hodge.harmonic.clone()),
+            stretch,
+        }
+    }
+}
+
+fn write_vertex_arrays(
+    dir: &Path,
+    loaded: &LoadedSequence,
+    slabs: &[SlabAnalysis],
+) -> Result<(), IoError> {
+    let map = &loaded.vertex_map;
+    let shape = [slabs.len() as u64, map.n_file_vertices() as u64];
+    let mesh = loaded.sequence.mesh();
+    let arrays: [(&str, &dyn Fn(&SlabAnalysis) -> Vec<f64>); 4] = [
+        ("divergence.npy", &|a| a.vertex_divergence.clone()),
+        ("curl.npy", &|a| a.vertex_curl.clone()),
+        ("potential.npy", &|a| a.hodge.potential.clone()),
+        ("stream.npy", &|a| a.hodge.stream_at_vertices(mesh)),
+    ];
+    for (name, values) in arrays {
+        let rows: Vec<f64> = (slabs.iter())
+            .flat_map(|a| map.file_rows(&values(a), f64::NAN))
+            .collect();
+        write_npy(&dir.join(name), &shape, &rows)?;
+    }
+    Ok(())
+}
+
+fn write_face_arrays(
+    dir: &Path,
+    loaded: &LoadedSequence,
+    slabs: &[SlabAnalysis],
+    fields: &FaceFields,
+) -> Result<(), IoError> {
+    let (s, f) = (slabs.len() as u64, loaded.sequence.mesh().n_faces() as u64);
+    let scalars: [(&str, fn(&SlabAnalysis) -> Vec<f64>); 4] = [
+        ("face_divergence.npy", |a| a.face_divergence.clone()),
+        ("face_curl.npy", |a| a.face_curl.clone()),
+        ("areal_rate.npy", |a| {
+            a.strain.iter().map(|d| d.areal).collect()
+        }),
+        ("shear_rate.npy", |a| {
+            a.strain.iter().map(|d| d.shear).collect()
+        }),
+    ];
+    for (name, values) in scalars {
+        let rows: Vec<f64> = slabs.iter().flat_map(values).collect();
+        write_npy(&dir.join(name), &[s, f], &rows)?;
+    }
+    let rates: Vec<f64> = (slabs.iter())
+        .flat_map(|a| a.strain.iter().flat_map(|d| d.principal))
+        .collect();
+    write_npy(&dir.join("principal_rates.npy"), &[s, f, 2], &rates)?;
+    let vectors = [
+        ("stretch_direction.npy", &fields.stretch),
+        ("hodge_exact.npy", &fields.exact),
+        ("hodge_coexact.npy", &fields.coexact),
+        ("hodge_harmonic.npy", &fields.harmonic),
+    ];
+    for (name, rows) in vectors {
+        let values: Vec<f64> = rows
+            .iter()
+            .flatten()
+            .flat_map(|v| [v.x, v.y, v.z])
+            .collect();
+        write_npy(&dir.join(name), &[s, f, 3], &values)?;
+    }
+    let map = &loaded.vertex_map;
+    let faces: Vec<i64> = (loaded.sequence.mesh().faces().iter())
+        .flat_map(|face| face.map(|m| map.representative(m as usize) as i64))
+        .collect();
+    write_npy(&dir.join("faces.npy"), &[f, 3], &faces)
+}
+
+fn point_arrays(sequence: &MeshSequence, a: &SlabAnalysis, s: usize) -> Vec<NamedArray> {
+    vec![
+        NamedArray::scalars("divergence", &a.vertex_divergence),
+        NamedArray::scalars("curl", &a.vertex_curl),
+        NamedArray::scalars("potential", &a.hodge.potential),
+        NamedArray::scalars("stream", &a.hodge.stream_at_vertices(sequence.mesh())),
+        NamedArray::scalars("intensity", sequence.intensities(s)),
+    ]
+}
+
+fn cell_arrays(a: &SlabAnalysis, fields: &FaceFields, s: usize) -> Vec<NamedArray> {
+    let strain = |f: fn(&crate::analysis::StrainRate) -> f64| -> Vec<f64> {
+        a.strain.iter().map(f).collect()
+    };
+    let rates: Vec<f64> = a.strain.iter().flat_map(|d| d.principal).collect();
+    vec![
+        NamedArray::scalars("divergence", &a.face_divergence),
+        NamedArray::scalars("curl", &a.face_curl),
+        NamedArray::scalars("areal_rate", &strain(|d| d.areal)),
+        NamedArray::scalars("shear_rate", &strain(|d| d.shear)),
+        NamedArray {
+            name: "principal_rates".into(),
+            components: 2,
+            values: rates,
+        },
+        NamedArray::vectors("stretch_direction", &fields.stretch[s]),
+        NamedArray::vectors("field", &fields.field[s]),
+        NamedArray::vectors("exact", &fields.exact[s]),
+        NamedArray::vectors("coexact", &fields.coexact[s]),
+        NamedArray::vectors("harmonic", &fields.harmonic[s]),
+    ]
+}
+
+/// `analysis.json`: the run, and per slab its time, duration and totals.
+pub fn analysis_json(
+    sequence: &MeshSequence,
+    slabs: &[SlabAnalysis],
+    input: &Path,
+) -> serde_json::Value {
+    let rows: Vec<serde_json::Value> = slabs
+        .iter()
+        .map(|a| {
+            let mut row = serde_json::to_value(a.totals).expect("numbers serialize");
+            row["slab"] = a.slab.into();
+            row["time"] = sequence.times()[a.slab].into();
+            row["duration"] = sequence.slab_duration(a.slab).into();
+            row
+        })
+        .collect();
+    serde_json::json!({
+        "input": input.display().to_string(),
+        "frames": sequence.n_frames(),
+        "vertices": sequence.mesh().n_vertices(),
+        "faces": sequence.mesh().n_faces(),
+        "slabs": rows,
+    })
+}
+
+fn write_summary(
+    path: &Path,
+    sequence: &MeshSequence,
+    slabs: &[SlabAnalysis],
+    input: &Path,
+) -> Result<(), IoError> {
+    let json = analysis_json(sequence, slabs, input);
+    write_atomically(path, |w| {
+        serde_json::to_writer_pretty(&mut *w, &json).map_err(std::io::Error::other)?;
+        std::io::Write::write_all(w, b"\n")
+    })
+}

@@ -1,0 +1,128 @@
+//! `meshflow analyze`: the library's analysis of a finished run, written as NPY, ParaView and
+//! JSON; broken runs fail in one line with nothing written.
+
+mod common;
+
+use common::{listing, meshflow, meshflow_ok, shipped};
+use meshflow::analysis::analyze_flow;
+use meshflow::io::{load_sequence, read_npy, LoadOptions};
+use nalgebra::Vector2;
+use std::path::Path;
+
+fn solve(input: &str, out: &Path) {
+    let out = out.to_str().unwrap();
+    meshflow_ok(&[
+        "solve", input, "--out", out, "--format", "npy,vtu", "--quiet",
+    ]);
+}
+
+/// The shipped sphere turns rigidly: its flow is almost all co-exact (a rotation is `J∇z`),
+/// divergence-free on average, and the files hold the library's numbers.
+#[test]
+fn analyze_writes_the_analysis_of_a_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let (run, out) = (dir.path().join("run"), dir.path().join("analysis"));
+    solve(&shipped("rotating_sphere"), &run);
+    let done = meshflow_ok(&[
+        "analyze",
+        run.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&done.stdout);
+    assert!(stdout.contains("5 slabs x 1280 faces analysed"), "{stdout}");
+    let written = listing(&out);
+    for name in [
+        "analysis.json",
+        "analysis.pvd",
+        "analysis_0004.vtu",
+        "divergence.npy",
+        "hodge_coexact.npy",
+        "areal_rate.npy",
+        "principal_rates.npy",
+        "faces.npy",
+    ] {
+        assert!(written.contains(&name.to_string()), "{name}: {written:?}");
+    }
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("analysis.json")).unwrap()).unwrap();
+    for slab in summary["slabs"].as_array().unwrap() {
+        let share = slab["coexact_energy"].as_f64().unwrap() / slab["energy"].as_f64().unwrap();
+        assert!(share > 0.95, "{slab}");
+        let divergence = slab["mean_divergence"].as_f64().unwrap().abs();
+        assert!(
+            divergence < 1e-6 * slab["mean_speed"].as_f64().unwrap(),
+            "{slab}"
+        );
+    }
+    // The same numbers as the library's, from the run's own flow.
+    let loaded = load_sequence(
+        Path::new(&shipped("rotating_sphere")),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    let flow = read_npy(&run.join("flow_intrinsic.npy")).unwrap();
+    let (s, v) = (flow.shape[0] as usize, flow.shape[1] as usize);
+    let vectors: Vec<Vec<Vector2<f64>>> = (0..s)
+        .map(|k| {
+            (0..v)
+                .map(|i| {
+                    let at = 2 * (k * v + i);
+                    Vector2::new(flow.data[at], flow.data[at + 1])
+                })
+                .collect()
+        })
+        .collect();
+    let expected = analyze_flow(&loaded.sequence, &vectors).unwrap();
+    let divergence = read_npy(&out.join("divergence.npy")).unwrap();
+    assert_eq!(divergence.shape, vec![5, 642]);
+    let rows: Vec<f64> = expected
+        .iter()
+        .flat_map(|a| a.vertex_divergence.clone())
+        .collect();
+    assert_eq!(divergence.data, rows);
+    let coexact = read_npy(&out.join("hodge_coexact.npy")).unwrap();
+    assert_eq!(coexact.shape, vec![5, 1280, 3]);
+}
+
+/// A run without a manifest (an older version's, or not a run), and a run whose input lost a
+/// frame: one line naming what is wrong, and no output.
+#[test]
+fn broken_runs_fail_in_one_line_without_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("frames");
+    std::fs::create_dir(&input).unwrap();
+    for entry in std::fs::read_dir(shipped("rotating_sphere")).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, input.join(path.file_name().unwrap())).unwrap();
+    }
+    let run = dir.path().join("run");
+    solve(input.to_str().unwrap(), &run);
+    let out = dir.path().join("analysis");
+    let failing = |run: &Path, expected: &str| {
+        let done = meshflow(&[
+            "analyze",
+            run.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&done.stderr);
+        assert_eq!(done.status.code(), Some(1), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(stderr.contains(expected), "{expected}: {stderr}");
+        assert!(!out.exists(), "no output");
+        assert_eq!(
+            listing(dir.path()),
+            ["frames", "run"].map(String::from).to_vec()
+        );
+    };
+    let manifest = run.join("meshflow_run.json");
+    let saved = std::fs::read(&manifest).unwrap();
+    std::fs::remove_file(&manifest).unwrap();
+    failing(&run, "not a meshflow output (no meshflow_run.json)");
+    std::fs::write(&manifest, saved).unwrap();
+    std::fs::remove_file(input.join("frame_3.obj")).unwrap();
+    failing(&run, "flow_intrinsic.npy");
+    std::fs::remove_file(run.join("flow_intrinsic.npy")).unwrap();
+    failing(&run, "flow_intrinsic.npy");
+}
