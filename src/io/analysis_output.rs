@@ -24,6 +24,9 @@ use crate::flow::MeshSequence;
 use nalgebra::{Matrix3x2, Vector3};
 use std::path::Path;
 
+/// A named per-slab array: the file it goes into, and how to read it from a slab's analysis.
+type Column<'a> = (&'static str, &'a dyn Fn(&SlabAnalysis) -> Vec<f64>);
+
 /// Writes the analysis of every slab of `loaded` into `dir` (see the module documentation);
 /// `input` names the run in `analysis.json`.
 pub fn write_analysis_outputs(
@@ -100,7 +103,7 @@ fn write_vertex_arrays(
     let map = &loaded.vertex_map;
     let shape = [slabs.len() as u64, map.n_file_vertices() as u64];
     let mesh = loaded.sequence.mesh();
-    let arrays: [(&str, &dyn Fn(&SlabAnalysis) -> Vec<f64>); 4] = [
+    let arrays: [Column; 4] = [
         ("divergence.npy", &|a| a.vertex_divergence.clone()),
         ("curl.npy", &|a| a.vertex_curl.clone()),
         ("potential.npy", &|a| a.hodge.potential.clone()),
@@ -122,13 +125,13 @@ fn write_face_arrays(
     fields: &FaceFields,
 ) -> Result<(), IoError> {
     let (s, f) = (slabs.len() as u64, loaded.sequence.mesh().n_faces() as u64);
-    let scalars: [(&str, fn(&SlabAnalysis) -> Vec<f64>); 4] = [
-        ("face_divergence.npy", |a| a.face_divergence.clone()),
-        ("face_curl.npy", |a| a.face_curl.clone()),
-        ("areal_rate.npy", |a| {
+    let scalars: [Column; 4] = [
+        ("face_divergence.npy", &|a| a.face_divergence.clone()),
+        ("face_curl.npy", &|a| a.face_curl.clone()),
+        ("areal_rate.npy", &|a| {
             a.strain.iter().map(|d| d.areal).collect()
         }),
-        ("shear_rate.npy", |a| {
+        ("shear_rate.npy", &|a| {
             a.strain.iter().map(|d| d.shear).collect()
         }),
     ];

@@ -95,7 +95,7 @@ enum Command {
     /// parts of the face-wise flow (exact ∇φ, co-exact J∇ψ, harmonic) with their potentials,
     /// and the tissue's rate of deformation (the mesh's own motion plus the flow: areal growth
     /// rate, shear rate, principal rates and directions). Writes NPY arrays, analysis_SSSS.vtu
-    /// + analysis.pvd (point and cell data) and analysis.json (per slab: area, mean speed,
+    /// and analysis.pvd (point and cell data) and analysis.json (per slab: area, mean speed,
     /// divergence, curl, areal and shear rate, energy of each Hodge part), and prints the table.
     Analyze {
         /// Output directory of `meshflow solve`
