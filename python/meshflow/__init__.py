@@ -19,6 +19,7 @@ Functions (NumPy arrays in, NumPy/SciPy out):
 - :func:`write_outputs` — write a flow as the CLI does (NPY, ParaView VTU/PVD, glTF);
 - :func:`render` — the PNG pictures of a flow, as ``meshflow render`` draws them;
 - :func:`advect` — points (or every vertex) carried along a flow, as ``meshflow advect``;
+- :func:`analyze` — divergence, curl, Hodge parts and strain rate of a flow (``meshflow analyze``);
 - :func:`track` — turn frames meshed each on its own into one moving mesh;
 - :func:`match_tracks`, :func:`score_tracks` — tracks from point clouds (cells, beads), and a
   flow scored at them;
@@ -50,6 +51,7 @@ __all__ = [
     "Sequence",
     "Trajectories",
     "advect",
+    "analyze",
     "compute_flow",
     "fit_surface",
     "load_mesh_sequence",
@@ -451,6 +453,24 @@ def advect(flow: Flow, seeds: Any = None) -> Trajectories:
         result.sequence = Sequence(
             positions, flow.mesh_faces, grey, flow.times, source="advected"
         )
+    return result
+
+
+def analyze(flow: Flow) -> Dict[str, Any]:
+    """What the flow tells, per slab on the slab's mean geometry (``meshflow analyze``).
+
+    Vertex arrays (S, V) in the input's numbering: ``divergence``, ``curl`` (weak form),
+    ``potential`` (φ) and ``stream`` (ψ, the mean of its edges' values); face arrays (S, F)
+    over ``faces`` (F, 3): ``face_divergence``, ``face_curl``, ``areal_rate`` (tr D =
+    d/dt log area), ``shear_rate`` (|dev D|), ``principal_rates`` (S, F, 2); R³ vectors on
+    frame ``s`` (S, F, 3): ``stretch_direction``, ``hodge_exact`` (∇φ), ``hodge_coexact``
+    (J∇ψ), ``hodge_harmonic``; and ``slabs``, per slab its ``time``, ``area``, ``mean_speed``,
+    ``mean_divergence``, ``mean_curl``, ``mean_areal_rate``, ``mean_shear_rate`` and the
+    energies ``energy``, ``exact_energy``, ``coexact_energy``, ``harmonic_energy``. Rates are
+    in 1/time. The formulas are in ``docs/guide.md`` ("What the flow tells").
+    """
+    result = flow.analysis()
+    result["slabs"] = json.loads(result["slabs"])
     return result
 
 

@@ -67,6 +67,8 @@ class Flow:
     def write(self, out: Union[str, PathLike[str]], formats: List[str], force: bool) -> None: ...
     def score_tracks(self, tracks: npt.NDArray[np.float64]) -> Tuple[str, Dict[str, Any]]:
         """Summary JSON and per-point arrays of the flow scored at tracks (K, N, 3)."""
+    def analysis(self) -> Dict[str, Any]:
+        """The arrays of ``meshflow analyze``, ``faces`` and ``slabs`` (JSON)."""
     def advect(self, seeds: Optional[npt.NDArray[np.float64]]) -> Tuple[Any, ...]:
         """Positions, faces, barycentric, intensity, reached_boundary of the trajectories."""
     def render(

@@ -531,6 +531,36 @@ impl Flow {
         Ok(dict)
     }
 
+    /// What the flow tells (`meshflow analyze`): the arrays of `analysis_arrays` by name
+    /// (vertex arrays (S, V_input), face arrays (S, F[, k]), R³ vectors on frame `s`), `faces`
+    /// (F, 3) over input vertices, and `slabs`, analysis.json's per-slab totals as JSON.
+    fn analysis<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let (arrays, summary) = py
+            .detach(|| -> Result<_, Error> {
+                let slabs = meshflow::analysis::analyze_flow(
+                    &self.loaded.sequence,
+                    &self.result.intrinsic,
+                )?;
+                let arrays = meshflow::io::analysis_arrays(&self.loaded, &slabs)?;
+                let input = std::path::Path::new("arrays in memory");
+                let summary = meshflow::io::analysis_json(&self.loaded.sequence, &slabs, input);
+                Ok((arrays, summary))
+            })
+            .map_err(to_py_err)?;
+        let dict = PyDict::new(py);
+        for array in arrays {
+            let shape: Vec<usize> = array.shape.iter().map(|&n| n as usize).collect();
+            let values = numpy::ndarray::ArrayD::from_shape_vec(shape, array.values)
+                .expect("shape and values agree");
+            dict.set_item(array.name, values.into_pyarray(py))?;
+        }
+        let faces = meshflow::io::file_faces(&self.loaded);
+        let faces = Array2::from_shape_vec((faces.len(), 3), faces.concat()).expect("F × 3");
+        dict.set_item("faces", faces.into_pyarray(py))?;
+        dict.set_item("slabs", summary["slabs"].to_string())?;
+        Ok(dict)
+    }
+
     /// (F, 3): the triangles over the mesh's vertices (welded numbering, as :func:`advect`'s
     /// vertex trajectories).
     #[getter]

@@ -146,3 +146,18 @@ def test_word_values_of_flags_are_quoted():
         == "channels='rgb' needs colours; use channels='auto' or grey"
     assert _meshflow.python_words("try --align rigid, or --keep-going") \
         == "try align='rigid', or keep_going=True"
+
+
+def test_analysis_equals_the_command_line(cli, sample, tmp_path):
+    run(cli, "solve", SAMPLE, "--out", tmp_path / "run", "--format", "npy")
+    run(cli, "analyze", tmp_path / "run", "--out", tmp_path / "analysis")
+    result = meshflow.analyze(sample.compute_flow())
+    for name in ["divergence", "curl", "potential", "stream", "face_divergence", "areal_rate",
+                 "shear_rate", "principal_rates", "stretch_direction", "hodge_exact",
+                 "hodge_coexact", "hodge_harmonic", "faces"]:
+        np.testing.assert_array_equal(result[name], np.load(tmp_path / "analysis" / f"{name}.npy"))
+    slabs = result["slabs"]
+    assert len(slabs) == 5 and slabs[0]["slab"] == 0
+    # A rotation is co-exact: J∇z.
+    assert all(s["coexact_energy"] > 0.95 * s["energy"] for s in slabs)
+    assert result["hodge_exact"].shape == (5, 1280, 3)

@@ -36,18 +36,20 @@ pub fn write_analysis_outputs(
     input: &Path,
 ) -> Result<(), IoError> {
     let sequence = &loaded.sequence;
-    let maps: Vec<Vec<Matrix3x2<f64>>> = (0..sequence.n_slabs())
-        .map(|s| match face_frames(sequence, s) {
-            Ok(Some(maps)) => Ok(maps),
-            _ => Err(IoError::format(
-                dir,
-                "the analysis needs an embedded sequence",
-            )),
-        })
-        .collect::<Result<_, _>>()?;
-    let fields = FaceFields::new(slabs, &maps);
-    write_vertex_arrays(dir, loaded, slabs)?;
-    write_face_arrays(dir, loaded, slabs, &fields)?;
+    let fields = FaceFields::new(slabs, &face_maps(loaded)?);
+    for array in arrays_with(loaded, slabs, &fields) {
+        write_npy(
+            &dir.join(format!("{}.npy", array.name)),
+            &array.shape,
+            &array.values,
+        )?;
+    }
+    let faces = file_faces(loaded);
+    write_npy(
+        &dir.join("faces.npy"),
+        &[faces.len() as u64, 3],
+        faces.as_flattened(),
+    )?;
     write_slab_vtus_with_cells(dir, "analysis", sequence, |s| {
         (
             point_arrays(sequence, &slabs[s], s),
@@ -95,73 +97,115 @@ impl FaceFields {
     }
 }
 
-fn write_vertex_arrays(
-    dir: &Path,
-    loaded: &LoadedSequence,
-    slabs: &[SlabAnalysis],
-) -> Result<(), IoError> {
-    let map = &loaded.vertex_map;
-    let shape = [slabs.len() as u64, map.n_file_vertices() as u64];
-    let mesh = loaded.sequence.mesh();
-    let arrays: [Column; 4] = [
-        ("divergence.npy", &|a| a.vertex_divergence.clone()),
-        ("curl.npy", &|a| a.vertex_curl.clone()),
-        ("potential.npy", &|a| a.hodge.potential.clone()),
-        ("stream.npy", &|a| a.hodge.stream_at_vertices(mesh)),
-    ];
-    for (name, values) in arrays {
-        let rows: Vec<f64> = (slabs.iter())
-            .flat_map(|a| map.file_rows(&values(a), f64::NAN))
-            .collect();
-        write_npy(&dir.join(name), &shape, &rows)?;
-    }
-    Ok(())
+/// One array of the analysis: its name (the file's, without `.npy`), shape and values in C
+/// order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AnalysisArray {
+    pub name: &'static str,
+    pub shape: Vec<u64>,
+    pub values: Vec<f64>,
 }
 
-fn write_face_arrays(
-    dir: &Path,
+/// Every array of the module documentation's table but `faces.npy` ([`file_faces`]), for
+/// `slabs` of `loaded`.
+pub fn analysis_arrays(
+    loaded: &LoadedSequence,
+    slabs: &[SlabAnalysis],
+) -> Result<Vec<AnalysisArray>, IoError> {
+    let maps = face_maps(loaded)?;
+    Ok(arrays_with(loaded, slabs, &FaceFields::new(slabs, &maps)))
+}
+
+fn face_maps(loaded: &LoadedSequence) -> Result<Vec<Vec<Matrix3x2<f64>>>, IoError> {
+    let sequence = &loaded.sequence;
+    (0..sequence.n_slabs())
+        .map(|s| match face_frames(sequence, s) {
+            Ok(Some(maps)) => Ok(maps),
+            _ => Err(IoError::format(
+                &loaded.frame_files[s],
+                "the analysis needs vertex positions (an embedded sequence)",
+            )),
+        })
+        .collect()
+}
+
+fn arrays_with(
     loaded: &LoadedSequence,
     slabs: &[SlabAnalysis],
     fields: &FaceFields,
-) -> Result<(), IoError> {
-    let (s, f) = (slabs.len() as u64, loaded.sequence.mesh().n_faces() as u64);
-    let scalars: [Column; 4] = [
-        ("face_divergence.npy", &|a| a.face_divergence.clone()),
-        ("face_curl.npy", &|a| a.face_curl.clone()),
-        ("areal_rate.npy", &|a| {
+) -> Vec<AnalysisArray> {
+    let map = &loaded.vertex_map;
+    let mesh = loaded.sequence.mesh();
+    let (s, v, f) = (
+        slabs.len() as u64,
+        map.n_file_vertices() as u64,
+        mesh.n_faces() as u64,
+    );
+    let vertex_columns: [Column; 4] = [
+        ("divergence", &|a| a.vertex_divergence.clone()),
+        ("curl", &|a| a.vertex_curl.clone()),
+        ("potential", &|a| a.hodge.potential.clone()),
+        ("stream", &|a| a.hodge.stream_at_vertices(mesh)),
+    ];
+    let face_columns: [Column; 4] = [
+        ("face_divergence", &|a| a.face_divergence.clone()),
+        ("face_curl", &|a| a.face_curl.clone()),
+        ("areal_rate", &|a| {
             a.strain.iter().map(|d| d.areal).collect()
         }),
-        ("shear_rate.npy", &|a| {
+        ("shear_rate", &|a| {
             a.strain.iter().map(|d| d.shear).collect()
         }),
     ];
-    for (name, values) in scalars {
-        let rows: Vec<f64> = slabs.iter().flat_map(values).collect();
-        write_npy(&dir.join(name), &[s, f], &rows)?;
-    }
-    let rates: Vec<f64> = (slabs.iter())
-        .flat_map(|a| a.strain.iter().flat_map(|d| d.principal))
+    let mut arrays: Vec<AnalysisArray> = vertex_columns
+        .iter()
+        .map(|(name, column)| AnalysisArray {
+            name,
+            shape: vec![s, v],
+            values: (slabs.iter())
+                .flat_map(|a| map.file_rows(&column(a), f64::NAN))
+                .collect(),
+        })
         .collect();
-    write_npy(&dir.join("principal_rates.npy"), &[s, f, 2], &rates)?;
+    arrays.extend(face_columns.iter().map(|(name, column)| AnalysisArray {
+        name,
+        shape: vec![s, f],
+        values: slabs.iter().flat_map(|a| column(a)).collect(),
+    }));
+    arrays.push(AnalysisArray {
+        name: "principal_rates",
+        shape: vec![s, f, 2],
+        values: (slabs.iter())
+            .flat_map(|a| a.strain.iter().flat_map(|d| d.principal))
+            .collect(),
+    });
     let vectors = [
-        ("stretch_direction.npy", &fields.stretch),
-        ("hodge_exact.npy", &fields.exact),
-        ("hodge_coexact.npy", &fields.coexact),
-        ("hodge_harmonic.npy", &fields.harmonic),
+        ("stretch_direction", &fields.stretch),
+        ("hodge_exact", &fields.exact),
+        ("hodge_coexact", &fields.coexact),
+        ("hodge_harmonic", &fields.harmonic),
     ];
-    for (name, rows) in vectors {
-        let values: Vec<f64> = rows
-            .iter()
-            .flatten()
-            .flat_map(|v| [v.x, v.y, v.z])
-            .collect();
-        write_npy(&dir.join(name), &[s, f, 3], &values)?;
-    }
+    arrays.extend(vectors.map(|(name, rows)| {
+        AnalysisArray {
+            name,
+            shape: vec![s, f, 3],
+            values: rows
+                .iter()
+                .flatten()
+                .flat_map(|v| [v.x, v.y, v.z])
+                .collect(),
+        }
+    }));
+    arrays
+}
+
+/// The mesh's triangles over file vertices (each mesh vertex as its first file vertex): what
+/// the face arrays are per.
+pub fn file_faces(loaded: &LoadedSequence) -> Vec<[i64; 3]> {
     let map = &loaded.vertex_map;
-    let faces: Vec<i64> = (loaded.sequence.mesh().faces().iter())
-        .flat_map(|face| face.map(|m| map.representative(m as usize) as i64))
-        .collect();
-    write_npy(&dir.join("faces.npy"), &[f, 3], &faces)
+    (loaded.sequence.mesh().faces().iter())
+        .map(|face| face.map(|m| map.representative(m as usize) as i64))
+        .collect()
 }
 
 fn point_arrays(sequence: &MeshSequence, a: &SlabAnalysis, s: usize) -> Vec<NamedArray> {

@@ -34,7 +34,9 @@ pub mod vtk;
 mod warning;
 mod weld;
 
-pub use analysis_output::{analysis_json, write_analysis_outputs};
+pub use analysis_output::{
+    analysis_arrays, analysis_json, file_faces, write_analysis_outputs, AnalysisArray,
+};
 pub use atomic::RUN_MANIFEST;
 pub use atomic::{remove_live_staging, write_atomically, Overwrite, RunManifest, StagedDir};
 pub use channels::{select_channels, Channels, VertexValues};
