@@ -1,6 +1,7 @@
 //! Benchmark at the size of the paper's Experiment I: the 255×190 periodic torus grid, 20
 //! frames (19 slabs, 1.84 M unknowns), α = γ = 1, β = 0. Prints assembly and solve times,
-//! iterations, residual and peak memory.
+//! iterations, residual and peak memory, and the cost of analysing the flow
+//! (`meshflow::analysis`: divergence, curl, Hodge parts, strain rate) against the solve's.
 //!
 //! `cargo run --release --example bench_paper_torus [-- N1 N2 FRAMES [solver]]`
 
@@ -50,6 +51,9 @@ fn main() -> Result<(), meshflow::Error> {
     };
     let result = problem.solve(&report)?;
     let total = start.elapsed().as_secs_f64();
+    let analysis_start = Instant::now();
+    let analysed = meshflow::analysis::analyze_flow(&sequence, &result.intrinsic)?;
+    let analysis = analysis_start.elapsed().as_secs_f64();
 
     println!("unknowns            {}", problem.system().dimension());
     println!("generate sequence   {generate:8.2} s");
@@ -61,6 +65,11 @@ fn main() -> Result<(), meshflow::Error> {
     );
     println!("solve (incl. fact.) {:8.2} s", result.timings.solve);
     println!("end to end          {total:8.2} s");
+    println!(
+        "analysis            {analysis:8.2} s  ({:.0} % of assembly + solve; {} slabs)",
+        100.0 * analysis / (total - generate),
+        analysed.len()
+    );
     println!("solver              {}", result.method);
     println!("iterations          {}", result.iterations);
     println!("relative residual   {:.2e}", result.relative_residual);

@@ -28,8 +28,9 @@
 //! genus `g` (`F/2 = E/3`): none on a sphere, two on a torus; with a boundary it holds the
 //! fields that circulate around holes or flow between boundary components.
 //!
-//! Both matrices keep their sparsity pattern from slab to slab: one symbolic analysis each
-//! ([`HodgeSolver`]), one numeric factorization per slab geometry.
+//! Both matrices keep their sparsity pattern from slab to slab: the pattern, where each face's
+//! entries go and the symbolic analysis are made once per mesh ([`HodgeSolver::new`]); each
+//! slab geometry scatters its values and factorizes, slabs in parallel.
 
 use crate::fem::element::cotan_stiffness;
 use crate::fem::SparseMatrix;
@@ -38,7 +39,7 @@ use crate::flow::FlowError;
 use crate::geometry::IntrinsicGeometry;
 use crate::mesh::Mesh;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
-use faer::sparse::Triplet;
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, Triplet};
 use faer::Par;
 use nalgebra::Vector2;
 use std::sync::Arc;
@@ -112,51 +113,83 @@ fn opposite_edges(mesh: &Mesh, f: usize) -> [usize; 3] {
     std::array::from_fn(|c| mesh.halfedge_edge(3 * f + (c + 1) % 3))
 }
 
-/// One potential's system: the unknowns of each face's corners, which are free, the shared
-/// symbolic factorization.
+/// One potential's system: the unknowns of each face's corners, which are free, the matrix's
+/// pattern over the free ones (with each face entry's place in it) and its symbolic
+/// factorization, all fixed by the connectivity.
 struct PotentialSystem {
     unknowns: Vec<[usize; 3]>,
     free: FreeUnknowns,
     /// Gradient of the basis function of corner `c` = `scale · g_c`.
     scale: f64,
+    pattern: SymbolicSparseColMat<usize>,
+    /// `slots[f][a][b]`: where the entry between face `f`'s unknowns `a` and `b` is stored.
+    slots: Vec<[[Option<usize>; 3]; 3]>,
     symbolic: Option<Arc<SymbolicCholesky<usize>>>,
 }
 
 impl PotentialSystem {
-    fn matrix(&self, geometry: &IntrinsicGeometry) -> Result<SparseMatrix, FlowError> {
-        let mut triplets = Vec::with_capacity(9 * self.unknowns.len());
-        for (f, unknowns) in self.unknowns.iter().enumerate() {
+    fn new(unknowns: Vec<[usize; 3]>, free: FreeUnknowns, scale: f64) -> Self {
+        let rows = |unknowns: &[usize; 3]| unknowns.map(|k| free.index[k]);
+        let triplets: Vec<Triplet<usize, usize, f64>> = (unknowns.iter())
+            .flat_map(|u| {
+                let r = rows(u);
+                (0..9).filter_map(move |ab| Some(Triplet::new(r[ab / 3]?, r[ab % 3]?, 1.0)))
+            })
+            .collect();
+        let n = free.n_free;
+        let matrix = SparseMatrix::try_new_from_triplets(n, n, &triplets)
+            .expect("triplets within the free unknowns");
+        let pattern = matrix.symbolic().to_owned().expect("a pattern copies");
+        let slot = |i: usize, j: usize| {
+            let column = pattern.col_ptr()[j]..pattern.col_ptr()[j + 1];
+            let position = pattern.row_idx()[column.clone()].binary_search(&i);
+            column.start + position.expect("every entry is in the pattern")
+        };
+        let slots = (unknowns.iter())
+            .map(|u| {
+                let r = rows(u);
+                std::array::from_fn(|a| std::array::from_fn(|b| Some(slot(r[a]?, r[b]?))))
+            })
+            .collect();
+        let symbolic = (n > 0).then(|| analyze(pattern.as_ref(), 1));
+        PotentialSystem {
+            unknowns,
+            free,
+            scale,
+            pattern,
+            slots,
+            symbolic,
+        }
+    }
+
+    /// The matrix's values on `geometry`: `Σ_T A_T ∇χ_a·∇χ_b = scale² S^T_ab`.
+    fn values(&self, geometry: &IntrinsicGeometry) -> Vec<f64> {
+        let mut values = vec![0.0; self.pattern.row_idx().len()];
+        for (f, slots) in self.slots.iter().enumerate() {
             let s = cotan_stiffness(geometry.triangle(f)) * (self.scale * self.scale);
-            for a in 0..3 {
-                for b in 0..3 {
-                    let (Some(i), Some(j)) =
-                        (self.free.index[unknowns[a]], self.free.index[unknowns[b]])
-                    else {
-                        continue;
-                    };
-                    triplets.push(Triplet::new(i, j, s[(a, b)]));
+            for (a, row) in slots.iter().enumerate() {
+                for (b, slot) in row.iter().enumerate() {
+                    if let Some(slot) = slot {
+                        values[*slot] += s[(a, b)];
+                    }
                 }
             }
         }
-        let n = self.free.n_free;
-        SparseMatrix::try_new_from_triplets(n, n, &triplets).map_err(|e| FlowError::Factorization {
-            what: "a Hodge potential".into(),
-            detail: format!("{e:?}"),
-        })
+        values
     }
 
     /// The potential whose basis gradients best fit `target` per face, in least squares:
     /// `Σ_T A_T |Σ_c x_c scale g_c − target_T|²` minimal.
     fn solve(
-        &mut self,
+        &self,
         geometry: &IntrinsicGeometry,
         target: &[Vector2<f64>],
         n_unknowns: usize,
     ) -> Result<Vec<f64>, FlowError> {
         let mut values = vec![0.0; n_unknowns];
-        if self.free.n_free == 0 {
+        let Some(symbolic) = &self.symbolic else {
             return Ok(values);
-        }
+        };
         let mut rhs = vec![0.0; self.free.n_free];
         for (f, unknowns) in self.unknowns.iter().enumerate() {
             let triangle = geometry.triangle(f);
@@ -167,17 +200,14 @@ impl PotentialSystem {
                 }
             }
         }
-        let matrix = self.matrix(geometry)?;
-        let symbolic = self
-            .symbolic
-            .get_or_insert_with(|| analyze(matrix.symbolic(), 1));
-        let factor =
-            CholeskyFactor::<f64>::new(symbolic, matrix.as_ref(), Par::Seq).map_err(|detail| {
-                FlowError::Factorization {
-                    what: "a Hodge potential".into(),
-                    detail,
-                }
-            })?;
+        let entries = self.values(geometry);
+        let matrix = SparseColMatRef::new(self.pattern.as_ref(), &entries);
+        let factor = CholeskyFactor::<f64>::new(symbolic, matrix, Par::Seq).map_err(|detail| {
+            FlowError::Factorization {
+                what: "a Hodge potential".into(),
+                detail,
+            }
+        })?;
         factor.solve_in_place(&mut rhs, Par::Seq);
         for (k, index) in self.free.index.iter().enumerate() {
             if let Some(i) = index {
@@ -225,25 +255,23 @@ impl HodgeSolver {
         }
         let faces = 0..mesh.n_faces();
         HodgeSolver {
-            exact: PotentialSystem {
-                unknowns: faces.clone().map(|f| corner_vertices(mesh, f)).collect(),
-                free: FreeUnknowns::new(mesh.n_vertices(), |i| vertex_pins[i]),
-                scale: 1.0,
-                symbolic: None,
-            },
-            coexact: PotentialSystem {
-                unknowns: faces.map(|f| opposite_edges(mesh, f)).collect(),
-                free: FreeUnknowns::new(mesh.n_edges(), |e| edge_fixed[e]),
-                // ∇χ_e = −2 g_c for the corner c opposite e.
-                scale: -2.0,
-                symbolic: None,
-            },
+            exact: PotentialSystem::new(
+                faces.clone().map(|f| corner_vertices(mesh, f)).collect(),
+                FreeUnknowns::new(mesh.n_vertices(), |i| vertex_pins[i]),
+                1.0,
+            ),
+            // ∇χ_e = −2 g_c for the corner c opposite e.
+            coexact: PotentialSystem::new(
+                faces.map(|f| opposite_edges(mesh, f)).collect(),
+                FreeUnknowns::new(mesh.n_edges(), |e| edge_fixed[e]),
+                -2.0,
+            ),
         }
     }
 
     /// The decomposition of `field` (one face-frame vector per face) on `geometry`.
     pub fn decompose(
-        &mut self,
+        &self,
         mesh: &Mesh,
         geometry: &IntrinsicGeometry,
         field: Vec<Vector2<f64>>,

@@ -32,6 +32,7 @@ use crate::geometry::IntrinsicGeometry;
 use derivatives::{divergence_and_curl, face_vectors, field_gradient, vertex_divergence_and_curl};
 pub use hodge::{HodgeParts, HodgeSolver};
 use nalgebra::{Matrix2, Matrix3x2, Vector2, Vector3};
+use rayon::prelude::*;
 pub use strain::StrainRate;
 
 /// Everything read from one slab's flow.
@@ -65,15 +66,17 @@ pub struct SlabTotals {
 }
 
 /// Analyses every slab of `sequence` with its flow `flow[s][i]` (vertex-frame vectors, as
-/// [`crate::flow::FlowResult::intrinsic`]); one [`HodgeSolver`] serves all slabs.
+/// [`crate::flow::FlowResult::intrinsic`]); one [`HodgeSolver`] serves all slabs, which are
+/// analysed in parallel.
 pub fn analyze_flow(
     sequence: &MeshSequence,
     flow: &[Vec<Vector2<f64>>],
 ) -> Result<Vec<SlabAnalysis>, FlowError> {
     check_sizes(sequence, flow)?;
-    let mut hodge = HodgeSolver::new(sequence.mesh());
+    let hodge = HodgeSolver::new(sequence.mesh());
     (0..sequence.n_slabs())
-        .map(|s| analyze_slab(sequence, s, &flow[s], &mut hodge))
+        .into_par_iter()
+        .map(|s| analyze_slab(sequence, s, &flow[s], &hodge))
         .collect()
 }
 
@@ -97,7 +100,7 @@ pub fn analyze_slab(
     sequence: &MeshSequence,
     s: usize,
     u: &[Vector2<f64>],
-    hodge: &mut HodgeSolver,
+    hodge: &HodgeSolver,
 ) -> Result<SlabAnalysis, FlowError> {
     let mesh = sequence.mesh();
     let geometry = sequence.slab_geometry(s)?;
