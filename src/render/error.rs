@@ -37,6 +37,13 @@ pub enum RenderError {
     Range { min: f64, max: f64 },
     #[error("image size: {reason}")]
     Size { reason: String },
+    /// A chart's series without one value per x value.
+    #[error("series {name:?} has {got} values but x has {expected}: one value per x is needed")]
+    SeriesLength {
+        name: String,
+        expected: usize,
+        got: usize,
+    },
     #[error("an intrinsic sequence (edge lengths, no positions) cannot be drawn")]
     Intrinsic,
 }

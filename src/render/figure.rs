@@ -10,19 +10,23 @@
 //! | [`flow_picture`] | `flow_color(screen_components(u_i) / scale)` | colour wheel, rim = `scale` |
 //! | [`arrow_picture`] | `grey(I_i)`, plus arrows of `u_i` | reference arrow of length `scale` |
 //! | [`scalar_picture`] | `viridis(v_i)` over the range | colour bar with min and max |
+//! | [`signed_picture`] | `diverging(v_i)` over the range (blue < middle < red) | colour bar with its negative and positive ends |
 //! | [`trajectory_picture`] | grey values, with paths of moving points as polylines (viridis along time) | a dot at each path's end |
 //!
 //! Arrays must have one entry per vertex, faces must name existing vertices, scales must be
 //! positive and ranges finite with `min ≤ max`, or a [`RenderError`] says which is wrong.
 //! Non-finite values are drawn black, non-finite positions leave out their faces.
-//! [`chart_picture`] shows per-vertex colours of a parameter grid flat, without a camera.
+//! [`chart_picture`] shows per-vertex colours of a parameter grid flat, without a camera, and
+//! [`series_chart`] draws line charts of series against x (see [`super::plot`]).
 
 use super::camera::{Camera, MAX_IMAGE_SIDE};
 use super::color_wheel::flow_color;
-use super::colormap::{grey, viridis};
+use super::colormap::{diverging, grey, viridis};
 use super::error::{check_count, check_positive};
 use super::glyphs::{draw_arrows, draw_point_arrows, reference_arrow_length, ArrowStyle};
 use super::legend::{draw_arrow_key, draw_colour_bar, draw_title, draw_wheel_legend};
+pub use super::plot::Series;
+use super::plot::{check_chart_size, check_series_lengths, series_colour, PlotLayout};
 use super::raster::{Canvas, DEFAULT_SUPERSAMPLE};
 use super::shading::Lighting;
 use super::RenderError;
@@ -230,9 +234,61 @@ pub fn scalar_picture(
     range: (f64, f64),
     style: &PictureStyle,
 ) -> Result<RgbImage, RenderError> {
-    let mut canvas = mapped_surface(camera, surface, ("values", values), range, viridis, style)?;
-    draw_colour_bar(&mut canvas, range, |v| viridis(v, range.0, range.1));
+    colour_bar_picture(camera, surface, values, range, viridis, style)
+}
+
+/// The surface coloured by signed `values` (one per vertex, e.g. divergence, curl or areal
+/// rate) with the [`diverging`] map over `range`: blue below its middle, white at it, red
+/// above, and a colour bar labelled with the range's (negative and positive) ends. Pass
+/// [`super::colormap::symmetric_range`] of the values so that white is zero.
+pub fn signed_picture(
+    camera: &Camera,
+    surface: Surface,
+    values: &[f64],
+    range: (f64, f64),
+    style: &PictureStyle,
+) -> Result<RgbImage, RenderError> {
+    colour_bar_picture(camera, surface, values, range, diverging, style)
+}
+
+/// The surface coloured by `colormap` over `range`, with its colour bar.
+fn colour_bar_picture(
+    camera: &Camera,
+    surface: Surface,
+    values: &[f64],
+    range: (f64, f64),
+    colormap: fn(f64, f64, f64) -> [f64; 3],
+    style: &PictureStyle,
+) -> Result<RgbImage, RenderError> {
+    let mut canvas = mapped_surface(camera, surface, ("values", values), range, colormap, style)?;
+    draw_colour_bar(&mut canvas, range, |v| colormap(v, range.0, range.1));
     Ok(finish(canvas, style))
+}
+
+/// A line chart of `series` against `x` on white, `width × height` pixels: axes with tick
+/// labels, a zero line when the values span 0, series `k` in [`series_colour`]`(k)` with a
+/// square at each point, the legend of names right of the plot and `title` on the top line
+/// (layout and ranges: [`super::plot`]). Non-finite values are gaps in their line. Errors
+/// when a side is outside [`super::plot::CHART_SIDES`] or a series has not one value per x.
+pub fn series_chart(
+    title: &str,
+    x_label: &str,
+    x: &[f64],
+    series: &[Series],
+    width: u32,
+    height: u32,
+) -> Result<RgbImage, RenderError> {
+    check_chart_size(width, height)?;
+    check_series_lengths(x, series)?;
+    let layout = PlotLayout::new(width, height, x, series);
+    let mut canvas = Canvas::new(width, height, DEFAULT_SUPERSAMPLE);
+    layout.draw_axes(&mut canvas, x_label);
+    for (k, s) in series.iter().enumerate() {
+        layout.draw_series(&mut canvas, x, s.values, series_colour(k));
+    }
+    layout.draw_legend(&mut canvas, series);
+    draw_title(&mut canvas, title);
+    Ok(canvas.finish())
 }
 
 /// A parameter grid shown flat: vertex `r · cols + c` is the `pixel_size × pixel_size` block

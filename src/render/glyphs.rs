@@ -309,7 +309,13 @@ pub fn draw_paths(
 }
 
 /// A segment `width` pixels wide (a quad).
-fn draw_segment(canvas: &mut Canvas, from: [f64; 2], to: [f64; 2], width: f64, colour: [f64; 3]) {
+pub(crate) fn draw_segment(
+    canvas: &mut Canvas,
+    from: [f64; 2],
+    to: [f64; 2],
+    width: f64,
+    colour: [f64; 3],
+) {
     let delta = [to[0] - from[0], to[1] - from[1]];
     let length = delta[0].hypot(delta[1]);
     if !(length > 0.0 && length.is_finite()) {

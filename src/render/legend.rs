@@ -27,7 +27,7 @@ use super::text::{draw_text, format_value, text_height, text_size_for, text_widt
 const WHEEL_RADIUS: f64 = 0.11;
 
 /// Colour of outlines and cross-hairs.
-const LINE_COLOUR: [f64; 3] = [0.2, 0.2, 0.2];
+pub(crate) const LINE_COLOUR: [f64; 3] = [0.2, 0.2, 0.2];
 
 /// Outline width, output pixels.
 const OUTLINE: f64 = 1.0;
@@ -43,7 +43,7 @@ pub struct Disc {
 }
 
 /// Distance kept from the picture's edges.
-fn margin(height: u32) -> f64 {
+pub(crate) fn margin(height: u32) -> f64 {
     (0.03 * height as f64).max(4.0)
 }
 

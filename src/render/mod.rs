@@ -24,6 +24,14 @@
 //! sheets and disks lie flat and rods stand when their axis is near y or z, balls keep z,
 //! everything else gets y, the convention of scanned and exported models.
 //!
+//! *Signed values* ([`signed_picture`]): the [`colormap::diverging`] map over a range
+//! symmetric about zero ([`colormap::symmetric_range`]) makes the sign the hue: blue
+//! negative, white zero, red positive, as for divergence, curl and areal growth rate.
+//!
+//! *Charts* ([`plot`], [`series_chart`]): a point `(x, y)` of a series maps affinely into the
+//! plot area, `px = x₀ + (x − lo)/(hi − lo) · (x₁ − x₀)` and likewise upward for `y`, over
+//! the finite data's ranges padded by 5 %; non-finite values are gaps in the line.
+//!
 //! *Antialiasing*: everything, surface and overlays alike, is drawn at `s × s` samples per
 //! pixel (`s = 3` by default) and box-filtered down.
 //!
@@ -62,6 +70,7 @@ mod error;
 pub mod figure;
 pub mod glyphs;
 pub mod legend;
+pub mod plot;
 pub mod raster;
 pub mod shading;
 pub mod slabs;
@@ -72,8 +81,8 @@ pub use camera::{Camera, UpAxis, View};
 pub use error::RenderError;
 pub use figure::{
     arrow_picture, chart_picture, flow_picture, grey_picture, mosaic_picture, mosaic_values,
-    scalar_picture, screen_flow_colors, tracks_picture, trajectory_picture, write_png,
-    PictureStyle, Surface, TRACK_ARROW_COLOUR,
+    scalar_picture, screen_flow_colors, series_chart, signed_picture, tracks_picture,
+    trajectory_picture, write_png, PictureStyle, Series, Surface, TRACK_ARROW_COLOUR,
 };
 pub use raster::Canvas;
 pub use shading::Lighting;
