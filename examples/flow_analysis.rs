@@ -58,7 +58,13 @@ fn scene(level: u32) -> Result<MeshSequence, meshflow::Error> {
     let sphere = icosphere(level);
     let frames = vec![sphere.positions.clone(); FRAMES];
     let images = (0..FRAMES)
-        .map(|k| sphere.positions.iter().map(|x| texture(&origin(x, k as f64))).collect())
+        .map(|k| {
+            sphere
+                .positions
+                .iter()
+                .map(|x| texture(&origin(x, k as f64)))
+                .collect()
+        })
         .collect();
     Ok(MeshSequence::new(sphere.mesh()?, frames, images, None)?)
 }
@@ -102,12 +108,16 @@ fn main() -> Result<(), meshflow::Error> {
     let analysed = start.elapsed().as_secs_f64();
     // The true field, in the vertex frames, analysed the same way.
     let frames = sequence.slab_frames(0)?.expect("embedded");
-    let truth: Vec<Vector2<f64>> =
-        (frames.iter().zip(positions)).map(|(p, x)| p.transpose() * field(x)).collect();
+    let truth: Vec<Vector2<f64>> = (frames.iter().zip(positions))
+        .map(|(p, x)| p.transpose() * field(x))
+        .collect();
     let exact = analyze_flow(&sequence, &vec![truth; sequence.n_slabs()])?;
     let divergence: Vec<f64> = positions.iter().map(|x| -2.0 * SOURCE * x.z).collect();
     let curl: Vec<f64> = positions.iter().map(|x| -2.0 * VORTEX * x.x).collect();
-    println!("solve {solved:.2} s, analysis {analysed:.2} s ({} slabs)", computed.len());
+    println!(
+        "solve {solved:.2} s, analysis {analysed:.2} s ({} slabs)",
+        computed.len()
+    );
     println!(
         "{:>6} {:>22} {:>22} {:>26}",
         "", "divergence (r, error)", "curl (r, error)", "Hodge exact/co-exact/harm."

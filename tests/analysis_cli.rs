@@ -28,10 +28,29 @@ fn analyze_writes_the_analysis_of_a_run() {
         run.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
+        "--png",
+        "--slabs",
+        "0,last",
+        "--size",
+        "320x240",
     ]);
     let stdout = String::from_utf8_lossy(&done.stdout);
     assert!(stdout.contains("5 slabs x 1280 faces analysed"), "{stdout}");
+    assert!(stdout.contains("pictures: 7 PNG files"), "{stdout}");
     let written = listing(&out);
+    for name in [
+        "curl_0000.png",
+        "areal_rate_0004.png",
+        "divergence_0004.png",
+        "time_series.png",
+    ] {
+        assert!(written.contains(&name.to_string()), "{name}: {written:?}");
+    }
+    // The texture turns counter-clockwise about z: positive curl (red) at the north pole,
+    // seen from the default view's upper half.
+    let curl = image::open(out.join("curl_0000.png")).unwrap().to_rgb8();
+    let [r, _, b] = curl.get_pixel(160, 40).0;
+    assert!(r > b + 40, "north of the sphere is red: {r} {b}");
     for name in [
         "analysis.json",
         "analysis.pvd",

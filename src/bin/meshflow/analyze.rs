@@ -1,15 +1,37 @@
 //! `meshflow analyze RUN --out DIR`: what a finished run's flow tells (`meshflow::analysis`):
 //! divergence, curl, Helmholtz–Hodge parts and the tissue's strain rate, as NPY, ParaView and
-//! `analysis.json`, with a table per slab on stdout.
+//! `analysis.json`, with a table per slab on stdout and, with `--png`, pictures.
 
-use crate::progress::during;
+use crate::pictures::PictureArgs;
+use crate::progress::{count_progress, during};
 use crate::run::FinishedRun;
 use meshflow::analysis::{analyze_flow, SlabAnalysis};
-use meshflow::io::{write_analysis_outputs, Overwrite, StagedDir};
+use meshflow::io::{write_analysis_outputs, LoadedSequence, Overwrite, StagedDir};
+use meshflow::render::colormap::symmetric_range;
+use meshflow::render::text::format_number;
+use meshflow::render::{
+    series_chart, signed_picture, write_png, Camera, PictureStyle, Series, Surface,
+};
 use meshflow::Error;
+use rayon::prelude::*;
 use std::path::Path;
 
-pub fn analyze(run: &Path, out: &Path, overwrite: Overwrite) -> Result<(), Error> {
+/// `meshflow analyze`'s request.
+pub struct AnalyzeRequest<'a> {
+    pub run: &'a Path,
+    pub out: &'a Path,
+    pub overwrite: Overwrite,
+    /// `--png` with its picture options.
+    pub pictures: Option<&'a PictureArgs>,
+}
+
+pub fn analyze(request: AnalyzeRequest) -> Result<(), Error> {
+    let AnalyzeRequest {
+        run,
+        out,
+        overwrite,
+        pictures,
+    } = request;
     let mut staged = StagedDir::create(out, overwrite)?;
     staged.record_command(crate::command_line());
     let FinishedRun { loaded, flow, .. } = FinishedRun::read(run)?;
@@ -22,6 +44,11 @@ pub fn analyze(run: &Path, out: &Path, overwrite: Overwrite) -> Result<(), Error
         write_analysis_outputs(staged.path(), &loaded, &slabs, run)
     })
     .map_err(|e| staged.in_target(e))?;
+    if let Some(args) = pictures {
+        let written =
+            draw(staged.path(), &loaded, &slabs, args).map_err(|e| staged.error_in_target(e))?;
+        println!("pictures: {written} PNG files in {}", out.display());
+    }
     staged.commit()?;
     println!(
         "{}: {} slabs x {} faces analysed in {seconds:.2} s -> {}",
@@ -58,4 +85,121 @@ fn print_table(times: &[f64], slabs: &[SlabAnalysis]) {
             share(totals.harmonic_energy),
         );
     }
+}
+
+/// The quantities drawn per slab: name, and values per vertex.
+type Drawn = (&'static str, fn(&SlabAnalysis, &LoadedSequence) -> Vec<f64>);
+
+const DRAWN: [Drawn; 3] = [
+    ("divergence", |a, _| a.vertex_divergence.clone()),
+    ("curl", |a, _| a.vertex_curl.clone()),
+    ("areal_rate", |a, loaded| {
+        let areal: Vec<f64> = a.strain.iter().map(|d| d.areal).collect();
+        face_values_at_vertices(loaded, &areal)
+    }),
+];
+
+/// Per vertex, the mean of its faces' values (what a picture of a face quantity shows).
+fn face_values_at_vertices(loaded: &LoadedSequence, values: &[f64]) -> Vec<f64> {
+    let mesh = loaded.sequence.mesh();
+    (0..mesh.n_vertices())
+        .map(|i| {
+            let fan = mesh.vertex_fan(i);
+            fan.iter().map(|c| values[c.face as usize]).sum::<f64>() / fan.len() as f64
+        })
+        .collect()
+}
+
+/// `divergence_SSSS.png`, `curl_SSSS.png`, `areal_rate_SSSS.png` for the chosen slabs (one
+/// camera for the run, one symmetric range per quantity over all slabs) and `time_series.png`;
+/// the number of files written.
+fn draw(
+    dir: &Path,
+    loaded: &LoadedSequence,
+    slabs: &[SlabAnalysis],
+    args: &PictureArgs,
+) -> Result<usize, Error> {
+    let sequence = &loaded.sequence;
+    let view = args.announced_view(&loaded.default_up());
+    let chosen = args.slabs(slabs.len())?;
+    let (width, height) = args.size();
+    let everywhere: Vec<_> = (0..sequence.n_frames())
+        .flat_map(|k| sequence.positions(k).unwrap_or_default().iter().copied())
+        .collect();
+    let camera = Camera::framing(&everywhere, view, width, height);
+    let values: Vec<Vec<Vec<f64>>> = DRAWN
+        .iter()
+        .map(|(_, of)| slabs.iter().map(|a| of(a, loaded)).collect())
+        .collect();
+    let ranges: Vec<(f64, f64)> = values
+        .iter()
+        .map(|v| symmetric_range(&v.concat()))
+        .collect();
+    let bar = count_progress(chosen.len() as u64, "drawing slabs");
+    let drawn: Result<Vec<()>, Error> = chosen
+        .par_iter()
+        .map(|&s| {
+            let surface = Surface {
+                positions: sequence.positions(s).unwrap_or_default(),
+                faces: sequence.mesh().faces(),
+            };
+            for (q, (name, _)) in DRAWN.iter().enumerate() {
+                let time = format_number(sequence.times()[s]);
+                let style = PictureStyle {
+                    label: Some(format!("{name}  slab {s}  t = {time}")),
+                    ..Default::default()
+                };
+                let picture = signed_picture(&camera, surface, &values[q][s], ranges[q], &style)?;
+                write_png(&dir.join(format!("{name}_{s:04}.png")), &picture)?;
+            }
+            bar.inc(1);
+            Ok(())
+        })
+        .collect();
+    bar.finish();
+    drawn?;
+    write_png(
+        &dir.join("time_series.png"),
+        &time_series(sequence.times(), slabs)?,
+    )?;
+    Ok(DRAWN.len() * chosen.len() + 1)
+}
+
+/// The means over the surface per slab, against the slabs' start times.
+fn time_series(
+    times: &[f64],
+    slabs: &[SlabAnalysis],
+) -> Result<image::RgbImage, meshflow::render::RenderError> {
+    let column = |f: fn(&meshflow::analysis::SlabTotals) -> f64| -> Vec<f64> {
+        slabs.iter().map(|a| f(&a.totals)).collect()
+    };
+    let (divergence, curl) = (column(|t| t.mean_divergence), column(|t| t.mean_curl));
+    let (areal, shear) = (column(|t| t.mean_areal_rate), column(|t| t.mean_shear_rate));
+    let series = [
+        Series {
+            name: "mean divergence",
+            values: &divergence,
+        },
+        Series {
+            name: "mean curl",
+            values: &curl,
+        },
+        Series {
+            name: "mean areal rate",
+            values: &areal,
+        },
+        Series {
+            name: "mean shear rate",
+            values: &shear,
+        },
+    ];
+    let x = &times[..slabs.len()];
+    series_chart(
+        "means over the surface, per slab (1/time)",
+        "time",
+        x,
+        &series,
+        960,
+        540,
+    )
 }

@@ -103,8 +103,15 @@ enum Command {
         /// Output directory
         #[arg(long)]
         out: PathBuf,
+        /// Also draw PNG pictures: divergence_SSSS.png, curl_SSSS.png, areal_rate_SSSS.png
+        /// (diverging colours, one symmetric range per quantity for the whole run) and
+        /// time_series.png (the means over the surface per slab)
+        #[arg(long)]
+        png: bool,
         #[command(flatten)]
         force: ForceArg,
+        #[command(flatten)]
+        pictures: PictureArgs,
     },
     /// Fit a moving surface through points per frame (cell centres, landmarks; physical
     /// units): a smoothing-spline height over a sphere fitted to frame 0's points (the cap they
@@ -645,7 +652,18 @@ fn main() -> ExitCode {
             seeds,
             force,
         } => advect::advect(&run, &out, seeds.as_deref(), force.overwrite()),
-        Command::Analyze { run, out, force } => analyze::analyze(&run, &out, force.overwrite()),
+        Command::Analyze {
+            run,
+            out,
+            png,
+            force,
+            pictures,
+        } => analyze::analyze(analyze::AnalyzeRequest {
+            run: &run,
+            out: &out,
+            overwrite: force.overwrite(),
+            pictures: png.then_some(&pictures),
+        }),
         Command::Track(args) => track::run(track::TrackRequest {
             input: &args.input,
             out: &args.out,
@@ -707,8 +725,13 @@ pub fn command_line() -> Vec<String> {
 /// Usage rules that clap's attributes do not express.
 fn check_usage(cli: Cli) -> Result<Cli, clap::Error> {
     use clap::CommandFactory;
-    if let Command::Solve(args) = &cli.command {
-        if args.pictures.chooses_slabs() && !args.png {
+    let (pictures, png) = match &cli.command {
+        Command::Solve(args) => (Some(&args.pictures), args.png),
+        Command::Analyze { pictures, png, .. } => (Some(pictures), *png),
+        _ => (None, true),
+    };
+    if let Some(pictures) = pictures {
+        if pictures.chooses_slabs() && !png {
             return Err(Cli::command().error(
                 clap::error::ErrorKind::MissingRequiredArgument,
                 "--slabs chooses the pictures of --png; add --png",

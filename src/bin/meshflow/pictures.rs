@@ -64,6 +64,11 @@ impl PictureArgs {
         }
     }
 
+    /// `--size`: width and height in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        self.size
+    }
+
     /// Whether `--slabs` was given.
     pub fn chooses_slabs(&self) -> bool {
         self.slabs.is_some()
