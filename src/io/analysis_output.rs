@@ -170,7 +170,7 @@ fn arrays_with(
     arrays.extend(face_columns.iter().map(|(name, column)| AnalysisArray {
         name,
         shape: vec![s, f],
-        values: slabs.iter().flat_map(|a| column(a)).collect(),
+        values: slabs.iter().flat_map(column).collect(),
     }));
     arrays.push(AnalysisArray {
         name: "principal_rates",
