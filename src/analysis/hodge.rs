@@ -30,11 +30,15 @@
 //!
 //! Both matrices keep their sparsity pattern from slab to slab: the pattern, where each face's
 //! entries go and the symbolic analysis are made once per mesh ([`HodgeSolver::new`]); each
-//! slab geometry scatters its values and factorizes, slabs in parallel.
+//! slab geometry scatters its values and factorizes, slabs in parallel. The ordering is faer's
+//! approximate minimum degree, not the solver's METIS nested dissection: on the paper-size torus
+//! (48,450 vertices, 145,350 edges, 19 slabs) METIS took 1 s to order the two patterns, more
+//! than its smaller fill saves over 19 factorizations (analysis 3.6 s with METIS, 2.5 s with
+//! AMD, on 2 cores).
 
 use crate::fem::element::cotan_stiffness;
 use crate::fem::SparseMatrix;
-use crate::flow::solve::cholesky::{analyze, CholeskyFactor};
+use crate::flow::solve::cholesky::{analyze_with_amd, CholeskyFactor};
 use crate::flow::FlowError;
 use crate::geometry::IntrinsicGeometry;
 use crate::mesh::Mesh;
@@ -151,7 +155,7 @@ impl PotentialSystem {
                 std::array::from_fn(|a| std::array::from_fn(|b| Some(slot(r[a]?, r[b]?))))
             })
             .collect();
-        let symbolic = (n > 0).then(|| analyze(pattern.as_ref(), 1));
+        let symbolic = (n > 0).then(|| analyze_with_amd(pattern.as_ref()));
         PotentialSystem {
             unknowns,
             free,

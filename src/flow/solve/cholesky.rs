@@ -35,6 +35,14 @@ pub fn analyze(
     symbolic_with(pattern, SymmetricOrdering::Custom(perm))
 }
 
+/// The symbolic analysis with faer's approximate minimum degree ordering: cheaper to compute
+/// than nested dissection, for patterns factorized only a few times.
+pub fn analyze_with_amd(
+    pattern: SymbolicSparseColMatRef<'_, usize>,
+) -> Arc<SymbolicCholesky<usize>> {
+    symbolic_with(pattern, SymmetricOrdering::Amd)
+}
+
 fn symbolic_with(
     pattern: SymbolicSparseColMatRef<'_, usize>,
     ordering: SymmetricOrdering<'_, usize>,
