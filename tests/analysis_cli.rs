@@ -102,6 +102,35 @@ fn analyze_writes_the_analysis_of_a_run() {
     assert_eq!(divergence.data, rows);
     let coexact = read_npy(&out.join("hodge_coexact.npy")).unwrap();
     assert_eq!(coexact.shape, vec![5, 1280, 3]);
+    // --format npy leaves out ParaView; glTF is not an analysis format.
+    let npy_only = dir.path().join("npy_only");
+    let npy = npy_only.to_str().unwrap();
+    meshflow_ok(&[
+        "analyze",
+        run.to_str().unwrap(),
+        "--out",
+        npy,
+        "--format",
+        "npy",
+    ]);
+    let written = listing(&npy_only);
+    assert!(written.contains(&"curl.npy".to_string()), "{written:?}");
+    assert!(
+        !written
+            .iter()
+            .any(|f| f.ends_with(".vtu") || f.ends_with(".pvd")),
+        "{written:?}"
+    );
+    let refused = meshflow(&[
+        "analyze",
+        run.to_str().unwrap(),
+        "--out",
+        npy,
+        "--format",
+        "glb",
+    ]);
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("takes npy and vtu"));
 }
 
 /// A run without a manifest (an older version's, or not a run), and a run whose input lost a

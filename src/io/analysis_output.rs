@@ -18,6 +18,7 @@
 //! | `analysis.json` | per slab: time, duration, total area, mean speed, mean divergence, curl, areal and shear rate, the energies `∫|·|²` of the field and its Hodge parts |
 
 use super::vtk::NamedArray;
+use super::OutputFormat;
 use super::{write_atomically, write_npy, write_slab_vtus_with_cells, IoError, LoadedSequence};
 use crate::analysis::{face_frames, in_r3, SlabAnalysis};
 use crate::flow::MeshSequence;
@@ -27,35 +28,46 @@ use std::path::Path;
 /// A named per-slab array: the file it goes into, and how to read it from a slab's analysis.
 type Column<'a> = (&'static str, &'a dyn Fn(&SlabAnalysis) -> Vec<f64>);
 
-/// Writes the analysis of every slab of `loaded` into `dir` (see the module documentation);
-/// `input` names the run in `analysis.json`.
+/// Writes the analysis of every slab of `loaded` into `dir` (see the module documentation) in
+/// `formats` (NPY and VTU; `analysis.json` always); `input` names the run in `analysis.json`.
 pub fn write_analysis_outputs(
     dir: &Path,
     loaded: &LoadedSequence,
     slabs: &[SlabAnalysis],
     input: &Path,
+    formats: &[OutputFormat],
 ) -> Result<(), IoError> {
+    if formats.contains(&OutputFormat::Glb) {
+        return Err(IoError::format(
+            dir,
+            "the analysis is written as npy and vtu, not glb",
+        ));
+    }
     let sequence = &loaded.sequence;
     let fields = FaceFields::new(slabs, &face_maps(loaded)?);
-    for array in arrays_with(loaded, slabs, &fields) {
+    if formats.contains(&OutputFormat::Npy) {
+        for array in arrays_with(loaded, slabs, &fields) {
+            write_npy(
+                &dir.join(format!("{}.npy", array.name)),
+                &array.shape,
+                &array.values,
+            )?;
+        }
+        let faces = file_faces(loaded);
         write_npy(
-            &dir.join(format!("{}.npy", array.name)),
-            &array.shape,
-            &array.values,
+            &dir.join("faces.npy"),
+            &[faces.len() as u64, 3],
+            faces.as_flattened(),
         )?;
     }
-    let faces = file_faces(loaded);
-    write_npy(
-        &dir.join("faces.npy"),
-        &[faces.len() as u64, 3],
-        faces.as_flattened(),
-    )?;
-    write_slab_vtus_with_cells(dir, "analysis", sequence, |s| {
-        (
-            point_arrays(sequence, &slabs[s], s),
-            cell_arrays(&slabs[s], &fields, s),
-        )
-    })?;
+    if formats.contains(&OutputFormat::Vtu) {
+        write_slab_vtus_with_cells(dir, "analysis", sequence, |s| {
+            (
+                point_arrays(sequence, &slabs[s], s),
+                cell_arrays(&slabs[s], &fields, s),
+            )
+        })?;
+    }
     write_summary(&dir.join("analysis.json"), sequence, slabs, input)
 }
 

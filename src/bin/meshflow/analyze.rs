@@ -6,7 +6,7 @@ use crate::pictures::PictureArgs;
 use crate::progress::{count_progress, during};
 use crate::run::FinishedRun;
 use meshflow::analysis::{analyze_flow, SlabAnalysis};
-use meshflow::io::{write_analysis_outputs, LoadedSequence, Overwrite, StagedDir};
+use meshflow::io::{write_analysis_outputs, LoadedSequence, OutputFormat, Overwrite, StagedDir};
 use meshflow::render::colormap::symmetric_range;
 use meshflow::render::text::format_number;
 use meshflow::render::{
@@ -21,6 +21,8 @@ pub struct AnalyzeRequest<'a> {
     pub run: &'a Path,
     pub out: &'a Path,
     pub overwrite: Overwrite,
+    /// `--format`: npy, vtu.
+    pub formats: &'a [OutputFormat],
     /// `--png` with its picture options.
     pub pictures: Option<&'a PictureArgs>,
 }
@@ -30,6 +32,7 @@ pub fn analyze(request: AnalyzeRequest) -> Result<(), Error> {
         run,
         out,
         overwrite,
+        formats,
         pictures,
     } = request;
     let mut staged = StagedDir::create(out, overwrite)?;
@@ -41,7 +44,7 @@ pub fn analyze(request: AnalyzeRequest) -> Result<(), Error> {
     })?;
     let seconds = start.elapsed().as_secs_f64();
     during(format!("writing {}", out.display()), || {
-        write_analysis_outputs(staged.path(), &loaded, &slabs, run)
+        write_analysis_outputs(staged.path(), &loaded, &slabs, run, formats)
     })
     .map_err(|e| staged.in_target(e))?;
     if let Some(args) = pictures {

@@ -103,6 +103,9 @@ enum Command {
         /// Output directory
         #[arg(long)]
         out: PathBuf,
+        /// Output files: npy, vtu or both (analysis.json is always written)
+        #[arg(long, value_delimiter = ',', default_value = "npy,vtu")]
+        format: Vec<OutputFormat>,
         /// Also draw PNG pictures: divergence_SSSS.png, curl_SSSS.png, areal_rate_SSSS.png
         /// (diverging colours, one symmetric range per quantity for the whole run) and
         /// time_series.png (the means over the surface per slab)
@@ -655,6 +658,7 @@ fn main() -> ExitCode {
         Command::Analyze {
             run,
             out,
+            format,
             png,
             force,
             pictures,
@@ -662,6 +666,7 @@ fn main() -> ExitCode {
             run: &run,
             out: &out,
             overwrite: force.overwrite(),
+            formats: &format,
             pictures: png.then_some(&pictures),
         }),
         Command::Track(args) => track::run(track::TrackRequest {
@@ -730,6 +735,14 @@ fn check_usage(cli: Cli) -> Result<Cli, clap::Error> {
         Command::Analyze { pictures, png, .. } => (Some(pictures), *png),
         _ => (None, true),
     };
+    if let Command::Analyze { format, .. } = &cli.command {
+        if format.contains(&OutputFormat::Glb) {
+            return Err(Cli::command().error(
+                clap::error::ErrorKind::InvalidValue,
+                "--format of analyze takes npy and vtu (the analysis has no glTF output)",
+            ));
+        }
+    }
     if let Some(pictures) = pictures {
         if pictures.chooses_slabs() && !png {
             return Err(Cli::command().error(
