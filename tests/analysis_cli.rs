@@ -52,7 +52,7 @@ fn analyze_writes_the_analysis_of_a_run() {
     let [r, _, b] = curl.get_pixel(160, 40).0;
     assert!(r > b + 40, "north of the sphere is red: {r} {b}");
     for name in [
-        "analysis.json",
+        "summary.json",
         "analysis.pvd",
         "analysis_0004.vtu",
         "divergence.npy",
@@ -64,7 +64,7 @@ fn analyze_writes_the_analysis_of_a_run() {
         assert!(written.contains(&name.to_string()), "{name}: {written:?}");
     }
     let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("analysis.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     for slab in summary["slabs"].as_array().unwrap() {
         let share = slab["coexact_energy"].as_f64().unwrap() / slab["energy"].as_f64().unwrap();
         assert!(share > 0.95, "{slab}");

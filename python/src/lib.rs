@@ -533,7 +533,7 @@ impl Flow {
 
     /// What the flow tells (`meshflow analyze`): the arrays of `analysis_arrays` by name
     /// (vertex arrays (S, V_input), face arrays (S, F[, k]), R³ vectors on frame `s`), `faces`
-    /// (F, 3) over input vertices, and `slabs`, analysis.json's per-slab totals as JSON.
+    /// (F, 3) over input vertices, and `slabs`, summary.json's per-slab totals as JSON.
     fn analysis<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let (arrays, summary) = py
             .detach(|| -> Result<_, Error> {

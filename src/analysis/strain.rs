@@ -73,7 +73,10 @@ pub fn layout_metric(triangle: &Triangle, lengths: [f64; 3]) -> Matrix2<f64> {
     let squares = Vector3::from(lengths.map(|l| l * l));
     // Three edges of a non-degenerate triangle (the geometry refuses others) determine the
     // metric; should rounding make the system singular, the layout's own metric stands in.
-    let g = rows.lu().solve(&squares).unwrap_or_else(|| Vector3::new(1.0, 0.0, 1.0));
+    let g = rows
+        .lu()
+        .solve(&squares)
+        .unwrap_or_else(|| Vector3::new(1.0, 0.0, 1.0));
     Matrix2::new(g[0], g[1], g[1], g[2])
 }
 

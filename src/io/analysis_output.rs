@@ -15,7 +15,7 @@
 //! | `hodge_exact.npy`, `hodge_coexact.npy`, `hodge_harmonic.npy` | (S, F, 3): `∇φ`, `J∇ψ`, `h` |
 //! | `faces.npy` | (F, 3) int64 |
 //! | `analysis_SSSS.vtu`, `analysis.pvd` | ParaView: frame `s` with the vertex arrays as point data (`divergence`, `curl`, `potential`, `stream`, `intensity`) and the face arrays as cell data (`divergence`, `curl`, `areal_rate`, `shear_rate`, `principal_rates`, `stretch_direction`, `field`, `exact`, `coexact`, `harmonic`) |
-//! | `analysis.json` | per slab: time, duration, total area, mean speed, mean divergence, curl, areal and shear rate, the energies `∫|·|²` of the field and its Hodge parts |
+//! | `summary.json` | per slab: time, duration, total area, mean speed, mean divergence, curl, areal and shear rate, the energies `∫|·|²` of the field and its Hodge parts |
 
 use super::vtk::NamedArray;
 use super::OutputFormat;
@@ -29,7 +29,7 @@ use std::path::Path;
 type Column<'a> = (&'static str, &'a dyn Fn(&SlabAnalysis) -> Vec<f64>);
 
 /// Writes the analysis of every slab of `loaded` into `dir` (see the module documentation) in
-/// `formats` (NPY and VTU; `analysis.json` always); `input` names the run in `analysis.json`.
+/// `formats` (NPY and VTU; `summary.json` always); `input` names the run in `summary.json`.
 pub fn write_analysis_outputs(
     dir: &Path,
     loaded: &LoadedSequence,
@@ -68,7 +68,7 @@ pub fn write_analysis_outputs(
             )
         })?;
     }
-    write_summary(&dir.join("analysis.json"), sequence, slabs, input)
+    write_summary(&dir.join("summary.json"), sequence, slabs, input)
 }
 
 /// The R³ vectors of every slab's face fields.
@@ -253,7 +253,7 @@ fn cell_arrays(a: &SlabAnalysis, fields: &FaceFields, s: usize) -> Vec<NamedArra
     ]
 }
 
-/// `analysis.json`: the run, and per slab its time, duration and totals.
+/// `summary.json`: the run, and per slab its time, duration and totals.
 pub fn analysis_json(
     sequence: &MeshSequence,
     slabs: &[SlabAnalysis],

@@ -1,6 +1,6 @@
 //! `meshflow analyze RUN --out DIR`: what a finished run's flow tells (`meshflow::analysis`):
 //! divergence, curl, Helmholtz–Hodge parts and the tissue's strain rate, as NPY, ParaView and
-//! `analysis.json`, with a table per slab on stdout and, with `--png`, pictures.
+//! `summary.json`, with a table per slab on stdout and, with `--png`, pictures.
 
 use crate::pictures::PictureArgs;
 use crate::progress::{count_progress, during};

@@ -95,7 +95,7 @@ enum Command {
     /// parts of the face-wise flow (exact ∇φ, co-exact J∇ψ, harmonic) with their potentials,
     /// and the tissue's rate of deformation (the mesh's own motion plus the flow: areal growth
     /// rate, shear rate, principal rates and directions). Writes NPY arrays, analysis_SSSS.vtu
-    /// and analysis.pvd (point and cell data) and analysis.json (per slab: area, mean speed,
+    /// and analysis.pvd (point and cell data) and summary.json (per slab: area, mean speed,
     /// divergence, curl, areal and shear rate, energy of each Hodge part), and prints the table.
     Analyze {
         /// Output directory of `meshflow solve`
@@ -103,7 +103,7 @@ enum Command {
         /// Output directory
         #[arg(long)]
         out: PathBuf,
-        /// Output files: npy, vtu or both (analysis.json is always written)
+        /// Output files: npy, vtu or both (summary.json is always written)
         #[arg(long, value_delimiter = ',', default_value = "npy,vtu")]
         format: Vec<OutputFormat>,
         /// Also draw PNG pictures: divergence_SSSS.png, curl_SSSS.png, areal_rate_SSSS.png
