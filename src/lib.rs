@@ -18,7 +18,8 @@
 //!
 //! Data flows one way through the modules: [`mesh`] (connectivity) → [`geometry`] (intrinsic
 //! quantities) → [`connection`] (frames and transport) → [`fem`] (element matrices and
-//! assembly) → [`flow`] (the space-time energy and its minimizer); [`chart`] reads flows in a
+//! assembly) → [`flow`] (the space-time energy and its minimizer) → [`analysis`] (what a flow
+//! tells: divergence, curl, Hodge parts, strain rate); [`chart`] reads flows in a
 //! parameter domain, [`io`] reads and writes files, [`render`] draws PNG pictures, [`shapes`]
 //! makes sample surfaces, [`synth`] sample sequences with known flow, and [`accuracy`] measures
 //! a computed flow against a known one or at tracked points. Before the flow, recordings

@@ -26,7 +26,7 @@
 //! `δ ≥ 0` mixes the covariant term back in (δ = 0: pure strain). Where the data leaves a
 //! Killing field free (stripes leave their translation free on a flat patch, a pattern
 //! symmetric about an axis its rotation) the energy has a kernel; `β > 0` removes it (see
-//! [`super::uniqueness`] for what is detected before solving).
+//! `flow::uniqueness` for what is detected before solving).
 //! The temporal term is the same for both.
 //!
 //! A new regularizer is one more variant here with its element matrix; assembly, energy and
@@ -75,7 +75,7 @@ impl Regularizer {
         }
     }
 
-    /// Whether its element needs the slabs' R³ frames ([`super::Slab::embed`]).
+    /// Whether its element needs the slabs' R³ frames (`Slab::embed`).
     pub fn needs_embedding(&self) -> bool {
         *self == Regularizer::Embedded
     }

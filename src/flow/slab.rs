@@ -163,7 +163,7 @@ impl Slab {
         }
     }
 
-    /// The R³ frames of `face`'s corners, once [`Slab::embed`] has set them.
+    /// The R³ frames of `face`'s corners, once `Slab::embed` has set them.
     pub fn corner_frames(&self, face: &[u32; 3]) -> Option<[&Matrix3x2<f64>; 3]> {
         let frames = self.embedding_frames.as_ref()?;
         Some(face.map(|v| &frames[v as usize]))
