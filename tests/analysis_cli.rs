@@ -174,3 +174,25 @@ fn broken_runs_fail_in_one_line_without_output() {
     std::fs::remove_file(run.join("flow_intrinsic.npy")).unwrap();
     failing(&run, "flow_intrinsic.npy");
 }
+
+/// `--out` naming the run itself is refused before anything is written: the run would be
+/// replaced by its own analysis (or trajectories).
+#[test]
+fn the_run_is_never_its_own_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    solve(&shipped("rotating_sphere"), &run);
+    let before = listing(&run);
+    for command in ["analyze", "advect"] {
+        let done = meshflow(&[
+            command,
+            run.to_str().unwrap(),
+            "--out",
+            run.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&done.stderr);
+        assert_eq!(done.status.code(), Some(1), "{command}: {stderr}");
+        assert!(stderr.contains("is the input"), "{command}: {stderr}");
+        assert_eq!(listing(&run), before, "{command} left the run alone");
+    }
+}

@@ -20,7 +20,7 @@ pub fn advect(
     seeds_file: Option<&Path>,
     overwrite: Overwrite,
 ) -> Result<(), Error> {
-    let mut staged = StagedDir::create(out, overwrite)?;
+    let mut staged = StagedDir::create_apart_from(run, out, overwrite)?;
     staged.record_command(crate::command_line());
     let FinishedRun { args, loaded, flow } = FinishedRun::read(run)?;
     let sequence = &loaded.sequence;

@@ -35,7 +35,7 @@ pub fn analyze(request: AnalyzeRequest) -> Result<(), Error> {
         formats,
         pictures,
     } = request;
-    let mut staged = StagedDir::create(out, overwrite)?;
+    let mut staged = StagedDir::create_apart_from(run, out, overwrite)?;
     staged.record_command(crate::command_line());
     let FinishedRun { loaded, flow, .. } = FinishedRun::read(run)?;
     let start = std::time::Instant::now();
