@@ -211,13 +211,11 @@ fn arrays_with(
     arrays
 }
 
-/// The mesh's triangles over file vertices (each mesh vertex as its first file vertex): what
+/// The mesh's triangles over file vertices ([`super::VertexMap::file_faces`]), as int64: what
 /// the face arrays are per.
 pub fn file_faces(loaded: &LoadedSequence) -> Vec<[i64; 3]> {
-    let map = &loaded.vertex_map;
-    (loaded.sequence.mesh().faces().iter())
-        .map(|face| face.map(|m| map.representative(m as usize) as i64))
-        .collect()
+    let faces = loaded.vertex_map.file_faces(loaded.sequence.mesh().faces());
+    faces.iter().map(|f| f.map(i64::from)).collect()
 }
 
 fn point_arrays(sequence: &MeshSequence, a: &SlabAnalysis, s: usize) -> Vec<NamedArray> {

@@ -478,9 +478,7 @@ pub fn write_run_input(dir: &Path, loaded: &LoadedSequence) -> Result<(), IoErro
             Ok(map.file_rows(mesh_positions, Vector3::zeros()))
         })
         .collect::<Result<_, IoError>>()?;
-    let faces: Vec<[u32; 3]> = (sequence.mesh().faces().iter())
-        .map(|f| f.map(|m| map.representative(m as usize) as u32))
-        .collect();
+    let faces = map.file_faces(sequence.mesh().faces());
     let grey: Vec<Vec<f64>> = frames
         .map(|k| map.file_rows(sequence.intensities(k), 0.0))
         .collect();

@@ -91,6 +91,15 @@ impl VertexMap {
         self.representatives[m] as usize
     }
 
+    /// Mesh triangles `faces` over file vertices: each mesh vertex as its representative. What
+    /// per-face arrays written beside per-file-vertex arrays are laid over.
+    pub fn file_faces(&self, faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
+        faces
+            .iter()
+            .map(|face| face.map(|m| self.representatives[m as usize]))
+            .collect()
+    }
+
     /// Whether file vertex `i` is mesh vertex `i` for every `i`.
     pub fn is_identity(&self) -> bool {
         self.mesh_vertices.len() == self.representatives.len()
