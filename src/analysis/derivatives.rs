@@ -58,19 +58,17 @@ pub fn divergence_and_curl(gradient: &Matrix2<f64>) -> (f64, f64) {
     (gradient.trace(), gradient[(1, 0)] - gradient[(0, 1)])
 }
 
-/// Per vertex, the weak divergence and curl of the field `u` (vertex-frame vectors); see the
-/// module documentation.
+/// Per vertex, the weak divergence and curl of the field whose corner vectors, carried into
+/// each face's frame, are `vectors[f]` ([`face_vectors`]); see the module documentation.
 pub fn vertex_divergence_and_curl(
     mesh: &Mesh,
     geometry: &IntrinsicGeometry,
-    connection: &Connection,
-    u: &[Vector2<f64>],
+    vectors: &[[Vector2<f64>; 3]],
 ) -> (Vec<f64>, Vec<f64>) {
     let n = mesh.n_vertices();
     let (mut div, mut curl, mut area) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    for (f, face) in mesh.faces().iter().enumerate() {
+    for ((f, face), v) in mesh.faces().iter().enumerate().zip(vectors) {
         let triangle = geometry.triangle(f);
-        let v = face_vectors(mesh, connection, f, u);
         let mean = (v[0] + v[1] + v[2]) / 3.0;
         let g = triangle.hat_gradients();
         let layout = triangle.layout();

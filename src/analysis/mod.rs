@@ -112,10 +112,13 @@ pub fn analyze_slab(
     let mut face_curl = Vec::with_capacity(n_faces);
     let mut field = Vec::with_capacity(n_faces);
     let mut strain = Vec::with_capacity(n_faces);
-    for f in 0..n_faces {
+    let vectors: Vec<[Vector2<f64>; 3]> = (0..n_faces)
+        .map(|f| face_vectors(mesh, &connection, f, u))
+        .collect();
+    for (f, v) in vectors.iter().enumerate() {
         let triangle = geometry.triangle(f);
-        let v = face_vectors(mesh, &connection, f, u);
-        let (div, curl) = divergence_and_curl(&field_gradient(triangle, &v));
+        let gradient = field_gradient(triangle, v);
+        let (div, curl) = divergence_and_curl(&gradient);
         face_divergence.push(div);
         face_curl.push(curl);
         field.push((v[0] + v[1] + v[2]) / 3.0);
@@ -125,11 +128,10 @@ pub fn analyze_slab(
             lengths(before),
             lengths(after),
             dt,
-            &v,
+            &gradient,
         ));
     }
-    let (vertex_divergence, vertex_curl) =
-        vertex_divergence_and_curl(mesh, &geometry, &connection, u);
+    let (vertex_divergence, vertex_curl) = vertex_divergence_and_curl(mesh, &geometry, &vectors);
     let hodge = hodge.decompose(mesh, &geometry, field)?;
     let totals = totals(&geometry, &face_divergence, &face_curl, &strain, &hodge);
     Ok(SlabAnalysis {

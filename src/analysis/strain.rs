@@ -21,7 +21,6 @@
 //! lengths and intrinsic flows do not see rigid motions of the whole sequence, so neither
 //! does `D`.
 
-use super::derivatives::field_gradient;
 use crate::geometry::Triangle;
 use nalgebra::{Matrix2, Matrix3, SymmetricEigen, Vector2, Vector3};
 
@@ -81,17 +80,17 @@ pub fn layout_metric(triangle: &Triangle, lengths: [f64; 3]) -> Matrix2<f64> {
 }
 
 /// `D_T` of a face: the metric's rate between the frames' edge lengths `before` and `after`
-/// over `dt`, plus `Sym ∇U` of the face-frame corner vectors `v`.
+/// over `dt`, plus `Sym ∇U` of the flow's face gradient `gradient`
+/// ([`super::derivatives::field_gradient`]).
 pub fn face_strain_rate(
     triangle: &Triangle,
     before: [f64; 3],
     after: [f64; 3],
     dt: f64,
-    v: &[Vector2<f64>; 3],
+    gradient: &Matrix2<f64>,
 ) -> StrainRate {
     let metric_rate =
         (layout_metric(triangle, after) - layout_metric(triangle, before)) / (2.0 * dt);
-    let gradient = field_gradient(triangle, v);
     let symmetric = (gradient + gradient.transpose()) * 0.5;
     StrainRate::new(metric_rate + symmetric)
 }
