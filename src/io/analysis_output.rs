@@ -22,7 +22,7 @@ use super::OutputFormat;
 use super::{write_atomically, write_npy, write_slab_vtus_with_cells, IoError, LoadedSequence};
 use crate::analysis::{face_frames, in_r3, SlabAnalysis};
 use crate::flow::MeshSequence;
-use nalgebra::{Matrix3x2, Vector3};
+use nalgebra::{Matrix3x2, Vector2, Vector3};
 use std::path::Path;
 
 /// A named per-slab array: the file it goes into, and how to read it from a slab's analysis.
@@ -82,14 +82,13 @@ struct FaceFields {
 
 impl FaceFields {
     fn new(slabs: &[SlabAnalysis], maps: &[Vec<Matrix3x2<f64>>]) -> Self {
-        let each =
-            |part: fn(&SlabAnalysis) -> Vec<nalgebra::Vector2<f64>>| -> Vec<Vec<Vector3<f64>>> {
-                slabs
-                    .iter()
-                    .zip(maps)
-                    .map(|(a, m)| in_r3(m, &part(a)))
-                    .collect()
-            };
+        let each = |part: fn(&SlabAnalysis) -> &[Vector2<f64>]| -> Vec<Vec<Vector3<f64>>> {
+            slabs
+                .iter()
+                .zip(maps)
+                .map(|(a, m)| in_r3(m, part(a)))
+                .collect()
+        };
         let stretch = slabs
             .iter()
             .zip(maps)
@@ -100,10 +99,10 @@ impl FaceFields {
             })
             .collect();
         FaceFields {
-            field: each(|a| a.hodge.field.clone()),
-            exact: each(|a| a.hodge.exact.clone()),
-            coexact: each(|a| a.hodge.coexact.clone()),
-            harmonic: each(|a| a.hodge.harmonic.clone()),
+            field: each(|a| &a.hodge.field),
+            exact: each(|a| &a.hodge.exact),
+            coexact: each(|a| &a.hodge.coexact),
+            harmonic: each(|a| &a.hodge.harmonic),
             stretch,
         }
     }

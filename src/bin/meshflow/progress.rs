@@ -145,20 +145,19 @@ impl Progress {
 
     /// Replaces the message (a plain line at most every [`LINE_INTERVAL`]).
     pub fn set_message(&self, message: String) {
-        self.with_lines(|l| {
-            l.message = Some(message.clone());
-            l.changed();
-        });
-        if let Some(bar) = &self.bar {
-            bar.set_message(message);
-        }
+        self.replace_message(message, Lines::changed);
     }
 
     /// Replaces the message and says so at once in plain lines: a new phase of the step.
     pub fn announce(&self, message: String) {
+        self.replace_message(message, Lines::flush);
+    }
+
+    /// The new message on the bar, and in plain lines followed by `then`.
+    fn replace_message(&self, message: String, then: fn(&mut Lines)) {
         self.with_lines(|l| {
             l.message = Some(message.clone());
-            l.flush();
+            then(l);
         });
         if let Some(bar) = &self.bar {
             bar.set_message(message);
