@@ -99,7 +99,7 @@ pub struct SolveStep {
 impl Timings {
     /// Adds the phases of `part` (one solve of this run, taking `seconds` in all) and records
     /// it as a step called `label`; nested steps of `part` (a warp's reweightings) count as one.
-    pub fn add_step(&mut self, label: String, seconds: f64, part: &FlowResult) {
+    fn add_step(&mut self, label: String, seconds: f64, part: &FlowResult) {
         self.assembly += part.timings.assembly;
         self.factorization += part.timings.factorization;
         self.solve += part.timings.solve;
@@ -108,6 +108,45 @@ impl Timings {
             seconds,
             iterations: part.iterations_in_all(),
         });
+    }
+}
+
+/// The clock of a run of several solves (warping, reweighting): its [`Timings`], step by step.
+pub(super) struct RunClock {
+    start: Instant,
+    step: Instant,
+    timings: Timings,
+}
+
+impl RunClock {
+    /// Starts the run of `problem`, already assembled: its assembly counts.
+    pub(super) fn start(problem: &FlowProblem) -> Self {
+        let now = Instant::now();
+        RunClock {
+            start: now,
+            step: now,
+            timings: Timings {
+                assembly: problem.assembly_seconds(),
+                ..Timings::default()
+            },
+        }
+    }
+
+    /// A step begins now (the first one begins with the run).
+    pub(super) fn begin_step(&mut self) {
+        self.step = Instant::now();
+    }
+
+    /// The step begun last ends with `part`, its solve, recorded as `label`.
+    pub(super) fn end_step(&mut self, label: String, part: &FlowResult) {
+        let seconds = self.step.elapsed().as_secs_f64();
+        self.timings.add_step(label, seconds, part);
+    }
+
+    /// The run's timings, `total` from the assembly to now.
+    pub(super) fn finish(mut self, problem: &FlowProblem) -> Timings {
+        self.timings.total = problem.assembly_seconds() + self.start.elapsed().as_secs_f64();
+        self.timings
     }
 }
 

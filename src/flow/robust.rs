@@ -19,10 +19,9 @@
 //! With coarse-to-fine warping, every warp reweights from its own linear solve (the prototype
 //! found the per-level γ schedule necessary for stability at large motions).
 
-use super::{FlowError, FlowParams, FlowProblem, FlowResult, SolveObserver, Timings, Weight};
+use super::{FlowError, FlowParams, FlowProblem, FlowResult, RunClock, SolveObserver, Weight};
 use crate::mesh::Mesh;
 use nalgebra::{Vector2, Vector6};
-use std::time::Instant;
 
 /// The relative change of the robust energy below which reweighting stops.
 pub const ENERGY_CHANGE: f64 = 1e-4;
@@ -53,13 +52,9 @@ pub(super) fn reweighted(
         params: &params,
         gamma: weights.gamma,
     };
-    let start = Instant::now();
-    let mut timings = Timings {
-        assembly: problem.assembly_seconds(),
-        ..Timings::default()
-    };
+    let mut clock = RunClock::start(problem);
     let mut result = problem_solve(sequence, &params, slabs.clone(), observer)?;
-    timings.add_step("first solve".into(), start.elapsed().as_secs_f64(), &result);
+    clock.end_step("first solve".into(), &result);
     // `densities[s][T] = r_T` of the current flow: its energy, and the next solve's weights.
     let mut densities = penalty.densities(mesh, &slabs, &result);
     let mut energy = penalty.robust_energy(&slabs, &densities, &mut result);
@@ -68,11 +63,10 @@ pub(super) fn reweighted(
         for (slab, r) in slabs.iter_mut().zip(&densities) {
             slab.smoothness_weights = Some(r.iter().map(|&r| penalty.weight(r)).collect());
         }
-        let step = Instant::now();
+        clock.begin_step();
         result = problem_solve(sequence, &params, slabs.clone(), observer)?;
         reweightings += 1;
-        let label = format!("reweighting {reweightings}");
-        timings.add_step(label, step.elapsed().as_secs_f64(), &result);
+        clock.end_step(format!("reweighting {reweightings}"), &result);
         densities = penalty.densities(mesh, &slabs, &result);
         let next = penalty.robust_energy(&slabs, &densities, &mut result);
         let change = (energy - next).abs() / next.abs().max(f64::MIN_POSITIVE);
@@ -82,8 +76,7 @@ pub(super) fn reweighted(
         }
     }
     result.reweightings = reweightings;
-    timings.total = problem.assembly_seconds() + start.elapsed().as_secs_f64();
-    result.timings = timings;
+    result.timings = clock.finish(problem);
     result.scales = *problem.scales();
     Ok(result)
 }

@@ -29,11 +29,10 @@
 use super::pyramid::scale_pyramid;
 use super::slab::{Slab, SlabChannel};
 use super::{FlowError, FlowParams, FlowProblem, FlowResult, Images, MeshSequence, SolveEvent};
-use super::{SolveObserver, Timings, Weight};
+use super::{RunClock, SolveObserver, Weight};
 use crate::geometry::{trace, SurfacePoint};
 use nalgebra::Vector2;
 use rayon::prelude::*;
-use std::time::Instant;
 
 /// Solves `problem` coarse to fine with `problem`'s warping (its weights fixed at the
 /// original images'); the result is the last, finest solve's, with the original data scales.
@@ -41,7 +40,7 @@ pub(super) fn coarse_to_fine(
     problem: &FlowProblem,
     observer: &dyn SolveObserver,
 ) -> Result<FlowResult, FlowError> {
-    let start = Instant::now();
+    let mut clock = RunClock::start(problem);
     let sequence = problem.sequence();
     let warping = problem.params().warping;
     let pyramid = scale_pyramid(sequence, warping.levels)?;
@@ -52,10 +51,6 @@ pub(super) fn coarse_to_fine(
     let mesh = sequence.mesh();
     let mut flow = vec![vec![Vector2::zeros(); mesh.n_vertices()]; sequence.n_slabs()];
     let mut result = None;
-    let mut timings = Timings {
-        assembly: problem.assembly_seconds(),
-        ..Timings::default()
-    };
     let mut solves = 0;
     for level in (0..warping.levels).rev() {
         let scale = 2f64.powi(level as i32);
@@ -74,12 +69,11 @@ pub(super) fn coarse_to_fine(
                 solve: solves,
                 solves: warping.solves(),
             })?;
-            let step = Instant::now();
+            clock.begin_step();
             let slabs = warped_slabs(sequence, &pyramid[level], &flow, &channel_weights)?;
             let level_problem = FlowProblem::from_slabs(sequence, &params, slabs)?;
             let solved = level_problem.solve(observer)?;
-            let label = format!("level {level}, warp {}", warp + 1);
-            timings.add_step(label, step.elapsed().as_secs_f64(), &solved);
+            clock.end_step(format!("level {level}, warp {}", warp + 1), &solved);
             flow.clone_from(&solved.intrinsic);
             result = Some(solved);
         }
@@ -88,8 +82,7 @@ pub(super) fn coarse_to_fine(
     result.scales = *problem.scales();
     let last = warped_slabs(sequence, &pyramid[0], &flow, &channel_weights)?;
     result.warped_residual = Some(last.iter().map(warped_residual).collect());
-    timings.total = problem.assembly_seconds() + start.elapsed().as_secs_f64();
-    result.timings = timings;
+    result.timings = clock.finish(problem);
     Ok(result)
 }
 
