@@ -29,6 +29,7 @@ pub mod strain;
 use crate::connection::Connection;
 use crate::flow::{FlowError, MeshSequence};
 use crate::geometry::IntrinsicGeometry;
+use crate::mesh::Mesh;
 use derivatives::{divergence_and_curl, face_vectors, field_gradient, vertex_divergence_and_curl};
 pub use hodge::{HodgeParts, HodgeSolver};
 use nalgebra::{Matrix2, Matrix3x2, Vector2, Vector3};
@@ -67,16 +68,24 @@ pub struct SlabTotals {
 
 /// Analyses every slab of `sequence` with its flow `flow[s][i]` (vertex-frame vectors, as
 /// [`crate::flow::FlowResult::intrinsic`]); one [`HodgeSolver`] serves all slabs, which are
-/// analysed in parallel.
+/// analysed in parallel. The solver's per-mesh set-up runs beside the slabs' derivatives and
+/// strain rates, which do not need it.
 pub fn analyze_flow(
     sequence: &MeshSequence,
     flow: &[Vec<Vector2<f64>>],
 ) -> Result<Vec<SlabAnalysis>, FlowError> {
     check_sizes(sequence, flow)?;
-    let hodge = HodgeSolver::new(sequence.mesh());
-    (0..sequence.n_slabs())
-        .into_par_iter()
-        .map(|s| analyze_slab(sequence, s, &flow[s], &hodge))
+    let (hodge, derived) = rayon::join(
+        || HodgeSolver::new(sequence.mesh()),
+        || {
+            (0..sequence.n_slabs())
+                .into_par_iter()
+                .map(|s| SlabDerivatives::new(sequence, s, &flow[s]))
+                .collect::<Result<Vec<_>, _>>()
+        },
+    );
+    (derived?.into_par_iter())
+        .map(|derived| derived.with_hodge(sequence.mesh(), &hodge))
         .collect()
 }
 
@@ -102,48 +111,88 @@ pub fn analyze_slab(
     u: &[Vector2<f64>],
     hodge: &HodgeSolver,
 ) -> Result<SlabAnalysis, FlowError> {
-    let mesh = sequence.mesh();
-    let geometry = sequence.slab_geometry(s)?;
-    let connection = Connection::new(mesh, &geometry);
-    let n_faces = mesh.n_faces();
-    let dt = sequence.slab_duration(s);
-    let (before, after) = (sequence.edge_lengths(s), sequence.edge_lengths(s + 1));
-    let mut face_divergence = Vec::with_capacity(n_faces);
-    let mut face_curl = Vec::with_capacity(n_faces);
-    let mut field = Vec::with_capacity(n_faces);
-    let mut strain = Vec::with_capacity(n_faces);
-    let vectors: Vec<[Vector2<f64>; 3]> = (0..n_faces)
-        .map(|f| face_vectors(mesh, &connection, f, u))
-        .collect();
-    for (f, v) in vectors.iter().enumerate() {
-        let triangle = geometry.triangle(f);
-        let gradient = field_gradient(triangle, v);
-        let (div, curl) = divergence_and_curl(&gradient);
-        face_divergence.push(div);
-        face_curl.push(curl);
-        field.push((v[0] + v[1] + v[2]) / 3.0);
-        let lengths = |all: &[f64]| std::array::from_fn(|c| all[mesh.halfedge_edge(3 * f + c)]);
-        strain.push(strain::face_strain_rate(
-            triangle,
-            lengths(before),
-            lengths(after),
-            dt,
-            &gradient,
-        ));
+    SlabDerivatives::new(sequence, s, u)?.with_hodge(sequence.mesh(), hodge)
+}
+
+/// What a slab's analysis reads from its flow without the Hodge decomposition.
+struct SlabDerivatives {
+    slab: usize,
+    geometry: IntrinsicGeometry,
+    face_divergence: Vec<f64>,
+    face_curl: Vec<f64>,
+    vertex_divergence: Vec<f64>,
+    vertex_curl: Vec<f64>,
+    /// `U_T`, the mean of each face's corner vectors.
+    field: Vec<Vector2<f64>>,
+    strain: Vec<StrainRate>,
+}
+
+impl SlabDerivatives {
+    fn new(sequence: &MeshSequence, s: usize, u: &[Vector2<f64>]) -> Result<Self, FlowError> {
+        let mesh = sequence.mesh();
+        let geometry = sequence.slab_geometry(s)?;
+        let connection = Connection::new(mesh, &geometry);
+        let n_faces = mesh.n_faces();
+        let dt = sequence.slab_duration(s);
+        let (before, after) = (sequence.edge_lengths(s), sequence.edge_lengths(s + 1));
+        let mut face_divergence = Vec::with_capacity(n_faces);
+        let mut face_curl = Vec::with_capacity(n_faces);
+        let mut field = Vec::with_capacity(n_faces);
+        let mut strain = Vec::with_capacity(n_faces);
+        let vectors: Vec<[Vector2<f64>; 3]> = (0..n_faces)
+            .map(|f| face_vectors(mesh, &connection, f, u))
+            .collect();
+        for (f, v) in vectors.iter().enumerate() {
+            let triangle = geometry.triangle(f);
+            let gradient = field_gradient(triangle, v);
+            let (div, curl) = divergence_and_curl(&gradient);
+            face_divergence.push(div);
+            face_curl.push(curl);
+            field.push((v[0] + v[1] + v[2]) / 3.0);
+            let lengths = |all: &[f64]| std::array::from_fn(|c| all[mesh.halfedge_edge(3 * f + c)]);
+            strain.push(strain::face_strain_rate(
+                triangle,
+                lengths(before),
+                lengths(after),
+                dt,
+                &gradient,
+            ));
+        }
+        let (vertex_divergence, vertex_curl) =
+            vertex_divergence_and_curl(mesh, &geometry, &vectors);
+        Ok(SlabDerivatives {
+            slab: s,
+            geometry,
+            face_divergence,
+            face_curl,
+            vertex_divergence,
+            vertex_curl,
+            field,
+            strain,
+        })
     }
-    let (vertex_divergence, vertex_curl) = vertex_divergence_and_curl(mesh, &geometry, &vectors);
-    let hodge = hodge.decompose(mesh, &geometry, field)?;
-    let totals = totals(&geometry, &face_divergence, &face_curl, &strain, &hodge);
-    Ok(SlabAnalysis {
-        slab: s,
-        face_divergence,
-        face_curl,
-        vertex_divergence,
-        vertex_curl,
-        hodge,
-        strain,
-        totals,
-    })
+
+    fn with_hodge(self, mesh: &Mesh, hodge: &HodgeSolver) -> Result<SlabAnalysis, FlowError> {
+        let geometry = &self.geometry;
+        let hodge = hodge.decompose(mesh, geometry, self.field)?;
+        let totals = totals(
+            geometry,
+            &self.face_divergence,
+            &self.face_curl,
+            &self.strain,
+            &hodge,
+        );
+        Ok(SlabAnalysis {
+            slab: self.slab,
+            face_divergence: self.face_divergence,
+            face_curl: self.face_curl,
+            vertex_divergence: self.vertex_divergence,
+            vertex_curl: self.vertex_curl,
+            hodge,
+            strain: self.strain,
+            totals,
+        })
+    }
 }
 
 fn totals(

@@ -22,7 +22,7 @@
 //! does `D`.
 
 use crate::geometry::Triangle;
-use nalgebra::{Matrix2, Matrix3, SymmetricEigen, Vector2, Vector3};
+use nalgebra::{Matrix2, Vector2};
 
 /// The rate of deformation of one face and what is read from it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -40,22 +40,27 @@ pub struct StrainRate {
 }
 
 impl StrainRate {
+    /// Reads `D` (symmetric): `λ₁,₂ = m ± r` with `m = tr D / 2`, `r = √(((D₁₁ − D₂₂)/2)² + D₁₂²)`,
+    /// so `|dev D| = √2 r`; the eigenvector of `λ₁` is the larger of `(D₁₂, λ₁ − D₁₁)` and
+    /// `(λ₁ − D₂₂, D₁₂)` (both are eigenvectors; the larger is the accurate one), `e₁` when
+    /// `r = 0`. Closed forms, as this runs for every face of every slab.
     pub fn new(tensor: Matrix2<f64>) -> Self {
-        let eigen = SymmetricEigen::new(tensor);
-        let (first, second) = match eigen.eigenvalues[0] >= eigen.eigenvalues[1] {
-            true => (0, 1),
-            false => (1, 0),
+        let (a, b, d) = (tensor[(0, 0)], tensor[(0, 1)], tensor[(1, 1)]);
+        let mean = 0.5 * (a + d);
+        let radius = (0.5 * (a - d)).hypot(b);
+        let first = mean + radius;
+        let candidates = [Vector2::new(b, first - a), Vector2::new(first - d, b)];
+        let larger = match candidates[0].norm_squared() >= candidates[1].norm_squared() {
+            true => candidates[0],
+            false => candidates[1],
         };
-        let deviator = tensor - Matrix2::identity() * (0.5 * tensor.trace());
+        let direction = larger.try_normalize(0.0).unwrap_or_else(Vector2::x);
         StrainRate {
             tensor,
-            areal: tensor.trace(),
-            shear: deviator.norm(),
-            principal: [eigen.eigenvalues[first], eigen.eigenvalues[second]],
-            directions: [
-                eigen.eigenvectors.column(first).into_owned(),
-                eigen.eigenvectors.column(second).into_owned(),
-            ],
+            areal: a + d,
+            shear: std::f64::consts::SQRT_2 * radius,
+            principal: [first, mean - radius],
+            directions: [direction, Vector2::new(-direction.y, direction.x)],
         }
     }
 }
@@ -63,20 +68,14 @@ impl StrainRate {
 /// The metric `G` in the layout of `triangle` whose edges have lengths `lengths` (`[ℓ_ab,
 /// ℓ_bc, ℓ_ca]`, as [`Triangle::lengths`]): `E_eᵀ G E_e = ℓ_e²`.
 pub fn layout_metric(triangle: &Triangle, lengths: [f64; 3]) -> Matrix2<f64> {
-    let p = triangle.layout();
-    let edges: [Vector2<f64>; 3] = std::array::from_fn(|e| p[(e + 1) % 3] - p[e]);
-    let rows = Matrix3::from_fn(|e, k| {
-        let (x, y) = (edges[e].x, edges[e].y);
-        [x * x, 2.0 * x * y, y * y][k]
-    });
-    let squares = Vector3::from(lengths.map(|l| l * l));
-    // Three edges of a non-degenerate triangle (the geometry refuses others) determine the
-    // metric; should rounding make the system singular, the layout's own metric stands in.
-    let g = rows
-        .lu()
-        .solve(&squares)
-        .unwrap_or_else(|| Vector3::new(1.0, 0.0, 1.0));
-    Matrix2::new(g[0], g[1], g[1], g[2])
+    // With the layout's edge vectors E = [p_b − p_a, p_c − p_a], Eᵀ G E is the Gram matrix of
+    // those edges in the metric: diagonal ℓ_ab², ℓ_ca², off-diagonal (ℓ_ab² + ℓ_ca² − ℓ_bc²)/2
+    // (law of cosines).
+    let [ab, bc, ca] = lengths.map(|l| l * l);
+    let gram = Matrix2::new(ab, 0.5 * (ab + ca - bc), 0.5 * (ab + ca - bc), ca);
+    // A non-degenerate layout (the geometry refuses others) has independent edges.
+    let inverse = (triangle.layout_edge_matrix().try_inverse()).unwrap_or_else(Matrix2::identity);
+    inverse.transpose() * gram * inverse
 }
 
 /// `D_T` of a face: the metric's rate between the frames' edge lengths `before` and `after`

@@ -43,14 +43,16 @@ impl Triangle {
         })
     }
 
-    /// Corner positions of the layout: `p_a = (0, 0)`, `p_b = (l_ab, 0)`, `p_c` above the x-axis.
+    /// Corner positions of the layout: `p_a = (0, 0)`, `p_b = (l_ab, 0)`, `p_c` above the x-axis,
+    /// `p_c = (l_ca cos θ_a, l_ca sin θ_a) = (h cot θ_a, h)` with the height `h = 2A / l_ab`
+    /// (no trigonometric call: layouts are made per face and use, in every assembly).
     pub fn layout(&self) -> [Vector2<f64>; 3] {
-        let [l_ab, _, l_ca] = self.lengths;
-        let (sin_a, cos_a) = self.angles[0].sin_cos();
+        let l_ab = self.lengths[0];
+        let height = 2.0 * self.area / l_ab;
         [
             Vector2::zeros(),
             Vector2::new(l_ab, 0.0),
-            Vector2::new(l_ca * cos_a, l_ca * sin_a),
+            Vector2::new(height * self.cotans[0], height),
         ]
     }
 

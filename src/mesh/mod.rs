@@ -18,9 +18,11 @@
 //!   at its corner in the lowest-numbered face.
 //! - Undirected edge `e` joins `edges[e][0] < edges[e][1]`.
 
+mod cohomology;
 mod repair;
 mod validate;
 
+pub use cohomology::{halfedge_sign, TreeCotree};
 pub(crate) use repair::UnionFind;
 pub use repair::{orient, repair, RepairReport, Repaired};
 pub use validate::{check_index_range, ConnectivityError};

@@ -35,12 +35,25 @@ pub fn analyze(
     symbolic_with(pattern, SymmetricOrdering::Custom(perm))
 }
 
-/// The symbolic analysis with faer's approximate minimum degree ordering: cheaper to compute
-/// than nested dissection, for patterns factorized only a few times.
-pub fn analyze_with_amd(
+/// faer's approximate minimum degree order of a symmetric pattern (either triangle or both):
+/// `new_row[old]`. Cheaper to compute than nested dissection, for patterns factorized only a
+/// few times.
+pub fn amd_order(pattern: SymbolicSparseColMatRef<'_, usize>) -> Vec<usize> {
+    let symbolic = symbolic_with(pattern, SymmetricOrdering::Amd);
+    match symbolic.perm() {
+        Some(perm) => perm.arrays().1.to_vec(),
+        None => (0..pattern.ncols()).collect(),
+    }
+}
+
+/// The symbolic analysis of a pattern already in elimination order, given by its upper
+/// triangle (faer reads that one when there is no ordering to apply). Matrices factorized with
+/// it are passed as their lower triangle, which faer's supernodal factorization reads in place
+/// (its simplicial one transposes a copy).
+pub fn analyze_in_order(
     pattern: SymbolicSparseColMatRef<'_, usize>,
 ) -> Arc<SymbolicCholesky<usize>> {
-    symbolic_with(pattern, SymmetricOrdering::Amd)
+    symbolic_with(pattern, SymmetricOrdering::Identity)
 }
 
 fn symbolic_with(
@@ -199,6 +212,22 @@ impl<T: Precision> CholeskyFactor<T> {
         x.iter_mut()
             .zip(&work.rhs)
             .for_each(|(x, r)| *x = r.to_f64());
+    }
+
+    /// Overwrites the columns of `x` (column-major, `A`'s order each) with `A⁻¹ x`, in one
+    /// blocked triangular solve.
+    pub fn solve_columns_in_place(&self, x: &mut [f64], par: Par) {
+        let n = self.symbolic.nrows();
+        let columns = x.len().checked_div(n).unwrap_or(0);
+        let mut scratch = MemBuffer::new(self.symbolic.solve_in_place_scratch::<T>(columns, par));
+        let mut rhs: Vec<T> = x.iter().map(|&v| T::from_f64(v)).collect();
+        LltRef::<'_, usize, T>::new(&self.symbolic, &self.values).solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(&mut rhs, n, columns),
+            par,
+            MemStack::new(&mut scratch),
+        );
+        x.iter_mut().zip(&rhs).for_each(|(x, r)| *x = r.to_f64());
     }
 
     /// Stored entries of `L`.
