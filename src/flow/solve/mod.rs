@@ -522,13 +522,12 @@ impl<'a> FactorPlan<'a> {
             })
             .collect::<Result<Vec<_>, _>>()?
             .into_iter();
-        let chunks = rayon::current_num_threads();
         Ok(levels
             .iter()
             .map(|level| {
                 let n = level.n_slabs();
                 let own = factors.by_ref().take(n.div_ceil(g)).collect();
-                SlabSweeps::new(own, g, n, chunks)
+                SlabSweeps::new(own, g, n)
             })
             .collect())
     }
