@@ -13,10 +13,12 @@
 //!   Gauss–Seidel sweep in time whose blocks are exact per-slab Cholesky factors (one symbolic
 //!   analysis with a METIS nested-dissection ordering, numeric factorizations in parallel,
 //!   stored in single precision: half the memory and memory traffic, CG itself runs in double
-//!   precision). The slab solves handle the spatial coupling exactly, so iteration counts stay
-//!   flat under spatial refinement. The error they leave is smooth in time, and when the time
-//!   coupling dominates that error dominates: 87 iterations at `α = 0.1`, 804 at `α = 0.01` on
-//!   the 128×95×20 torus.
+//!   precision). The sweep runs in odd–even order ([`precondition::SlabSweeps`]): all even
+//!   slabs at once, then all odd ones, so it is parallel in time and the same preconditioner
+//!   however many cores share the work. The slab solves handle the spatial coupling exactly,
+//!   so iteration counts stay flat under spatial refinement. The error they leave is smooth in
+//!   time, and when the time coupling dominates that error dominates: 166 iterations at
+//!   `α = 0.1` on the 128×95×20 torus.
 //! - **PCG with multigrid in time** ([`multigrid`]): a V-cycle whose smoother is the slab
 //!   sweep and whose coarse levels merge slab pairs (semi-coarsening in time) with the
 //!   Galerkin operator of the transported prolongation `u_{2k+1} = T_k ũ_k`. It represents the
@@ -34,22 +36,43 @@
 //! ([`Solution::reason`]).
 //!
 //! Measured on the 128×95 torus × 20 frames (`synth::paper_torus` geometry, grey values in
-//! [0, 1], tolerance 1e-8, 2 cores; `cargo run --release --example bench_solver`): iterations,
-//! then solve seconds including factorization.
+//! [0, 1], tolerance 1e-8, 2 cores; `cargo run --release --example bench_solver [-- 128 95 20
+//! SOLVER]`): iterations, then solve seconds including factorization. Before the odd–even
+//! sweeps (first line of a cell where they differ) and with them (second):
 //!
-//! | α | γ = 1, slab GS | γ = 1, `auto` | γ = 0.01, slab GS | γ = 0.01, `auto` |
-//! |---|---|---|---|---|
-//! | ∞ | 1 (direct) | 1, 1.0 s (slab-wise) | 1 (direct) | 1, 0.9 s (slab-wise) |
-//! | 10 | 2 | 4, 1.0 s | 2 | 3, 0.8 s |
-//! | 1 | 12 | 18, 2.4 s (GS) | 5 | 9, 1.9 s (GS) |
-//! | 0.1 | 87 | 19, 6.1 s (MG) | 28 | 15, 4.6 s (MG) |
-//! | 0.01 | 804 | 21, 7.0 s (MG) | 256 | 21, 6.3 s (MG) |
-//! | 0.001 | – | 19, 5.1 s (MG) | – | 20, 6.4 s (MG) |
+//! | α | γ = 1, slab GS | γ = 1, `auto` | γ = 1, MG | γ = 0.01, `auto` | γ = 0.01, MG |
+//! |---|---|---|---|---|---|
+//! | ∞ | 1 (direct) | 1, 1.0 s; 1, 0.4 s (slab-wise) | – | 1, 0.9 s; 1, 0.4 s | – |
+//! | 10 | 2; 3 | 4, 1.0 s; 3, 0.5 s | 3 | 3, 0.8 s; 2, 0.4 s | 2 |
+//! | 1 | 12; 19 | 18, 2.4 s; 19, 1.3 s (GS) | 7; 8 | 9, 1.9 s; 8, 0.8 s (GS) | 5 |
+//! | 0.1 | 87; 166 | 19, 6.1 s; 19, 3.8 s (MG) | 15; 16 | 15, 4.6 s; 16, 3.4 s (MG) | 13 |
+//! | 0.01 | 804; – | 21, 7.0 s; 22, 4.1 s (MG) | 17; 17 | 21, 6.3 s; 21, 4.0 s (MG) | 17 |
+//! | 0.001 | – | 19, 5.1 s; 20, 4.0 s (MG) | 15; 15 | 20, 6.4 s; 20, 3.6 s (MG) | 14 |
 //!
-//! The slab GS column is the first release's solver (issue 11's measurements); default weights
-//! at 30 frames per second: 145 iterations then, 16 now (4 GS + 12 MG, 4.8 s). Multigrid alone
-//! is flat in `α` (7, 15, 17, 15 iterations for `α` = 1 … 0.001 at `γ = 1`), but costs more
-//! than Gauss–Seidel where the latter is fast, hence the probe.
+//! Lexicographic Gauss–Seidel alone is the better preconditioner (12 against 19 iterations at
+//! `α = 1`), but odd–even sweeps run both halves in parallel and cost less per iteration;
+//! multigrid's iterations did not change. `t(α = 0.01) / t(α = 1)` under `auto` is 3.1 at
+//! `γ = 1` and 5 at `γ = 0.01` (target 2.5: missed; `α = 1` got faster than `α = 0.01`). Default
+//! weights at 30 frames per second: 145 iterations in the first release, 16 now (4 GS + 12 MG,
+//! 2.9 s).
+//!
+//! **Real data: the zebrafish recording** (`../shared/data/zebrafish_140_142_L6`, 3 frames ×
+//! 16,251 vertices, 2 slabs, 65,004 unknowns; a fluorescence image dark and flat over most of
+//! the surface). With one lexicographic chunk per core the sweeps were block *Jacobi* between
+//! the two slabs (two chunks on 2 cores), and in the dark regions, where only `γ L` and the
+//! coupling remain (`D_s ≈ c M + γ L`, `X_s ≈ −c M`), block Jacobi maps the error alternating
+//! in time, `(e, −e)`, to about `−(e, −e)`: it does not smooth it, and the coarse level
+//! (constant in time) cannot represent it. Measured: multigrid 158 iterations with chunks, 6
+//! with a single chunk; factors in double instead of single precision changed nothing (157,
+//! 6): the cause is the ordering, not the precision.
+//!
+//! | `meshflow solve DIR --out OUT …` | before | now |
+//! |---|---|---|
+//! | defaults | PCG, MG, 166 iterations, 3.1 s | PCG, MG, 9 iterations (4 GS + 5 MG), 0.36 s |
+//! | `--time-scale 0` | slab-wise direct, 0.25 s | unchanged |
+//! | `--large-motion --regularizer strain` | 225 iterations, 84.5 s | 76 iterations in 8 solves (9–10 each), 3.5 s |
+//! | `--solver pcg-time-multigrid` | 158 | 6 |
+//! | `--solver pcg-slab-gauss-seidel` | 366 | 186 |
 //!
 //! Candidates measured and rejected (128×95×20, `γ = 1`, multigrid alone, iterations at
 //! `α` = 0.1 / 0.01 / 0.001): over-correcting the coarse correction by 1.4 or 1.8 (worse at
