@@ -186,6 +186,10 @@ pub struct FlowResult {
     pub time_levels: usize,
     /// Stored entries of the Cholesky factors the solver used.
     pub factor_entries: usize,
+    /// `[λ_min, λ_max]` of the preconditioned operator as the (last) CG run saw it (Ritz
+    /// values; `λ_max/λ_min` estimates the condition number behind the iteration count).
+    /// `None` for direct solves.
+    pub preconditioned_spectrum: Option<[f64; 2]>,
     pub timings: Timings,
 }
 
@@ -380,6 +384,7 @@ impl<'a> FlowProblem<'a> {
             solver_reason: solution.reason,
             time_levels: solution.time_levels,
             factor_entries: solution.factor_entries,
+            preconditioned_spectrum: solution.spectrum,
             timings: Timings {
                 assembly: self.assembly_seconds,
                 factorization: solution.factor_seconds,

@@ -370,6 +370,7 @@ pub fn summary_json(
         "solver_reason": result.solver_reason,
         "time_levels": result.time_levels,
         "factor_entries": result.factor_entries,
+        "preconditioned_spectrum": result.preconditioned_spectrum,
         "frames": sequence.n_frames(),
         "slabs": sequence.n_slabs(),
         "vertices": sequence.mesh().n_vertices(),

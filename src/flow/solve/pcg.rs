@@ -33,6 +33,9 @@ pub struct CgOutcome {
     /// `‖r‖/‖b‖` after this run's first iteration (that of `x` for a run of none).
     pub first_residual: f64,
     pub converged: bool,
+    /// `[λ_min, λ_max]` of the preconditioned operator `M⁻¹A` as this run's Lanczos process saw
+    /// them ([`ritz_extremes`]; `None` for a run of no iteration).
+    pub spectrum: Option<[f64; 2]>,
 }
 
 impl CgOutcome {
@@ -66,10 +69,12 @@ pub fn pcg(
     let mut rz = dot(&r, &z);
     let mut iteration = stop.done;
     let mut first_residual = relative;
+    let mut lanczos = Lanczos::default();
     while relative > stop.tolerance && relative.is_finite() && iteration < stop.max_iterations {
         iteration += 1;
         system.apply(&p, &mut ap);
         let step = rz / dot(&p, &ap);
+        lanczos.steps.push(step);
         axpy(step, &p, &mut x);
         axpy(-step, &ap, &mut r);
         relative = dot(&r, &r).sqrt() / b_norm;
@@ -92,6 +97,7 @@ pub fn pcg(
         preconditioner.apply(&r, &mut z);
         let rz_next = dot(&r, &z);
         let beta = rz_next / rz;
+        lanczos.betas.push(beta);
         rz = rz_next;
         p.par_iter_mut()
             .zip(&z)
@@ -103,7 +109,36 @@ pub fn pcg(
         relative_residual: relative,
         first_residual,
         converged: relative <= stop.tolerance,
+        spectrum: ritz_extremes(&lanczos),
     })
+}
+
+/// CG's step lengths `α_k` and ratios `β_k = (r_{k+1}, z_{k+1}) / (r_k, z_k)`: the Lanczos
+/// process of `M⁻¹A` in disguise.
+#[derive(Default)]
+struct Lanczos {
+    steps: Vec<f64>,
+    betas: Vec<f64>,
+}
+
+/// The extreme eigenvalues of the Lanczos matrix of a CG run (Golub & Van Loan, *Matrix
+/// Computations*, §11.3.5): `T_kk = 1/α_k + β_{k−1}/α_{k−1}`, `T_{k,k+1} = √β_k / α_k`. Its
+/// extreme eigenvalues (Ritz values) approach those of `M⁻¹A` from inside as CG proceeds, so
+/// `λ_max / λ_min` estimates the condition number that governs the iterations.
+fn ritz_extremes(lanczos: &Lanczos) -> Option<[f64; 2]> {
+    let m = lanczos.steps.len();
+    if m == 0 {
+        return None;
+    }
+    let (a, b) = (&lanczos.steps, &lanczos.betas);
+    let t = nalgebra::DMatrix::from_fn(m, m, |i, j| match (i, j) {
+        _ if i == j => 1.0 / a[i] + if i > 0 { b[i - 1] / a[i - 1] } else { 0.0 },
+        _ if j == i + 1 => b[i].sqrt() / a[i],
+        _ if i == j + 1 => b[j].sqrt() / a[j],
+        _ => 0.0,
+    });
+    let values = t.symmetric_eigenvalues();
+    Some([values.min(), values.max()])
 }
 
 /// `y += a x`.
@@ -118,5 +153,47 @@ fn projected_iterations(ran: usize, first: f64, last: f64) -> impl Fn(f64) -> f6
     move |tolerance| match rate < 1.0 && ran > 1 {
         true => 1.0 + (tolerance / first).ln() / rate.ln(),
         false => f64::INFINITY,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::flow::solve::precondition::Jacobi;
+    use crate::flow::system::for_each_column;
+    use crate::flow::{FlowParams, FlowProblem};
+    use nalgebra::DMatrix;
+
+    /// Run to convergence, CG's Ritz values reach the extreme eigenvalues of `M⁻¹A`, computed
+    /// densely as those of `D^{-1/2} A D^{-1/2}` for the Jacobi preconditioner `M = D`.
+    #[test]
+    fn ritz_values_find_the_extreme_eigenvalues_of_the_preconditioned_operator() {
+        let sequence = crate::synth::paper_torus(8, 6, 3).unwrap();
+        let problem = FlowProblem::new(&sequence, &FlowParams::paper(0.3, 0.0, 1.0)).unwrap();
+        let system = problem.system();
+        let n = system.dimension();
+        let mut a = DMatrix::<f64>::zeros(n, n);
+        for_each_column(system.to_sparse().as_ref(), |j, rows, values| {
+            rows.iter().zip(values).for_each(|(&i, &v)| a[(i, j)] += v);
+        });
+        let scale = DMatrix::from_diagonal(&a.diagonal().map(|d: f64| 1.0 / d.sqrt()));
+        let exact = (&scale * &a * &scale).symmetric_eigenvalues();
+        let stop = Stop {
+            tolerance: 1e-15,
+            done: 0,
+            max_iterations: 4 * n,
+            give_up: None,
+        };
+        let x = vec![0.0; n];
+        let outcome = pcg(system, system.rhs(), x, &Jacobi::new(system), stop, &|_| {}).unwrap();
+        let [low, high] = outcome.spectrum.unwrap();
+        println!(
+            "{} iterations: Ritz [{low:.6e}, {high:.6e}], exact [{:.6e}, {:.6e}]",
+            outcome.iterations,
+            exact.min(),
+            exact.max()
+        );
+        assert!((high - exact.max()).abs() < 1e-8 * exact.max());
+        assert!((low - exact.min()).abs() < 1e-6 * exact.min());
     }
 }
