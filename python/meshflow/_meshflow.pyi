@@ -48,6 +48,8 @@ class Flow:
     @property
     def solver_reason(self) -> str: ...
     @property
+    def preconditioned_spectrum(self) -> tuple[float, float] | None: ...
+    @property
     def seconds(self) -> Dict[str, float]:
         """``assembly``, ``factorization``, ``solve``, ``total`` (of all solves)."""
     @property

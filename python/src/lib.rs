@@ -507,6 +507,14 @@ impl Flow {
         self.result.solver_reason.clone()
     }
 
+    /// `(λ_min, λ_max)` of the preconditioned operator as the (last) CG run saw it (its Ritz
+    /// values: `λ_max / λ_min` estimates the condition number behind the iterations); `None`
+    /// for a direct solve.
+    #[getter]
+    fn preconditioned_spectrum(&self) -> Option<(f64, f64)> {
+        self.result.preconditioned_spectrum.map(|[low, high]| (low, high))
+    }
+
     /// `{"data", "speed", "spatial", "temporal"}`: the energy's terms at the solution.
     #[getter]
     fn energy_terms<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {

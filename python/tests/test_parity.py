@@ -161,3 +161,15 @@ def test_analysis_equals_the_command_line(cli, sample, tmp_path):
     # A rotation is co-exact: J∇z.
     assert all(s["coexact_energy"] > 0.95 * s["energy"] for s in slabs)
     assert result["hodge_exact"].shape == (5, 1280, 3)
+
+
+def test_the_solver_reports_the_spectrum_it_saw(sample, tmp_path):
+    flow = sample.compute_flow(solver="pcg-time-multigrid")
+    low, high = flow.preconditioned_spectrum
+    # A V-cycle in time is a good preconditioner: its spectrum lies in (0, 1] and is narrow.
+    assert 0.0 < low <= high <= 1.0 + 1e-9
+    assert high / low < 10.0
+    meshflow.write_outputs(flow, tmp_path / "run")
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["preconditioned_spectrum"] == [low, high]
+    assert sample.compute_flow(solver="direct").preconditioned_spectrum is None
