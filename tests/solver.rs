@@ -308,7 +308,10 @@ fn multigrid_converges_where_the_image_is_dark() {
             };
             let direct = solve(&sequence, params(SolverChoice::Direct));
             let multigrid = solve(&sequence, params(SolverChoice::PcgTimeMultigrid));
-            println!("{frames} frames, α = {alpha}: {} iterations", multigrid.iterations);
+            println!(
+                "{frames} frames, α = {alpha}: {} iterations",
+                multigrid.iterations
+            );
             assert!(
                 multigrid.iterations <= 12,
                 "{frames} frames, α = {alpha}: {} iterations",

@@ -47,6 +47,7 @@ pub(crate) mod solve;
 mod system;
 mod uniqueness;
 pub mod warp;
+pub mod window;
 
 pub use advect::{advect, closest_seeds, vertex_seeds, Trajectories, SUBSTEPS};
 pub use energy::EnergyTerms;
@@ -55,18 +56,17 @@ pub use params::{Boundary, FlowParams, SolverChoice, TimeCoupling, Weight, Weigh
 pub use params::{Warping, DEFAULT_SPREAD, DEFAULT_TIME_SCALE};
 pub use pyramid::{heat_times, scale_pyramid, COARSEST_HEAT_TIME};
 pub use regularizer::Regularizer;
-pub use scales::DataScales;
+pub use scales::{DataScales, ScaleSums};
 pub(crate) use sequence::{channel_mean, check_finite_intensities};
 pub use sequence::{Images, MeshSequence};
 pub use slab::{Slab, SlabChannel};
 pub use solve::{SolveEvent, SolveObserver, SolverMethod};
-pub use system::{LinkMatrix, SpaceTimeSystem};
+pub use system::{LinkMatrix, SpaceTimeSystem, SystemWindow};
 pub use warp::warped_slab;
 
 use crate::connection::{push_forward, vertex_frames_in_r3};
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
-use slab::TimeLink;
 use std::borrow::Cow;
 use std::time::Instant;
 
@@ -256,22 +256,11 @@ impl<'a> FlowProblem<'a> {
         rebuildable: bool,
     ) -> Result<Self, FlowError> {
         params.validate()?;
-        if params.regularizer.needs_embedding() {
-            for (s, slab) in slabs.iter_mut().enumerate() {
-                slab.embed(sequence, s)?;
-            }
-        }
+        slab::embed_where_needed(&mut slabs, sequence, params)?;
         let start = Instant::now();
         let scales = DataScales::measure(sequence.mesh(), &slabs);
         let weights = params.weights(&scales)?;
-        let links: Vec<TimeLink> = if weights.is_coupled() {
-            slabs
-                .windows(2)
-                .map(|w| TimeLink::new(&w[0], &w[1], &weights))
-                .collect()
-        } else {
-            Vec::new()
-        };
+        let links = slab::time_links(&slabs, &weights);
         let mesh = sequence.mesh();
         uniqueness::check_unique_minimizer(mesh, &slabs, &links, params, &weights)?;
         let system = SpaceTimeSystem::assemble(mesh, &slabs, &links, params, &weights);

@@ -40,6 +40,28 @@ pub struct DataScales {
 impl DataScales {
     /// The scales of the slabs of a sequence of `mesh`.
     pub fn measure(mesh: &Mesh, slabs: &[Slab]) -> Self {
+        ScaleSums::measure(mesh, slabs).scales()
+    }
+}
+
+/// The sums behind [`DataScales`] over some of a sequence's slabs: the scales of all slabs are
+/// those of the added (`+`) sums of any split of them (the time windows of a
+/// distributed solve complete them with one all-reduce of [`ScaleSums::to_array`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ScaleSums {
+    /// `Σ Δt A |∇I|²` and `Σ Δt A |∇I|⁴`.
+    pub second: f64,
+    pub fourth: f64,
+    /// Sums over slabs of the mean edge length and of `Δt`, and the number of slabs.
+    pub edge_length: f64,
+    pub duration: f64,
+    pub slabs: f64,
+    /// 1 when some slab's image varies, else 0 (its sum over splits counts such windows).
+    pub varying: f64,
+}
+
+impl ScaleSums {
+    pub fn measure(mesh: &Mesh, slabs: &[Slab]) -> Self {
         let (mut second, mut fourth) = (0.0, 0.0);
         for slab in slabs {
             for (f, (face, triangle)) in mesh
@@ -53,23 +75,63 @@ impl DataScales {
                 fourth += slab.dt * triangle.area * squared * squared;
             }
         }
-        let edge_length = slabs
-            .iter()
-            .map(|slab| slab.geometry.mean_edge_length())
-            .sum::<f64>()
-            / slabs.len() as f64;
-        Self {
-            gradient: match slabs
-                .iter()
-                .flat_map(|slab| &slab.channels)
-                .all(|channel| channel.weight == 0.0 || is_constant(&channel.mid))
-            {
-                true => 0.0,
-                false => (fourth / second).sqrt(),
-            },
-            edge_length,
-            frame_spacing: slabs.iter().map(|slab| slab.dt).sum::<f64>() / slabs.len() as f64,
+        let varying = (slabs.iter())
+            .flat_map(|slab| &slab.channels)
+            .any(|channel| channel.weight != 0.0 && !is_constant(&channel.mid));
+        ScaleSums {
+            second,
+            fourth,
+            edge_length: slabs.iter().map(|s| s.geometry.mean_edge_length()).sum(),
+            duration: slabs.iter().map(|slab| slab.dt).sum(),
+            slabs: slabs.len() as f64,
+            varying: f64::from(u8::from(varying)),
         }
+    }
+
+    /// `[second, fourth, edge_length, duration, slabs, varying]`.
+    pub fn to_array(&self) -> [f64; 6] {
+        [
+            self.second,
+            self.fourth,
+            self.edge_length,
+            self.duration,
+            self.slabs,
+            self.varying,
+        ]
+    }
+
+    pub fn from_array(values: [f64; 6]) -> Self {
+        let [second, fourth, edge_length, duration, slabs, varying] = values;
+        ScaleSums {
+            second,
+            fourth,
+            edge_length,
+            duration,
+            slabs,
+            varying,
+        }
+    }
+
+    /// `S = √(Σ|∇I|⁴ / Σ|∇I|²)` (0 when no slab's image varies), `h̄`, `Δt̄`.
+    pub fn scales(&self) -> DataScales {
+        DataScales {
+            gradient: match self.varying > 0.0 {
+                true => (self.fourth / self.second).sqrt(),
+                false => 0.0,
+            },
+            edge_length: self.edge_length / self.slabs,
+            frame_spacing: self.duration / self.slabs,
+        }
+    }
+}
+
+/// The sums over both splits.
+impl std::ops::Add for ScaleSums {
+    type Output = Self;
+
+    fn add(self, other: Self) -> Self {
+        let [a, b] = [self.to_array(), other.to_array()];
+        Self::from_array(std::array::from_fn(|k| a[k] + b[k]))
     }
 }
 

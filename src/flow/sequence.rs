@@ -211,6 +211,25 @@ impl MeshSequence {
     pub fn images(&self) -> &Images {
         &self.images
     }
+
+    /// Frames `frames` of this sequence as a sequence of their own (at least two; times kept),
+    /// e.g. the frames one time window of a distributed solve needs.
+    pub fn frames(&self, frames: std::ops::Range<usize>) -> Result<Self, FlowError> {
+        if frames.end > self.n_frames() {
+            return Err(FlowError::CountMismatch {
+                what: "frames",
+                expected: frames.end,
+                got: self.n_frames(),
+            });
+        }
+        let images = Images::from_channels(self.images.frames[frames.clone()].to_vec());
+        let times = Some(self.times[frames.clone()].to_vec());
+        let lengths = self.edge_lengths[frames.clone()].to_vec();
+        let mut part =
+            Self::from_edge_lengths_with_images(self.mesh.clone(), lengths, images, times)?;
+        part.positions = (self.positions.as_ref()).map(|p| p[frames].to_vec());
+        Ok(part)
+    }
 }
 
 /// The unweighted mean over channels per vertex (`channels[c][i]`).

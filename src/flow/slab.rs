@@ -1,7 +1,7 @@
 //! Slabs: the time interval between two frames, with its mean geometry and image rates
 //! (`docs/discretization.md` §3).
 
-use super::{FlowError, MeshSequence, Regularizer, TimeCoupling, Weights};
+use super::{FlowError, FlowParams, MeshSequence, Regularizer, TimeCoupling, Weights};
 use crate::connection::{polar_rotation_angles, rotation, vertex_frames_in_r3, Connection};
 use crate::fem::element::{self, DataElement};
 use crate::geometry::IntrinsicGeometry;
@@ -212,6 +212,30 @@ pub struct LinkElements {
     pub before: Matrix6<f64>,
     pub after: Matrix6<f64>,
     pub cross: Matrix6<f64>,
+}
+
+/// The links between neighbouring slabs (none for frame-by-frame flow, `α = ∞`).
+pub fn time_links(slabs: &[Slab], weights: &Weights) -> Vec<TimeLink> {
+    match weights.is_coupled() {
+        true => (slabs.windows(2))
+            .map(|w| TimeLink::new(&w[0], &w[1], weights))
+            .collect(),
+        false => Vec::new(),
+    }
+}
+
+/// Adds each slab's embedding where the regularizer needs it (`Regularizer::Embedded`).
+pub fn embed_where_needed(
+    slabs: &mut [Slab],
+    sequence: &MeshSequence,
+    params: &FlowParams,
+) -> Result<(), FlowError> {
+    if params.regularizer.needs_embedding() {
+        for (s, slab) in slabs.iter_mut().enumerate() {
+            slab.embed(sequence, s)?;
+        }
+    }
+    Ok(())
 }
 
 impl TimeLink {

@@ -17,7 +17,7 @@ use nalgebra::{Matrix2, Matrix6};
 use rayon::prelude::*;
 
 /// The coupling block `X_s` between slab `s` and `s + 1`.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum LinkMatrix {
     /// One 2×2 block per vertex.
     Lumped(Vec<Matrix2<f64>>),
@@ -32,7 +32,47 @@ pub struct SpaceTimeSystem {
     blocks: Vec<Vec<f64>>,
     links: Vec<LinkMatrix>,
     rhs: Vec<f64>,
-    constant: f64,
+    /// Each slab's part of the energy constant `c` (empty for a coarse level).
+    slab_constants: Vec<f64>,
+}
+
+impl LinkMatrix {
+    /// `ys += X x` (a consistent link's values lie on the slabs' `pattern`).
+    pub fn mul(&self, pattern: &VertexPattern, x: &[f64], ys: &mut [f64]) {
+        match self {
+            LinkMatrix::Lumped(blocks) => add_block_diagonal_mul(blocks, false, x, ys),
+            LinkMatrix::Consistent(m) => for_each_column(pattern.view(m), |j, rows, values| {
+                for (&i, &v) in rows.iter().zip(values) {
+                    ys[i] += v * x[j];
+                }
+            }),
+        }
+    }
+
+    /// `ys += Xᵀ x`.
+    pub fn transpose_mul(&self, pattern: &VertexPattern, x: &[f64], ys: &mut [f64]) {
+        match self {
+            LinkMatrix::Lumped(blocks) => add_block_diagonal_mul(blocks, true, x, ys),
+            LinkMatrix::Consistent(m) => for_each_column(pattern.view(m), |j, rows, values| {
+                ys[j] += rows
+                    .iter()
+                    .zip(values)
+                    .map(|(&i, &v)| v * x[i])
+                    .sum::<f64>();
+            }),
+        }
+    }
+}
+
+/// A run of slabs of a [`SpaceTimeSystem`] and its links to the slabs beyond
+/// ([`SpaceTimeSystem::window`]).
+#[derive(Clone, Debug)]
+pub struct SystemWindow {
+    pub system: SpaceTimeSystem,
+    /// `X_{a−1}`, from the slab before the window into its first; `None` at the start.
+    pub link_before: Option<LinkMatrix>,
+    /// `X_{b−1}`, from the window's last slab into the one after; `None` at the end.
+    pub link_after: Option<LinkMatrix>,
 }
 
 impl SpaceTimeSystem {
@@ -71,14 +111,14 @@ impl SpaceTimeSystem {
                 )
             })
             .collect();
-        let constant = diagonal.iter().map(|d| d.2).sum();
+        let slab_constants = diagonal.iter().map(|d| d.2).collect();
         let (blocks, rhs): (Vec<_>, Vec<_>) = diagonal.into_iter().map(|(a, b, _)| (a, b)).unzip();
         let mut system = Self {
             pattern,
             blocks,
             links,
             rhs: rhs.concat(),
-            constant,
+            slab_constants,
         };
         if params.boundary == Boundary::Dirichlet {
             let fixed: Vec<bool> = (0..mesh.n_vertices())
@@ -140,7 +180,32 @@ impl SpaceTimeSystem {
 
     /// `c = E(0)`.
     pub fn constant(&self) -> f64 {
-        self.constant
+        self.slab_constants.iter().sum()
+    }
+
+    /// Slabs `slabs` with the links that join them to the slabs outside: what one rank of a
+    /// solve distributed over time windows holds. The window's system has its blocks (each with
+    /// the diagonal parts of both its links), the links between them, their right-hand side
+    /// and their part of the constant.
+    pub fn window(&self, slabs: std::ops::Range<usize>) -> SystemWindow {
+        let n = self.slab_dimension();
+        let (a, b) = (slabs.start, slabs.end);
+        let link = |s: Option<usize>| s.and_then(|s| self.links.get(s)).cloned();
+        let inner_links = match self.has_links() {
+            true => self.links[a..b - 1].to_vec(),
+            false => Vec::new(),
+        };
+        SystemWindow {
+            system: SpaceTimeSystem {
+                pattern: self.pattern.clone(),
+                blocks: self.blocks[slabs.clone()].to_vec(),
+                links: inner_links,
+                rhs: self.rhs[a * n..b * n].to_vec(),
+                slab_constants: self.slab_constants[slabs].to_vec(),
+            },
+            link_before: link(a.checked_sub(1)),
+            link_after: link((b < self.n_slabs()).then(|| b - 1)),
+        }
     }
 
     /// `y = A x`, parallel over slabs.
@@ -159,39 +224,19 @@ impl SpaceTimeSystem {
 
     /// `ys += X_s x`.
     pub fn link_mul(&self, s: usize, x: &[f64], ys: &mut [f64]) {
-        match &self.links[s] {
-            LinkMatrix::Lumped(blocks) => add_block_diagonal_mul(blocks, false, x, ys),
-            LinkMatrix::Consistent(m) => {
-                for_each_column(self.pattern.view(m), |j, rows, values| {
-                    for (&i, &v) in rows.iter().zip(values) {
-                        ys[i] += v * x[j];
-                    }
-                })
-            }
-        }
+        self.links[s].mul(&self.pattern, x, ys);
     }
 
     /// `ys += X_sᵀ x`.
     pub fn link_transpose_mul(&self, s: usize, x: &[f64], ys: &mut [f64]) {
-        match &self.links[s] {
-            LinkMatrix::Lumped(blocks) => add_block_diagonal_mul(blocks, true, x, ys),
-            LinkMatrix::Consistent(m) => {
-                for_each_column(self.pattern.view(m), |j, rows, values| {
-                    ys[j] += rows
-                        .iter()
-                        .zip(values)
-                        .map(|(&i, &v)| v * x[i])
-                        .sum::<f64>();
-                })
-            }
-        }
+        self.links[s].transpose_mul(&self.pattern, x, ys);
     }
 
     /// `E(u) = uᵀAu − 2bᵀu + c`.
     pub fn energy(&self, u: &[f64]) -> f64 {
         let mut au = vec![0.0; u.len()];
         self.apply(u, &mut au);
-        dot(u, &au) - 2.0 * dot(&self.rhs, u) + self.constant
+        dot(u, &au) - 2.0 * dot(&self.rhs, u) + self.constant()
     }
 
     /// The diagonal of `A`.
@@ -462,7 +507,7 @@ impl SpaceTimeSystem {
             blocks,
             links,
             rhs: Vec::new(),
-            constant: 0.0,
+            slab_constants: Vec::new(),
         }
     }
 

@@ -126,7 +126,8 @@ impl<T: Precision> SlabSweeps<T> {
     /// Solves the slabs of `parity` in place, after subtracting their neighbours' coupling
     /// when `coupled`.
     fn half_sweep(&self, system: &SpaceTimeSystem, z: &mut [f64], parity: Parity, coupled: bool) {
-        let terms = (coupled && system.has_links()).then(|| self.neighbour_terms(system, z, parity));
+        let terms =
+            (coupled && system.has_links()).then(|| self.neighbour_terms(system, z, parity));
         let slabs = slabs_of(z, system.slab_dimension(), parity);
         slabs.into_par_iter().enumerate().for_each(|(k, (s, zs))| {
             if let Some(terms) = &terms {
@@ -137,7 +138,12 @@ impl<T: Precision> SlabSweeps<T> {
     }
 
     /// `X_{s−1} z_{s−1} + X_sᵀ z_{s+1}` for each slab `s` of `parity`, in order.
-    fn neighbour_terms(&self, system: &SpaceTimeSystem, z: &[f64], parity: Parity) -> Vec<Vec<f64>> {
+    fn neighbour_terms(
+        &self,
+        system: &SpaceTimeSystem,
+        z: &[f64],
+        parity: Parity,
+    ) -> Vec<Vec<f64>> {
         let n = system.slab_dimension();
         let slabs = system.n_slabs();
         (0..slabs)
