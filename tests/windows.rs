@@ -6,10 +6,10 @@
 
 use meshflow::flow::window::{window_frames, WindowSlabs};
 use meshflow::flow::{
-    Boundary, FlowParams, FlowProblem, LinkMatrix, MeshSequence, ScaleSums, SpaceTimeSystem,
-    SystemWindow, TimeCoupling,
+    FlowParams, FlowProblem, LinkMatrix, MeshSequence, ScaleSums, SpaceTimeSystem, SystemWindow,
 };
-use meshflow::synth::deforming_sphere;
+
+mod common;
 
 /// `n` slabs split into `parts` runs as even as possible.
 fn split(n: usize, parts: usize) -> Vec<std::ops::Range<usize>> {
@@ -121,34 +121,9 @@ fn check_windows(name: &str, sequence: &MeshSequence, params: &FlowParams) {
 
 #[test]
 fn windows_assemble_the_slabs_of_the_whole_problem() {
-    let sphere = deforming_sphere(2, 9, 1.0, 0.05, 0.3).unwrap().sequence;
-    for coupling in [TimeCoupling::Lumped, TimeCoupling::Consistent] {
-        let params = FlowParams {
-            time_coupling: coupling,
-            ..FlowParams::paper(0.5, 0.0, 0.1)
-        };
-        check_windows(&format!("sphere, {coupling:?}"), &sphere, &params);
+    for (name, sequence, params) in common::window_cases() {
+        check_windows(&name, &sequence, &params);
     }
-    let surface = meshflow::shapes::grid(7, 6, 1.0, 1.0);
-    let frames = 6;
-    let grid = MeshSequence::new(
-        surface.mesh().unwrap(),
-        vec![surface.positions.clone(); frames],
-        (0..frames)
-            .map(|k| {
-                (surface.positions.iter())
-                    .map(|p| (5.0 * p.x - 0.2 * k as f64).sin() * (3.0 * p.y).cos())
-                    .collect()
-            })
-            .collect(),
-        None,
-    )
-    .unwrap();
-    let params = FlowParams {
-        boundary: Boundary::Dirichlet,
-        ..FlowParams::default()
-    };
-    check_windows("grid, Dirichlet, default weights", &grid, &params);
 }
 
 /// A window's frames reach one slab beyond each end, clipped at the sequence's ends.

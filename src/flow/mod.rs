@@ -60,6 +60,7 @@ pub use scales::{DataScales, ScaleSums};
 pub(crate) use sequence::{channel_mean, check_finite_intensities};
 pub use sequence::{Images, MeshSequence};
 pub use slab::{Slab, SlabChannel};
+pub use solve::distributed;
 pub use solve::{SolveEvent, SolveObserver, SolverMethod};
 pub use system::{LinkMatrix, SpaceTimeSystem, SystemWindow};
 pub use warp::warped_slab;

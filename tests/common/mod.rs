@@ -258,3 +258,47 @@ pub fn write_npy(path: &Path, shape: &[u64], values: &[f64]) {
     writer.extend(values.iter().copied()).unwrap();
     writer.finish().unwrap();
 }
+
+/// Time-window test cases: a deforming sphere (8 slabs) with lumped and consistent coupling,
+/// and a 7 × 6 grid (5 slabs) with a moving pattern, Dirichlet boundary and default weights.
+pub fn window_cases() -> Vec<(
+    String,
+    meshflow::flow::MeshSequence,
+    meshflow::flow::FlowParams,
+)> {
+    use meshflow::flow::{Boundary, FlowParams, MeshSequence, TimeCoupling};
+    let sphere = meshflow::synth::deforming_sphere(2, 9, 1.0, 0.05, 0.3)
+        .unwrap()
+        .sequence;
+    let mut cases: Vec<_> = [TimeCoupling::Lumped, TimeCoupling::Consistent]
+        .into_iter()
+        .map(|coupling| {
+            let params = FlowParams {
+                time_coupling: coupling,
+                ..FlowParams::paper(0.5, 0.0, 0.1)
+            };
+            (format!("sphere, {coupling:?}"), sphere.clone(), params)
+        })
+        .collect();
+    let surface = meshflow::shapes::grid(7, 6, 1.0, 1.0);
+    let frames = 6;
+    let grid = MeshSequence::new(
+        surface.mesh().unwrap(),
+        vec![surface.positions.clone(); frames],
+        (0..frames)
+            .map(|k| {
+                (surface.positions.iter())
+                    .map(|p| (5.0 * p.x - 0.2 * k as f64).sin() * (3.0 * p.y).cos())
+                    .collect()
+            })
+            .collect(),
+        None,
+    )
+    .unwrap();
+    let params = FlowParams {
+        boundary: Boundary::Dirichlet,
+        ..FlowParams::default()
+    };
+    cases.push(("grid, Dirichlet, default weights".into(), grid, params));
+    cases
+}

@@ -92,6 +92,7 @@
 //! consistent coupling, Neumann and Dirichlet boundaries, even and odd slab counts.
 
 pub(crate) mod cholesky;
+pub mod distributed;
 mod multigrid;
 mod pcg;
 mod precondition;

@@ -1,0 +1,227 @@
+//! The space-time solve over time windows held by separate ranks: conjugate gradients
+//! preconditioned by the odd–even slab sweeps, each rank holding only its window's blocks,
+//! links and factors ([`SystemWindow`], assembled by [`crate::flow::window`]).
+//!
+//! The sweeps are the same preconditioner whatever the split (even slabs, then odd ones, by
+//! their index in the whole sequence), so the iterates equal the single process's
+//! `pcg-slab-gauss-seidel` up to the order of the dot products' sums, and the iteration count
+//! does not depend on the number of ranks. What crosses ranks: the dot products (a sum over
+//! ranks), and before each product with `A` and each coupled half sweep one slab vector to each
+//! neighbouring rank ([`TimeRanks::exchange`]). How the ranks talk is the caller's: MPI on a
+//! cluster, threads in the tests.
+//!
+//! Not yet here: multigrid in time across ranks (its coarse levels pair slabs within a window
+//! and agglomerate across ranks, `docs/scaling.md`), so small `α` needs many iterations.
+
+use super::cholesky::{analyze, CholeskyFactor};
+use super::factorization_error;
+use crate::flow::system::{dot, SystemWindow};
+use crate::flow::{FlowError, FlowParams};
+use faer::Par;
+use rayon::prelude::*;
+
+/// The collective operations a rank of a distributed solve needs. Every rank calls them in
+/// the same order.
+pub trait TimeRanks: Sync {
+    /// This rank's window holds slabs `first_slab ..` of the sequence.
+    fn first_slab(&self) -> usize;
+    /// `values` ← their sum over all ranks.
+    fn sum(&self, values: &mut [f64]);
+    /// Sends `first` (the window's first slab) to the rank before and `last` (its last slab)
+    /// to the rank after; returns what they sent: the last slab of the rank before, the first
+    /// slab of the rank after (`None` at the sequence's ends).
+    fn exchange(&self, first: &[f64], last: &[f64]) -> (Option<Vec<f64>>, Option<Vec<f64>>);
+}
+
+/// A rank's part of the solution.
+#[derive(Clone, Debug)]
+pub struct WindowSolution {
+    /// The window's slabs' unknowns.
+    pub u: Vec<f64>,
+    pub iterations: usize,
+    /// `‖b − Au‖ / ‖b‖` of the whole system (the same on every rank).
+    pub relative_residual: f64,
+}
+
+/// Solves the whole system of which `window` is this rank's part.
+pub fn solve_window(
+    window: &SystemWindow,
+    ranks: &dyn TimeRanks,
+    params: &FlowParams,
+) -> Result<WindowSolution, FlowError> {
+    let system = &window.system;
+    let symbolic = analyze(system.block(0).symbolic(), 2);
+    let first = ranks.first_slab();
+    let factors = (0..system.n_slabs())
+        .into_par_iter()
+        .map(|s| {
+            CholeskyFactor::<f32>::new(&symbolic, system.block(s), Par::Seq)
+                .map_err(factorization_error(format!("slab {}", first + s)))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let parts = WindowParts {
+        window,
+        ranks,
+        factors,
+    };
+    parts.pcg(params)
+}
+
+/// A rank's window, its factors and the other ranks.
+struct WindowParts<'a> {
+    window: &'a SystemWindow,
+    ranks: &'a dyn TimeRanks,
+    factors: Vec<CholeskyFactor<f32>>,
+}
+
+impl WindowParts<'_> {
+    fn n(&self) -> usize {
+        self.window.system.slab_dimension()
+    }
+
+    fn slabs(&self) -> usize {
+        self.window.system.n_slabs()
+    }
+
+    /// `Σ_ranks x·y`.
+    fn dot(&self, x: &[f64], y: &[f64]) -> f64 {
+        let mut value = [dot(x, y)];
+        self.ranks.sum(&mut value);
+        value[0]
+    }
+
+    /// The neighbouring ranks' boundary slabs of `x`.
+    fn halo(&self, x: &[f64]) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
+        let n = self.n();
+        self.ranks.exchange(&x[..n], &x[x.len() - n..])
+    }
+
+    /// `y = (A x)` on this window's slabs.
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let (before, after) = self.halo(x);
+        self.window.system.apply(x, y);
+        let (n, pattern) = (self.n(), self.window.system.pattern());
+        if let (Some(link), Some(x)) = (&self.window.link_before, &before) {
+            link.mul(pattern, x, &mut y[..n]);
+        }
+        if let (Some(link), Some(x)) = (&self.window.link_after, &after) {
+            let last = y.len() - n;
+            link.transpose_mul(pattern, x, &mut y[last..]);
+        }
+    }
+
+    /// `X_{s−1} z_{s−1} + X_sᵀ z_{s+1}` for the window's slabs `s` (global parity `parity`),
+    /// with the neighbouring ranks' slabs where `s ± 1` lies beyond the window.
+    fn neighbour_terms(&self, z: &[f64], parity: usize) -> Vec<(usize, Vec<f64>)> {
+        let (before, after) = self.halo(z);
+        let (n, first, system) = (self.n(), self.ranks.first_slab(), &self.window.system);
+        let pattern = system.pattern();
+        (0..self.slabs())
+            .into_par_iter()
+            .filter(|k| (first + k) % 2 == parity)
+            .map(|k| {
+                let mut c = vec![0.0; n];
+                match k {
+                    0 => {
+                        if let (Some(link), Some(x)) = (&self.window.link_before, &before) {
+                            link.mul(pattern, x, &mut c);
+                        }
+                    }
+                    _ => system.link_mul(k - 1, &z[(k - 1) * n..k * n], &mut c),
+                }
+                match k + 1 == self.slabs() {
+                    true => {
+                        if let (Some(link), Some(x)) = (&self.window.link_after, &after) {
+                            link.transpose_mul(pattern, x, &mut c);
+                        }
+                    }
+                    false => system.link_transpose_mul(k, &z[(k + 1) * n..(k + 2) * n], &mut c),
+                }
+                (k, c)
+            })
+            .collect()
+    }
+
+    /// Whether the slabs are coupled in time (the same on every rank: `α < ∞`).
+    fn coupled(&self) -> bool {
+        let w = self.window;
+        w.system.has_links() || w.link_before.is_some() || w.link_after.is_some()
+    }
+
+    /// Solves the slabs of global `parity` in place, after subtracting their neighbours'
+    /// coupling when `coupled`.
+    fn half_sweep(&self, z: &mut [f64], parity: usize, coupled: bool) {
+        let terms = (coupled && self.coupled()).then(|| self.neighbour_terms(z, parity));
+        let first = self.ranks.first_slab();
+        let n = self.n();
+        let mut slabs: Vec<(usize, &mut [f64])> = (z.chunks_mut(n).enumerate())
+            .filter(|(k, _)| (first + k) % 2 == parity)
+            .collect();
+        slabs.par_iter_mut().enumerate().for_each(|(i, (k, zs))| {
+            if let Some(terms) = &terms {
+                zs.iter_mut().zip(&terms[i].1).for_each(|(z, c)| *z -= c);
+            }
+            self.factors[*k].solve_in_place(zs, Par::Seq);
+        });
+    }
+
+    /// The symmetric odd–even Gauss–Seidel sweep of [`super::precondition::SlabSweeps`].
+    fn precondition(&self, r: &[f64], z: &mut [f64]) {
+        z.copy_from_slice(r);
+        self.half_sweep(z, 0, false);
+        self.half_sweep(z, 1, true);
+        if !self.coupled() {
+            return;
+        }
+        let n = self.n();
+        for (k, mut c) in self.neighbour_terms(z, 0) {
+            self.factors[k].solve_in_place(&mut c, Par::Seq);
+            z[k * n..(k + 1) * n]
+                .iter_mut()
+                .zip(&c)
+                .for_each(|(z, c)| *z -= c);
+        }
+    }
+
+    fn pcg(&self, params: &FlowParams) -> Result<WindowSolution, FlowError> {
+        let b = self.window.system.rhs();
+        let b_norm = self.dot(b, b).sqrt();
+        let mut x = vec![0.0; b.len()];
+        let mut r = b.to_vec();
+        let mut z = vec![0.0; b.len()];
+        let mut ap = vec![0.0; b.len()];
+        let mut relative = if b_norm > 0.0 { 1.0 } else { 0.0 };
+        self.precondition(&r, &mut z);
+        let mut p = z.clone();
+        let mut rz = self.dot(&r, &z);
+        let mut iterations = 0;
+        while relative > params.tolerance && iterations < params.max_iterations {
+            iterations += 1;
+            self.apply(&p, &mut ap);
+            let step = rz / self.dot(&p, &ap);
+            x.iter_mut().zip(&p).for_each(|(x, p)| *x += step * p);
+            r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= step * a);
+            relative = self.dot(&r, &r).sqrt() / b_norm;
+            if !relative.is_finite() || relative <= params.tolerance {
+                break;
+            }
+            self.precondition(&r, &mut z);
+            let rz_next = self.dot(&r, &z);
+            let beta = rz_next / rz;
+            rz = rz_next;
+            p.iter_mut().zip(&z).for_each(|(p, z)| *p = z + beta * *p);
+        }
+        match relative <= params.tolerance {
+            true => Ok(WindowSolution {
+                u: x,
+                iterations,
+                relative_residual: relative,
+            }),
+            false => Err(FlowError::NotConverged {
+                iterations,
+                residual: relative,
+                tolerance: params.tolerance,
+            }),
+        }
+    }
+}
