@@ -512,7 +512,9 @@ impl Flow {
     /// for a direct solve.
     #[getter]
     fn preconditioned_spectrum(&self) -> Option<(f64, f64)> {
-        self.result.preconditioned_spectrum.map(|[low, high]| (low, high))
+        self.result
+            .preconditioned_spectrum
+            .map(|[low, high]| (low, high))
     }
 
     /// `{"data", "speed", "spatial", "temporal"}`: the energy's terms at the solution.

@@ -21,8 +21,9 @@ use faer::Par;
 use rayon::prelude::*;
 
 /// The collective operations a rank of a distributed solve needs. Every rank calls them in
-/// the same order.
-pub trait TimeRanks: Sync {
+/// the same order, from one thread (MPI communicators are not `Sync`; the parallel loops
+/// here never touch them).
+pub trait TimeRanks {
     /// This rank's window holds slabs `first_slab ..` of the sequence.
     fn first_slab(&self) -> usize;
     /// `values` ← their sum over all ranks.
@@ -114,24 +115,25 @@ impl WindowParts<'_> {
     /// with the neighbouring ranks' slabs where `s ± 1` lies beyond the window.
     fn neighbour_terms(&self, z: &[f64], parity: usize) -> Vec<(usize, Vec<f64>)> {
         let (before, after) = self.halo(z);
-        let (n, first, system) = (self.n(), self.ranks.first_slab(), &self.window.system);
+        let (n, first, window) = (self.n(), self.ranks.first_slab(), self.window);
+        let (system, slabs) = (&window.system, self.slabs());
         let pattern = system.pattern();
-        (0..self.slabs())
+        (0..slabs)
             .into_par_iter()
             .filter(|k| (first + k) % 2 == parity)
             .map(|k| {
                 let mut c = vec![0.0; n];
                 match k {
                     0 => {
-                        if let (Some(link), Some(x)) = (&self.window.link_before, &before) {
+                        if let (Some(link), Some(x)) = (&window.link_before, &before) {
                             link.mul(pattern, x, &mut c);
                         }
                     }
                     _ => system.link_mul(k - 1, &z[(k - 1) * n..k * n], &mut c),
                 }
-                match k + 1 == self.slabs() {
+                match k + 1 == slabs {
                     true => {
-                        if let (Some(link), Some(x)) = (&self.window.link_after, &after) {
+                        if let (Some(link), Some(x)) = (&window.link_after, &after) {
                             link.transpose_mul(pattern, x, &mut c);
                         }
                     }
@@ -157,11 +159,12 @@ impl WindowParts<'_> {
         let mut slabs: Vec<(usize, &mut [f64])> = (z.chunks_mut(n).enumerate())
             .filter(|(k, _)| (first + k) % 2 == parity)
             .collect();
+        let factors = &self.factors;
         slabs.par_iter_mut().enumerate().for_each(|(i, (k, zs))| {
             if let Some(terms) = &terms {
                 zs.iter_mut().zip(&terms[i].1).for_each(|(z, c)| *z -= c);
             }
-            self.factors[*k].solve_in_place(zs, Par::Seq);
+            factors[*k].solve_in_place(zs, Par::Seq);
         });
     }
 
@@ -222,6 +225,50 @@ impl WindowParts<'_> {
                 residual: relative,
                 tolerance: params.tolerance,
             }),
+        }
+    }
+}
+
+/// [`TimeRanks`] over an MPI communicator (the `mpi` feature): sums by all-reduce, the
+/// neighbour exchange as blocking sends and receives ordered by rank parity (even ranks send
+/// first, odd ranks receive first), which cannot deadlock along a chain.
+#[cfg(feature = "mpi")]
+pub struct MpiRanks<'a, C: mpi::topology::Communicator> {
+    pub communicator: &'a C,
+    pub first_slab: usize,
+}
+
+#[cfg(feature = "mpi")]
+impl<C: mpi::topology::Communicator> TimeRanks for MpiRanks<'_, C> {
+    fn first_slab(&self) -> usize {
+        self.first_slab
+    }
+
+    fn sum(&self, values: &mut [f64]) {
+        use mpi::collective::{CommunicatorCollectives, SystemOperation};
+        let mine = values.to_vec();
+        self.communicator
+            .all_reduce_into(&mine[..], values, SystemOperation::sum());
+    }
+
+    fn exchange(&self, first: &[f64], last: &[f64]) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
+        use mpi::point_to_point::{Destination, Source};
+        let (rank, size) = (self.communicator.rank(), self.communicator.size());
+        let before = (rank > 0).then(|| self.communicator.process_at_rank(rank - 1));
+        let after = (rank + 1 < size).then(|| self.communicator.process_at_rank(rank + 1));
+        let receive = |p: Option<mpi::topology::Process<'_>>| p.map(|p| p.receive_vec::<f64>().0);
+        // `last` passes to the right, then `first` to the left.
+        if rank % 2 == 0 {
+            after.inspect(|p| p.send(last));
+            let from_before = receive(before);
+            before.inspect(|p| p.send(first));
+            (from_before, receive(after))
+        } else {
+            let from_before = receive(before);
+            after.inspect(|p| p.send(last));
+            let from_after = receive(after);
+            before.inspect(|p| p.send(first));
+            (from_before, from_after)
         }
     }
 }

@@ -1,0 +1,81 @@
+//! The solve over MPI ranks (`--features mpi`; `.ci/run` installs Open MPI and builds
+//! `examples/mpi_solve` first): for 1 to 4 ranks (oversubscribed on 2 cores) the flow equals
+//! the single process's to 1e-10 in the same number of iterations, and a broken frame file ends
+//! the whole job with the file named, without a hang.
+#![cfg(feature = "mpi")]
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+/// `target/<profile>/examples/mpi_solve`, beside this test's `deps` directory.
+fn example() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let profile = exe.parent().and_then(|deps| deps.parent()).unwrap();
+    let path = profile.join("examples").join("mpi_solve");
+    assert!(
+        path.exists(),
+        "{} is missing: cargo build --release --features mpi --example mpi_solve",
+        path.display()
+    );
+    path
+}
+
+/// `mpirun -n ranks mpi_solve args`, ended after 120 s should it hang (exit status 124).
+fn mpirun(ranks: usize, args: &[&str]) -> Output {
+    Command::new("timeout")
+        .args(["120", "mpirun", "-n", &ranks.to_string()])
+        .arg(example())
+        .args(args)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_rmaps_base_oversubscribe", "1")
+        .output()
+        .expect("mpirun runs (Open MPI installed)")
+}
+
+/// The number before `what` in `text`.
+fn number_before(text: &str, what: &str) -> f64 {
+    let head = &text[..text
+        .find(what)
+        .unwrap_or_else(|| panic!("no {what:?} in {text}"))];
+    head.split_whitespace().last().unwrap().parse().unwrap()
+}
+
+#[test]
+fn ranks_give_the_single_process_flow() {
+    for ranks in 1..=4 {
+        let output = mpirun(ranks, &["--check"]);
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        assert!(
+            output.status.success(),
+            "{ranks} ranks: {}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        println!("{stdout}");
+        let (distributed, single) = stdout.split_once("one process").unwrap();
+        let iterations = number_before(distributed, "iterations");
+        assert_eq!(
+            iterations,
+            number_before(single, "iterations"),
+            "{ranks} ranks"
+        );
+        let difference: f64 = single.trim().rsplit(' ').next().unwrap().parse().unwrap();
+        assert!(difference < 1e-10, "{ranks} ranks: {difference:e}");
+    }
+}
+
+#[test]
+fn a_broken_frame_file_ends_the_job_with_its_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let sample = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/rotating_sphere");
+    for k in 0..6 {
+        let name = format!("frame_{k}.obj");
+        std::fs::copy(sample.join(&name), dir.path().join(&name)).unwrap();
+    }
+    std::fs::write(dir.path().join("frame_4.obj"), "v 1 2\nf 1 2 3\n").unwrap();
+    let output = mpirun(2, &[dir.path().to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    assert_ne!(output.status.code(), Some(124), "the job hung: {stderr}");
+    assert!(stderr.contains("frame_4.obj"), "{stderr}");
+}
