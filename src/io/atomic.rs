@@ -44,9 +44,13 @@ fn live_staging() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
 /// Removes the staging directories of all uncommitted outputs of this process, for a signal
 /// handler that is about to end the process (a dropped [`StagedDir`] removes its own).
 pub fn remove_live_staging() {
-    for staging in live_staging().drain(..) {
+    let mut live = live_staging();
+    for staging in live.drain(..) {
         let _ = std::fs::remove_dir_all(staging);
     }
+    // The process ends next: keep the lock, so that no thread creates a staging directory
+    // between this removal and the exit (creating one takes the lock, see `StagedDir`).
+    std::mem::forget(live);
 }
 
 /// Writes `path` through `write`, atomically: a temporary file in the same directory is filled,
@@ -287,8 +291,13 @@ impl StagedDir {
         let parent = staging.parent().expect("a staging directory has a parent");
         remove_stale_staging(parent, &staging);
         std::fs::create_dir_all(parent).map_err(|e| IoError::file(target, e))?;
-        std::fs::create_dir_all(&staging).map_err(|e| IoError::file(target, e))?;
-        live_staging().push(staging.clone());
+        {
+            // Created and registered under one lock: a signal handler that runs meanwhile
+            // ([`remove_live_staging`]) sees both or neither.
+            let mut live = live_staging();
+            std::fs::create_dir_all(&staging).map_err(|e| IoError::file(target, e))?;
+            live.push(staging.clone());
+        }
         let mut staged = Self {
             target: target.to_path_buf(),
             resolved,

@@ -40,11 +40,14 @@ pub struct WindowSolution {
     /// The window's slabs' unknowns.
     pub u: Vec<f64>,
     pub iterations: usize,
-    /// `‖b − Au‖ / ‖b‖` of the whole system (the same on every rank).
+    /// CG's recursive residual `‖r‖ / ‖b‖` of the whole system (the same on every rank).
     pub relative_residual: f64,
 }
 
-/// Solves the whole system of which `window` is this rank's part.
+/// Solves the whole system of which `window` is this rank's part; every rank calls it. An
+/// error on one rank only (a slab that does not factorize) leaves the others
+/// waiting in a collective: the caller ends the job (`MPI_Abort`), as `examples/mpi_solve.rs`
+/// does.
 pub fn solve_window(
     window: &SystemWindow,
     ranks: &dyn TimeRanks,
