@@ -242,23 +242,9 @@ fn iterative_and_direct_solvers_agree() {
 
 /// A flat patch whose image varies along x only: `u = ŷ` costs nothing.
 fn stripes(n_frames: usize) -> MeshSequence {
-    let surface = grid(6, 5, 1.0, 1.0);
-    let intensities = (0..n_frames)
-        .map(|k| {
-            surface
-                .positions
-                .iter()
-                .map(|p| (4.0 * p.x - 0.2 * k as f64).sin())
-                .collect()
-        })
-        .collect();
-    MeshSequence::new(
-        surface.mesh().unwrap(),
-        vec![surface.positions.clone(); n_frames],
-        intensities,
-        None,
-    )
-    .unwrap()
+    common::still_sequence(&grid(6, 5, 1.0, 1.0), n_frames, |p, k| {
+        (4.0 * p.x - 0.2 * k as f64).sin()
+    })
 }
 
 #[test]

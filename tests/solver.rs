@@ -8,7 +8,7 @@ use meshflow::flow::{
 use meshflow::synth::{deforming_sphere, rotating_sphere};
 
 mod common;
-use common::assert_same_intrinsic_flow;
+use common::{assert_same_intrinsic_flow, still_sequence};
 
 /// A sphere stretching while its texture turns: the transport between slabs is not the
 /// identity, so the coarse levels' rotations matter.
@@ -55,25 +55,10 @@ fn multigrid_in_time_agrees_with_the_direct_solver() {
 
 #[test]
 fn multigrid_with_dirichlet_boundary_agrees_with_the_direct_solver() {
-    let surface = meshflow::shapes::grid(9, 8, 1.0, 1.0);
-    let frames = 7;
-    let intensities = (0..frames)
-        .map(|k| {
-            let t = k as f64;
-            surface
-                .positions
-                .iter()
-                .map(|p| (5.0 * p.x - 0.2 * t).sin() * (3.0 * p.y + 0.1 * t).cos())
-                .collect()
-        })
-        .collect();
-    let sequence = MeshSequence::new(
-        surface.mesh().unwrap(),
-        vec![surface.positions.clone(); frames],
-        intensities,
-        None,
-    )
-    .unwrap();
+    let sequence = still_sequence(&meshflow::shapes::grid(9, 8, 1.0, 1.0), 7, |p, k| {
+        let t = k as f64;
+        (5.0 * p.x - 0.2 * t).sin() * (3.0 * p.y + 0.1 * t).cos()
+    });
     let params = |solver| FlowParams {
         solver,
         boundary: Boundary::Dirichlet,
@@ -282,24 +267,13 @@ fn an_observer_can_interrupt_the_solve() {
 fn multigrid_converges_where_the_image_is_dark() {
     let surface = meshflow::shapes::icosphere(3);
     for frames in [3, 5] {
-        let intensities: Vec<Vec<f64>> = (0..frames)
-            .map(|k| {
-                let t = 0.05 * k as f64;
-                (surface.positions.iter())
-                    .map(|p| match p.z > 0.6 {
-                        true => (p.z - 0.6) * (9.0 * (p.x + t)).sin() * (7.0 * p.y).cos(),
-                        false => 0.0,
-                    })
-                    .collect()
-            })
-            .collect();
-        let sequence = MeshSequence::new(
-            surface.mesh().unwrap(),
-            vec![surface.positions.clone(); frames],
-            intensities,
-            None,
-        )
-        .unwrap();
+        let sequence = still_sequence(&surface, frames, |p, k| {
+            let t = 0.05 * k as f64;
+            match p.z > 0.6 {
+                true => (p.z - 0.6) * (9.0 * (p.x + t)).sin() * (7.0 * p.y).cos(),
+                false => 0.0,
+            }
+        });
         for alpha in [0.1, 0.01] {
             let params = |solver| FlowParams {
                 solver,

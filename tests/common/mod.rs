@@ -259,6 +259,21 @@ pub fn write_npy(path: &Path, shape: &[u64], values: &[f64]) {
     writer.finish().unwrap();
 }
 
+/// `surface` standing still for `frames` frames (times 0, 1, …) with the grey value
+/// `image(p, k)` at the vertex at `p` in frame `k`.
+pub fn still_sequence(
+    surface: &Surface,
+    frames: usize,
+    image: impl Fn(&Vector3<f64>, usize) -> f64,
+) -> meshflow::flow::MeshSequence {
+    let intensities = (0..frames)
+        .map(|k| surface.positions.iter().map(|p| image(p, k)).collect())
+        .collect();
+    let positions = vec![surface.positions.clone(); frames];
+    meshflow::flow::MeshSequence::new(surface.mesh().unwrap(), positions, intensities, None)
+        .unwrap()
+}
+
 /// Time-window test cases: a deforming sphere (8 slabs) with lumped and consistent coupling,
 /// and a 7 × 6 grid (5 slabs) with a moving pattern, Dirichlet boundary and default weights.
 pub fn window_cases() -> Vec<(
@@ -266,7 +281,7 @@ pub fn window_cases() -> Vec<(
     meshflow::flow::MeshSequence,
     meshflow::flow::FlowParams,
 )> {
-    use meshflow::flow::{Boundary, FlowParams, MeshSequence, TimeCoupling};
+    use meshflow::flow::{Boundary, FlowParams, TimeCoupling};
     let sphere = meshflow::synth::deforming_sphere(2, 9, 1.0, 0.05, 0.3)
         .unwrap()
         .sequence;
@@ -280,21 +295,9 @@ pub fn window_cases() -> Vec<(
             (format!("sphere, {coupling:?}"), sphere.clone(), params)
         })
         .collect();
-    let surface = meshflow::shapes::grid(7, 6, 1.0, 1.0);
-    let frames = 6;
-    let grid = MeshSequence::new(
-        surface.mesh().unwrap(),
-        vec![surface.positions.clone(); frames],
-        (0..frames)
-            .map(|k| {
-                (surface.positions.iter())
-                    .map(|p| (5.0 * p.x - 0.2 * k as f64).sin() * (3.0 * p.y).cos())
-                    .collect()
-            })
-            .collect(),
-        None,
-    )
-    .unwrap();
+    let grid = still_sequence(&grid(7, 6, 1.0, 1.0), 6, |p, k| {
+        (5.0 * p.x - 0.2 * k as f64).sin() * (3.0 * p.y).cos()
+    });
     let params = FlowParams {
         boundary: Boundary::Dirichlet,
         ..FlowParams::default()
