@@ -15,8 +15,10 @@
 
 use super::cholesky::{analyze, CholeskyFactor};
 use super::factorization_error;
+use super::precondition::{add, SlabSweeps, Surroundings};
 use crate::flow::system::{dot, SystemWindow};
 use crate::flow::{FlowError, FlowParams};
+use crate::flow::{LinkMatrix, SpaceTimeSystem};
 use faer::Par;
 use rayon::prelude::*;
 
@@ -66,25 +68,21 @@ pub fn solve_window(
     let parts = WindowParts {
         window,
         ranks,
-        factors,
+        sweeps: SlabSweeps::new(factors, 1, system.n_slabs()),
     };
     parts.pcg(params)
 }
 
-/// A rank's window, its factors and the other ranks.
+/// A rank's window, its slab sweeps and the other ranks.
 struct WindowParts<'a> {
     window: &'a SystemWindow,
     ranks: &'a dyn TimeRanks,
-    factors: Vec<CholeskyFactor<f32>>,
+    sweeps: SlabSweeps<f32>,
 }
 
 impl WindowParts<'_> {
     fn n(&self) -> usize {
         self.window.system.slab_dimension()
-    }
-
-    fn slabs(&self) -> usize {
-        self.window.system.n_slabs()
     }
 
     /// `Σ_ranks x·y`.
@@ -102,91 +100,22 @@ impl WindowParts<'_> {
 
     /// `y = (A x)` on this window's slabs.
     fn apply(&self, x: &[f64], y: &mut [f64]) {
-        let (before, after) = self.halo(x);
+        let (before, after) = self.beyond(x);
         self.window.system.apply(x, y);
-        let (n, pattern) = (self.n(), self.window.system.pattern());
-        if let (Some(link), Some(x)) = (&self.window.link_before, &before) {
-            link.mul(pattern, x, &mut y[..n]);
+        let (n, last) = (self.n(), y.len() - self.n());
+        if let Some(term) = before {
+            add(&mut y[..n], &term);
         }
-        if let (Some(link), Some(x)) = (&self.window.link_after, &after) {
-            let last = y.len() - n;
-            link.transpose_mul(pattern, x, &mut y[last..]);
+        if let Some(term) = after {
+            add(&mut y[last..], &term);
         }
     }
 
-    /// `X_{s−1} z_{s−1} + X_sᵀ z_{s+1}` for the window's slabs `s` (global parity `parity`),
-    /// with the neighbouring ranks' slabs where `s ± 1` lies beyond the window.
-    fn neighbour_terms(&self, z: &[f64], parity: usize) -> Vec<(usize, Vec<f64>)> {
-        let (before, after) = self.halo(z);
-        let (n, first, window) = (self.n(), self.ranks.first_slab(), self.window);
-        let (system, slabs) = (&window.system, self.slabs());
-        let pattern = system.pattern();
-        (0..slabs)
-            .into_par_iter()
-            .filter(|k| (first + k) % 2 == parity)
-            .map(|k| {
-                let mut c = vec![0.0; n];
-                match k {
-                    0 => {
-                        if let (Some(link), Some(x)) = (&window.link_before, &before) {
-                            link.mul(pattern, x, &mut c);
-                        }
-                    }
-                    _ => system.link_mul(k - 1, &z[(k - 1) * n..k * n], &mut c),
-                }
-                match k + 1 == slabs {
-                    true => {
-                        if let (Some(link), Some(x)) = (&window.link_after, &after) {
-                            link.transpose_mul(pattern, x, &mut c);
-                        }
-                    }
-                    false => system.link_transpose_mul(k, &z[(k + 1) * n..(k + 2) * n], &mut c),
-                }
-                (k, c)
-            })
-            .collect()
-    }
-
-    /// Whether the slabs are coupled in time (the same on every rank: `α < ∞`).
-    fn coupled(&self) -> bool {
-        let w = self.window;
-        w.system.has_links() || w.link_before.is_some() || w.link_after.is_some()
-    }
-
-    /// Solves the slabs of global `parity` in place, after subtracting their neighbours'
-    /// coupling when `coupled`.
-    fn half_sweep(&self, z: &mut [f64], parity: usize, coupled: bool) {
-        let terms = (coupled && self.coupled()).then(|| self.neighbour_terms(z, parity));
-        let first = self.ranks.first_slab();
-        let n = self.n();
-        let mut slabs: Vec<(usize, &mut [f64])> = (z.chunks_mut(n).enumerate())
-            .filter(|(k, _)| (first + k) % 2 == parity)
-            .collect();
-        let factors = &self.factors;
-        slabs.par_iter_mut().enumerate().for_each(|(i, (k, zs))| {
-            if let Some(terms) = &terms {
-                zs.iter_mut().zip(&terms[i].1).for_each(|(z, c)| *z -= c);
-            }
-            factors[*k].solve_in_place(zs, Par::Seq);
-        });
-    }
-
-    /// The symmetric odd–even Gauss–Seidel sweep of [`super::precondition::SlabSweeps`].
+    /// The symmetric odd–even Gauss–Seidel sweep on the window, its neighbours' slabs
+    /// reaching in through the boundary links ([`Surroundings`]).
     fn precondition(&self, r: &[f64], z: &mut [f64]) {
         z.copy_from_slice(r);
-        self.half_sweep(z, 0, false);
-        self.half_sweep(z, 1, true);
-        if !self.coupled() {
-            return;
-        }
-        let n = self.n();
-        for (k, mut c) in self.neighbour_terms(z, 0) {
-            self.factors[k].solve_in_place(&mut c, Par::Seq);
-            z[k * n..(k + 1) * n]
-                .iter_mut()
-                .zip(&c)
-                .for_each(|(z, c)| *z -= c);
-        }
+        self.sweeps.symmetric(&self.window.system, z, self);
     }
 
     fn pcg(&self, params: &FlowParams) -> Result<WindowSolution, FlowError> {
@@ -229,6 +158,35 @@ impl WindowParts<'_> {
                 tolerance: params.tolerance,
             }),
         }
+    }
+}
+
+impl Surroundings for WindowParts<'_> {
+    fn first_slab(&self) -> usize {
+        self.ranks.first_slab()
+    }
+
+    fn coupled(&self, system: &SpaceTimeSystem) -> bool {
+        system.has_links() || self.window.link_before.is_some() || self.window.link_after.is_some()
+    }
+
+    /// The neighbouring ranks' boundary slabs through the boundary links.
+    fn beyond(&self, z: &[f64]) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
+        let (before, after) = self.halo(z);
+        let pattern = self.window.system.pattern();
+        let times = |link: &Option<LinkMatrix>, x: Option<Vec<f64>>, transposed: bool| {
+            let (link, x) = (link.as_ref()?, x?);
+            let mut term = vec![0.0; x.len()];
+            match transposed {
+                false => link.mul(pattern, &x, &mut term),
+                true => link.transpose_mul(pattern, &x, &mut term),
+            }
+            Some(term)
+        };
+        (
+            times(&self.window.link_before, before, false),
+            times(&self.window.link_after, after, true),
+        )
     }
 }
 

@@ -15,7 +15,7 @@
 
 use super::cholesky::Precision;
 use super::pcg::Preconditioner;
-use super::precondition::SlabSweeps;
+use super::precondition::{SlabSweeps, Whole};
 use crate::flow::system::SpaceTimeSystem;
 use nalgebra::{Matrix2, Vector2};
 use rayon::prelude::*;
@@ -93,7 +93,7 @@ impl<'a, T: Precision> TimeMultigrid<'a, T> {
     fn cycle(&self, level: usize, r: &[f64], z: &mut [f64]) {
         let system = self.system(level);
         z.copy_from_slice(r);
-        self.sweeps[level].forward(system, z);
+        self.sweeps[level].forward(system, z, &Whole);
         if level == self.hierarchy.coarse.len() {
             // One slab: the forward sweep was an exact solve.
             return;
@@ -106,7 +106,7 @@ impl<'a, T: Precision> TimeMultigrid<'a, T> {
         self.cycle(level + 1, &coarse_r, &mut coarse_z);
         prolong_add(transports, &coarse_z, z, n);
         let mut correction = residual(system, r, z);
-        self.sweeps[level].backward(system, &mut correction);
+        self.sweeps[level].backward(system, &mut correction, &Whole);
         z.par_iter_mut().zip(&correction).for_each(|(z, c)| *z += c);
     }
 }

@@ -96,26 +96,32 @@ impl<T: Precision> SlabSweeps<T> {
     }
 
     /// `z ← (D + L)⁻¹ z`: even slabs, then odd slabs with their even neighbours' values.
-    pub fn forward(&self, system: &SpaceTimeSystem, z: &mut [f64]) {
-        self.half_sweep(system, z, Parity::Even, false);
-        self.half_sweep(system, z, Parity::Odd, true);
+    pub fn forward(&self, system: &SpaceTimeSystem, z: &mut [f64], around: &dyn Surroundings) {
+        self.half_sweep(system, z, Parity::Even, false, around);
+        self.half_sweep(system, z, Parity::Odd, true, around);
     }
 
     /// `z ← (D + U)⁻¹ z`: odd slabs, then even slabs with their odd neighbours' values.
-    pub fn backward(&self, system: &SpaceTimeSystem, z: &mut [f64]) {
-        self.half_sweep(system, z, Parity::Odd, false);
-        self.half_sweep(system, z, Parity::Even, true);
+    pub fn backward(&self, system: &SpaceTimeSystem, z: &mut [f64], around: &dyn Surroundings) {
+        self.half_sweep(system, z, Parity::Odd, false, around);
+        self.half_sweep(system, z, Parity::Even, true, around);
     }
 
     /// `z ← (D + U)⁻¹ D (D + L)⁻¹ z`, the symmetric Gauss–Seidel sweep: the forward sweep, then
     /// `z_s ← z_s − D_s⁻¹ (X z)_s` for the even slabs (the odd ones keep their values).
-    pub fn symmetric(&self, system: &SpaceTimeSystem, z: &mut [f64]) {
-        self.forward(system, z);
-        if !system.has_links() {
+    pub fn symmetric(&self, system: &SpaceTimeSystem, z: &mut [f64], around: &dyn Surroundings) {
+        self.forward(system, z, around);
+        if !around.coupled(system) {
             return;
         }
-        let coupled = self.neighbour_terms(system, z, Parity::Even);
-        (slabs_of(z, system.slab_dimension(), Parity::Even).into_par_iter())
+        let coupled = self.neighbour_terms(system, z, Parity::Even, around);
+        let slabs = slabs_of(
+            z,
+            system.slab_dimension(),
+            Parity::Even,
+            around.first_slab(),
+        );
+        (slabs.into_par_iter())
             .zip(coupled)
             .for_each(|((s, zs), mut c)| {
                 self.factor(s).solve_in_place(&mut c, Par::Seq);
@@ -125,10 +131,17 @@ impl<T: Precision> SlabSweeps<T> {
 
     /// Solves the slabs of `parity` in place, after subtracting their neighbours' coupling
     /// when `coupled`.
-    fn half_sweep(&self, system: &SpaceTimeSystem, z: &mut [f64], parity: Parity, coupled: bool) {
-        let terms =
-            (coupled && system.has_links()).then(|| self.neighbour_terms(system, z, parity));
-        let slabs = slabs_of(z, system.slab_dimension(), parity);
+    fn half_sweep(
+        &self,
+        system: &SpaceTimeSystem,
+        z: &mut [f64],
+        parity: Parity,
+        coupled: bool,
+        around: &dyn Surroundings,
+    ) {
+        let terms = (coupled && around.coupled(system))
+            .then(|| self.neighbour_terms(system, z, parity, around));
+        let slabs = slabs_of(z, system.slab_dimension(), parity, around.first_slab());
         slabs.into_par_iter().enumerate().for_each(|(k, (s, zs))| {
             if let Some(terms) = &terms {
                 subtract(zs, &terms[k]);
@@ -137,25 +150,35 @@ impl<T: Precision> SlabSweeps<T> {
         });
     }
 
-    /// `X_{s−1} z_{s−1} + X_sᵀ z_{s+1}` for each slab `s` of `parity`, in order.
+    /// `X_{s−1} z_{s−1} + X_sᵀ z_{s+1}` for each slab `s` of `parity`, in order; beyond the
+    /// system's ends the coupling `around` gives.
     fn neighbour_terms(
         &self,
         system: &SpaceTimeSystem,
         z: &[f64],
         parity: Parity,
+        around: &dyn Surroundings,
     ) -> Vec<Vec<f64>> {
-        let n = system.slab_dimension();
-        let slabs = system.n_slabs();
+        let (before, after) = around.beyond(z);
+        let (n, slabs, first) = (
+            system.slab_dimension(),
+            system.n_slabs(),
+            around.first_slab(),
+        );
         (0..slabs)
             .into_par_iter()
-            .filter(|s| s % 2 == parity as usize)
+            .filter(|s| (first + s) % 2 == parity as usize)
             .map(|s| {
                 let mut c = vec![0.0; n];
-                if s > 0 {
-                    system.link_mul(s - 1, &z[(s - 1) * n..s * n], &mut c);
+                match (s > 0, &before) {
+                    (true, _) => system.link_mul(s - 1, &z[(s - 1) * n..s * n], &mut c),
+                    (false, Some(term)) => add(&mut c, term),
+                    (false, None) => {}
                 }
-                if s + 1 < slabs {
-                    system.link_transpose_mul(s, &z[(s + 1) * n..(s + 2) * n], &mut c);
+                match (s + 1 < slabs, &after) {
+                    (true, _) => system.link_transpose_mul(s, &z[(s + 1) * n..(s + 2) * n], &mut c),
+                    (false, Some(term)) => add(&mut c, term),
+                    (false, None) => {}
                 }
                 c
             })
@@ -163,11 +186,47 @@ impl<T: Precision> SlabSweeps<T> {
     }
 }
 
-/// The slabs of `parity` as `(slab, values)`.
-fn slabs_of(z: &mut [f64], n: usize, parity: Parity) -> Vec<(usize, &mut [f64])> {
+/// Where a system's slabs sit in the whole sequence and what couples them to slabs beyond its
+/// ends: nothing for a whole system ([`Whole`]); a rank's window adds its neighbouring ranks'
+/// slabs through its boundary links ([`super::distributed`]).
+pub trait Surroundings {
+    /// The index of the system's slab 0 in the whole sequence (the sweeps' parities are the
+    /// sequence's).
+    fn first_slab(&self) -> usize;
+    /// Whether the slabs are coupled in time (the same answer on every rank).
+    fn coupled(&self, system: &SpaceTimeSystem) -> bool;
+    /// `(X_{a−1} z_{a−1}, X_{b−1}ᵀ z_b)`: the coupling of the system's first and last slab to
+    /// the slabs beyond, for its values `z` (for a window, an exchange with the other ranks).
+    fn beyond(&self, z: &[f64]) -> (Option<Vec<f64>>, Option<Vec<f64>>);
+}
+
+/// A whole system: slab 0 is the sequence's first, nothing lies beyond.
+pub struct Whole;
+
+impl Surroundings for Whole {
+    fn first_slab(&self) -> usize {
+        0
+    }
+
+    fn coupled(&self, system: &SpaceTimeSystem) -> bool {
+        system.has_links()
+    }
+
+    fn beyond(&self, _: &[f64]) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
+        (None, None)
+    }
+}
+
+/// The slabs of `parity` (counted from `first` in the sequence) as `(slab, values)`.
+fn slabs_of(z: &mut [f64], n: usize, parity: Parity, first: usize) -> Vec<(usize, &mut [f64])> {
     (z.chunks_mut(n).enumerate())
-        .filter(|(s, _)| s % 2 == parity as usize)
+        .filter(|(s, _)| (first + s) % 2 == parity as usize)
         .collect()
+}
+
+/// `z += c`.
+pub(super) fn add(z: &mut [f64], c: &[f64]) {
+    z.iter_mut().zip(c).for_each(|(z, c)| *z += c);
 }
 
 fn subtract(z: &mut [f64], c: &[f64]) {
@@ -190,6 +249,6 @@ impl<'a, T: Precision> SlabGaussSeidel<'a, T> {
 impl<T: Precision> Preconditioner for SlabGaussSeidel<'_, T> {
     fn apply(&self, r: &[f64], z: &mut [f64]) {
         z.copy_from_slice(r);
-        self.sweeps.symmetric(self.system, z);
+        self.sweeps.symmetric(self.system, z, &Whole);
     }
 }
