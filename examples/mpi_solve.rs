@@ -19,7 +19,7 @@
 //! a panic does the same through a panic hook, so no rank is left waiting.
 
 use meshflow::flow::distributed::{solve_window, MpiRanks, TimeRanks};
-use meshflow::flow::window::{window_frames, WindowSlabs};
+use meshflow::flow::window::{rank_slabs, window_frames, WindowSlabs};
 use meshflow::flow::{FlowParams, FlowProblem, MeshSequence, ScaleSums, SolverChoice};
 use mpi::datatype::PartitionMut;
 use mpi::topology::SimpleCommunicator;
@@ -64,7 +64,7 @@ fn run(world: &SimpleCommunicator) -> Result<(), Box<dyn Error>> {
     if size > n_slabs {
         return Err(format!("{size} ranks for {n_slabs} slabs: at most one rank per slab").into());
     }
-    let window = rank * n_slabs / size..(rank + 1) * n_slabs / size;
+    let window = rank_slabs(rank, size, n_slabs);
     let start = Instant::now();
     let ranks = MpiRanks {
         communicator: world,

@@ -5,7 +5,7 @@
 //! Each rank assembles only its window, from its frames, with the scales summed over ranks.
 
 use meshflow::flow::distributed::{solve_window, TimeRanks};
-use meshflow::flow::window::{window_frames, WindowSlabs};
+use meshflow::flow::window::{rank_slabs, window_frames, WindowSlabs};
 use meshflow::flow::{FlowParams, FlowProblem, MeshSequence, ScaleSums, SolverChoice};
 use std::sync::{Arc, Barrier, Mutex};
 
@@ -93,7 +93,7 @@ fn check(name: &str, sequence: &MeshSequence, params: &FlowParams) {
         let results: Vec<(Vec<f64>, usize)> = std::thread::scope(|scope| {
             let handles: Vec<_> = (0..size)
                 .map(|rank| {
-                    let window = rank * n_slabs / size..(rank + 1) * n_slabs / size;
+                    let window = rank_slabs(rank, size, n_slabs);
                     let me = ThreadRank {
                         rank,
                         size,

@@ -4,19 +4,12 @@
 //! for every split into 1 to 4 windows, both time couplings and Dirichlet boundaries. This is
 //! what each rank of a solve distributed over time assembles (`docs/scaling.md`).
 
-use meshflow::flow::window::{window_frames, WindowSlabs};
+use meshflow::flow::window::{rank_slabs, window_frames, WindowSlabs};
 use meshflow::flow::{
     FlowParams, FlowProblem, LinkMatrix, MeshSequence, ScaleSums, SpaceTimeSystem, SystemWindow,
 };
 
 mod common;
-
-/// `n` slabs split into `parts` runs as even as possible.
-fn split(n: usize, parts: usize) -> Vec<std::ops::Range<usize>> {
-    (0..parts)
-        .map(|r| r * n / parts..(r + 1) * n / parts)
-        .collect()
-}
 
 fn pseudo_random(n: usize, seed: f64) -> Vec<f64> {
     (0..n).map(|i| (seed * (i as f64 + 1.0)).sin()).collect()
@@ -87,7 +80,7 @@ fn check_windows(name: &str, sequence: &MeshSequence, params: &FlowParams) {
     let whole = FlowProblem::new(sequence, params).unwrap();
     let n_slabs = sequence.n_slabs();
     for parts in 1..=4 {
-        let windows = split(n_slabs, parts);
+        let windows: Vec<_> = (0..parts).map(|r| rank_slabs(r, parts, n_slabs)).collect();
         let built: Vec<(MeshSequence, WindowSlabs)> = (windows.iter())
             .map(|window| {
                 let frames = window_frames(window, sequence.n_frames());

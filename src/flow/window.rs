@@ -16,6 +16,12 @@ use super::system::SystemWindow;
 use super::{DataScales, FlowError, FlowParams, MeshSequence, ScaleSums, SpaceTimeSystem};
 use std::ops::Range;
 
+/// The slabs of rank `rank` of `ranks` when `n_slabs` are split into runs as even as possible:
+/// `[rank · S / R, (rank + 1) · S / R)`.
+pub fn rank_slabs(rank: usize, ranks: usize, n_slabs: usize) -> Range<usize> {
+    rank * n_slabs / ranks..(rank + 1) * n_slabs / ranks
+}
+
 /// The frames that the slabs `window` of a sequence of `n_frames` frames need.
 pub fn window_frames(window: &Range<usize>, n_frames: usize) -> Range<usize> {
     window.start.saturating_sub(1)..(window.end + 2).min(n_frames)
