@@ -19,7 +19,7 @@
 //! a panic does the same through a panic hook, so no rank is left waiting.
 
 use meshflow::flow::distributed::{solve_window, MpiRanks, TimeRanks};
-use meshflow::flow::window::{rank_slabs, window_frames, WindowSlabs};
+use meshflow::flow::window::{TimeWindow, WindowSlabs};
 use meshflow::flow::{FlowParams, FlowProblem, MeshSequence, ScaleSums, SolverChoice};
 use mpi::datatype::PartitionMut;
 use mpi::topology::SimpleCommunicator;
@@ -64,19 +64,16 @@ fn run(world: &SimpleCommunicator) -> Result<(), Box<dyn Error>> {
     if size > n_slabs {
         return Err(format!("{size} ranks for {n_slabs} slabs: at most one rank per slab").into());
     }
-    let window = rank_slabs(rank, size, n_slabs);
+    let window = TimeWindow::of_rank(rank, size, n_slabs);
     let start = Instant::now();
-    let ranks = MpiRanks {
-        communicator: world,
-        first_slab: window.start,
-    };
-    let frames = window_frames(&window, sequence.n_frames());
+    let ranks = MpiRanks { communicator: world };
+    let frames = window.frames();
     let local = sequence.frames(frames.clone())?;
     let slabs = WindowSlabs::new(&local, frames.start, window, &params)?;
     let mut sums = slabs.scale_sums(&local).to_array();
     ranks.sum(&mut sums);
     let system = slabs.assemble(&local, &params, &ScaleSums::from_array(sums).scales())?;
-    let solution = solve_window(&system, &ranks, &params)?;
+    let solution = solve_window(&system, &ranks, &params, &|_| {})?;
     let seconds = start.elapsed().as_secs_f64();
     let flow = gather(world, &solution.u);
     let peaks = gather(world, &[peak_memory_bytes() as f64 / 1e9]);

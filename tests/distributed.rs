@@ -5,29 +5,63 @@
 //! Each rank assembles only its window, from its frames, with the scales summed over ranks.
 
 use meshflow::flow::distributed::{solve_window, TimeRanks};
-use meshflow::flow::window::{rank_slabs, window_frames, WindowSlabs};
+use meshflow::flow::window::{TimeWindow, WindowSlabs};
 use meshflow::flow::{FlowParams, FlowProblem, MeshSequence, ScaleSums, SolverChoice};
+use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::{Arc, Barrier, Mutex};
 
 mod common;
 
-/// What the threads share: a barrier and one mailbox per rank.
+/// What the threads share for sums: a barrier and one slot per rank.
 struct Shared {
     barrier: Barrier,
     sums: Mutex<Vec<Vec<f64>>>,
-    boundaries: Mutex<Vec<(Vec<f64>, Vec<f64>)>>,
 }
 
+/// A rank played by a thread: sums through `Shared`, messages through one channel per
+/// ordered pair of ranks (unbounded: sends never block, unlike MPI's, so the tests of message
+/// order are the `mpirun` ones in `tests/mpi.rs`).
 struct ThreadRank {
     rank: usize,
     size: usize,
-    first_slab: usize,
     shared: Arc<Shared>,
+    to: Vec<Sender<Vec<f64>>>,
+    from: Vec<Receiver<Vec<f64>>>,
+}
+
+/// `size` ranks wired to each other.
+fn thread_ranks(size: usize) -> Vec<ThreadRank> {
+    let shared = Arc::new(Shared {
+        barrier: Barrier::new(size),
+        sums: Mutex::new(vec![Vec::new(); size]),
+    });
+    let mut senders: Vec<Vec<Sender<Vec<f64>>>> = (0..size).map(|_| Vec::new()).collect();
+    let mut receivers: Vec<Vec<Receiver<Vec<f64>>>> = (0..size).map(|_| Vec::new()).collect();
+    for from in 0..size {
+        for to in 0..size {
+            let (sender, receiver) = channel();
+            senders[from].push(sender);
+            receivers[to].push(receiver);
+        }
+    }
+    (senders.into_iter().zip(receivers).enumerate())
+        .map(|(rank, (to, from))| ThreadRank {
+            rank,
+            size,
+            shared: shared.clone(),
+            to,
+            from,
+        })
+        .collect()
 }
 
 impl TimeRanks for ThreadRank {
-    fn first_slab(&self) -> usize {
-        self.first_slab
+    fn rank(&self) -> usize {
+        self.rank
+    }
+
+    fn size(&self) -> usize {
+        self.size
     }
 
     fn sum(&self, values: &mut [f64]) {
@@ -40,14 +74,12 @@ impl TimeRanks for ThreadRank {
         }
     }
 
-    fn exchange(&self, first: &[f64], last: &[f64]) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
-        self.shared.boundaries.lock().unwrap()[self.rank] = (first.to_vec(), last.to_vec());
-        self.shared.barrier.wait();
-        let all = self.shared.boundaries.lock().unwrap().clone();
-        self.shared.barrier.wait();
-        let before = (self.rank > 0).then(|| all[self.rank - 1].1.clone());
-        let after = (self.rank + 1 < self.size).then(|| all[self.rank + 1].0.clone());
-        (before, after)
+    fn send(&self, to: usize, values: &[f64]) {
+        self.to[to].send(values.to_vec()).unwrap();
+    }
+
+    fn receive(&self, from: usize) -> Vec<f64> {
+        self.from[from].recv().unwrap()
     }
 }
 
@@ -57,23 +89,26 @@ fn rank_solve(
     sequence: &MeshSequence,
     params: &FlowParams,
     rank: ThreadRank,
-    window: std::ops::Range<usize>,
+    window: TimeWindow,
 ) -> (Vec<f64>, usize) {
-    let frames = window_frames(&window, sequence.n_frames());
+    let frames = window.frames();
     let local = sequence.frames(frames.clone()).unwrap();
     let slabs = WindowSlabs::new(&local, frames.start, window, params).unwrap();
     let mut sums = slabs.scale_sums(&local).to_array();
     rank.sum(&mut sums);
     let scales = ScaleSums::from_array(sums).scales();
     let system = slabs.assemble(&local, params, &scales).unwrap();
-    let solution = solve_window(&system, &rank, params).unwrap();
+    let solution = solve_window(&system, &rank, params, &|_| {}).unwrap();
     (solution.u, solution.iterations)
 }
 
-fn check(name: &str, sequence: &MeshSequence, params: &FlowParams) {
+/// Solves with `solver` in one process and over 1 to 8 ranks (at most one per slab): the same
+/// solution to 1e-10 and the same iterations (±1, the dot products summed in another order).
+fn check(name: &str, sequence: &MeshSequence, params: &FlowParams, solver: SolverChoice) {
     let params = FlowParams {
-        solver: SolverChoice::PcgSlabGaussSeidel,
+        solver,
         tolerance: 1e-12,
+        direct_limit: 0,
         ..params.clone()
     };
     let single = FlowProblem::new(sequence, &params)
@@ -84,22 +119,11 @@ fn check(name: &str, sequence: &MeshSequence, params: &FlowParams) {
         .flat_map(|v| [v.x, v.y])
         .collect();
     let n_slabs = sequence.n_slabs();
-    for size in 1..=4 {
-        let shared = Arc::new(Shared {
-            barrier: Barrier::new(size),
-            sums: Mutex::new(vec![Vec::new(); size]),
-            boundaries: Mutex::new(vec![(Vec::new(), Vec::new()); size]),
-        });
+    for size in 1..=n_slabs.min(8) {
         let results: Vec<(Vec<f64>, usize)> = std::thread::scope(|scope| {
-            let handles: Vec<_> = (0..size)
-                .map(|rank| {
-                    let window = rank_slabs(rank, size, n_slabs);
-                    let me = ThreadRank {
-                        rank,
-                        size,
-                        first_slab: window.start,
-                        shared: shared.clone(),
-                    };
+            let handles: Vec<_> = (thread_ranks(size).into_iter())
+                .map(|me| {
+                    let window = TimeWindow::of_rank(me.rank, size, n_slabs);
                     let params = &params;
                     scope.spawn(move || rank_solve(sequence, params, me, window))
                 })
@@ -115,8 +139,9 @@ fn check(name: &str, sequence: &MeshSequence, params: &FlowParams) {
             / norm;
         let iterations: Vec<usize> = results.iter().map(|(_, i)| *i).collect();
         println!(
-            "{name}, {size} ranks: iterations {iterations:?} (one process {}), difference {difference:.1e}",
-            single.iterations
+            "{name}, {solver:?}, {size} ranks: iterations {iterations:?} (one process {}, {}), \
+             difference {difference:.1e}",
+            single.iterations, single.method
         );
         assert!(difference < 1e-10, "{name}, {size} ranks: {difference:e}");
         assert!(iterations.iter().all(|&i| i == iterations[0]), "{name}");
@@ -128,8 +153,17 @@ fn check(name: &str, sequence: &MeshSequence, params: &FlowParams) {
 }
 
 #[test]
-fn ranks_solve_the_whole_system_as_one_process_does() {
+fn ranks_sweep_as_one_process_does() {
     for (name, sequence, params) in common::window_cases() {
-        check(&name, &sequence, &params);
+        check(&name, &sequence, &params, SolverChoice::PcgSlabGaussSeidel);
+    }
+}
+
+/// The coarse levels pair slabs across windows and gather onto fewer ranks; the V-cycle is
+/// the single process's, so are the iterations.
+#[test]
+fn ranks_run_the_multigrid_in_time_as_one_process_does() {
+    for (name, sequence, params) in common::window_cases() {
+        check(&name, &sequence, &params, SolverChoice::PcgTimeMultigrid);
     }
 }

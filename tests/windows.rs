@@ -4,7 +4,7 @@
 //! for every split into 1 to 4 windows, both time couplings and Dirichlet boundaries. This is
 //! what each rank of a solve distributed over time assembles (`docs/scaling.md`).
 
-use meshflow::flow::window::{rank_slabs, window_frames, WindowSlabs};
+use meshflow::flow::window::{TimeWindow, WindowSlabs};
 use meshflow::flow::{
     FlowParams, FlowProblem, LinkMatrix, MeshSequence, ScaleSums, SpaceTimeSystem, SystemWindow,
 };
@@ -49,6 +49,8 @@ fn link_product(link: &LinkMatrix, system: &SpaceTimeSystem, x: &[f64]) -> Vec<f
 fn assert_same_window(name: &str, window: &SystemWindow, whole: &SystemWindow) {
     let (w, s) = (&window.system, &whole.system);
     assert_eq!(w.n_slabs(), s.n_slabs(), "{name}");
+    assert_eq!(window.slabs, whole.slabs, "{name}");
+    assert_eq!(window.n_slabs_in_all, whole.n_slabs_in_all, "{name}");
     let x = pseudo_random(s.dimension(), 0.37);
     let differences = [
         relative_difference(&product(w, &x), &product(s, &x)),
@@ -80,10 +82,12 @@ fn check_windows(name: &str, sequence: &MeshSequence, params: &FlowParams) {
     let whole = FlowProblem::new(sequence, params).unwrap();
     let n_slabs = sequence.n_slabs();
     for parts in 1..=4 {
-        let windows: Vec<_> = (0..parts).map(|r| rank_slabs(r, parts, n_slabs)).collect();
+        let windows: Vec<_> = (0..parts)
+            .map(|r| TimeWindow::of_rank(r, parts, n_slabs))
+            .collect();
         let built: Vec<(MeshSequence, WindowSlabs)> = (windows.iter())
             .map(|window| {
-                let frames = window_frames(window, sequence.n_frames());
+                let frames = window.frames();
                 let local = sequence.frames(frames.clone()).unwrap();
                 let slabs = WindowSlabs::new(&local, frames.start, window.clone(), params).unwrap();
                 (local, slabs)
@@ -106,8 +110,9 @@ fn check_windows(name: &str, sequence: &MeshSequence, params: &FlowParams) {
         }
         for (window, (local, slabs)) in windows.iter().zip(&built) {
             let assembled = slabs.assemble(local, params, &scales).unwrap();
-            let label = format!("{name}, {parts} windows, slabs {window:?}");
-            assert_same_window(&label, &assembled, &whole.system().window(window.clone()));
+            let label = format!("{name}, {parts} windows, slabs {:?}", window.slabs);
+            let expected = whole.system().window(window.slabs.clone());
+            assert_same_window(&label, &assembled, &expected);
         }
     }
 }
@@ -122,8 +127,16 @@ fn windows_assemble_the_slabs_of_the_whole_problem() {
 /// A window's frames reach one slab beyond each end, clipped at the sequence's ends.
 #[test]
 fn window_frames_reach_one_slab_beyond_each_end() {
-    assert_eq!(window_frames(&(0..3), 10), 0..5);
-    assert_eq!(window_frames(&(3..6), 10), 2..8);
-    assert_eq!(window_frames(&(6..9), 10), 5..10);
-    assert_eq!(window_frames(&(0..9), 10), 0..10);
+    let frames = |slabs| {
+        TimeWindow {
+            slabs,
+            n_slabs_in_all: 9,
+        }
+        .frames()
+    };
+    assert_eq!(frames(0..3), 0..5);
+    assert_eq!(frames(3..6), 2..8);
+    assert_eq!(frames(6..9), 5..10);
+    assert_eq!(frames(0..9), 0..10);
+    assert_eq!(TimeWindow::of_rank(2, 3, 9).slabs, 6..9);
 }

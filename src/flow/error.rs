@@ -61,6 +61,8 @@ pub enum FlowError {
         value: f64,
         requirement: &'static str,
     },
+    #[error("the solver {solver} does not run over several ranks: use auto, pcg-slab-gauss-seidel or pcg-time-multigrid")]
+    NotDistributed { solver: &'static str },
     #[error("the grey values do not vary over the surface in any frame, so no flow can be measured; relative weights (--spread, --time-scale, --speed-penalty) need an image gradient")]
     NoImageGradient,
     #[error("the energy has no unique minimizer ({reason}); a speed penalty fixes the undetermined field: --speed-penalty 0.01 (relative to the data's scales), or β > 0 in the data's units (--beta)")]

@@ -69,6 +69,10 @@ impl LinkMatrix {
 #[derive(Clone, Debug)]
 pub struct SystemWindow {
     pub system: SpaceTimeSystem,
+    /// The window's slabs in the whole sequence (`system`'s slab 0 is `slabs.start`).
+    pub slabs: std::ops::Range<usize>,
+    /// The whole sequence's number of slabs.
+    pub n_slabs_in_all: usize,
     /// `X_{a−1}`, from the slab before the window into its first; `None` at the start.
     pub link_before: Option<LinkMatrix>,
     /// `X_{b−1}`, from the window's last slab into the one after; `None` at the end.
@@ -201,8 +205,10 @@ impl SpaceTimeSystem {
                 blocks: self.blocks[slabs.clone()].to_vec(),
                 links: inner_links,
                 rhs: self.rhs[a * n..b * n].to_vec(),
-                slab_constants: self.slab_constants[slabs].to_vec(),
+                slab_constants: self.slab_constants[slabs.clone()].to_vec(),
             },
+            slabs,
+            n_slabs_in_all: self.n_slabs(),
             link_before: link(a.checked_sub(1)),
             link_after: link((b < self.n_slabs()).then(|| b - 1)),
         }
@@ -542,14 +548,121 @@ impl SpaceTimeSystem {
 
     /// `X_s T` for a block-diagonal `T`.
     fn right_multiplied_link(&self, s: usize, t: &[Matrix2<f64>]) -> LinkMatrix {
-        match &self.links[s] {
+        self.links[s].right_multiplied(&self.pattern, t)
+    }
+}
+
+impl LinkMatrix {
+    /// `X T` for a block-diagonal `T` (one 2×2 block per vertex).
+    fn right_multiplied(&self, pattern: &VertexPattern, t: &[Matrix2<f64>]) -> LinkMatrix {
+        match self {
             LinkMatrix::Lumped(x) => {
                 LinkMatrix::Lumped(x.iter().zip(t).map(|(x, t)| x * t).collect())
             }
             LinkMatrix::Consistent(x) => {
-                LinkMatrix::Consistent(map_vertex_blocks(&self.pattern, x, |_, j, x| x * t[j]))
+                LinkMatrix::Consistent(map_vertex_blocks(pattern, x, |_, j, x| x * t[j]))
             }
         }
+    }
+
+    /// The link as numbers to send to another rank: `[0, blocks…]` (lumped, 4 per vertex,
+    /// column-major) or `[1, values…]` (consistent).
+    pub fn to_message(&self) -> Vec<f64> {
+        match self {
+            LinkMatrix::Lumped(blocks) => std::iter::once(0.0)
+                .chain(blocks.iter().flat_map(|b| b.iter().copied()))
+                .collect(),
+            LinkMatrix::Consistent(values) => [&[1.0][..], values].concat(),
+        }
+    }
+
+    /// The link of a [`Self::to_message`] (`None` for an empty message: no link).
+    pub fn from_message(message: &[f64]) -> Option<LinkMatrix> {
+        let (kind, values) = message.split_first()?;
+        Some(match *kind == 0.0 {
+            true => LinkMatrix::Lumped(
+                values
+                    .chunks_exact(4)
+                    .map(Matrix2::from_column_slice)
+                    .collect(),
+            ),
+            false => LinkMatrix::Consistent(values.to_vec()),
+        })
+    }
+}
+
+/// Slab pairs across ranks: the distributed multigrid in time pairs slabs `(2k, 2k + 1)` of the
+/// whole sequence, and coarse slab `k` belongs to the rank that owns slab `2k`. A window
+/// `[a, b)` that starts at an odd slab lends slab `a` (its block and the link after it,
+/// [`Self::first_slab_message`]) to the rank before, and one that ends at an odd `b` borrows
+/// slab `b` from the rank after; its pairs `[a', b')` (`a'` even) are then its own, and
+/// [`Self::merge_slab_pairs`] forms their `Pᵀ A P` as [`SpaceTimeSystem::merge_slab_pairs`]
+/// does for the whole system.
+impl SystemWindow {
+    /// The first slab's block values and the link after it ([`LinkMatrix::to_message`]; none
+    /// at the sequence's end).
+    pub(crate) fn first_slab_message(&self) -> Vec<f64> {
+        let link = match self.system.n_slabs() {
+            1 => self.link_after.as_ref(),
+            _ => self.system.links.first(),
+        };
+        let link = link.map(LinkMatrix::to_message).unwrap_or_default();
+        [&self.system.blocks[0][..], &link].concat()
+    }
+
+    /// Whether the window lends its first slab to the rank before (it starts at an odd slab).
+    pub(crate) fn lends_first(&self) -> bool {
+        self.slabs.start % 2 == 1
+    }
+
+    /// Whether the window borrows the first slab of the rank after (it ends at an odd slab
+    /// that is not the sequence's end).
+    pub(crate) fn borrows_next(&self) -> bool {
+        self.slabs.end % 2 == 1 && self.slabs.end < self.n_slabs_in_all
+    }
+
+    /// The coarse window of the pairs `[a', b')` (its `link_before` is the coarse link the rank
+    /// before computes: `None` here) and their transports `T_k`; `borrowed` is the rank
+    /// after's [`Self::first_slab_message`] when [`Self::borrows_next`].
+    pub(crate) fn merge_slab_pairs(
+        &self,
+        borrowed: Option<&[f64]>,
+    ) -> (SystemWindow, Vec<Vec<Matrix2<f64>>>) {
+        let lent = usize::from(self.lends_first());
+        let own = &self.system;
+        let mut blocks = own.blocks.get(lent..).unwrap_or_default().to_vec();
+        let mut links = own.links.get(lent..).unwrap_or_default().to_vec();
+        let mut link_after = self.link_after.clone();
+        if let Some(message) = borrowed {
+            let (block, link) = message.split_at(own.pattern.nnz());
+            blocks.push(block.to_vec());
+            links.extend(link_after.take());
+            link_after = LinkMatrix::from_message(link);
+        }
+        let start = self.slabs.start + lent;
+        let paired = SpaceTimeSystem {
+            pattern: own.pattern.clone(),
+            blocks,
+            links,
+            rhs: Vec::new(),
+            slab_constants: Vec::new(),
+        };
+        let transports = paired.pair_transports();
+        let link_after = match (link_after, transports.last()) {
+            (Some(link), Some(t)) => Some(link.right_multiplied(&own.pattern, t)),
+            _ => None,
+        };
+        let coarse = SystemWindow {
+            system: match paired.n_slabs() {
+                0 => paired.clone(),
+                _ => paired.merge_slab_pairs(&transports),
+            },
+            slabs: start / 2..(start + paired.n_slabs()).div_ceil(2),
+            n_slabs_in_all: self.n_slabs_in_all.div_ceil(2),
+            link_before: None,
+            link_after,
+        };
+        (coarse, transports)
     }
 }
 

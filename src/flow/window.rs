@@ -16,15 +16,27 @@ use super::system::SystemWindow;
 use super::{DataScales, FlowError, FlowParams, MeshSequence, ScaleSums, SpaceTimeSystem};
 use std::ops::Range;
 
-/// The slabs of rank `rank` of `ranks` when `n_slabs` are split into runs as even as possible:
-/// `[rank · S / R, (rank + 1) · S / R)`.
-pub fn rank_slabs(rank: usize, ranks: usize, n_slabs: usize) -> Range<usize> {
-    rank * n_slabs / ranks..(rank + 1) * n_slabs / ranks
+/// The slabs `[a, b)` of a sequence of `n_slabs_in_all` slabs that one rank holds.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TimeWindow {
+    pub slabs: Range<usize>,
+    pub n_slabs_in_all: usize,
 }
 
-/// The frames that the slabs `window` of a sequence of `n_frames` frames need.
-pub fn window_frames(window: &Range<usize>, n_frames: usize) -> Range<usize> {
-    window.start.saturating_sub(1)..(window.end + 2).min(n_frames)
+impl TimeWindow {
+    /// The window of rank `rank` of `ranks` when the slabs are split into runs as even as
+    /// possible: `[rank · S / R, (rank + 1) · S / R)`.
+    pub fn of_rank(rank: usize, ranks: usize, n_slabs_in_all: usize) -> Self {
+        TimeWindow {
+            slabs: rank * n_slabs_in_all / ranks..(rank + 1) * n_slabs_in_all / ranks,
+            n_slabs_in_all,
+        }
+    }
+
+    /// The frames its slabs need: `a − 1 ..= b + 1`, within the sequence's `S + 1` frames.
+    pub fn frames(&self) -> Range<usize> {
+        self.slabs.start.saturating_sub(1)..(self.slabs.end + 2).min(self.n_slabs_in_all + 1)
+    }
 }
 
 /// The slabs of one time window, built from its frames ([`window_frames`]).
@@ -32,23 +44,25 @@ pub struct WindowSlabs {
     /// The slabs of the frames, from slab `offset` on.
     slabs: Vec<Slab>,
     offset: usize,
-    window: Range<usize>,
+    window: TimeWindow,
 }
 
 impl WindowSlabs {
-    /// `frames` holds the whole sequence's frames `offset ..` (at least up to the frame after
-    /// the window's last slab, and from the one before its first where there is one).
+    /// `frames` holds the whole sequence's frames `offset ..` (at least those of
+    /// [`TimeWindow::frames`]).
     pub fn new(
         frames: &MeshSequence,
         offset: usize,
-        window: Range<usize>,
+        window: TimeWindow,
         params: &FlowParams,
     ) -> Result<Self, FlowError> {
         params.validate()?;
-        if window.is_empty() || window.start < offset || window.end > offset + frames.n_slabs() {
+        let slabs = &window.slabs;
+        let held = offset..offset + frames.n_slabs();
+        if slabs.is_empty() || slabs.start < held.start || slabs.end > held.end {
             return Err(FlowError::CountMismatch {
                 what: "slabs of the window's frames",
-                expected: window.end.saturating_sub(offset),
+                expected: slabs.end.saturating_sub(offset),
                 got: frames.n_slabs(),
             });
         }
@@ -64,7 +78,7 @@ impl WindowSlabs {
 
     /// The window's own slabs (not the ones beyond its ends).
     fn own(&self) -> &[Slab] {
-        &self.slabs[self.window.start - self.offset..self.window.end - self.offset]
+        &self.slabs[self.local(&self.window.slabs)]
     }
 
     /// The window's share of the data's scales.
@@ -83,6 +97,14 @@ impl WindowSlabs {
         let links = time_links(&self.slabs, &weights);
         let system =
             SpaceTimeSystem::assemble(frames.mesh(), &self.slabs, &links, params, &weights);
-        Ok(system.window(self.window.start - self.offset..self.window.end - self.offset))
+        let mut window = system.window(self.local(&self.window.slabs));
+        window.slabs = self.window.slabs.clone();
+        window.n_slabs_in_all = self.window.n_slabs_in_all;
+        Ok(window)
+    }
+
+    /// Global slabs as indices into the window's frames' slabs.
+    fn local(&self, slabs: &Range<usize>) -> Range<usize> {
+        slabs.start - self.offset..slabs.end - self.offset
     }
 }

@@ -1,103 +1,165 @@
 //! The space-time solve over time windows held by separate ranks: conjugate gradients
-//! preconditioned by the odd–even slab sweeps, each rank holding only its window's blocks,
-//! links and factors ([`SystemWindow`], assembled by [`crate::flow::window`]).
+//! preconditioned by the odd–even slab sweeps or by multigrid in time, each rank holding only
+//! its window's blocks, links and factors ([`SystemWindow`], assembled by
+//! [`crate::flow::window`]).
 //!
-//! The sweeps are the same preconditioner whatever the split (even slabs, then odd ones, by
-//! their index in the whole sequence), so the iterates equal the single process's
-//! `pcg-slab-gauss-seidel` up to the order of the dot products' sums, and the iteration count
-//! does not depend on the number of ranks. What crosses ranks: the dot products (a sum over
-//! ranks), and before each product with `A` and each coupled half sweep one slab vector to each
-//! neighbouring rank ([`TimeRanks::exchange`]). How the ranks talk is the caller's: MPI on a
-//! cluster, threads in the tests.
+//! **The same preconditioners as one process.** The odd–even sweeps solve the even slabs, then
+//! the odd ones, by their index in the whole sequence, whatever the split; the multigrid in time
+//! pairs slabs `(2k, 2k + 1)` of the whole sequence as [`super::multigrid`] does. So the
+//! iterates equal the single process's up to the order of the dot products' sums, and the
+//! iteration count does not depend on the number of ranks.
 //!
-//! Not yet here: multigrid in time across ranks (its coarse levels pair slabs within a window
-//! and agglomerate across ranks, `docs/scaling.md`), so small `α` needs many iterations.
+//! **Coarse levels gather onto fewer ranks.** Coarse slab `k` belongs to the rank that owns
+//! slab `2k`: a window `[a, b)` has the coarse window `[⌈a/2⌉, ⌈b/2⌉)`. A window that starts at
+//! an odd slab lends that slab's block and link to the rank before once, when the levels are
+//! built, and in every cycle its residual (restriction) and receives its correction back
+//! (prolongation); a window that ends at an odd slab borrows the same from the rank after
+//! ([`SystemWindow::merge_slab_pairs`]). As levels coarsen, windows shrink to nothing and their
+//! ranks fall idle, until the one slab of the coarsest level lies on rank 0: ranks pair up
+//! level by level, a binary tree over time.
+//!
+//! **What crosses ranks:** the dot products (a sum over ranks); before each product with `A`
+//! and each coupled half sweep one slab vector to each neighbouring rank that holds slabs of
+//! the level; at each level of a cycle at most one slab vector each way between neighbours for
+//! restriction and prolongation. Messages between neighbours follow a fixed order (the lower
+//! rank of a pair sends first; even positions in the chain talk to the right first), so blocking
+//! sends cannot deadlock. How the ranks talk is the caller's ([`TimeRanks`]): MPI on a cluster
+//! ([`MpiRanks`], feature `mpi`), threads in the tests.
 
-use super::cholesky::{analyze, CholeskyFactor};
-use super::factorization_error;
+use super::cholesky::{analyze, CholeskyFactor, Precision};
+use super::multigrid::{prolong_add, restrict};
+use super::pcg::{self, Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings};
+use super::{factorization_error, Solution, SolveObserver, SolverMethod};
+use super::{PROBE_ITERATIONS, SWITCH_ITERATIONS};
 use crate::flow::system::{dot, SystemWindow};
-use crate::flow::{FlowError, FlowParams};
-use crate::flow::{LinkMatrix, SpaceTimeSystem};
+use crate::flow::{FlowError, FlowParams, LinkMatrix, SolverChoice, SpaceTimeSystem};
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
+use nalgebra::Matrix2;
 use rayon::prelude::*;
+use std::ops::Range;
+use std::sync::Arc;
+use std::time::Instant;
 
-/// The collective operations a rank of a distributed solve needs. Every rank calls them in
-/// the same order, from one thread (MPI communicators are not `Sync`; the parallel loops
-/// here never touch them).
+/// The messages a rank of a distributed solve sends and receives. Every rank calls them in
+/// the same order, from one thread (MPI communicators are not `Sync`; the parallel loops here
+/// never touch them).
 pub trait TimeRanks {
-    /// This rank's window holds slabs `first_slab ..` of the sequence.
-    fn first_slab(&self) -> usize;
-    /// `values` ← their sum over all ranks.
+    fn rank(&self) -> usize;
+    fn size(&self) -> usize;
+    /// `values` ← their sum over all ranks (every rank calls it).
     fn sum(&self, values: &mut [f64]);
-    /// Sends `first` (the window's first slab) to the rank before and `last` (its last slab)
-    /// to the rank after; returns what they sent: the last slab of the rank before, the first
-    /// slab of the rank after (`None` at the sequence's ends).
-    fn exchange(&self, first: &[f64], last: &[f64]) -> (Option<Vec<f64>>, Option<Vec<f64>>);
+    /// Sends `values` to rank `to` (may block until `to` receives them).
+    fn send(&self, to: usize, values: &[f64]);
+    /// The next values rank `from` sent to this one.
+    fn receive(&self, from: usize) -> Vec<f64>;
 }
 
-/// A rank's part of the solution.
-#[derive(Clone, Debug)]
-pub struct WindowSolution {
-    /// The window's slabs' unknowns.
-    pub u: Vec<f64>,
-    pub iterations: usize,
-    /// CG's recursive residual `‖r‖ / ‖b‖` of the whole system (the same on every rank).
-    pub relative_residual: f64,
+/// This rank's neighbours among the ranks whose windows hold slabs at one level.
+#[derive(Clone, Copy, Debug)]
+struct Chain {
+    before: Option<usize>,
+    after: Option<usize>,
+    /// Position among those ranks (its parity orders the messages).
+    position: usize,
 }
 
-/// Solves the whole system of which `window` is this rank's part; every rank calls it. An
-/// error on one rank only (a slab that does not factorize) leaves the others
-/// waiting in a collective: the caller ends the job (`MPI_Abort`), as `examples/mpi_solve.rs`
-/// does.
-pub fn solve_window(
-    window: &SystemWindow,
-    ranks: &dyn TimeRanks,
-    params: &FlowParams,
-) -> Result<WindowSolution, FlowError> {
-    let system = &window.system;
-    let symbolic = analyze(system.block(0).symbolic(), 2);
-    let first = ranks.first_slab();
-    let factors = (0..system.n_slabs())
-        .into_par_iter()
-        .map(|s| {
-            CholeskyFactor::<f32>::new(&symbolic, system.block(s), Par::Seq)
-                .map_err(factorization_error(format!("slab {}", first + s)))
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let parts = WindowParts {
-        window,
-        ranks,
-        sweeps: SlabSweeps::new(factors, 1, system.n_slabs()),
-    };
-    parts.pcg(params)
-}
-
-/// A rank's window, its slab sweeps and the other ranks.
-struct WindowParts<'a> {
-    window: &'a SystemWindow,
-    ranks: &'a dyn TimeRanks,
-    sweeps: SlabSweeps<f32>,
-}
-
-impl WindowParts<'_> {
-    fn n(&self) -> usize {
-        self.window.system.slab_dimension()
+impl Chain {
+    fn new(windows: &[Range<usize>], rank: usize) -> Self {
+        let holding = |r: &usize| !windows[*r].is_empty();
+        Chain {
+            before: (0..rank).rev().find(holding),
+            after: (rank + 1..windows.len()).find(holding),
+            position: (0..rank).filter(holding).count(),
+        }
     }
 
-    /// `Σ_ranks x·y`.
-    fn dot(&self, x: &[f64], y: &[f64]) -> f64 {
-        let mut value = [dot(x, y)];
-        self.ranks.sum(&mut value);
-        value[0]
+    /// One round of messages with the neighbours: sends what is given, receives what is asked
+    /// for (the neighbour's call mirrors this one). On each pair the lower rank sends first;
+    /// even positions talk to the right first, odd ones to the left, so no cycle of blocking
+    /// sends can form along the chain.
+    fn talk(
+        &self,
+        ranks: &dyn TimeRanks,
+        messages: Messages<'_>,
+    ) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
+        let left = || {
+            let before = self.before?;
+            let received = messages.from_before.then(|| ranks.receive(before));
+            messages.to_before.inspect(|m| ranks.send(before, m));
+            received
+        };
+        let right = || {
+            let after = self.after?;
+            messages.to_after.inspect(|m| ranks.send(after, m));
+            messages.from_after.then(|| ranks.receive(after))
+        };
+        match self.position % 2 {
+            0 => {
+                let from_after = right();
+                (left(), from_after)
+            }
+            _ => {
+                let from_before = left();
+                (from_before, right())
+            }
+        }
+    }
+}
+
+/// What one [`Chain::talk`] sends to and expects from the neighbours.
+#[derive(Clone, Copy, Default)]
+struct Messages<'a> {
+    to_before: Option<&'a [f64]>,
+    to_after: Option<&'a [f64]>,
+    from_before: bool,
+    from_after: bool,
+}
+
+/// One level of a rank: its window, its neighbours, its slab sweeps and the pair transports
+/// to the next level (none at the coarsest or where the window pairs no slabs).
+struct Level<T: Precision> {
+    window: SystemWindow,
+    chain: Chain,
+    transports: Vec<Vec<Matrix2<f64>>>,
+    sweeps: SlabSweeps<T>,
+}
+
+/// A level's window and its neighbours, as an operator and as the sweeps' surroundings.
+struct LevelView<'a> {
+    window: &'a SystemWindow,
+    chain: Chain,
+    ranks: &'a dyn TimeRanks,
+}
+
+impl LevelView<'_> {
+    fn n(&self) -> usize {
+        self.window.system.slab_dimension()
     }
 
     /// The neighbouring ranks' boundary slabs of `x`.
     fn halo(&self, x: &[f64]) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
         let n = self.n();
-        self.ranks.exchange(&x[..n], &x[x.len() - n..])
+        let messages = Messages {
+            to_before: Some(&x[..n]),
+            to_after: Some(&x[x.len() - n..]),
+            from_before: true,
+            from_after: true,
+        };
+        self.chain.talk(self.ranks, messages)
     }
 
+    /// `r − A z`.
+    fn residual(&self, r: &[f64], z: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; r.len()];
+        self.apply(z, &mut out);
+        out.par_iter_mut().zip(r).for_each(|(o, r)| *o = r - *o);
+        out
+    }
+}
+
+impl Operator for LevelView<'_> {
     /// `y = (A x)` on this window's slabs.
     fn apply(&self, x: &[f64], y: &mut [f64]) {
         let (before, after) = self.beyond(x);
@@ -111,59 +173,17 @@ impl WindowParts<'_> {
         }
     }
 
-    /// The symmetric odd–even Gauss–Seidel sweep on the window, its neighbours' slabs
-    /// reaching in through the boundary links ([`Surroundings`]).
-    fn precondition(&self, r: &[f64], z: &mut [f64]) {
-        z.copy_from_slice(r);
-        self.sweeps.symmetric(&self.window.system, z, self);
-    }
-
-    fn pcg(&self, params: &FlowParams) -> Result<WindowSolution, FlowError> {
-        let b = self.window.system.rhs();
-        let b_norm = self.dot(b, b).sqrt();
-        let mut x = vec![0.0; b.len()];
-        let mut r = b.to_vec();
-        let mut z = vec![0.0; b.len()];
-        let mut ap = vec![0.0; b.len()];
-        let mut relative = if b_norm > 0.0 { 1.0 } else { 0.0 };
-        self.precondition(&r, &mut z);
-        let mut p = z.clone();
-        let mut rz = self.dot(&r, &z);
-        let mut iterations = 0;
-        while relative > params.tolerance && iterations < params.max_iterations {
-            iterations += 1;
-            self.apply(&p, &mut ap);
-            let step = rz / self.dot(&p, &ap);
-            x.iter_mut().zip(&p).for_each(|(x, p)| *x += step * p);
-            r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= step * a);
-            relative = self.dot(&r, &r).sqrt() / b_norm;
-            if !relative.is_finite() || relative <= params.tolerance {
-                break;
-            }
-            self.precondition(&r, &mut z);
-            let rz_next = self.dot(&r, &z);
-            let beta = rz_next / rz;
-            rz = rz_next;
-            p.iter_mut().zip(&z).for_each(|(p, z)| *p = z + beta * *p);
-        }
-        match relative <= params.tolerance {
-            true => Ok(WindowSolution {
-                u: x,
-                iterations,
-                relative_residual: relative,
-            }),
-            false => Err(FlowError::NotConverged {
-                iterations,
-                residual: relative,
-                tolerance: params.tolerance,
-            }),
-        }
+    /// `Σ_ranks x·y`.
+    fn dot(&self, x: &[f64], y: &[f64]) -> f64 {
+        let mut value = [dot(x, y)];
+        self.ranks.sum(&mut value);
+        value[0]
     }
 }
 
-impl Surroundings for WindowParts<'_> {
+impl Surroundings for LevelView<'_> {
     fn first_slab(&self) -> usize {
-        self.ranks.first_slab()
+        self.window.slabs.start
     }
 
     fn coupled(&self, system: &SpaceTimeSystem) -> bool {
@@ -190,19 +210,436 @@ impl Surroundings for WindowParts<'_> {
     }
 }
 
-/// [`TimeRanks`] over an MPI communicator (the `mpi` feature): sums by all-reduce, the
-/// neighbour exchange as blocking sends and receives ordered by rank parity (even ranks send
-/// first, odd ranks receive first), which cannot deadlock along a chain.
+/// A rank's levels and the other ranks: the symmetric odd–even Gauss–Seidel sweep
+/// (`multigrid` false, or one level) or one V-cycle of multigrid in time.
+struct WindowPreconditioner<'a, T: Precision> {
+    levels: &'a [Level<T>],
+    /// Levels of the whole hierarchy (this rank may hold fewer: it falls idle below them).
+    n_levels_in_all: usize,
+    multigrid: bool,
+    ranks: &'a dyn TimeRanks,
+}
+
+impl<T: Precision> WindowPreconditioner<'_, T> {
+    fn view(&self, l: usize) -> LevelView<'_> {
+        LevelView {
+            window: &self.levels[l].window,
+            chain: self.levels[l].chain,
+            ranks: self.ranks,
+        }
+    }
+
+    /// `z ≈ A_l⁻¹ r` by one V-cycle from level `l` ([`super::multigrid`]), the pairs that
+    /// straddle two windows restricted and prolonged across the ranks.
+    fn cycle(&self, l: usize, r: &[f64], z: &mut [f64]) {
+        let (level, view) = (&self.levels[l], self.view(l));
+        let system = &level.window.system;
+        z.copy_from_slice(r);
+        level.sweeps.forward(system, z, &view);
+        if l + 1 == self.n_levels_in_all {
+            return;
+        }
+        let n = view.n();
+        let lent = level.window.lends_first();
+        let borrows = level.window.borrows_next();
+        let residual = view.residual(r, z);
+        let (_, borrowed) = level.chain.talk(
+            self.ranks,
+            Messages {
+                to_before: lent.then(|| &residual[..n]),
+                from_after: borrows,
+                ..Default::default()
+            },
+        );
+        let mut paired = residual[usize::from(lent) * n..].to_vec();
+        paired.extend(borrowed.unwrap_or_default());
+        let coarse_r = restrict(&level.transports, &paired, n);
+        let mut coarse_z = vec![0.0; coarse_r.len()];
+        if l + 1 < self.levels.len() {
+            self.cycle(l + 1, &coarse_r, &mut coarse_z);
+        }
+        let mut increment = vec![0.0; paired.len()];
+        prolong_add(&level.transports, &coarse_z, &mut increment, n);
+        let own = increment.len() - usize::from(borrows) * n;
+        let (from_before, _) = level.chain.talk(
+            self.ranks,
+            Messages {
+                to_after: borrows.then(|| &increment[own..]),
+                from_before: lent,
+                ..Default::default()
+            },
+        );
+        add(&mut z[usize::from(lent) * n..], &increment[..own]);
+        if let Some(correction) = from_before {
+            add(&mut z[..n], &correction);
+        }
+        let mut correction = view.residual(r, z);
+        level.sweeps.backward(system, &mut correction, &view);
+        add(z, &correction);
+    }
+}
+
+impl<T: Precision> Preconditioner for WindowPreconditioner<'_, T> {
+    fn apply(&self, r: &[f64], z: &mut [f64]) {
+        match self.multigrid && self.n_levels_in_all > 1 {
+            true => self.cycle(0, r, z),
+            false => {
+                z.copy_from_slice(r);
+                self.levels[0]
+                    .sweeps
+                    .symmetric(&self.levels[0].window.system, z, &self.view(0));
+            }
+        }
+    }
+}
+
+/// Solves the whole system of which `window` is this rank's part; every rank calls it with
+/// its window (the windows in rank order, each at least one slab, covering the sequence).
+/// Returns this rank's part of the solution (`u` on its slabs; the rest of [`Solution`] is the
+/// same on every rank).
+///
+/// `params.solver`: `pcg-slab-gauss-seidel` and `pcg-time-multigrid` as in one process;
+/// `auto` probes the sweeps and builds the multigrid levels when they are too slow, as one
+/// process does for a system above the direct solver's limit (a distributed solve is never
+/// direct); `direct` and `pcg-jacobi` are not distributed ([`FlowError::NotDistributed`]).
+///
+/// An error on one rank only (a slab that factorizes on no precision) is reported on every
+/// rank, the others naming no slab; the caller ends the job (`MPI_Abort`), as `meshflow solve`
+/// under `mpirun` does.
+pub fn solve_window(
+    window: &SystemWindow,
+    ranks: &dyn TimeRanks,
+    params: &FlowParams,
+    observer: &dyn SolveObserver,
+) -> Result<Solution, FlowError> {
+    let multigrid = match params.solver {
+        SolverChoice::Auto => None,
+        SolverChoice::PcgSlabGaussSeidel => Some(false),
+        SolverChoice::PcgTimeMultigrid => Some(true),
+        SolverChoice::Direct => return Err(FlowError::NotDistributed { solver: "direct" }),
+        SolverChoice::PcgJacobi => {
+            return Err(FlowError::NotDistributed {
+                solver: "pcg-jacobi",
+            })
+        }
+    };
+    let start = Instant::now();
+    let windows = all_windows(window, ranks)?;
+    let fine = LevelView {
+        window,
+        chain: Chain::new(&windows, ranks.rank()),
+        ranks,
+    };
+    let b = window.system.rhs();
+    if fine.dot(b, b) == 0.0 {
+        return Ok(Solution::zero(b.len()));
+    }
+    let (levels, n_levels_in_all) = build_levels(window, &windows, ranks);
+    let symbolic = analyze(window.system.block(0).symbolic(), 2);
+    match factor_levels::<f32>(&levels, &symbolic, ranks) {
+        Ok(sweeps) => solve_with(
+            levels,
+            sweeps,
+            n_levels_in_all,
+            multigrid,
+            ranks,
+            params,
+            observer,
+            start,
+        ),
+        Err(_) => {
+            let sweeps = factor_levels::<f64>(&levels, &symbolic, ranks)?;
+            solve_with(
+                levels,
+                sweeps,
+                n_levels_in_all,
+                multigrid,
+                ranks,
+                params,
+                observer,
+                start,
+            )
+        }
+    }
+}
+
+/// Every rank's window, from one sum; checks that they tile the sequence in rank order.
+fn all_windows(
+    window: &SystemWindow,
+    ranks: &dyn TimeRanks,
+) -> Result<Vec<Range<usize>>, FlowError> {
+    let mut bounds = vec![0.0; 2 * ranks.size()];
+    bounds[2 * ranks.rank()] = window.slabs.start as f64;
+    bounds[2 * ranks.rank() + 1] = window.slabs.end as f64;
+    ranks.sum(&mut bounds);
+    let windows: Vec<Range<usize>> = bounds
+        .chunks(2)
+        .map(|b| b[0] as usize..b[1] as usize)
+        .collect();
+    let tiled = windows.iter().all(|w| !w.is_empty())
+        && windows.first().map(|w| w.start) == Some(0)
+        && windows.last().map(|w| w.end) == Some(window.n_slabs_in_all)
+        && windows.windows(2).all(|p| p[0].end == p[1].start);
+    match tiled {
+        true => Ok(windows),
+        false => Err(FlowError::CountMismatch {
+            what:
+                "slabs covered by the ranks' windows (each rank needs at least one slab, in order)",
+            expected: window.n_slabs_in_all,
+            got: windows.iter().map(|w| w.len()).sum(),
+        }),
+    }
+}
+
+/// This rank's windows of the time levels, finest first, and the number of levels in all
+/// (halving the slabs until one is left; one level for slabs not coupled in time).
+#[allow(clippy::type_complexity)]
+fn build_levels(
+    fine: &SystemWindow,
+    windows: &[Range<usize>],
+    ranks: &dyn TimeRanks,
+) -> (Vec<(SystemWindow, Chain, Vec<Vec<Matrix2<f64>>>)>, usize) {
+    let view = LevelView {
+        window: fine,
+        chain: Chain::new(windows, ranks.rank()),
+        ranks,
+    };
+    let coupled = view.coupled(&fine.system);
+    let mut n_levels_in_all = 1;
+    let mut slabs = fine.n_slabs_in_all;
+    while coupled && slabs > 1 {
+        slabs = slabs.div_ceil(2);
+        n_levels_in_all += 1;
+    }
+    let mut levels = Vec::new();
+    let (mut window, mut windows) = (fine.clone(), windows.to_vec());
+    for l in 0..n_levels_in_all {
+        let chain = Chain::new(&windows, ranks.rank());
+        if l + 1 == n_levels_in_all {
+            levels.push((window, chain, Vec::new()));
+            break;
+        }
+        let lent = window.lends_first().then(|| window.first_slab_message());
+        let (_, borrowed) = chain.talk(
+            ranks,
+            Messages {
+                to_before: lent.as_deref(),
+                from_after: window.borrows_next(),
+                ..Default::default()
+            },
+        );
+        let (mut coarse, transports) = window.merge_slab_pairs(borrowed.as_deref());
+        windows = windows
+            .iter()
+            .map(|w| w.start.div_ceil(2)..w.end.div_ceil(2))
+            .collect();
+        levels.push((window, chain, transports));
+        if coarse.slabs.is_empty() {
+            break;
+        }
+        let link = coarse.link_after.as_ref().map(LinkMatrix::to_message);
+        let (before, _) = Chain::new(&windows, ranks.rank()).talk(
+            ranks,
+            Messages {
+                to_after: link.as_deref(),
+                from_before: coarse.slabs.start > 0,
+                ..Default::default()
+            },
+        );
+        coarse.link_before = before.as_deref().and_then(LinkMatrix::from_message);
+        window = coarse;
+    }
+    (levels, n_levels_in_all)
+}
+
+/// The slab factors of every level, in precision `T`; an error on any rank fails them on all
+/// (so that all ranks retry in double precision together).
+fn factor_levels<T: Precision>(
+    levels: &[(SystemWindow, Chain, Vec<Vec<Matrix2<f64>>>)],
+    symbolic: &Arc<SymbolicCholesky<usize>>,
+    ranks: &dyn TimeRanks,
+) -> Result<Vec<SlabSweeps<T>>, FlowError> {
+    let slabs: Vec<(usize, usize)> = (levels.iter().enumerate())
+        .flat_map(|(l, (w, _, _))| (0..w.system.n_slabs()).map(move |s| (l, s)))
+        .collect();
+    let factors = slabs
+        .par_iter()
+        .map(|&(l, s)| {
+            let window = &levels[l].0;
+            let what = match l {
+                0 => format!("slab {}", window.slabs.start + s),
+                _ => format!("merged slab {} of time level {l}", window.slabs.start + s),
+            };
+            CholeskyFactor::new(symbolic, window.system.block(s), Par::Seq)
+                .map_err(factorization_error(what))
+        })
+        .collect::<Result<Vec<_>, _>>();
+    let mut failed = [f64::from(u8::from(factors.is_err()))];
+    ranks.sum(&mut failed);
+    let mut factors = match (factors, failed[0] > 0.0) {
+        (Err(error), _) => return Err(error),
+        (Ok(_), true) => {
+            return Err(factorization_error("a slab on another rank".into())(
+                "see that rank's error".into(),
+            ))
+        }
+        (Ok(factors), false) => factors.into_iter(),
+    };
+    Ok(levels
+        .iter()
+        .map(|(w, _, _)| {
+            let n = w.system.n_slabs();
+            SlabSweeps::new(factors.by_ref().take(n).collect(), 1, n)
+        })
+        .collect())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn solve_with<T: Precision>(
+    levels: Vec<(SystemWindow, Chain, Vec<Vec<Matrix2<f64>>>)>,
+    sweeps: Vec<SlabSweeps<T>>,
+    n_levels_in_all: usize,
+    multigrid: Option<bool>,
+    ranks: &dyn TimeRanks,
+    params: &FlowParams,
+    observer: &dyn SolveObserver,
+    start: Instant,
+) -> Result<Solution, FlowError> {
+    let levels: Vec<Level<T>> = (levels.into_iter().zip(sweeps))
+        .map(|((window, chain, transports), sweeps)| Level {
+            window,
+            chain,
+            transports,
+            sweeps,
+        })
+        .collect();
+    let factor_seconds = start.elapsed().as_secs_f64();
+    let mut factor_entries = [levels
+        .iter()
+        .map(|l| l.sweeps.stored_entries() as f64)
+        .sum()];
+    ranks.sum(&mut factor_entries);
+    let preconditioner = |multigrid| WindowPreconditioner {
+        levels: &levels,
+        n_levels_in_all,
+        multigrid,
+        ranks,
+    };
+    let operator = LevelView {
+        window: &levels[0].window,
+        chain: levels[0].chain,
+        ranks,
+    };
+    let b = levels[0].window.system.rhs();
+    let stop = pcg::Stop {
+        tolerance: params.tolerance,
+        done: 0,
+        max_iterations: params.max_iterations,
+        give_up: None,
+    };
+    let (x, stop, reason) = match multigrid {
+        Some(true) => (vec![0.0; b.len()], stop, "asked for".to_string()),
+        Some(false) => {
+            let outcome = pcg::pcg(
+                &operator,
+                b,
+                vec![0.0; b.len()],
+                &preconditioner(false),
+                stop,
+                observer,
+            )?;
+            return finish(
+                outcome,
+                SolverMethod::PcgSlabGaussSeidel,
+                "asked for".into(),
+                &operator,
+                b,
+                params,
+                (factor_seconds, factor_entries[0], 1),
+            );
+        }
+        None => {
+            let probe = pcg::Stop {
+                give_up: Some((PROBE_ITERATIONS, SWITCH_ITERATIONS)),
+                ..stop
+            };
+            let outcome = pcg::pcg(
+                &operator,
+                b,
+                vec![0.0; b.len()],
+                &preconditioner(false),
+                probe,
+                observer,
+            )?;
+            if outcome.converged || outcome.iterations != PROBE_ITERATIONS || n_levels_in_all == 1 {
+                let reason = "slab Gauss-Seidel converges fast enough".to_string();
+                return finish(
+                    outcome,
+                    SolverMethod::PcgSlabGaussSeidel,
+                    reason,
+                    &operator,
+                    b,
+                    params,
+                    (factor_seconds, factor_entries[0], 1),
+                );
+            }
+            let reason = format!(
+                "slab Gauss-Seidel reached {:.1e} in {} iterations, too slow: the time coupling dominates",
+                outcome.relative_residual, outcome.iterations
+            );
+            let done = pcg::Stop {
+                done: outcome.iterations,
+                ..stop
+            };
+            (outcome.x, done, reason)
+        }
+    };
+    let outcome = pcg::pcg(&operator, b, x, &preconditioner(true), stop, observer)?;
+    finish(
+        outcome,
+        SolverMethod::PcgTimeMultigrid,
+        reason,
+        &operator,
+        b,
+        params,
+        (factor_seconds, factor_entries[0], n_levels_in_all),
+    )
+}
+
+/// The [`Solution`] of a CG run, its residual recomputed from `u` over all ranks.
+fn finish(
+    outcome: pcg::CgOutcome,
+    method: SolverMethod,
+    reason: String,
+    operator: &LevelView<'_>,
+    b: &[f64],
+    params: &FlowParams,
+    (factor_seconds, factor_entries, time_levels): (f64, f64, usize),
+) -> Result<Solution, FlowError> {
+    let mut solution = Solution::iterated(outcome, method, format!("{reason}; over ranks"));
+    solution = solution.converged(params)?;
+    solution.relative_residual = super::relative_residual(operator, b, &solution.u);
+    solution.factor_seconds = factor_seconds;
+    solution.factor_entries = factor_entries as usize;
+    solution.time_levels = time_levels;
+    Ok(solution)
+}
+
+/// [`TimeRanks`] over an MPI communicator (the `mpi` feature): sums by all-reduce, messages as
+/// blocking standard-mode sends ([`Chain::talk`] orders them so that they cannot deadlock).
 #[cfg(feature = "mpi")]
 pub struct MpiRanks<'a, C: mpi::topology::Communicator> {
     pub communicator: &'a C,
-    pub first_slab: usize,
 }
 
 #[cfg(feature = "mpi")]
 impl<C: mpi::topology::Communicator> TimeRanks for MpiRanks<'_, C> {
-    fn first_slab(&self) -> usize {
-        self.first_slab
+    fn rank(&self) -> usize {
+        self.communicator.rank() as usize
+    }
+
+    fn size(&self) -> usize {
+        self.communicator.size() as usize
     }
 
     fn sum(&self, values: &mut [f64]) {
@@ -212,24 +649,16 @@ impl<C: mpi::topology::Communicator> TimeRanks for MpiRanks<'_, C> {
             .all_reduce_into(&mine[..], values, SystemOperation::sum());
     }
 
-    fn exchange(&self, first: &[f64], last: &[f64]) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
-        use mpi::point_to_point::{Destination, Source};
-        let (rank, size) = (self.communicator.rank(), self.communicator.size());
-        let before = (rank > 0).then(|| self.communicator.process_at_rank(rank - 1));
-        let after = (rank + 1 < size).then(|| self.communicator.process_at_rank(rank + 1));
-        let receive = |p: Option<mpi::topology::Process<'_>>| p.map(|p| p.receive_vec::<f64>().0);
-        // `last` passes to the right, then `first` to the left.
-        if rank % 2 == 0 {
-            after.inspect(|p| p.send(last));
-            let from_before = receive(before);
-            before.inspect(|p| p.send(first));
-            (from_before, receive(after))
-        } else {
-            let from_before = receive(before);
-            after.inspect(|p| p.send(last));
-            let from_after = receive(after);
-            before.inspect(|p| p.send(first));
-            (from_before, from_after)
-        }
+    fn send(&self, to: usize, values: &[f64]) {
+        use mpi::point_to_point::Destination;
+        self.communicator.process_at_rank(to as i32).send(values);
+    }
+
+    fn receive(&self, from: usize) -> Vec<f64> {
+        use mpi::point_to_point::Source;
+        self.communicator
+            .process_at_rank(from as i32)
+            .receive_vec::<f64>()
+            .0
     }
 }

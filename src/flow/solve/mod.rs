@@ -97,7 +97,7 @@ mod multigrid;
 mod pcg;
 mod precondition;
 
-use super::system::{dot, SpaceTimeSystem};
+use super::system::SpaceTimeSystem;
 use super::{FlowError, FlowParams, SolverChoice};
 use cholesky::{analyze, CholeskyFactor, Precision};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
@@ -207,16 +207,7 @@ pub fn solve(
 ) -> Result<Solution, FlowError> {
     let b = system.rhs();
     if b.iter().all(|&v| v == 0.0) {
-        // A static image: u = 0 is the exact minimizer (E ≥ 0 = E(0) minus the constant).
-        return Ok(Solution {
-            iterations: 0,
-            relative_residual: 0.0,
-            ..Solution::exact(
-                vec![0.0; b.len()],
-                SolverMethod::Direct,
-                "the right-hand side is zero (a static image): u = 0".into(),
-            )
-        });
+        return Ok(Solution::zero(b.len()));
     }
     let mut solution = match params.solver {
         SolverChoice::Auto if !system.has_links() => {
@@ -245,11 +236,25 @@ pub fn solve(
                 .converged(params)?
         }
     };
-    solution.relative_residual = relative_residual(system, &solution.u);
+    solution.relative_residual = relative_residual(system, system.rhs(), &solution.u);
     Ok(solution)
 }
 
 impl Solution {
+    /// `u = 0` for `b = 0`, a static image: the exact minimizer (`E ≥ 0 = E(0)` minus the
+    /// constant).
+    fn zero(dimension: usize) -> Self {
+        Self {
+            iterations: 0,
+            relative_residual: 0.0,
+            ..Solution::exact(
+                vec![0.0; dimension],
+                SolverMethod::Direct,
+                "the right-hand side is zero (a static image): u = 0".into(),
+            )
+        }
+    }
+
     fn exact(u: Vec<f64>, method: SolverMethod, reason: String) -> Self {
         Self {
             u,
@@ -286,12 +291,12 @@ impl Solution {
     }
 }
 
-fn relative_residual(system: &SpaceTimeSystem, u: &[f64]) -> f64 {
-    let b = system.rhs();
+/// `‖b − A u‖ / ‖b‖`.
+fn relative_residual(system: &dyn pcg::Operator, b: &[f64], u: &[f64]) -> f64 {
     let mut r = vec![0.0; u.len()];
     system.apply(u, &mut r);
     r.iter_mut().zip(b).for_each(|(r, b)| *r = b - *r);
-    (dot(&r, &r) / dot(b, b)).sqrt()
+    (system.dot(&r, &r) / system.dot(b, b)).sqrt()
 }
 
 /// PCG from `x` (zero when `None`) with iterations `done` already counted.

@@ -126,7 +126,7 @@ fn residual(system: &SpaceTimeSystem, r: &[f64], z: &[f64]) -> Vec<f64> {
 }
 
 /// `Pᵀ r`: coarse slab `k` gets `r_{2k} + T_kᵀ r_{2k+1}`.
-fn restrict(transports: &[Vec<Matrix2<f64>>], r: &[f64], n: usize) -> Vec<f64> {
+pub(super) fn restrict(transports: &[Vec<Matrix2<f64>>], r: &[f64], n: usize) -> Vec<f64> {
     let n_coarse = (r.len() / n).div_ceil(2);
     let mut coarse = vec![0.0; n_coarse * n];
     coarse.par_chunks_mut(n).enumerate().for_each(|(k, ck)| {
@@ -144,7 +144,12 @@ fn restrict(transports: &[Vec<Matrix2<f64>>], r: &[f64], n: usize) -> Vec<f64> {
 }
 
 /// `z += P zc`: fine slab `2k` gets `zc_k`, slab `2k + 1` gets `T_k zc_k`.
-fn prolong_add(transports: &[Vec<Matrix2<f64>>], coarse: &[f64], z: &mut [f64], n: usize) {
+pub(super) fn prolong_add(
+    transports: &[Vec<Matrix2<f64>>],
+    coarse: &[f64],
+    z: &mut [f64],
+    n: usize,
+) {
     z.par_chunks_mut(2 * n)
         .zip(coarse.par_chunks(n))
         .enumerate()

@@ -6,8 +6,28 @@ use crate::flow::FlowError;
 use rayon::prelude::*;
 
 /// `z ≈ A⁻¹ r` for a symmetric positive definite approximation of `A⁻¹`.
-pub trait Preconditioner: Sync {
+pub trait Preconditioner {
     fn apply(&self, r: &[f64], z: &mut [f64]);
+}
+
+/// What CG needs of `A` and of the space its vectors live in: the whole system in one
+/// process, or one rank's window of it with dot products summed over the ranks
+/// ([`super::distributed`]).
+pub trait Operator {
+    /// `y = A x`.
+    fn apply(&self, x: &[f64], y: &mut [f64]);
+    /// `x · y` over the whole system.
+    fn dot(&self, x: &[f64], y: &[f64]) -> f64;
+}
+
+impl Operator for SpaceTimeSystem {
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        SpaceTimeSystem::apply(self, x, y);
+    }
+
+    fn dot(&self, x: &[f64], y: &[f64]) -> f64 {
+        dot(x, y)
+    }
 }
 
 /// When CG stops, and how its iterations are numbered in the reports.
@@ -49,7 +69,7 @@ impl CgOutcome {
 /// Solves `A x = b` from `x` (CG restarted there) until the tolerance or the iteration limit
 /// ([`FlowError::Interrupted`] when the observer stops it).
 pub fn pcg(
-    system: &SpaceTimeSystem,
+    system: &dyn Operator,
     b: &[f64],
     mut x: Vec<f64>,
     preconditioner: &dyn Preconditioner,
@@ -57,27 +77,27 @@ pub fn pcg(
     observer: &dyn SolveObserver,
 ) -> Result<CgOutcome, FlowError> {
     let n = b.len();
-    let b_norm = dot(b, b).sqrt();
+    let b_norm = system.dot(b, b).sqrt();
     let mut r = vec![0.0; n];
     system.apply(&x, &mut r);
     r.par_iter_mut().zip(b).for_each(|(r, b)| *r = b - *r);
-    let mut relative = dot(&r, &r).sqrt() / b_norm;
+    let mut relative = system.dot(&r, &r).sqrt() / b_norm;
     let mut z = vec![0.0; n];
     preconditioner.apply(&r, &mut z);
     let mut p = z.clone();
     let mut ap = vec![0.0; n];
-    let mut rz = dot(&r, &z);
+    let mut rz = system.dot(&r, &z);
     let mut iteration = stop.done;
     let mut first_residual = relative;
     let mut lanczos = Lanczos::default();
     while relative > stop.tolerance && relative.is_finite() && iteration < stop.max_iterations {
         iteration += 1;
         system.apply(&p, &mut ap);
-        let step = rz / dot(&p, &ap);
+        let step = rz / system.dot(&p, &ap);
         lanczos.steps.push(step);
         axpy(step, &p, &mut x);
         axpy(-step, &ap, &mut r);
-        relative = dot(&r, &r).sqrt() / b_norm;
+        relative = system.dot(&r, &r).sqrt() / b_norm;
         if iteration == stop.done + 1 {
             first_residual = relative;
         }
@@ -95,7 +115,7 @@ pub fn pcg(
             }
         }
         preconditioner.apply(&r, &mut z);
-        let rz_next = dot(&r, &z);
+        let rz_next = system.dot(&r, &z);
         let beta = rz_next / rz;
         lanczos.betas.push(beta);
         rz = rz_next;
