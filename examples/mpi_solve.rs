@@ -66,7 +66,9 @@ fn run(world: &SimpleCommunicator) -> Result<(), Box<dyn Error>> {
     }
     let window = TimeWindow::of_rank(rank, size, n_slabs);
     let start = Instant::now();
-    let ranks = MpiRanks { communicator: world };
+    let ranks = MpiRanks {
+        communicator: world,
+    };
     let frames = window.frames();
     let local = sequence.frames(frames.clone())?;
     let slabs = WindowSlabs::new(&local, frames.start, window, &params)?;

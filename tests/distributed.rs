@@ -37,11 +37,11 @@ fn thread_ranks(size: usize) -> Vec<ThreadRank> {
     });
     let mut senders: Vec<Vec<Sender<Vec<f64>>>> = (0..size).map(|_| Vec::new()).collect();
     let mut receivers: Vec<Vec<Receiver<Vec<f64>>>> = (0..size).map(|_| Vec::new()).collect();
-    for from in 0..size {
-        for to in 0..size {
+    for to_all in senders.iter_mut() {
+        for inbox in receivers.iter_mut() {
             let (sender, receiver) = channel();
-            senders[from].push(sender);
-            receivers[to].push(receiver);
+            to_all.push(sender);
+            inbox.push(receiver);
         }
     }
     (senders.into_iter().zip(receivers).enumerate())

@@ -117,12 +117,17 @@ struct Messages<'a> {
     from_after: bool,
 }
 
-/// One level of a rank: its window, its neighbours, its slab sweeps and the pair transports
-/// to the next level (none at the coarsest or where the window pairs no slabs).
-struct Level<T: Precision> {
+/// One level of a rank before factorization: its window, its neighbours and the pair
+/// transports to the next level (none at the coarsest or where the window pairs no slabs).
+struct LevelPlan {
     window: SystemWindow,
     chain: Chain,
     transports: Vec<Vec<Matrix2<f64>>>,
+}
+
+/// A [`LevelPlan`] with the slab sweeps of its window.
+struct Level<T: Precision> {
+    plan: LevelPlan,
     sweeps: SlabSweeps<T>,
 }
 
@@ -223,8 +228,8 @@ struct WindowPreconditioner<'a, T: Precision> {
 impl<T: Precision> WindowPreconditioner<'_, T> {
     fn view(&self, l: usize) -> LevelView<'_> {
         LevelView {
-            window: &self.levels[l].window,
-            chain: self.levels[l].chain,
+            window: &self.levels[l].plan.window,
+            chain: self.levels[l].plan.chain,
             ranks: self.ranks,
         }
     }
@@ -233,17 +238,17 @@ impl<T: Precision> WindowPreconditioner<'_, T> {
     /// straddle two windows restricted and prolonged across the ranks.
     fn cycle(&self, l: usize, r: &[f64], z: &mut [f64]) {
         let (level, view) = (&self.levels[l], self.view(l));
-        let system = &level.window.system;
+        let system = &level.plan.window.system;
         z.copy_from_slice(r);
         level.sweeps.forward(system, z, &view);
         if l + 1 == self.n_levels_in_all {
             return;
         }
         let n = view.n();
-        let lent = level.window.lends_first();
-        let borrows = level.window.borrows_next();
+        let lent = level.plan.window.lends_first();
+        let borrows = level.plan.window.borrows_next();
         let residual = view.residual(r, z);
-        let (_, borrowed) = level.chain.talk(
+        let (_, borrowed) = level.plan.chain.talk(
             self.ranks,
             Messages {
                 to_before: lent.then(|| &residual[..n]),
@@ -253,15 +258,15 @@ impl<T: Precision> WindowPreconditioner<'_, T> {
         );
         let mut paired = residual[usize::from(lent) * n..].to_vec();
         paired.extend(borrowed.unwrap_or_default());
-        let coarse_r = restrict(&level.transports, &paired, n);
+        let coarse_r = restrict(&level.plan.transports, &paired, n);
         let mut coarse_z = vec![0.0; coarse_r.len()];
         if l + 1 < self.levels.len() {
             self.cycle(l + 1, &coarse_r, &mut coarse_z);
         }
         let mut increment = vec![0.0; paired.len()];
-        prolong_add(&level.transports, &coarse_z, &mut increment, n);
+        prolong_add(&level.plan.transports, &coarse_z, &mut increment, n);
         let own = increment.len() - usize::from(borrows) * n;
-        let (from_before, _) = level.chain.talk(
+        let (from_before, _) = level.plan.chain.talk(
             self.ranks,
             Messages {
                 to_after: borrows.then(|| &increment[own..]),
@@ -285,9 +290,11 @@ impl<T: Precision> Preconditioner for WindowPreconditioner<'_, T> {
             true => self.cycle(0, r, z),
             false => {
                 z.copy_from_slice(r);
-                self.levels[0]
-                    .sweeps
-                    .symmetric(&self.levels[0].window.system, z, &self.view(0));
+                self.levels[0].sweeps.symmetric(
+                    &self.levels[0].plan.window.system,
+                    z,
+                    &self.view(0),
+                );
             }
         }
     }
@@ -393,12 +400,11 @@ fn all_windows(
 
 /// This rank's windows of the time levels, finest first, and the number of levels in all
 /// (halving the slabs until one is left; one level for slabs not coupled in time).
-#[allow(clippy::type_complexity)]
 fn build_levels(
     fine: &SystemWindow,
     windows: &[Range<usize>],
     ranks: &dyn TimeRanks,
-) -> (Vec<(SystemWindow, Chain, Vec<Vec<Matrix2<f64>>>)>, usize) {
+) -> (Vec<LevelPlan>, usize) {
     let view = LevelView {
         window: fine,
         chain: Chain::new(windows, ranks.rank()),
@@ -416,7 +422,11 @@ fn build_levels(
     for l in 0..n_levels_in_all {
         let chain = Chain::new(&windows, ranks.rank());
         if l + 1 == n_levels_in_all {
-            levels.push((window, chain, Vec::new()));
+            levels.push(LevelPlan {
+                window,
+                chain,
+                transports: Vec::new(),
+            });
             break;
         }
         let lent = window.lends_first().then(|| window.first_slab_message());
@@ -433,7 +443,11 @@ fn build_levels(
             .iter()
             .map(|w| w.start.div_ceil(2)..w.end.div_ceil(2))
             .collect();
-        levels.push((window, chain, transports));
+        levels.push(LevelPlan {
+            window,
+            chain,
+            transports,
+        });
         if coarse.slabs.is_empty() {
             break;
         }
@@ -455,17 +469,17 @@ fn build_levels(
 /// The slab factors of every level, in precision `T`; an error on any rank fails them on all
 /// (so that all ranks retry in double precision together).
 fn factor_levels<T: Precision>(
-    levels: &[(SystemWindow, Chain, Vec<Vec<Matrix2<f64>>>)],
+    levels: &[LevelPlan],
     symbolic: &Arc<SymbolicCholesky<usize>>,
     ranks: &dyn TimeRanks,
 ) -> Result<Vec<SlabSweeps<T>>, FlowError> {
     let slabs: Vec<(usize, usize)> = (levels.iter().enumerate())
-        .flat_map(|(l, (w, _, _))| (0..w.system.n_slabs()).map(move |s| (l, s)))
+        .flat_map(|(l, p)| (0..p.window.system.n_slabs()).map(move |s| (l, s)))
         .collect();
     let factors = slabs
         .par_iter()
         .map(|&(l, s)| {
-            let window = &levels[l].0;
+            let window = &levels[l].window;
             let what = match l {
                 0 => format!("slab {}", window.slabs.start + s),
                 _ => format!("merged slab {} of time level {l}", window.slabs.start + s),
@@ -487,8 +501,8 @@ fn factor_levels<T: Precision>(
     };
     Ok(levels
         .iter()
-        .map(|(w, _, _)| {
-            let n = w.system.n_slabs();
+        .map(|plan| {
+            let n = plan.window.system.n_slabs();
             SlabSweeps::new(factors.by_ref().take(n).collect(), 1, n)
         })
         .collect())
@@ -496,7 +510,7 @@ fn factor_levels<T: Precision>(
 
 #[allow(clippy::too_many_arguments)]
 fn solve_with<T: Precision>(
-    levels: Vec<(SystemWindow, Chain, Vec<Vec<Matrix2<f64>>>)>,
+    levels: Vec<LevelPlan>,
     sweeps: Vec<SlabSweeps<T>>,
     n_levels_in_all: usize,
     multigrid: Option<bool>,
@@ -506,12 +520,7 @@ fn solve_with<T: Precision>(
     start: Instant,
 ) -> Result<Solution, FlowError> {
     let levels: Vec<Level<T>> = (levels.into_iter().zip(sweeps))
-        .map(|((window, chain, transports), sweeps)| Level {
-            window,
-            chain,
-            transports,
-            sweeps,
-        })
+        .map(|(plan, sweeps)| Level { plan, sweeps })
         .collect();
     let factor_seconds = start.elapsed().as_secs_f64();
     let mut factor_entries = [levels
@@ -526,11 +535,11 @@ fn solve_with<T: Precision>(
         ranks,
     };
     let operator = LevelView {
-        window: &levels[0].window,
-        chain: levels[0].chain,
+        window: &levels[0].plan.window,
+        chain: levels[0].plan.chain,
         ranks,
     };
-    let b = levels[0].window.system.rhs();
+    let b = levels[0].plan.window.system.rhs();
     let stop = pcg::Stop {
         tolerance: params.tolerance,
         done: 0,
