@@ -27,21 +27,23 @@ impl EnergyTerms {
     }
 }
 
-/// The energy terms at `u` (slab-major, `2V` per slab), with `slab(s)` giving slab `s` (kept or
-/// rebuilt; the time links are rebuilt from neighbouring slabs).
+/// The energy terms at `u` (slab-major, `2V` per slab) of slabs `0..counted` and their links to
+/// the next slab where `u` has it, with `slab(s)` giving slab `s` (kept or rebuilt; the time
+/// links are rebuilt from neighbouring slabs). `counted` is all of `u`'s slabs for a whole
+/// sequence; a rank's window passes its own and appends the next rank's first slab to `u`.
 pub fn energy_terms<'a>(
     mesh: &Mesh,
     slab: &(dyn Fn(usize) -> Cow<'a, Slab> + Sync),
-    params: &FlowParams,
-    weights: &Weights,
+    (params, weights): (&FlowParams, &Weights),
     u: &[f64],
+    counted: usize,
 ) -> EnergyTerms {
     let n = 2 * mesh.n_vertices();
     let n_slabs = u.len() / n;
     let corner_values = |s: usize, face: &[u32; 3]| {
         Vector6::from_fn(|k, _| u[s * n + 2 * face[k / 2] as usize + k % 2])
     };
-    let per_slab: Vec<EnergyTerms> = (0..n_slabs)
+    let per_slab: Vec<EnergyTerms> = (0..counted)
         .into_par_iter()
         .map(|s| {
             let this = slab(s);

@@ -324,9 +324,9 @@ impl<'a> FlowProblem<'a> {
         energy::energy_terms(
             self.sequence.mesh(),
             &|s| self.slab(s),
-            &self.params,
-            &self.weights,
+            (&self.params, &self.weights),
             u,
+            u.len() / self.system.slab_dimension(),
         )
     }
 
@@ -397,14 +397,27 @@ impl<'a> FlowProblem<'a> {
             .par_iter()
             .enumerate()
             .map(|(s, u)| {
-                let slab = self.slab(s);
-                let positions = self.sequence.positions(s)?;
-                let frames = vertex_frames_in_r3(mesh, &slab.geometry, &slab.connection, positions)
-                    .expect("positions were validated with the sequence");
-                Some(push_forward(&frames, u))
+                Some(slab_vectors(
+                    mesh,
+                    &self.slab(s),
+                    self.sequence.positions(s)?,
+                    u,
+                ))
             })
             .collect::<Option<Vec<_>>>()
     }
+}
+
+/// The flow `u` of `slab` in R^3 on the slab's first frame, at `positions`.
+pub(super) fn slab_vectors(
+    mesh: &crate::mesh::Mesh,
+    slab: &Slab,
+    positions: &[Vector3<f64>],
+    u: &[Vector2<f64>],
+) -> Vec<Vector3<f64>> {
+    let frames = vertex_frames_in_r3(mesh, &slab.geometry, &slab.connection, positions)
+        .expect("positions were validated with the sequence");
+    push_forward(&frames, u)
 }
 
 /// The flow of `sequence`: [`FlowProblem::new`] then [`FlowProblem::solve`], silently.

@@ -8,13 +8,25 @@
 //! each window measures its own slabs' [`ScaleSums`], and their sum (one all-reduce) gives the
 //! scales every window assembles with.
 //!
+//! [`flow_over_ranks`] is the whole computation on one rank: its window's slabs, the scales
+//! summed over ranks, the distributed solve ([`super::distributed`]), its slabs' flow and
+//! energy, gathered into one [`FlowResult`] on rank 0.
+//!
 //! Not done per window: the check that the minimizer is unique (`uniqueness`), which couples
-//! all slabs; a distributed solve has to reduce it across windows too.
+//! all slabs (a singular system then shows as a solver that does not converge); coarse-to-fine
+//! warping and robust smoothness, whose outer iterations are not distributed yet.
 
+use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, TimeRanks};
+use super::energy::energy_terms;
 use super::slab::{build_slabs, embed_where_needed, time_links, Slab};
 use super::system::SystemWindow;
+use super::{slab_vectors, EnergyTerms, FlowResult, SolveObserver, Timings};
 use super::{DataScales, FlowError, FlowParams, MeshSequence, ScaleSums, SpaceTimeSystem};
+use nalgebra::{Vector2, Vector3};
+use rayon::prelude::*;
+use std::borrow::Cow;
 use std::ops::Range;
+use std::time::Instant;
 
 /// The slabs `[a, b)` of a sequence of `n_slabs_in_all` slabs that one rank holds.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -107,4 +119,177 @@ impl WindowSlabs {
     fn local(&self, slabs: &Range<usize>) -> Range<usize> {
         slabs.start - self.offset..slabs.end - self.offset
     }
+}
+
+impl WindowSlabs {
+    /// The energy terms of the window's slabs and of their links to the next slab, for the
+    /// window's unknowns `u` followed by the next slab's where there is one.
+    fn energy_terms(
+        &self,
+        frames: &MeshSequence,
+        params: &FlowParams,
+        scales: &DataScales,
+        u: &[f64],
+    ) -> Result<EnergyTerms, FlowError> {
+        let first = self.window.slabs.start - self.offset;
+        let slab = |s: usize| Cow::Borrowed(&self.slabs[first + s]);
+        let weights = params.weights(scales)?;
+        let counted = self.window.slabs.len();
+        Ok(energy_terms(
+            frames.mesh(),
+            &slab,
+            (params, &weights),
+            u,
+            counted,
+        ))
+    }
+
+    /// The window's flow in R^3 (`None` for an intrinsic sequence).
+    fn vectors(
+        &self,
+        frames: &MeshSequence,
+        intrinsic: &[Vec<Vector2<f64>>],
+    ) -> Option<Vec<Vec<Vector3<f64>>>> {
+        let first = self.window.slabs.start - self.offset;
+        (intrinsic.par_iter().enumerate())
+            .map(|(s, u)| {
+                let positions = frames.positions(first + s)?;
+                Some(slab_vectors(
+                    frames.mesh(),
+                    &self.slabs[first + s],
+                    positions,
+                    u,
+                ))
+            })
+            .collect()
+    }
+}
+
+/// The flow of a sequence computed by ranks that each hold one time window: every rank calls
+/// it with its window and the sequence's frames [`TimeWindow::frames`] (`frames`, numbered from
+/// the window's first frame). Rank 0 returns the whole [`FlowResult`], equal to a single
+/// process's up to the solver's tolerance (the same preconditioner; sums in another order);
+/// the others return `None`. Timings are rank 0's; `factor_entries` are summed over ranks.
+///
+/// Not distributed (an error on every rank): coarse-to-fine warping, robust smoothness, and
+/// the `direct` and `pcg-jacobi` solvers ([`FlowError::NotDistributed`]). An error on one rank
+/// only (e.g. a broken frame of its window) leaves the others waiting: the caller ends the
+/// job, as `meshflow solve` under `mpirun` does with `MPI_Abort`.
+pub fn flow_over_ranks(
+    frames: &MeshSequence,
+    window: &TimeWindow,
+    ranks: &dyn TimeRanks,
+    params: &FlowParams,
+    observer: &dyn SolveObserver,
+) -> Result<Option<FlowResult>, FlowError> {
+    if params.warping.is_active() {
+        return Err(FlowError::NotDistributed {
+            what: "coarse-to-fine warping (--large-motion)",
+        });
+    }
+    if params.robust_smoothness.is_some() {
+        return Err(FlowError::NotDistributed {
+            what: "robust smoothness (--robust-smoothness)",
+        });
+    }
+    let start = Instant::now();
+    let slabs = WindowSlabs::new(frames, window.frames().start, window.clone(), params)?;
+    let mut sums = slabs.scale_sums(frames).to_array();
+    ranks.sum(&mut sums);
+    let scales = ScaleSums::from_array(sums).scales();
+    let system = slabs.assemble(frames, params, &scales)?;
+    let assembly = start.elapsed().as_secs_f64();
+    let solution = solve_window(&system, ranks, params, observer)?;
+    let solve = start.elapsed().as_secs_f64() - assembly;
+    let n = system.system.slab_dimension();
+    let mut u = solution.u.clone();
+    u.extend(next_rank_first_slab(ranks, &u[..n]).unwrap_or_default());
+    let terms = slabs.energy_terms(frames, params, &scales, &u)?;
+    let mut energies = [
+        terms.data,
+        terms.speed,
+        terms.spatial,
+        terms.temporal,
+        system.system.constant(),
+    ];
+    ranks.sum(&mut energies);
+    let intrinsic: Vec<Vec<Vector2<f64>>> = (solution.u.chunks(n))
+        .map(|us| us.chunks(2).map(|c| Vector2::new(c[0], c[1])).collect())
+        .collect();
+    let vectors = slabs.vectors(frames, &intrinsic);
+    let mut message = solution.u.clone();
+    message.extend(
+        vectors
+            .iter()
+            .flatten()
+            .flatten()
+            .flat_map(|v| [v.x, v.y, v.z]),
+    );
+    let Some(all) = gather_to_first(ranks, &message) else {
+        return Ok(None);
+    };
+    let (intrinsic, vectors) = unpack_flow(&all, n / 2, vectors.is_some());
+    let [data, speed, spatial, temporal, energy_at_zero] = energies;
+    let energy_terms = EnergyTerms {
+        data,
+        speed,
+        spatial,
+        temporal,
+    };
+    Ok(Some(FlowResult {
+        intrinsic,
+        vectors,
+        warped_residual: None,
+        reweightings: 0,
+        energy: energy_terms.total(),
+        energy_terms,
+        energy_at_zero,
+        weights: params.weights(&scales)?,
+        scales,
+        relative_residual: solution.relative_residual,
+        iterations: solution.iterations,
+        method: solution.method,
+        solver_reason: solution.reason,
+        time_levels: solution.time_levels,
+        factor_entries: solution.factor_entries,
+        preconditioned_spectrum: solution.spectrum,
+        timings: Timings {
+            assembly,
+            factorization: solution.factor_seconds,
+            solve,
+            total: start.elapsed().as_secs_f64(),
+            steps: Vec::new(),
+        },
+    }))
+}
+
+/// The flow of all slabs from the ranks' messages (each: its slabs' intrinsic values, `2V`
+/// per slab, then their vectors in R^3, `3V` per slab, when `embedded`).
+#[allow(clippy::type_complexity)]
+fn unpack_flow(
+    messages: &[Vec<f64>],
+    n_vertices: usize,
+    embedded: bool,
+) -> (Vec<Vec<Vector2<f64>>>, Option<Vec<Vec<Vector3<f64>>>>) {
+    let per_slab = match embedded {
+        true => 5 * n_vertices,
+        false => 2 * n_vertices,
+    };
+    let mut intrinsic = Vec::new();
+    let mut vectors = Vec::new();
+    for message in messages {
+        let own = message.len() / per_slab;
+        let (u, v) = message.split_at(own * 2 * n_vertices);
+        intrinsic.extend(u.chunks(2 * n_vertices).map(|s| {
+            s.chunks(2)
+                .map(|c| Vector2::new(c[0], c[1]))
+                .collect::<Vec<_>>()
+        }));
+        vectors.extend(v.chunks(3 * n_vertices).map(|s| {
+            s.chunks(3)
+                .map(|c| Vector3::new(c[0], c[1], c[2]))
+                .collect::<Vec<_>>()
+        }));
+    }
+    (intrinsic, embedded.then_some(vectors))
 }

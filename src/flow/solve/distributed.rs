@@ -323,10 +323,14 @@ pub fn solve_window(
         SolverChoice::Auto => None,
         SolverChoice::PcgSlabGaussSeidel => Some(false),
         SolverChoice::PcgTimeMultigrid => Some(true),
-        SolverChoice::Direct => return Err(FlowError::NotDistributed { solver: "direct" }),
+        SolverChoice::Direct => {
+            return Err(FlowError::NotDistributed {
+                what: "the solver direct",
+            })
+        }
         SolverChoice::PcgJacobi => {
             return Err(FlowError::NotDistributed {
-                solver: "pcg-jacobi",
+                what: "the solver pcg-jacobi",
             })
         }
     };
@@ -632,6 +636,34 @@ fn finish(
     solution.factor_entries = factor_entries as usize;
     solution.time_levels = time_levels;
     Ok(solution)
+}
+
+/// The first slab of the next rank's window (`None` on the last rank), for this rank's
+/// `first` slab sent to the rank before: every rank calls it.
+pub(crate) fn next_rank_first_slab(ranks: &dyn TimeRanks, first: &[f64]) -> Option<Vec<f64>> {
+    let chain = Chain::new(&vec![0..1; ranks.size()], ranks.rank());
+    let messages = Messages {
+        to_before: Some(first),
+        from_after: true,
+        ..Default::default()
+    };
+    chain.talk(ranks, messages).1
+}
+
+/// Every rank's `values` on rank 0, in rank order (`None` on the other ranks): every rank
+/// calls it.
+pub fn gather_to_first(ranks: &dyn TimeRanks, values: &[f64]) -> Option<Vec<Vec<f64>>> {
+    match ranks.rank() {
+        0 => Some(
+            std::iter::once(values.to_vec())
+                .chain((1..ranks.size()).map(|r| ranks.receive(r)))
+                .collect(),
+        ),
+        _ => {
+            ranks.send(0, values);
+            None
+        }
+    }
 }
 
 /// [`TimeRanks`] over an MPI communicator (the `mpi` feature): sums by all-reduce, messages as
