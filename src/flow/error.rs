@@ -63,6 +63,8 @@ pub enum FlowError {
     },
     #[error("{what} does not run over several ranks yet: run it in one process (or, for the solver, use auto, pcg-slab-gauss-seidel or pcg-time-multigrid)")]
     NotDistributed { what: &'static str },
+    #[error("{ranks} ranks for {slabs} slabs: each rank needs at least one slab (run with at most {slabs} ranks)")]
+    TooManyRanks { ranks: usize, slabs: usize },
     #[error("the grey values do not vary over the surface in any frame, so no flow can be measured; relative weights (--spread, --time-scale, --speed-penalty) need an image gradient")]
     NoImageGradient,
     #[error("the energy has no unique minimizer ({reason}); a speed penalty fixes the undetermined field: --speed-penalty 0.01 (relative to the data's scales), or β > 0 in the data's units (--beta)")]

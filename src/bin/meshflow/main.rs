@@ -5,6 +5,8 @@ mod analyze;
 mod operators;
 mod pictures;
 mod progress;
+#[cfg(feature = "mpi")]
+mod ranks;
 mod run;
 mod sample;
 mod solve;
@@ -641,6 +643,11 @@ fn main() -> ExitCode {
     };
     progress::configure(cli.quiet);
     remove_staging_on_signals();
+    #[cfg(feature = "mpi")]
+    if !matches!(cli.command, Command::Solve(_)) && ranks::launched_as_one_of_several() {
+        eprintln!("meshflow: error: only `meshflow solve` runs over several ranks; run the other commands in one process");
+        return ExitCode::FAILURE;
+    }
     let result = match cli.command {
         Command::Operators {
             mesh,
@@ -648,7 +655,7 @@ fn main() -> ExitCode {
             building,
             force,
         } => operators::write_operators(&mesh, &out, &building.options(), force.overwrite()),
-        Command::Solve(args) => solve::solve(&args),
+        Command::Solve(args) => solve_command(&args),
         Command::Advect {
             run,
             out,
@@ -705,6 +712,14 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// `meshflow solve`: in one process, or over the ranks `mpirun` started (the `mpi` feature).
+fn solve_command(args: &SolveArgs) -> Result<(), meshflow::Error> {
+    #[cfg(feature = "mpi")]
+    return ranks::solve(args);
+    #[cfg(not(feature = "mpi"))]
+    solve::solve(args, None)
 }
 
 /// On SIGINT (Ctrl-C), SIGTERM or SIGHUP: remove the outputs being staged, say so in one line

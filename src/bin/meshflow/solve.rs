@@ -6,8 +6,11 @@ use crate::SolveArgs;
 use meshflow::accuracy::{
     check_embedded, compare_result, score_result, AccuracyError, FlowErrors, TrackSummary, Tracks,
 };
+use meshflow::flow::distributed::TimeRanks;
+use meshflow::flow::window::{flow_over_ranks, TimeWindow};
 use meshflow::flow::{
-    FlowParams, FlowProblem, FlowResult, MeshSequence, SolveEvent, Weight, Weights,
+    FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence, SolveEvent, SolveObserver,
+    Weight, Weights,
 };
 use meshflow::io::{
     load_sequence, read_npy_float, write_flow_outputs, Scores, StagedDir, TrackReport,
@@ -18,7 +21,8 @@ use meshflow::Error;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
-pub fn solve(args: &SolveArgs) -> Result<(), Error> {
+/// The flow's parameters from the command line, validated.
+fn flow_params(args: &SolveArgs) -> Result<FlowParams, Error> {
     let defaults = FlowParams::default();
     let weight = |value: Option<f64>, relative: Option<f64>, default: Weight| {
         value
@@ -41,6 +45,14 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         ..FlowParams::default()
     };
     params.validate()?;
+    Ok(params)
+}
+
+/// `meshflow solve`; with `ranks` (under `mpirun`, the `mpi` feature) this is rank 0 of a
+/// solve over time windows: it reads, reports and writes, the ranks solve together
+/// ([`solve_on_rank`] on the others).
+pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Error> {
+    let params = flow_params(args)?;
     // Before any long computation: fail now if the output cannot be written or would replace
     // files that are not an earlier meshflow output.
     let mut out = StagedDir::create_apart_from(&args.input, &args.out, args.force.overwrite())?;
@@ -77,34 +89,22 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         .as_deref()
         .map(|file| read_tracks(file, sequence))
         .transpose()?;
-    let problem = during("assembling the space-time system", || {
-        FlowProblem::new(sequence, &params)
-    })?;
     let progress = solver_progress(params.tolerance);
-    let result = problem.solve(&|event| match event {
-        SolveEvent::Factorizing { slabs } => progress.announce(match slabs {
-            0 => "factorizing the space-time system".to_string(),
-            n => format!("factorizing {n} slabs"),
-        }),
-        SolveEvent::Warp {
-            level,
-            warp,
-            solve,
-            solves,
-        } => progress.println(format!(
-            "warping: solve {solve} of {solves} (level {level}, warp {})",
-            warp + 1
-        )),
-        SolveEvent::Iteration {
-            iteration,
-            relative_residual,
-        } => {
-            progress.set_position((-relative_residual.log10()).clamp(0.0, 16.0) as u64);
-            progress.set_message(format!(
-                "CG iteration {iteration}, residual {relative_residual:.1e}"
+    let result = match ranks {
+        None => during("assembling the space-time system", || {
+            FlowProblem::new(sequence, &params)
+        })
+        .and_then(|problem| problem.solve(&|event| show(&progress, event))),
+        Some(ranks) => {
+            progress.println(format!(
+                "solving over {} ranks (time windows of about {} slabs)",
+                ranks.size(),
+                sequence.n_slabs().div_ceil(ranks.size())
             ));
+            on_rank(sequence, ranks, &params, &|event| show(&progress, event))
+                .map(|result| result.expect("rank 0 gathers the flow"))
         }
-    });
+    };
     progress.finish();
     let result = result?;
     let report = truth
@@ -189,6 +189,63 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         println!("{}", describe_track_scores(&report.scores.overall));
     }
     Ok(())
+}
+
+/// A rank other than 0 of `mpirun -n R meshflow solve …`: reads the input, solves its time
+/// window with the others, prints nothing (rank 0 reports and writes).
+#[cfg(feature = "mpi")]
+pub fn solve_on_rank(args: &SolveArgs, ranks: &dyn TimeRanks) -> Result<(), Error> {
+    let params = flow_params(args)?;
+    let loaded = load_sequence(&args.input, &args.load_options())?;
+    on_rank(&loaded.sequence, ranks, &params, &|_| {})?;
+    Ok(())
+}
+
+/// This rank's part of the flow over ranks: its window's frames of `sequence`, the solve
+/// (`flow_over_ranks`); the whole result on rank 0.
+fn on_rank(
+    sequence: &MeshSequence,
+    ranks: &dyn TimeRanks,
+    params: &FlowParams,
+    observer: &dyn SolveObserver,
+) -> Result<Option<FlowResult>, FlowError> {
+    if ranks.size() > sequence.n_slabs() {
+        return Err(FlowError::TooManyRanks {
+            ranks: ranks.size(),
+            slabs: sequence.n_slabs(),
+        });
+    }
+    let window = TimeWindow::of_rank(ranks.rank(), ranks.size(), sequence.n_slabs());
+    let frames = sequence.frames(window.frames())?;
+    flow_over_ranks(&frames, &window, ranks, params, observer)
+}
+
+/// The solver's progress on the terminal (or in the log).
+fn show(progress: &crate::progress::Progress, event: SolveEvent) {
+    match event {
+        SolveEvent::Factorizing { slabs } => progress.announce(match slabs {
+            0 => "factorizing the space-time system".to_string(),
+            n => format!("factorizing {n} slabs"),
+        }),
+        SolveEvent::Warp {
+            level,
+            warp,
+            solve,
+            solves,
+        } => progress.println(format!(
+            "warping: solve {solve} of {solves} (level {level}, warp {})",
+            warp + 1
+        )),
+        SolveEvent::Iteration {
+            iteration,
+            relative_residual,
+        } => {
+            progress.set_position((-relative_residual.log10()).clamp(0.0, 16.0) as u64);
+            progress.set_message(format!(
+                "CG iteration {iteration}, residual {relative_residual:.1e}"
+            ));
+        }
+    }
 }
 
 /// `--ground-truth-tracks`, read and checked against the sequence before the solve.

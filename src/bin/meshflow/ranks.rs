@@ -1,0 +1,47 @@
+//! `mpirun -n R meshflow solve …` (the `mpi` feature): each rank solves one time window of the
+//! sequence (`meshflow::flow::window::flow_over_ranks`); rank 0 reads, reports progress and
+//! writes the outputs, exactly those of one process. Any rank that fails prints its error in
+//! one line naming the rank and ends the whole job (`MPI_Abort`), so no rank is left waiting;
+//! a panic does the same through a panic hook.
+
+use crate::{solve, SolveArgs};
+use meshflow::flow::distributed::MpiRanks;
+use meshflow::Error;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
+/// `meshflow solve`, over the ranks `mpirun` started (one process without `mpirun`).
+pub fn solve(args: &SolveArgs) -> Result<(), Error> {
+    let Some(universe) = mpi::initialize() else {
+        return solve::solve(args, None);
+    };
+    let world = universe.world();
+    if world.size() == 1 {
+        return solve::solve(args, None);
+    }
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        hook(info);
+        SimpleCommunicator::world().abort(101);
+    }));
+    let ranks = MpiRanks {
+        communicator: &world,
+    };
+    let result = match world.rank() {
+        0 => solve::solve(args, Some(&ranks)),
+        _ => solve::solve_on_rank(args, &ranks),
+    };
+    if let Err(error) = result {
+        eprintln!("meshflow (rank {}): error: {error}", world.rank());
+        world.abort(1);
+    }
+    Ok(())
+}
+
+/// Whether this process is one of several that `mpirun` (Open MPI, MPICH) or `srun` started.
+pub fn launched_as_one_of_several() -> bool {
+    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "SLURM_NTASKS"]
+        .iter()
+        .filter_map(|name| std::env::var(name).ok()?.parse::<usize>().ok())
+        .any(|size| size > 1)
+}
