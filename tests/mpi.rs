@@ -22,9 +22,14 @@ fn example() -> PathBuf {
 
 /// `mpirun -n ranks mpi_solve args`, ended after 120 s should it hang (exit status 124).
 fn mpirun(ranks: usize, args: &[&str]) -> Output {
+    mpirun_program(ranks, &example(), args)
+}
+
+/// `mpirun -n ranks program args`, ended after 120 s should it hang (exit status 124).
+fn mpirun_program(ranks: usize, program: &std::path::Path, args: &[&str]) -> Output {
     Command::new("timeout")
         .args(["120", "mpirun", "-n", &ranks.to_string()])
-        .arg(example())
+        .arg(program)
         .args(args)
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
@@ -78,4 +83,63 @@ fn a_broken_frame_file_ends_the_job_with_its_name() {
     assert!(!output.status.success(), "{stderr}");
     assert_ne!(output.status.code(), Some(124), "the job hung: {stderr}");
     assert!(stderr.contains("frame_4.obj"), "{stderr}");
+}
+
+/// `mpirun -n R meshflow solve`: the outputs of one process (the flow to 1e-10 of its largest
+/// value, the same files, the same iterations in the summary), for 2 and 3 ranks; more ranks
+/// than slabs is a one-line error.
+#[test]
+fn meshflow_solve_over_ranks_writes_the_single_process_outputs() {
+    let meshflow = std::path::Path::new(env!("CARGO_BIN_EXE_meshflow"));
+    let sample = concat!(env!("CARGO_MANIFEST_DIR"), "/meshes/rotating_sphere");
+    let dir = tempfile::tempdir().unwrap();
+    let run = |ranks: usize| {
+        let out = dir.path().join(format!("ranks_{ranks}"));
+        let args = [
+            sample,
+            "--out",
+            out.to_str().unwrap(),
+            "--solver",
+            "pcg-time-multigrid",
+        ];
+        let output = mpirun_program(ranks, meshflow, &[&["solve"][..], &args].concat());
+        let stderr = String::from_utf8_lossy(&output.stderr).to_string();
+        (output.status.success(), out, stderr)
+    };
+    let read = |out: &std::path::Path| {
+        let array = meshflow::io::read_npy_float(&out.join("flow_intrinsic.npy")).unwrap();
+        let summary = std::fs::read_to_string(out.join("summary.json")).unwrap();
+        let summary: serde_json::Value = serde_json::from_str(&summary).unwrap();
+        (array.data, array.shape, summary["iterations"].clone())
+    };
+    let (ok, single, stderr) = run(1);
+    assert!(ok, "{stderr}");
+    let (expected, shape, iterations) = read(&single);
+    let scale = expected.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    for ranks in [2, 3] {
+        let (ok, out, stderr) = run(ranks);
+        assert!(ok, "{ranks} ranks: {stderr}");
+        let (values, got_shape, got_iterations) = read(&out);
+        assert_eq!(got_shape, shape);
+        assert_eq!(got_iterations, iterations, "{ranks} ranks");
+        let difference =
+            (values.iter().zip(&expected)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        println!(
+            "{ranks} ranks: flow differs by {:.1e} of its largest value",
+            difference / scale
+        );
+        assert!(difference < 1e-10 * scale, "{ranks} ranks: {difference:e}");
+        let names = |d: &std::path::Path| {
+            let mut n: Vec<_> = std::fs::read_dir(d)
+                .unwrap()
+                .map(|e| e.unwrap().file_name())
+                .collect();
+            n.sort();
+            n
+        };
+        assert_eq!(names(&out), names(&single), "{ranks} ranks");
+    }
+    let (ok, _, stderr) = run(6);
+    assert!(!ok);
+    assert!(stderr.contains("6 ranks for 5 slabs"), "{stderr}");
 }
