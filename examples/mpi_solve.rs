@@ -1,30 +1,31 @@
-//! The space-time solve over MPI ranks, each holding one time window (`--features mpi`):
+//! The flow over MPI ranks, each holding one time window (`--features mpi`), and the
+//! benchmark of the MPI solve:
 //!
 //! ```sh
 //! cargo build --release --features mpi --example mpi_solve
-//! mpirun -n 4 target/release/examples/mpi_solve [INPUT] [--check]
+//! mpirun -n 4 target/release/examples/mpi_solve [INPUT | --torus N1 N2 FRAMES] [--check]
 //! ```
 //!
 //! INPUT is anything `meshflow solve` reads (default: a deforming icosphere of 642 vertices,
-//! 9 frames). Rank `r` of `R` owns the slabs `[r S / R, (r + 1) S / R)`, assembles and factors
-//! only those, from frames `a − 1 … b + 1` (`flow::window`), the scales summed over ranks; the
-//! ranks then solve together (`flow::distributed`: CG with the odd–even slab sweeps, sums by
-//! all-reduce, one slab vector to each neighbour per exchange). Rank 0 gathers the flow and
-//! prints iterations, residual, seconds and every rank's peak memory; `--check` also solves in
-//! one process (rank 0) and prints the largest difference.
+//! 9 frames, solved with `pcg-slab-gauss-seidel`); `--torus` is the paper's torus
+//! (`synth::paper_torus`, `FlowParams::paper(1, 0, 1)`, solver `auto`), e.g. `--torus 255 190
+//! 200` for 200 frames × 48,450 vertices. Rank `r` of `R` owns the slabs
+//! `[r S / R, (r + 1) S / R)` and computes its share with `flow::window::flow_over_ranks`
+//! (windows, scales summed over ranks, CG with the odd–even sweeps or multigrid in time across
+//! ranks). Rank 0 prints iterations, seconds and every rank's peak memory; `--check` also
+//! solves in one process (rank 0) and prints the largest difference.
 //!
-//! Not yet: each rank still *reads* the whole input (windowed reading needs a frame range in
-//! `io::LoadOptions`), and multigrid in time does not run across ranks (small `α` needs many
-//! iterations). A rank that fails prints one line with its rank and ends the job (MPI_Abort);
-//! a panic does the same through a panic hook, so no rank is left waiting.
+//! Every rank builds or reads the whole sequence and keeps its window's frames (windowed
+//! reading is not there yet; the frames are a few per cent of a rank's memory). A rank that
+//! fails prints one line with its rank and ends the job (MPI_Abort); a panic does the same
+//! through a panic hook, so no rank is left waiting. `meshflow solve` under `mpirun` does the
+//! same with every option of the CLI.
 
-use meshflow::flow::distributed::{solve_window, MpiRanks, TimeRanks};
-use meshflow::flow::window::{TimeWindow, WindowSlabs};
-use meshflow::flow::{FlowParams, FlowProblem, MeshSequence, ScaleSums, SolverChoice};
-use mpi::datatype::PartitionMut;
+use meshflow::flow::distributed::{gather_to_first, MpiRanks, TimeRanks};
+use meshflow::flow::window::{flow_over_ranks, TimeWindow};
+use meshflow::flow::{FlowParams, FlowProblem, FlowResult, MeshSequence, SolverChoice};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
-use mpi::Count;
 use std::error::Error;
 use std::path::Path;
 use std::time::Instant;
@@ -47,88 +48,80 @@ fn main() {
     }
 }
 
-fn run(world: &SimpleCommunicator) -> Result<(), Box<dyn Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let check = args.iter().any(|a| a == "--check");
-    let sequence = match args.iter().find(|a| !a.starts_with("--")) {
-        Some(path) => meshflow::io::load_sequence(Path::new(path), &Default::default())?.sequence,
-        None => meshflow::synth::deforming_sphere(3, 9, 1.0, 0.05, 0.3)?.sequence,
-    };
+/// The sequence and parameters the command line asks for.
+fn problem(args: &[String]) -> Result<(MeshSequence, FlowParams), Box<dyn Error>> {
+    if let Some(k) = args.iter().position(|a| a == "--torus") {
+        let size = |i: usize| -> Result<usize, Box<dyn Error>> {
+            let text = args.get(k + i).ok_or("--torus N1 N2 FRAMES")?;
+            Ok(text.parse()?)
+        };
+        let sequence = meshflow::synth::paper_torus(size(1)?, size(2)?, size(3)?)?;
+        return Ok((sequence, FlowParams::paper(1.0, 0.0, 1.0)));
+    }
     let params = FlowParams {
         solver: SolverChoice::PcgSlabGaussSeidel,
         tolerance: 1e-10,
         ..FlowParams::default()
     };
-    let (rank, size) = (world.rank() as usize, world.size() as usize);
-    let n_slabs = sequence.n_slabs();
-    if size > n_slabs {
-        return Err(format!("{size} ranks for {n_slabs} slabs: at most one rank per slab").into());
-    }
-    let window = TimeWindow::of_rank(rank, size, n_slabs);
-    let start = Instant::now();
+    let sequence = match args.iter().find(|a| !a.starts_with("--")) {
+        Some(path) => meshflow::io::load_sequence(Path::new(path), &Default::default())?.sequence,
+        None => meshflow::synth::deforming_sphere(3, 9, 1.0, 0.05, 0.3)?.sequence,
+    };
+    Ok((sequence, params))
+}
+
+fn run(world: &SimpleCommunicator) -> Result<(), Box<dyn Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let check = args.iter().any(|a| a == "--check");
+    let (sequence, params) = problem(&args)?;
     let ranks = MpiRanks {
         communicator: world,
     };
-    let frames = window.frames();
-    let local = sequence.frames(frames.clone())?;
-    let slabs = WindowSlabs::new(&local, frames.start, window, &params)?;
-    let mut sums = slabs.scale_sums(&local).to_array();
-    ranks.sum(&mut sums);
-    let system = slabs.assemble(&local, &params, &ScaleSums::from_array(sums).scales())?;
-    let solution = solve_window(&system, &ranks, &params, &|_| {})?;
+    let n_slabs = sequence.n_slabs();
+    let window = TimeWindow::of_rank(ranks.rank(), ranks.size(), n_slabs);
+    let frames = sequence.frames(window.frames())?;
+    let start = Instant::now();
+    let result = flow_over_ranks(&frames, &window, &ranks, &params, &|_| {})?;
     let seconds = start.elapsed().as_secs_f64();
-    let flow = gather(world, &solution.u);
-    let peaks = gather(world, &[peak_memory_bytes() as f64 / 1e9]);
-    if rank == 0 {
+    let peaks = gather_to_first(&ranks, &[peak_memory_bytes() as f64 / 1e9]);
+    if let (Some(result), Some(peaks)) = (result, peaks) {
+        let peaks: Vec<f64> = peaks.concat();
         println!(
-            "{size} ranks, {n_slabs} slabs: {} iterations, residual {:.2e}, {seconds:.2} s, \
+            "{} ranks, {n_slabs} slabs x {} vertices: {} iterations ({}, {} time levels), \
+             residual {:.2e}, {seconds:.2} s (assembly {:.2}, factorization {:.2}), \
              peak memory per rank (GB) {peaks:.3?}",
-            solution.iterations, solution.relative_residual
+            ranks.size(),
+            sequence.mesh().n_vertices(),
+            result.iterations,
+            result.method,
+            result.time_levels,
+            result.relative_residual,
+            result.timings.assembly,
+            result.timings.factorization,
         );
         if check {
-            compare(&sequence, &params, &flow)?;
+            compare(&sequence, &params, &result)?;
         }
     }
     Ok(())
-}
-
-/// Every rank's `values`, concatenated in rank order, on rank 0 (empty elsewhere).
-fn gather(world: &SimpleCommunicator, values: &[f64]) -> Vec<f64> {
-    let root = world.process_at_rank(0);
-    let count = values.len() as Count;
-    if world.rank() != 0 {
-        root.gather_into(&count);
-        root.gather_varcount_into(values);
-        return Vec::new();
-    }
-    let mut counts = vec![0 as Count; world.size() as usize];
-    root.gather_into_root(&count, &mut counts[..]);
-    let offsets: Vec<Count> = (counts.iter())
-        .scan(0, |sum, &c| {
-            let offset = *sum;
-            *sum += c;
-            Some(offset)
-        })
-        .collect();
-    let mut all = vec![0.0; counts.iter().sum::<Count>() as usize];
-    let mut partition = PartitionMut::new(&mut all[..], &counts[..], &offsets[..]);
-    root.gather_varcount_into_root(values, &mut partition);
-    all
 }
 
 /// The single process's solve and the largest difference, relative to the largest value.
 fn compare(
     sequence: &MeshSequence,
     params: &FlowParams,
-    flow: &[f64],
+    result: &FlowResult,
 ) -> Result<(), Box<dyn Error>> {
     let single = FlowProblem::new(sequence, params)?.solve(&|_| {})?;
-    let expected: Vec<f64> = (single.intrinsic.iter().flatten())
-        .flat_map(|v| [v.x, v.y])
-        .collect();
+    let flat = |r: &FlowResult| -> Vec<f64> {
+        (r.intrinsic.iter().flatten())
+            .flat_map(|v| [v.x, v.y])
+            .collect()
+    };
+    let (expected, got) = (flat(&single), flat(result));
     let scale = expected.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let difference =
-        (flow.iter().zip(&expected)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs())) / scale;
+        (got.iter().zip(&expected)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs())) / scale;
     println!(
         "one process: {} iterations; largest difference {difference:.1e}",
         single.iterations

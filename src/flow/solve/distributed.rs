@@ -38,6 +38,7 @@ use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
 use nalgebra::Matrix2;
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::ops::Range;
 use std::sync::Arc;
 use std::time::Instant;
@@ -119,16 +120,28 @@ struct Messages<'a> {
 
 /// One level of a rank before factorization: its window, its neighbours and the pair
 /// transports to the next level (none at the coarsest or where the window pairs no slabs).
-struct LevelPlan {
-    window: SystemWindow,
+/// The fine level borrows the caller's window (no copy of the largest system).
+struct LevelPlan<'a> {
+    window: Cow<'a, SystemWindow>,
     chain: Chain,
     transports: Vec<Vec<Matrix2<f64>>>,
 }
 
-/// A [`LevelPlan`] with the slab sweeps of its window.
-struct Level<T: Precision> {
-    plan: LevelPlan,
+impl LevelPlan<'_> {
+    fn view<'v>(&'v self, ranks: &'v dyn TimeRanks) -> LevelView<'v> {
+        LevelView {
+            window: &self.window,
+            chain: self.chain,
+            ranks,
+        }
+    }
+}
+
+/// A [`LevelPlan`] with the slab sweeps of its window and the seconds they took.
+struct Level<'a, T: Precision> {
+    plan: LevelPlan<'a>,
     sweeps: SlabSweeps<T>,
+    factor_seconds: f64,
 }
 
 /// A level's window and its neighbours, as an operator and as the sweeps' surroundings.
@@ -217,21 +230,17 @@ impl Surroundings for LevelView<'_> {
 
 /// A rank's levels and the other ranks: the symmetric odd–even Gauss–Seidel sweep
 /// (`multigrid` false, or one level) or one V-cycle of multigrid in time.
-struct WindowPreconditioner<'a, T: Precision> {
-    levels: &'a [Level<T>],
-    /// Levels of the whole hierarchy (this rank may hold fewer: it falls idle below them).
+struct WindowPreconditioner<'a, 'w, T: Precision> {
+    levels: &'a [Level<'w, T>],
+    /// Levels of the whole hierarchy (this rank may hold fewer: it falls idle below them;
+    /// 1: the sweeps alone).
     n_levels_in_all: usize,
-    multigrid: bool,
     ranks: &'a dyn TimeRanks,
 }
 
-impl<T: Precision> WindowPreconditioner<'_, T> {
+impl<T: Precision> WindowPreconditioner<'_, '_, T> {
     fn view(&self, l: usize) -> LevelView<'_> {
-        LevelView {
-            window: &self.levels[l].plan.window,
-            chain: self.levels[l].plan.chain,
-            ranks: self.ranks,
-        }
+        self.levels[l].plan.view(self.ranks)
     }
 
     /// `z ≈ A_l⁻¹ r` by one V-cycle from level `l` ([`super::multigrid`]), the pairs that
@@ -284,9 +293,9 @@ impl<T: Precision> WindowPreconditioner<'_, T> {
     }
 }
 
-impl<T: Precision> Preconditioner for WindowPreconditioner<'_, T> {
+impl<T: Precision> Preconditioner for WindowPreconditioner<'_, '_, T> {
     fn apply(&self, r: &[f64], z: &mut [f64]) {
-        match self.multigrid && self.n_levels_in_all > 1 {
+        match self.n_levels_in_all > 1 {
             true => self.cycle(0, r, z),
             false => {
                 z.copy_from_slice(r);
@@ -334,43 +343,146 @@ pub fn solve_window(
             })
         }
     };
-    let start = Instant::now();
     let windows = all_windows(window, ranks)?;
-    let fine = LevelView {
+    let job = WindowJob {
         window,
-        chain: Chain::new(&windows, ranks.rank()),
+        windows: &windows,
         ranks,
+        params,
+        observer,
+        multigrid,
     };
     let b = window.system.rhs();
-    if fine.dot(b, b) == 0.0 {
+    if job.fine_plan().view(ranks).dot(b, b) == 0.0 {
         return Ok(Solution::zero(b.len()));
     }
-    let (levels, n_levels_in_all) = build_levels(window, &windows, ranks);
-    let symbolic = analyze(window.system.block(0).symbolic(), 2);
-    match factor_levels::<f32>(&levels, &symbolic, ranks) {
-        Ok(sweeps) => solve_with(
-            levels,
-            sweeps,
-            n_levels_in_all,
-            multigrid,
-            ranks,
-            params,
-            observer,
-            start,
-        ),
-        Err(_) => {
-            let sweeps = factor_levels::<f64>(&levels, &symbolic, ranks)?;
-            solve_with(
-                levels,
-                sweeps,
-                n_levels_in_all,
-                multigrid,
-                ranks,
-                params,
-                observer,
-                start,
-            )
+    // Single-precision factors suffice for a preconditioner; f64 if a block of any level is
+    // too ill-conditioned (on any rank: the failure is summed).
+    match job.run::<f32>() {
+        Err(FlowError::Factorization { .. }) => job.run::<f64>(),
+        other => other,
+    }
+}
+
+/// What a rank's solve needs, whatever the factors' precision.
+struct WindowJob<'a> {
+    window: &'a SystemWindow,
+    windows: &'a [Range<usize>],
+    ranks: &'a dyn TimeRanks,
+    params: &'a FlowParams,
+    observer: &'a dyn SolveObserver,
+    /// `Some(true)`: multigrid; `Some(false)`: the sweeps; `None`: the sweeps, then multigrid
+    /// if they are too slow.
+    multigrid: Option<bool>,
+}
+
+impl<'a> WindowJob<'a> {
+    fn fine_plan(&self) -> LevelPlan<'a> {
+        LevelPlan {
+            window: Cow::Borrowed(self.window),
+            chain: Chain::new(self.windows, self.ranks.rank()),
+            transports: Vec::new(),
         }
+    }
+
+    /// The fine level's factors; CG with the sweeps or the probe of `auto`; the coarse levels
+    /// and their factors only when multigrid is asked for or the probe finds the sweeps too
+    /// slow (as one process does).
+    fn run<T: Precision>(&self) -> Result<Solution, FlowError> {
+        let symbolic = analyze(self.window.system.block(0).symbolic(), 2);
+        let mut levels = factor_levels::<T>(vec![self.fine_plan()], &symbolic, self.ranks)?;
+        let b = self.window.system.rhs();
+        let stop = pcg::Stop {
+            tolerance: self.params.tolerance,
+            done: 0,
+            max_iterations: self.params.max_iterations,
+            give_up: None,
+        };
+        let (x, done, reason) = match self.multigrid {
+            Some(true) => (vec![0.0; b.len()], 0, "asked for".to_string()),
+            sweeps_or_auto => {
+                let probe = pcg::Stop {
+                    give_up: sweeps_or_auto
+                        .is_none()
+                        .then_some((PROBE_ITERATIONS, SWITCH_ITERATIONS)),
+                    ..stop
+                };
+                let outcome = self.pcg(&levels, 1, vec![0.0; b.len()], probe)?;
+                let enough = outcome.converged || outcome.iterations != PROBE_ITERATIONS;
+                if sweeps_or_auto == Some(false) || enough {
+                    let reason = match sweeps_or_auto {
+                        Some(false) => "asked for",
+                        _ => "slab Gauss-Seidel converges fast enough",
+                    };
+                    let method = SolverMethod::PcgSlabGaussSeidel;
+                    return self.finish(outcome, method, reason.into(), &levels, 1);
+                }
+                let reason = format!(
+                    "slab Gauss-Seidel reached {:.1e} in {} iterations, too slow: the time \
+                     coupling dominates",
+                    outcome.relative_residual, outcome.iterations
+                );
+                (outcome.x, outcome.iterations, reason)
+            }
+        };
+        let (plans, n_levels_in_all) = build_levels(self.window, self.windows, self.ranks);
+        let mut plans = plans.into_iter();
+        let factored = levels.pop().expect("the fine level");
+        let fine = Level {
+            plan: plans.next().expect("the fine level"),
+            ..factored
+        };
+        let coarse = factor_levels::<T>(plans.collect(), &symbolic, self.ranks)?;
+        let levels: Vec<Level<'_, T>> = std::iter::once(fine).chain(coarse).collect();
+        let stop = pcg::Stop { done, ..stop };
+        let outcome = self.pcg(&levels, n_levels_in_all, x, stop)?;
+        let method = SolverMethod::PcgTimeMultigrid;
+        self.finish(outcome, method, reason, &levels, n_levels_in_all)
+    }
+
+    /// CG from `x` on the whole system, preconditioned by multigrid in time over `levels`
+    /// (the sweeps alone for one level).
+    fn pcg<T: Precision>(
+        &self,
+        levels: &[Level<'_, T>],
+        n_levels_in_all: usize,
+        x: Vec<f64>,
+        stop: pcg::Stop,
+    ) -> Result<pcg::CgOutcome, FlowError> {
+        let preconditioner = WindowPreconditioner {
+            levels,
+            n_levels_in_all,
+            ranks: self.ranks,
+        };
+        let operator = levels[0].plan.view(self.ranks);
+        let b = self.window.system.rhs();
+        pcg::pcg(&operator, b, x, &preconditioner, stop, self.observer)
+    }
+
+    /// The [`Solution`] of a CG run, its residual recomputed from `u` over all ranks.
+    fn finish<T: Precision>(
+        &self,
+        outcome: pcg::CgOutcome,
+        method: SolverMethod,
+        reason: String,
+        levels: &[Level<'_, T>],
+        time_levels: usize,
+    ) -> Result<Solution, FlowError> {
+        let mut entries = [levels
+            .iter()
+            .map(|l| l.sweeps.stored_entries() as f64)
+            .sum()];
+        self.ranks.sum(&mut entries);
+        let factor_seconds = levels.iter().map(|l| l.factor_seconds).sum();
+        let mut solution = Solution::iterated(outcome, method, format!("{reason}; over ranks"));
+        solution = solution.converged(self.params)?;
+        let operator = levels[0].plan.view(self.ranks);
+        let b = self.window.system.rhs();
+        solution.relative_residual = super::relative_residual(&operator, b, &solution.u);
+        solution.factor_seconds = factor_seconds;
+        solution.factor_entries = entries[0] as usize;
+        solution.time_levels = time_levels;
+        Ok(solution)
     }
 }
 
@@ -404,11 +516,11 @@ fn all_windows(
 
 /// This rank's windows of the time levels, finest first, and the number of levels in all
 /// (halving the slabs until one is left; one level for slabs not coupled in time).
-fn build_levels(
-    fine: &SystemWindow,
+fn build_levels<'a>(
+    fine: &'a SystemWindow,
     windows: &[Range<usize>],
     ranks: &dyn TimeRanks,
-) -> (Vec<LevelPlan>, usize) {
+) -> (Vec<LevelPlan<'a>>, usize) {
     let view = LevelView {
         window: fine,
         chain: Chain::new(windows, ranks.rank()),
@@ -422,7 +534,7 @@ fn build_levels(
         n_levels_in_all += 1;
     }
     let mut levels = Vec::new();
-    let (mut window, mut windows) = (fine.clone(), windows.to_vec());
+    let (mut window, mut windows) = (Cow::Borrowed(fine), windows.to_vec());
     for l in 0..n_levels_in_all {
         let chain = Chain::new(&windows, ranks.rank());
         if l + 1 == n_levels_in_all {
@@ -465,28 +577,30 @@ fn build_levels(
             },
         );
         coarse.link_before = before.as_deref().and_then(LinkMatrix::from_message);
-        window = coarse;
+        window = Cow::Owned(coarse);
     }
     (levels, n_levels_in_all)
 }
 
-/// The slab factors of every level, in precision `T`; an error on any rank fails them on all
-/// (so that all ranks retry in double precision together).
-fn factor_levels<T: Precision>(
-    levels: &[LevelPlan],
+/// The levels of `plans` with their slab factors in precision `T`; an error on any rank fails
+/// them on all (so that all ranks retry in double precision together).
+fn factor_levels<'a, T: Precision>(
+    plans: Vec<LevelPlan<'a>>,
     symbolic: &Arc<SymbolicCholesky<usize>>,
     ranks: &dyn TimeRanks,
-) -> Result<Vec<SlabSweeps<T>>, FlowError> {
-    let slabs: Vec<(usize, usize)> = (levels.iter().enumerate())
+) -> Result<Vec<Level<'a, T>>, FlowError> {
+    let start = Instant::now();
+    let slabs: Vec<(usize, usize)> = (plans.iter().enumerate())
         .flat_map(|(l, p)| (0..p.window.system.n_slabs()).map(move |s| (l, s)))
         .collect();
     let factors = slabs
         .par_iter()
         .map(|&(l, s)| {
-            let window = &levels[l].window;
-            let what = match l {
-                0 => format!("slab {}", window.slabs.start + s),
-                _ => format!("merged slab {} of time level {l}", window.slabs.start + s),
+            let window = &plans[l].window;
+            let slab = window.slabs.start + s;
+            let what = match window {
+                Cow::Borrowed(_) => format!("slab {slab}"),
+                Cow::Owned(_) => format!("merged slab {slab} of a coarse time level"),
             };
             CholeskyFactor::new(symbolic, window.system.block(s), Par::Seq)
                 .map_err(factorization_error(what))
@@ -503,139 +617,19 @@ fn factor_levels<T: Precision>(
         }
         (Ok(factors), false) => factors.into_iter(),
     };
-    Ok(levels
-        .iter()
+    let seconds = start.elapsed().as_secs_f64() / plans.len().max(1) as f64;
+    Ok(plans
+        .into_iter()
         .map(|plan| {
             let n = plan.window.system.n_slabs();
-            SlabSweeps::new(factors.by_ref().take(n).collect(), 1, n)
+            let sweeps = SlabSweeps::new(factors.by_ref().take(n).collect(), 1, n);
+            Level {
+                plan,
+                sweeps,
+                factor_seconds: seconds,
+            }
         })
         .collect())
-}
-
-#[allow(clippy::too_many_arguments)]
-fn solve_with<T: Precision>(
-    levels: Vec<LevelPlan>,
-    sweeps: Vec<SlabSweeps<T>>,
-    n_levels_in_all: usize,
-    multigrid: Option<bool>,
-    ranks: &dyn TimeRanks,
-    params: &FlowParams,
-    observer: &dyn SolveObserver,
-    start: Instant,
-) -> Result<Solution, FlowError> {
-    let levels: Vec<Level<T>> = (levels.into_iter().zip(sweeps))
-        .map(|(plan, sweeps)| Level { plan, sweeps })
-        .collect();
-    let factor_seconds = start.elapsed().as_secs_f64();
-    let mut factor_entries = [levels
-        .iter()
-        .map(|l| l.sweeps.stored_entries() as f64)
-        .sum()];
-    ranks.sum(&mut factor_entries);
-    let preconditioner = |multigrid| WindowPreconditioner {
-        levels: &levels,
-        n_levels_in_all,
-        multigrid,
-        ranks,
-    };
-    let operator = LevelView {
-        window: &levels[0].plan.window,
-        chain: levels[0].plan.chain,
-        ranks,
-    };
-    let b = levels[0].plan.window.system.rhs();
-    let stop = pcg::Stop {
-        tolerance: params.tolerance,
-        done: 0,
-        max_iterations: params.max_iterations,
-        give_up: None,
-    };
-    let (x, stop, reason) = match multigrid {
-        Some(true) => (vec![0.0; b.len()], stop, "asked for".to_string()),
-        Some(false) => {
-            let outcome = pcg::pcg(
-                &operator,
-                b,
-                vec![0.0; b.len()],
-                &preconditioner(false),
-                stop,
-                observer,
-            )?;
-            return finish(
-                outcome,
-                SolverMethod::PcgSlabGaussSeidel,
-                "asked for".into(),
-                &operator,
-                b,
-                params,
-                (factor_seconds, factor_entries[0], 1),
-            );
-        }
-        None => {
-            let probe = pcg::Stop {
-                give_up: Some((PROBE_ITERATIONS, SWITCH_ITERATIONS)),
-                ..stop
-            };
-            let outcome = pcg::pcg(
-                &operator,
-                b,
-                vec![0.0; b.len()],
-                &preconditioner(false),
-                probe,
-                observer,
-            )?;
-            if outcome.converged || outcome.iterations != PROBE_ITERATIONS || n_levels_in_all == 1 {
-                let reason = "slab Gauss-Seidel converges fast enough".to_string();
-                return finish(
-                    outcome,
-                    SolverMethod::PcgSlabGaussSeidel,
-                    reason,
-                    &operator,
-                    b,
-                    params,
-                    (factor_seconds, factor_entries[0], 1),
-                );
-            }
-            let reason = format!(
-                "slab Gauss-Seidel reached {:.1e} in {} iterations, too slow: the time coupling dominates",
-                outcome.relative_residual, outcome.iterations
-            );
-            let done = pcg::Stop {
-                done: outcome.iterations,
-                ..stop
-            };
-            (outcome.x, done, reason)
-        }
-    };
-    let outcome = pcg::pcg(&operator, b, x, &preconditioner(true), stop, observer)?;
-    finish(
-        outcome,
-        SolverMethod::PcgTimeMultigrid,
-        reason,
-        &operator,
-        b,
-        params,
-        (factor_seconds, factor_entries[0], n_levels_in_all),
-    )
-}
-
-/// The [`Solution`] of a CG run, its residual recomputed from `u` over all ranks.
-fn finish(
-    outcome: pcg::CgOutcome,
-    method: SolverMethod,
-    reason: String,
-    operator: &LevelView<'_>,
-    b: &[f64],
-    params: &FlowParams,
-    (factor_seconds, factor_entries, time_levels): (f64, f64, usize),
-) -> Result<Solution, FlowError> {
-    let mut solution = Solution::iterated(outcome, method, format!("{reason}; over ranks"));
-    solution = solution.converged(params)?;
-    solution.relative_residual = super::relative_residual(operator, b, &solution.u);
-    solution.factor_seconds = factor_seconds;
-    solution.factor_entries = factor_entries as usize;
-    solution.time_levels = time_levels;
-    Ok(solution)
 }
 
 /// The first slab of the next rank's window (`None` on the last rank), for this rank's
