@@ -192,25 +192,32 @@ impl SpaceTimeSystem {
     /// the diagonal parts of both its links), the links between them, their right-hand side
     /// and their part of the constant.
     pub fn window(&self, slabs: std::ops::Range<usize>) -> SystemWindow {
+        self.clone().into_window(slabs)
+    }
+
+    /// [`Self::window`], moving the window's blocks and links out instead of copying them.
+    pub fn into_window(mut self, slabs: std::ops::Range<usize>) -> SystemWindow {
         let n = self.slab_dimension();
-        let (a, b) = (slabs.start, slabs.end);
-        let link = |s: Option<usize>| s.and_then(|s| self.links.get(s)).cloned();
+        let (a, b, n_slabs) = (slabs.start, slabs.end, self.n_slabs());
+        let link = |links: &[LinkMatrix], s: Option<usize>| s.and_then(|s| links.get(s)).cloned();
+        let link_before = link(&self.links, a.checked_sub(1));
+        let link_after = link(&self.links, (b < n_slabs).then(|| b - 1));
         let inner_links = match self.has_links() {
-            true => self.links[a..b - 1].to_vec(),
+            true => self.links.drain(a..b - 1).collect(),
             false => Vec::new(),
         };
         SystemWindow {
             system: SpaceTimeSystem {
-                pattern: self.pattern.clone(),
-                blocks: self.blocks[slabs.clone()].to_vec(),
+                pattern: self.pattern,
+                blocks: self.blocks.drain(slabs.clone()).collect(),
                 links: inner_links,
                 rhs: self.rhs[a * n..b * n].to_vec(),
                 slab_constants: self.slab_constants[slabs.clone()].to_vec(),
             },
             slabs,
-            n_slabs_in_all: self.n_slabs(),
-            link_before: link(a.checked_sub(1)),
-            link_after: link((b < self.n_slabs()).then(|| b - 1)),
+            n_slabs_in_all: n_slabs,
+            link_before,
+            link_after,
         }
     }
 

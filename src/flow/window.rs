@@ -20,7 +20,7 @@ use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, Ti
 use super::energy::energy_terms;
 use super::slab::{build_slabs, embed_where_needed, time_links, Slab};
 use super::system::SystemWindow;
-use super::{slab_vectors, EnergyTerms, FlowResult, SolveObserver, Timings};
+use super::{slab_vectors, EnergyTerms, FlowResult, SolveObserver, Timings, KEEP_SLABS_BYTES};
 use super::{DataScales, FlowError, FlowParams, MeshSequence, ScaleSums, SpaceTimeSystem};
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
@@ -109,7 +109,7 @@ impl WindowSlabs {
         let links = time_links(&self.slabs, &weights);
         let system =
             SpaceTimeSystem::assemble(frames.mesh(), &self.slabs, &links, params, &weights);
-        let mut window = system.window(self.local(&self.window.slabs));
+        let mut window = system.into_window(self.local(&self.window.slabs));
         window.slabs = self.window.slabs.clone();
         window.n_slabs_in_all = self.window.n_slabs_in_all;
         Ok(window)
@@ -132,7 +132,7 @@ impl WindowSlabs {
         u: &[f64],
     ) -> Result<EnergyTerms, FlowError> {
         let first = self.window.slabs.start - self.offset;
-        let slab = |s: usize| Cow::Borrowed(&self.slabs[first + s]);
+        let slab = |s: usize| self.slab(frames, params, first + s);
         let weights = params.weights(scales)?;
         let counted = self.window.slabs.len();
         Ok(energy_terms(
@@ -148,20 +148,41 @@ impl WindowSlabs {
     fn vectors(
         &self,
         frames: &MeshSequence,
+        params: &FlowParams,
         intrinsic: &[Vec<Vector2<f64>>],
     ) -> Option<Vec<Vec<Vector3<f64>>>> {
         let first = self.window.slabs.start - self.offset;
         (intrinsic.par_iter().enumerate())
             .map(|(s, u)| {
                 let positions = frames.positions(first + s)?;
-                Some(slab_vectors(
-                    frames.mesh(),
-                    &self.slabs[first + s],
-                    positions,
-                    u,
-                ))
+                let slab = self.slab(frames, params, first + s);
+                Some(slab_vectors(frames.mesh(), &slab, positions, u))
             })
             .collect()
+    }
+
+    /// Drops the slabs when they take more than [`KEEP_SLABS_BYTES`] (as [`super::FlowProblem`]
+    /// does): the energy and the flow in R^3 rebuild them one at a time after the solve.
+    fn release_large(&mut self, frames: &MeshSequence) {
+        let mesh = frames.mesh();
+        let bytes = self.slabs.len() * (200 * mesh.n_faces() + 8 * mesh.n_halfedges());
+        if bytes > KEEP_SLABS_BYTES {
+            self.slabs = Vec::new();
+        }
+    }
+
+    /// Slab `local` of the window's frames, kept or rebuilt.
+    fn slab(&self, frames: &MeshSequence, params: &FlowParams, local: usize) -> Cow<'_, Slab> {
+        if let Some(slab) = self.slabs.get(local) {
+            return Cow::Borrowed(slab);
+        }
+        let weights = params.channel_weights_for(frames.n_channels());
+        let mut slab = Slab::new(frames, local, &weights.expect("checked when built"))
+            .expect("the slabs were built once already");
+        if params.regularizer.needs_embedding() {
+            slab.embed(frames, local).expect("embedded once already");
+        }
+        Cow::Owned(slab)
     }
 }
 
@@ -198,6 +219,8 @@ pub fn flow_over_ranks(
     ranks.sum(&mut sums);
     let scales = ScaleSums::from_array(sums).scales();
     let system = slabs.assemble(frames, params, &scales)?;
+    let mut slabs = slabs;
+    slabs.release_large(frames);
     let assembly = start.elapsed().as_secs_f64();
     let solution = solve_window(&system, ranks, params, observer)?;
     let solve = start.elapsed().as_secs_f64() - assembly;
@@ -216,7 +239,7 @@ pub fn flow_over_ranks(
     let intrinsic: Vec<Vec<Vector2<f64>>> = (solution.u.chunks(n))
         .map(|us| us.chunks(2).map(|c| Vector2::new(c[0], c[1])).collect())
         .collect();
-    let vectors = slabs.vectors(frames, &intrinsic);
+    let vectors = slabs.vectors(frames, params, &intrinsic);
     let mut message = solution.u.clone();
     message.extend(
         vectors
