@@ -21,7 +21,7 @@
 //! through a panic hook, so no rank is left waiting. `meshflow solve` under `mpirun` does the
 //! same with every option of the CLI.
 
-use meshflow::flow::distributed::{gather_to_first, MpiRanks, TimeRanks};
+use meshflow::flow::distributed::{abort_job_on_panic, gather_to_first, MpiRanks, TimeRanks};
 use meshflow::flow::window::{flow_over_ranks, TimeWindow};
 use meshflow::flow::{FlowParams, FlowProblem, FlowResult, MeshSequence, SolverChoice};
 use mpi::topology::SimpleCommunicator;
@@ -37,11 +37,7 @@ use memory::peak_memory_bytes;
 fn main() {
     let universe = mpi::initialize().expect("MPI initializes once");
     let world = universe.world();
-    let hook = std::panic::take_hook();
-    std::panic::set_hook(Box::new(move |info| {
-        hook(info);
-        SimpleCommunicator::world().abort(101);
-    }));
+    abort_job_on_panic();
     if let Err(error) = run(&world) {
         eprintln!("meshflow (rank {}): {error}", world.rank());
         world.abort(1);

@@ -195,6 +195,37 @@ pub struct FlowResult {
 }
 
 impl FlowResult {
+    /// The result of one linear solve: its flow (intrinsic, in R^3), energy terms and `E(0)`,
+    /// the weights and scales it was assembled with, and its timings.
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn of_solve(
+        solution: solve::Solution,
+        (intrinsic, vectors): (Vec<Vec<Vector2<f64>>>, Option<Vec<Vec<Vector3<f64>>>>),
+        (energy_terms, energy_at_zero): (EnergyTerms, f64),
+        (weights, scales): (Weights, DataScales),
+        timings: Timings,
+    ) -> Self {
+        FlowResult {
+            energy: energy_terms.total(),
+            energy_terms,
+            energy_at_zero,
+            weights,
+            scales,
+            relative_residual: solution.relative_residual,
+            iterations: solution.iterations,
+            method: solution.method,
+            solver_reason: solution.reason,
+            time_levels: solution.time_levels,
+            factor_entries: solution.factor_entries,
+            preconditioned_spectrum: solution.spectrum,
+            timings,
+            intrinsic,
+            vectors,
+            warped_residual: None,
+            reweightings: 0,
+        }
+    }
+
     /// Solver iterations over all the run's solves (`iterations` is the last solve's).
     pub fn iterations_in_all(&self) -> usize {
         match self.timings.steps.as_slice() {
@@ -356,37 +387,22 @@ impl<'a> FlowProblem<'a> {
         let solution = solve::solve(&self.system, &self.params, observer)?;
         let solve_seconds = start.elapsed().as_secs_f64();
         let energy_terms = self.energy_terms(&solution.u);
-        let intrinsic: Vec<Vec<Vector2<f64>>> = solution
-            .u
-            .chunks(self.system.slab_dimension())
-            .map(|us| us.chunks(2).map(|c| Vector2::new(c[0], c[1])).collect())
-            .collect();
+        let intrinsic = intrinsic_fields(&solution.u, self.system.slab_dimension());
         let vectors = self.push_forward(&intrinsic);
-        Ok(FlowResult {
-            energy: energy_terms.total(),
-            energy_terms,
-            energy_at_zero: self.system.constant(),
-            weights: self.weights,
-            scales: self.scales,
-            relative_residual: solution.relative_residual,
-            iterations: solution.iterations,
-            method: solution.method,
-            solver_reason: solution.reason,
-            time_levels: solution.time_levels,
-            factor_entries: solution.factor_entries,
-            preconditioned_spectrum: solution.spectrum,
-            timings: Timings {
-                assembly: self.assembly_seconds,
-                factorization: solution.factor_seconds,
-                solve: solve_seconds,
-                total: self.assembly_seconds + start.elapsed().as_secs_f64(),
-                steps: Vec::new(),
-            },
-            intrinsic,
-            vectors,
-            warped_residual: None,
-            reweightings: 0,
-        })
+        let timings = Timings {
+            assembly: self.assembly_seconds,
+            factorization: solution.factor_seconds,
+            solve: solve_seconds,
+            total: self.assembly_seconds + start.elapsed().as_secs_f64(),
+            steps: Vec::new(),
+        };
+        Ok(FlowResult::of_solve(
+            solution,
+            (intrinsic, vectors),
+            (energy_terms, self.system.constant()),
+            (self.weights, self.scales),
+            timings,
+        ))
     }
 
     /// The flow of slab `s` in R^3 on frame `s`, for embedded sequences.
@@ -406,6 +422,14 @@ impl<'a> FlowProblem<'a> {
             })
             .collect::<Option<Vec<_>>>()
     }
+}
+
+/// The per-slab fields of slab-major unknowns `u` (`slab_dimension = 2V` values per slab, two
+/// per vertex).
+pub(super) fn intrinsic_fields(u: &[f64], slab_dimension: usize) -> Vec<Vec<Vector2<f64>>> {
+    (u.chunks(slab_dimension))
+        .map(|us| us.chunks(2).map(|c| Vector2::new(c[0], c[1])).collect())
+        .collect()
 }
 
 /// The flow `u` of `slab` in R^3 on the slab's first frame, at `positions`.

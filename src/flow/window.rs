@@ -20,8 +20,9 @@ use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, Ti
 use super::energy::energy_terms;
 use super::slab::{build_slabs, embed_where_needed, time_links, Slab};
 use super::system::SystemWindow;
-use super::{slab_vectors, EnergyTerms, FlowResult, SolveObserver, Timings, KEEP_SLABS_BYTES};
+use super::{intrinsic_fields, slab_vectors, EnergyTerms, FlowResult, SolveObserver, Timings};
 use super::{DataScales, FlowError, FlowParams, MeshSequence, ScaleSums, SpaceTimeSystem};
+use super::{Weights, KEEP_SLABS_BYTES};
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
 use std::borrow::Cow;
@@ -128,20 +129,13 @@ impl WindowSlabs {
         &self,
         frames: &MeshSequence,
         params: &FlowParams,
-        scales: &DataScales,
+        weights: &Weights,
         u: &[f64],
-    ) -> Result<EnergyTerms, FlowError> {
+    ) -> EnergyTerms {
         let first = self.window.slabs.start - self.offset;
         let slab = |s: usize| self.slab(frames, params, first + s);
-        let weights = params.weights(scales)?;
         let counted = self.window.slabs.len();
-        Ok(energy_terms(
-            frames.mesh(),
-            &slab,
-            (params, &weights),
-            u,
-            counted,
-        ))
+        energy_terms(frames.mesh(), &slab, (params, weights), u, counted)
     }
 
     /// The window's flow in R^3 (`None` for an intrinsic sequence).
@@ -227,7 +221,8 @@ pub fn flow_over_ranks(
     let n = system.system.slab_dimension();
     let mut u = solution.u.clone();
     u.extend(next_rank_first_slab(ranks, &u[..n]).unwrap_or_default());
-    let terms = slabs.energy_terms(frames, params, &scales, &u)?;
+    let weights = params.weights(&scales)?;
+    let terms = slabs.energy_terms(frames, params, &weights, &u);
     let mut energies = [
         terms.data,
         terms.speed,
@@ -236,9 +231,7 @@ pub fn flow_over_ranks(
         system.system.constant(),
     ];
     ranks.sum(&mut energies);
-    let intrinsic: Vec<Vec<Vector2<f64>>> = (solution.u.chunks(n))
-        .map(|us| us.chunks(2).map(|c| Vector2::new(c[0], c[1])).collect())
-        .collect();
+    let intrinsic = intrinsic_fields(&solution.u, n);
     let vectors = slabs.vectors(frames, params, &intrinsic);
     let mut message = solution.u.clone();
     message.extend(
@@ -259,31 +252,20 @@ pub fn flow_over_ranks(
         spatial,
         temporal,
     };
-    Ok(Some(FlowResult {
-        intrinsic,
-        vectors,
-        warped_residual: None,
-        reweightings: 0,
-        energy: energy_terms.total(),
-        energy_terms,
-        energy_at_zero,
-        weights: params.weights(&scales)?,
-        scales,
-        relative_residual: solution.relative_residual,
-        iterations: solution.iterations,
-        method: solution.method,
-        solver_reason: solution.reason,
-        time_levels: solution.time_levels,
-        factor_entries: solution.factor_entries,
-        preconditioned_spectrum: solution.spectrum,
-        timings: Timings {
-            assembly,
-            factorization: solution.factor_seconds,
-            solve,
-            total: start.elapsed().as_secs_f64(),
-            steps: Vec::new(),
-        },
-    }))
+    let timings = Timings {
+        assembly,
+        factorization: solution.factor_seconds,
+        solve,
+        total: start.elapsed().as_secs_f64(),
+        steps: Vec::new(),
+    };
+    Ok(Some(FlowResult::of_solve(
+        solution,
+        (intrinsic, vectors),
+        (energy_terms, energy_at_zero),
+        (weights, scales),
+        timings,
+    )))
 }
 
 /// The flow of all slabs from the ranks' messages (each: its slabs' intrinsic values, `2V`
@@ -303,11 +285,7 @@ fn unpack_flow(
     for message in messages {
         let own = message.len() / per_slab;
         let (u, v) = message.split_at(own * 2 * n_vertices);
-        intrinsic.extend(u.chunks(2 * n_vertices).map(|s| {
-            s.chunks(2)
-                .map(|c| Vector2::new(c[0], c[1]))
-                .collect::<Vec<_>>()
-        }));
+        intrinsic.extend(intrinsic_fields(u, 2 * n_vertices));
         vectors.extend(v.chunks(3 * n_vertices).map(|s| {
             s.chunks(3)
                 .map(|c| Vector3::new(c[0], c[1], c[2]))

@@ -5,9 +5,8 @@
 //! a panic does the same through a panic hook.
 
 use crate::{solve, SolveArgs};
-use meshflow::flow::distributed::MpiRanks;
+use meshflow::flow::distributed::{abort_job_on_panic, MpiRanks};
 use meshflow::Error;
-use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
 /// `meshflow solve`, over the ranks `mpirun` started (one process without `mpirun`).
@@ -19,11 +18,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
     if world.size() == 1 {
         return solve::solve(args, None);
     }
-    let hook = std::panic::take_hook();
-    std::panic::set_hook(Box::new(move |info| {
-        hook(info);
-        SimpleCommunicator::world().abort(101);
-    }));
+    abort_job_on_panic();
     let ranks = MpiRanks {
         communicator: &world,
     };

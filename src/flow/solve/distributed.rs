@@ -27,7 +27,7 @@
 //! ([`MpiRanks`], feature `mpi`), threads in the tests.
 
 use super::cholesky::{analyze, CholeskyFactor, Precision};
-use super::multigrid::{prolong_add, restrict};
+use super::multigrid::{prolong_add, residual, restrict};
 use super::pcg::{self, Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings};
 use super::{factorization_error, Solution, SolveObserver, SolverMethod};
@@ -137,7 +137,8 @@ impl LevelPlan<'_> {
     }
 }
 
-/// A [`LevelPlan`] with the slab sweeps of its window and the seconds they took.
+/// A [`LevelPlan`] with the slab sweeps of its window and its share of the seconds their
+/// factorization took.
 struct Level<'a, T: Precision> {
     plan: LevelPlan<'a>,
     sweeps: SlabSweeps<T>,
@@ -166,14 +167,6 @@ impl LevelView<'_> {
             from_after: true,
         };
         self.chain.talk(self.ranks, messages)
-    }
-
-    /// `r − A z`.
-    fn residual(&self, r: &[f64], z: &[f64]) -> Vec<f64> {
-        let mut out = vec![0.0; r.len()];
-        self.apply(z, &mut out);
-        out.par_iter_mut().zip(r).for_each(|(o, r)| *o = r - *o);
-        out
     }
 }
 
@@ -228,8 +221,8 @@ impl Surroundings for LevelView<'_> {
     }
 }
 
-/// A rank's levels and the other ranks: the symmetric odd–even Gauss–Seidel sweep
-/// (`multigrid` false, or one level) or one V-cycle of multigrid in time.
+/// A rank's levels and the other ranks: the symmetric odd–even Gauss–Seidel sweep (one level
+/// in all) or one V-cycle of multigrid in time.
 struct WindowPreconditioner<'a, 'w, T: Precision> {
     levels: &'a [Level<'w, T>],
     /// Levels of the whole hierarchy (this rank may hold fewer: it falls idle below them;
@@ -256,16 +249,16 @@ impl<T: Precision> WindowPreconditioner<'_, '_, T> {
         let n = view.n();
         let lent = level.plan.window.lends_first();
         let borrows = level.plan.window.borrows_next();
-        let residual = view.residual(r, z);
+        let fine_residual = residual(&view, r, z);
         let (_, borrowed) = level.plan.chain.talk(
             self.ranks,
             Messages {
-                to_before: lent.then(|| &residual[..n]),
+                to_before: lent.then(|| &fine_residual[..n]),
                 from_after: borrows,
                 ..Default::default()
             },
         );
-        let mut paired = residual[usize::from(lent) * n..].to_vec();
+        let mut paired = fine_residual[usize::from(lent) * n..].to_vec();
         paired.extend(borrowed.unwrap_or_default());
         let coarse_r = restrict(&level.plan.transports, &paired, n);
         let mut coarse_z = vec![0.0; coarse_r.len()];
@@ -287,7 +280,7 @@ impl<T: Precision> WindowPreconditioner<'_, '_, T> {
         if let Some(correction) = from_before {
             add(&mut z[..n], &correction);
         }
-        let mut correction = view.residual(r, z);
+        let mut correction = residual(&view, r, z);
         level.sweeps.backward(system, &mut correction, &view);
         add(z, &correction);
     }
@@ -658,6 +651,18 @@ pub fn gather_to_first(ranks: &dyn TimeRanks, values: &[f64]) -> Option<Vec<Vec<
             None
         }
     }
+}
+
+/// Makes a panic on this rank end the whole MPI job (`MPI_Abort` after the panic's message)
+/// instead of leaving the other ranks waiting in a collective.
+#[cfg(feature = "mpi")]
+pub fn abort_job_on_panic() {
+    use mpi::topology::{Communicator, SimpleCommunicator};
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        hook(info);
+        SimpleCommunicator::world().abort(101);
+    }));
 }
 
 /// [`TimeRanks`] over an MPI communicator (the `mpi` feature): sums by all-reduce, messages as

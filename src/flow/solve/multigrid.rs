@@ -14,7 +14,7 @@
 //! Oosterlee & Schüller, *Multigrid*, 2001, §5.2).
 
 use super::cholesky::Precision;
-use super::pcg::Preconditioner;
+use super::pcg::{Operator, Preconditioner};
 use super::precondition::{SlabSweeps, Whole};
 use crate::flow::system::SpaceTimeSystem;
 use nalgebra::{Matrix2, Vector2};
@@ -117,8 +117,8 @@ impl<T: Precision> Preconditioner for TimeMultigrid<'_, T> {
     }
 }
 
-/// `r − A z`.
-fn residual(system: &SpaceTimeSystem, r: &[f64], z: &[f64]) -> Vec<f64> {
+/// `r − A z` (for a rank's window, `A z` on its slabs).
+pub(super) fn residual(system: &dyn Operator, r: &[f64], z: &[f64]) -> Vec<f64> {
     let mut out = vec![0.0; r.len()];
     system.apply(z, &mut out);
     out.par_iter_mut().zip(r).for_each(|(o, r)| *o = r - *o);
