@@ -15,8 +15,10 @@
 //! 64x48 128x95 255x190 510x380).
 
 use meshflow::flow::{FlowParams, FlowProblem, SolverChoice};
-use std::process::Command;
 
+#[path = "common/cells.rs"]
+mod cells;
+use cells::{cell_args, run_cell_process};
 #[path = "common/memory.rs"]
 mod memory;
 use memory::peak_memory_bytes;
@@ -26,8 +28,8 @@ use torus::unit_grey_torus;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    if args.first().map(String::as_str) == Some("--cell") {
-        return run_cell(&args[1..]);
+    if let Some(cell) = cell_args(&args) {
+        return run_cell(cell);
     }
     let frames = args.first().cloned().unwrap_or("9".into());
     let default_sizes = ["64x48", "128x95", "255x190", "510x380"].map(String::from);
@@ -56,13 +58,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for size in sizes {
         let (n1, n2) = size.split_once('x').ok_or("sizes are N1xN2")?;
         let cell = |solver: &str| -> Result<Vec<f64>, Box<dyn std::error::Error>> {
-            let output = Command::new(std::env::current_exe()?)
-                .args(["--cell", n1, n2, &frames, solver])
-                .output()?;
-            if !output.status.success() {
-                return Err(String::from_utf8_lossy(&output.stderr).trim().into());
-            }
-            let line = String::from_utf8_lossy(&output.stdout);
+            let line = run_cell_process(&[n1, n2, &frames, solver])??;
             Ok(line
                 .split_whitespace()
                 .map(|x| x.parse().unwrap_or(f64::NAN))

@@ -7,9 +7,11 @@
 //! auto).
 
 use meshflow::flow::{FlowParams, FlowProblem, SolverChoice};
-use std::process::Command;
 use std::time::Instant;
 
+#[path = "common/cells.rs"]
+mod cells;
+use cells::{cell_args, run_cell_process};
 #[path = "common/memory.rs"]
 mod memory;
 use memory::peak_memory_bytes;
@@ -19,8 +21,8 @@ use torus::unit_grey_torus;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    if args.first().map(String::as_str) == Some("--cell") {
-        return run_cell(&args[1..]);
+    if let Some(cell) = cell_args(&args) {
+        return run_cell(cell);
     }
     let size: Vec<String> = ["128", "95", "20"]
         .iter()
@@ -48,20 +50,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     cells.push(["default", "default", "30"]);
     for [alpha, gamma, fps] in cells {
-        let output = Command::new(std::env::current_exe()?)
-            .arg("--cell")
-            .env("RUST_BACKTRACE", "0")
-            .args(&size)
-            .args([&solver, alpha, gamma, fps])
-            .output()?;
-        let line = String::from_utf8_lossy(&output.stdout);
-        match output.status.success() {
-            true => print!("{line}"),
-            false => println!(
+        let (n1, n2, frames) = (&size[0], &size[1], &size[2]);
+        match run_cell_process(&[n1, n2, frames, &solver, alpha, gamma, fps])? {
+            Ok(line) => print!("{line}"),
+            Err(error) => println!(
                 "{alpha:>8} {gamma:>6} {fps:>6}  failed: {}",
-                String::from_utf8_lossy(&output.stderr)
-                    .trim()
-                    .replace('\n', " ")
+                error.replace('\n', " ")
             ),
         }
     }
