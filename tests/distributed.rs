@@ -7,6 +7,7 @@
 use meshflow::flow::distributed::{solve_window, TimeRanks};
 use meshflow::flow::window::{flow_over_ranks, TimeWindow, WindowSlabs};
 use meshflow::flow::{FlowParams, FlowProblem, FlowResult, MeshSequence, ScaleSums, SolverChoice};
+use meshflow::flow::Warping;
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::{Arc, Barrier, Mutex};
 
@@ -174,87 +175,121 @@ fn ranks_run_the_multigrid_in_time_as_one_process_does() {
 #[test]
 fn ranks_compute_the_single_process_flow_result() {
     for (name, sequence, params) in common::window_cases() {
-        let params = FlowParams {
-            solver: SolverChoice::PcgTimeMultigrid,
-            tolerance: 1e-12,
-            ..params
-        };
-        let single = FlowProblem::new(&sequence, &params)
-            .unwrap()
-            .solve(&|_| {})
-            .unwrap();
-        for size in 1..=4 {
-            let results: Vec<Option<FlowResult>> = std::thread::scope(|scope| {
-                let handles: Vec<_> = (thread_ranks(size).into_iter())
-                    .map(|me| {
-                        let window = TimeWindow::of_rank(me.rank, size, sequence.n_slabs());
-                        let frames = sequence.frames(window.frames()).unwrap();
-                        let params = &params;
-                        scope.spawn(move || {
-                            flow_over_ranks(&frames, &window, &me, params, &|_| {}).unwrap()
-                        })
-                    })
-                    .collect();
-                handles.into_iter().map(|h| h.join().unwrap()).collect()
-            });
-            assert!(results[1..].iter().all(Option::is_none), "{name}");
-            let result = results[0].as_ref().unwrap();
-            let flat = |r: &FlowResult| -> Vec<f64> {
-                let vectors = r.vectors.iter().flatten().flatten();
-                (r.intrinsic.iter().flatten().flat_map(|v| [v.x, v.y]))
-                    .chain(vectors.flat_map(|v| [v.x, v.y, v.z]))
-                    .collect()
-            };
-            let (got, want) = (flat(result), flat(&single));
-            assert_eq!(got.len(), want.len(), "{name}");
-            let scale = want.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            let difference = (got.iter().zip(&want)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-            let (e, f) = (result.energy_terms, single.energy_terms);
-            let energies = [
-                (e.data, f.data),
-                (e.speed, f.speed),
-                (e.spatial, f.spatial),
-                (e.temporal, f.temporal),
-                (result.energy_at_zero, single.energy_at_zero),
-                (result.weights.alpha, single.weights.alpha),
-                (result.weights.gamma, single.weights.gamma),
-            ];
-            println!(
-                "{name}, {size} ranks: flow differs by {:.1e}, energy {:.6e} vs {:.6e}",
-                difference / scale,
-                result.energy,
-                single.energy
-            );
-            assert!(difference <= 1e-10 * scale, "{name}, {size} ranks");
-            for (a, b) in energies {
-                assert!(
-                    (a - b).abs() <= 1e-10 * b.abs().max(1e-300),
-                    "{name}: {a} vs {b}"
-                );
-            }
-            assert_eq!(result.iterations, single.iterations, "{name}");
-        }
+        check_flow_over_ranks(&name, &sequence, &params);
     }
 }
 
-/// What does not run over ranks yet says so on every rank, before any work.
+/// Coarse-to-fine warping over ranks: each rank warps its own slabs between the collective
+/// solves, and the result (with the warped residual) is the single process's.
 #[test]
-fn warping_over_ranks_is_a_clear_error() {
-    let (_, sequence, params) = common::window_cases().remove(0);
+fn ranks_warp_coarse_to_fine_as_one_process_does() {
+    let warping = Warping {
+        levels: 2,
+        warps: 2,
+    };
+    for (name, sequence, params) in common::window_cases() {
+        let params = FlowParams { warping, ..params };
+        check_flow_over_ranks(&format!("{name}, warping"), &sequence, &params);
+    }
+}
+
+/// Robust smoothness over ranks: each rank reweights its own slabs, the robust energy is
+/// summed over ranks, so the reweightings stop where one process's do.
+#[test]
+fn ranks_reweight_robust_smoothness_as_one_process_does() {
+    let (name, sequence, params) = common::window_cases().remove(0);
     let params = FlowParams {
-        warping: meshflow::flow::Warping {
+        robust_smoothness: Some(0.05),
+        ..params
+    };
+    check_flow_over_ranks(&format!("{name}, robust"), &sequence, &params);
+    let params = FlowParams {
+        warping: Warping {
             levels: 2,
-            warps: 2,
+            warps: 1,
         },
         ..params
     };
-    let me = thread_ranks(1).remove(0);
-    let window = TimeWindow::of_rank(0, 1, sequence.n_slabs());
-    let error = flow_over_ranks(&sequence, &window, &me, &params, &|_| {}).unwrap_err();
-    assert!(
-        error
-            .to_string()
-            .contains("does not run over several ranks"),
-        "{error}"
-    );
+    check_flow_over_ranks(&format!("{name}, robust, warping"), &sequence, &params);
+}
+
+/// `flow_over_ranks` on 1 to 4 thread ranks against `FlowProblem::solve` with the multigrid in
+/// time at tolerance 1e-12: the flow, its vectors and warped residual, the energy terms and the
+/// weights to 1e-10 relative, the same iterations and reweightings.
+fn check_flow_over_ranks(name: &str, sequence: &MeshSequence, params: &FlowParams) {
+    let params = FlowParams {
+        solver: SolverChoice::PcgTimeMultigrid,
+        tolerance: 1e-12,
+        ..params.clone()
+    };
+    let single = FlowProblem::new(sequence, &params)
+        .unwrap()
+        .solve(&|_| {})
+        .unwrap();
+    for size in 1..=4 {
+        let results: Vec<Option<FlowResult>> = std::thread::scope(|scope| {
+            let handles: Vec<_> = (thread_ranks(size).into_iter())
+                .map(|me| {
+                    let window = TimeWindow::of_rank(me.rank, size, sequence.n_slabs());
+                    let frames = sequence.frames(window.frames()).unwrap();
+                    let params = &params;
+                    scope.spawn(move || {
+                        flow_over_ranks(&frames, &window, &me, params, &|_| {}).unwrap()
+                    })
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        assert!(results[1..].iter().all(Option::is_none), "{name}");
+        let result = results[0].as_ref().unwrap();
+        let flat = |r: &FlowResult| -> Vec<f64> {
+            let vectors = r.vectors.iter().flatten().flatten();
+            (r.intrinsic.iter().flatten().flat_map(|v| [v.x, v.y]))
+                .chain(vectors.flat_map(|v| [v.x, v.y, v.z]))
+                .collect()
+        };
+        let (got, want) = (flat(result), flat(&single));
+        assert_eq!(got.len(), want.len(), "{name}");
+        let scale = want.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let difference = (got.iter().zip(&want)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        let (e, f) = (result.energy_terms, single.energy_terms);
+        let energies = [
+            (e.data, f.data),
+            (e.speed, f.speed),
+            (e.spatial, f.spatial),
+            (e.temporal, f.temporal),
+            (result.energy_at_zero, single.energy_at_zero),
+            (result.weights.alpha, single.weights.alpha),
+            (result.weights.gamma, single.weights.gamma),
+        ];
+        println!(
+            "{name}, {size} ranks: flow differs by {:.1e}, energy {:.6e} vs {:.6e}, {} iterations in all",
+            difference / scale,
+            result.energy,
+            single.energy,
+            result.iterations_in_all(),
+        );
+        assert!(difference <= 1e-10 * scale, "{name}, {size} ranks");
+        for (a, b) in energies {
+            assert!(
+                (a - b).abs() <= 1e-10 * b.abs().max(1e-300),
+                "{name}: {a} vs {b}"
+            );
+        }
+        assert_eq!(result.iterations, single.iterations, "{name}");
+        assert_eq!(result.reweightings, single.reweightings, "{name}");
+        assert_eq!(result.timings.steps.len(), single.timings.steps.len(), "{name}");
+        match (&result.warped_residual, &single.warped_residual) {
+            (Some(got), Some(want)) => {
+                let (got, want) = (got.concat(), want.concat());
+                assert_eq!(got.len(), want.len(), "{name}");
+                let scale = want.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                let difference =
+                    (got.iter().zip(&want)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                assert!(difference <= 1e-10 * scale, "{name}: residual {difference:e}");
+            }
+            (None, None) => {}
+            _ => panic!("{name}: warped residual on one side only"),
+        }
+    }
 }

@@ -86,15 +86,16 @@ fn a_broken_frame_file_ends_the_job_with_its_name() {
 }
 
 /// `mpirun -n R meshflow solve`: the outputs of one process (the flow to 1e-10 of its largest
-/// value, the same files, the same iterations in the summary), for 2 and 3 ranks; more ranks
-/// than slabs is a one-line error.
+/// value, the same files, the same iterations in the summary), for 2 and 3 ranks, and with
+/// `--large-motion` (each rank warps its own slabs) for 2; more ranks than slabs is a one-line
+/// error.
 #[test]
 fn meshflow_solve_over_ranks_writes_the_single_process_outputs() {
     let meshflow = std::path::Path::new(env!("CARGO_BIN_EXE_meshflow"));
     let sample = concat!(env!("CARGO_MANIFEST_DIR"), "/meshes/rotating_sphere");
     let dir = tempfile::tempdir().unwrap();
-    let run = |ranks: usize| {
-        let out = dir.path().join(format!("ranks_{ranks}"));
+    let run = |ranks: usize, options: &[&str]| {
+        let out = dir.path().join(format!("ranks_{ranks}{}", options.concat()));
         let args = [
             sample,
             "--out",
@@ -102,7 +103,8 @@ fn meshflow_solve_over_ranks_writes_the_single_process_outputs() {
             "--solver",
             "pcg-time-multigrid",
         ];
-        let output = mpirun_program(ranks, meshflow, &[&["solve"][..], &args].concat());
+        let args = [&["solve"][..], &args, options].concat();
+        let output = mpirun_program(ranks, meshflow, &args);
         let stderr = String::from_utf8_lossy(&output.stderr).to_string();
         (output.status.success(), out, stderr)
     };
@@ -112,34 +114,36 @@ fn meshflow_solve_over_ranks_writes_the_single_process_outputs() {
         let summary: serde_json::Value = serde_json::from_str(&summary).unwrap();
         (array.data, array.shape, summary["iterations"].clone())
     };
-    let (ok, single, stderr) = run(1);
-    assert!(ok, "{stderr}");
-    let (expected, shape, iterations) = read(&single);
-    let scale = expected.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    for ranks in [2, 3] {
-        let (ok, out, stderr) = run(ranks);
-        assert!(ok, "{ranks} ranks: {stderr}");
-        let (values, got_shape, got_iterations) = read(&out);
-        assert_eq!(got_shape, shape);
-        assert_eq!(got_iterations, iterations, "{ranks} ranks");
-        let difference =
-            (values.iter().zip(&expected)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-        println!(
-            "{ranks} ranks: flow differs by {:.1e} of its largest value",
-            difference / scale
-        );
-        assert!(difference < 1e-10 * scale, "{ranks} ranks: {difference:e}");
-        let names = |d: &std::path::Path| {
-            let mut n: Vec<_> = std::fs::read_dir(d)
-                .unwrap()
-                .map(|e| e.unwrap().file_name())
-                .collect();
-            n.sort();
-            n
-        };
-        assert_eq!(names(&out), names(&single), "{ranks} ranks");
+    let names = |d: &std::path::Path| {
+        let mut n: Vec<_> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        n.sort();
+        n
+    };
+    for (options, rank_counts) in [(&[][..], &[2, 3][..]), (&["--large-motion"][..], &[2][..])] {
+        let (ok, single, stderr) = run(1, options);
+        assert!(ok, "{stderr}");
+        let (expected, shape, iterations) = read(&single);
+        let scale = expected.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        for &ranks in rank_counts {
+            let (ok, out, stderr) = run(ranks, options);
+            assert!(ok, "{ranks} ranks {options:?}: {stderr}");
+            let (values, got_shape, got_iterations) = read(&out);
+            assert_eq!(got_shape, shape);
+            assert_eq!(got_iterations, iterations, "{ranks} ranks {options:?}");
+            let difference =
+                (values.iter().zip(&expected)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            println!(
+                "{ranks} ranks {options:?}: flow differs by {:.1e} of its largest value",
+                difference / scale
+            );
+            assert!(difference < 1e-10 * scale, "{ranks} ranks: {difference:e}");
+            assert_eq!(names(&out), names(&single), "{ranks} ranks {options:?}");
+        }
     }
-    let (ok, _, stderr) = run(6);
+    let (ok, _, stderr) = run(6, &[]);
     assert!(!ok);
     assert!(stderr.contains("6 ranks for 5 slabs"), "{stderr}");
 }

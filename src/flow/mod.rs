@@ -36,6 +36,7 @@
 pub mod advect;
 mod energy;
 mod error;
+mod outer;
 mod params;
 pub mod pyramid;
 pub mod regularizer;
@@ -66,6 +67,7 @@ pub use system::{LinkMatrix, SpaceTimeSystem, SystemWindow};
 pub use warp::warped_slab;
 
 use crate::connection::{push_forward, vertex_frames_in_r3};
+use outer::{OuterStart, WholeSequence};
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
 use std::borrow::Cow;
@@ -95,60 +97,6 @@ pub struct SolveStep {
     pub label: String,
     pub seconds: f64,
     pub iterations: usize,
-}
-
-impl Timings {
-    /// Adds the phases of `part` (one solve of this run, taking `seconds` in all) and records
-    /// it as a step called `label`; nested steps of `part` (a warp's reweightings) count as one.
-    fn add_step(&mut self, label: String, seconds: f64, part: &FlowResult) {
-        self.assembly += part.timings.assembly;
-        self.factorization += part.timings.factorization;
-        self.solve += part.timings.solve;
-        self.steps.push(SolveStep {
-            label,
-            seconds,
-            iterations: part.iterations_in_all(),
-        });
-    }
-}
-
-/// The clock of a run of several solves (warping, reweighting): its [`Timings`], step by step.
-pub(super) struct RunClock {
-    start: Instant,
-    step: Instant,
-    timings: Timings,
-}
-
-impl RunClock {
-    /// Starts the run of `problem`, already assembled: its assembly counts.
-    pub(super) fn start(problem: &FlowProblem) -> Self {
-        let now = Instant::now();
-        RunClock {
-            start: now,
-            step: now,
-            timings: Timings {
-                assembly: problem.assembly_seconds(),
-                ..Timings::default()
-            },
-        }
-    }
-
-    /// A step begins now (the first one begins with the run).
-    pub(super) fn begin_step(&mut self) {
-        self.step = Instant::now();
-    }
-
-    /// The step begun last ends with `part`, its solve, recorded as `label`.
-    pub(super) fn end_step(&mut self, label: String, part: &FlowResult) {
-        let seconds = self.step.elapsed().as_secs_f64();
-        self.timings.add_step(label, seconds, part);
-    }
-
-    /// The run's timings, `total` from the assembly to now.
-    pub(super) fn finish(mut self, problem: &FlowProblem) -> Timings {
-        self.timings.total = problem.assembly_seconds() + self.start.elapsed().as_secs_f64();
-        self.timings
-    }
 }
 
 /// The flow of a sequence and how it was computed.
@@ -369,19 +317,22 @@ impl<'a> FlowProblem<'a> {
         &self.params
     }
 
-    /// Wall-clock seconds the assembly took.
-    pub(crate) fn assembly_seconds(&self) -> f64 {
-        self.assembly_seconds
-    }
-
     /// Minimizes the energy (coarse to fine when [`FlowParams::warping`] asks for it);
     /// `observer` receives progress reports.
     pub fn solve(&self, observer: &dyn SolveObserver) -> Result<FlowResult, FlowError> {
+        let outer = OuterStart {
+            params: &self.params,
+            weights: self.weights,
+            scales: self.scales,
+            assembly_seconds: self.assembly_seconds,
+        };
+        let whole = WholeSequence(self.sequence);
         if self.params.warping.is_active() {
-            return warp::coarse_to_fine(self, observer);
+            return warp::coarse_to_fine(&whole, &outer, observer);
         }
         if let Some(epsilon) = self.params.robust_smoothness {
-            return robust::reweighted(self, epsilon, observer);
+            let slabs = self.slabs().into_owned();
+            return robust::reweighted(&whole, &outer, slabs, epsilon, observer);
         }
         let start = Instant::now();
         let solution = solve::solve(&self.system, &self.params, observer)?;

@@ -19,7 +19,8 @@
 //! With coarse-to-fine warping, every warp reweights from its own linear solve (the prototype
 //! found the per-level γ schedule necessary for stability at large motions).
 
-use super::{FlowError, FlowParams, FlowProblem, FlowResult, RunClock, SolveObserver, Weight};
+use super::outer::{OuterStart, RunClock, SlabSolver};
+use super::{FlowError, FlowParams, FlowResult, SolveObserver};
 use crate::mesh::Mesh;
 use nalgebra::{Vector2, Vector6};
 
@@ -28,47 +29,46 @@ pub const ENERGY_CHANGE: f64 = 1e-4;
 /// Reweighted solves at most.
 pub const MAX_REWEIGHTINGS: usize = 30;
 
-/// Minimizes `problem`'s energy with the Charbonnier smoothness of scale `epsilon` (module
-/// docs); the result is the last reweighted solve's, with `reweightings` set and the robust
-/// energy (`energy_terms.spatial` the Charbonnier term).
+/// Minimizes the energy of `start.params` on `slabs` (all of `solver`'s frames' slabs) with the
+/// Charbonnier smoothness of scale `epsilon` (module docs); the result is the last reweighted
+/// solve's, with `reweightings` set and the robust energy (`energy_terms.spatial` the
+/// Charbonnier term). Over ranks, each rank reweights its own slabs.
 pub(super) fn reweighted(
-    problem: &FlowProblem,
+    solver: &dyn SlabSolver,
+    start: &OuterStart,
+    mut slabs: Vec<super::Slab>,
     epsilon: f64,
     observer: &dyn SolveObserver,
 ) -> Result<FlowResult, FlowError> {
-    let sequence = problem.sequence();
-    let mesh = sequence.mesh();
-    let weights = *problem.weights();
+    let mesh = solver.frames().mesh();
+    let own = solver.own();
     let params = FlowParams {
-        alpha: Weight::Value(weights.alpha),
-        beta: Weight::Value(weights.beta),
-        gamma: Weight::Value(weights.gamma),
         robust_smoothness: None,
-        ..problem.params().clone()
+        ..start.fixed_params()
     };
-    let mut slabs = problem.slabs().into_owned();
     let penalty = Charbonnier {
         epsilon,
         params: &params,
-        gamma: weights.gamma,
+        gamma: start.weights.gamma,
     };
-    let mut clock = RunClock::start(problem);
-    let mut result = problem_solve(sequence, &params, slabs.clone(), observer)?;
+    let mut clock = RunClock::start(start.assembly_seconds);
+    let mut result = solver.solve(&params, slabs.clone(), observer)?;
     clock.end_step("first solve".into(), &result);
-    // `densities[s][T] = r_T` of the current flow: its energy, and the next solve's weights.
-    let mut densities = penalty.densities(mesh, &slabs, &result);
-    let mut energy = penalty.robust_energy(&slabs, &densities, &mut result);
+    // `densities[s][T] = r_T` of the current flow on the own slabs: its energy, and the next
+    // solve's weights.
+    let mut densities = penalty.densities(mesh, &slabs[own.clone()], &result);
+    let mut energy = penalty.robust_energy(solver, &slabs[own.clone()], &densities, &mut result);
     let mut reweightings = 0;
     while reweightings < MAX_REWEIGHTINGS {
-        for (slab, r) in slabs.iter_mut().zip(&densities) {
+        for (slab, r) in slabs[own.clone()].iter_mut().zip(&densities) {
             slab.smoothness_weights = Some(r.iter().map(|&r| penalty.weight(r)).collect());
         }
         clock.begin_step();
-        result = problem_solve(sequence, &params, slabs.clone(), observer)?;
+        result = solver.solve(&params, slabs.clone(), observer)?;
         reweightings += 1;
         clock.end_step(format!("reweighting {reweightings}"), &result);
-        densities = penalty.densities(mesh, &slabs, &result);
-        let next = penalty.robust_energy(&slabs, &densities, &mut result);
+        densities = penalty.densities(mesh, &slabs[own.clone()], &result);
+        let next = penalty.robust_energy(solver, &slabs[own.clone()], &densities, &mut result);
         let change = (energy - next).abs() / next.abs().max(f64::MIN_POSITIVE);
         energy = next;
         if change <= ENERGY_CHANGE {
@@ -76,18 +76,9 @@ pub(super) fn reweighted(
         }
     }
     result.reweightings = reweightings;
-    result.timings = clock.finish(problem);
-    result.scales = *problem.scales();
+    result.timings = clock.finish();
+    result.scales = start.scales;
     Ok(result)
-}
-
-fn problem_solve(
-    sequence: &super::MeshSequence,
-    params: &FlowParams,
-    slabs: Vec<super::Slab>,
-    observer: &dyn SolveObserver,
-) -> Result<FlowResult, FlowError> {
-    FlowProblem::from_slabs(sequence, params, slabs)?.solve(observer)
 }
 
 /// `ψ(r) = 2ε(√(r + ε²) − ε)` with the regularizer and weight of `params`.
@@ -134,10 +125,12 @@ impl Charbonnier<'_> {
             .collect()
     }
 
-    /// Puts the robust energy of `result` (its `densities`) into it and returns it: the data, speed and temporal terms
-    /// (which the weights do not touch) stay, the spatial term becomes the Charbonnier one.
+    /// Puts the robust energy of `result` (its `densities` on the own `slabs`, summed over
+    /// processes) into it and returns it: the data, speed and temporal terms (which the weights
+    /// do not touch) stay, the spatial term becomes the Charbonnier one.
     fn robust_energy(
         &self,
+        solver: &dyn SlabSolver,
         slabs: &[super::Slab],
         densities: &[Vec<f64>],
         result: &mut FlowResult,
@@ -154,7 +147,9 @@ impl Charbonnier<'_> {
                         .sum::<f64>()
             })
             .sum();
-        result.energy_terms.spatial = self.gamma * spatial;
+        let mut spatial = [spatial];
+        solver.sum(&mut spatial);
+        result.energy_terms.spatial = self.gamma * spatial[0];
         result.energy = result.energy_terms.total();
         result.energy
     }

@@ -26,40 +26,39 @@
 //! `γ` doubles per level coarser (a blurred image has weaker gradients, and the coarse flow
 //! should be smooth). All slabs are warped and solved together at every step.
 
+use super::outer::{OuterStart, RunClock, SlabSolver};
 use super::pyramid::scale_pyramid;
 use super::slab::{Slab, SlabChannel};
-use super::{FlowError, FlowParams, FlowProblem, FlowResult, Images, MeshSequence, SolveEvent};
-use super::{RunClock, SolveObserver, Weight};
+use super::{FlowError, FlowParams, FlowResult, Images, MeshSequence, SolveEvent};
+use super::{SolveObserver, Weight};
 use crate::geometry::{trace, SurfacePoint};
 use nalgebra::Vector2;
 use rayon::prelude::*;
 
-/// Solves `problem` coarse to fine with `problem`'s warping (its weights fixed at the
-/// original images'); the result is the last, finest solve's, with the original data scales.
+/// Solves coarse to fine with the warping of `start.params`, its weights fixed at the original
+/// images' `start.weights`; the result is the last, finest solve's (of `solver`'s own slabs),
+/// with the original data scales. Over ranks, each rank warps its own slabs.
 pub(super) fn coarse_to_fine(
-    problem: &FlowProblem,
+    solver: &dyn SlabSolver,
+    start: &OuterStart,
     observer: &dyn SolveObserver,
 ) -> Result<FlowResult, FlowError> {
-    let mut clock = RunClock::start(problem);
-    let sequence = problem.sequence();
-    let warping = problem.params().warping;
-    let pyramid = scale_pyramid(sequence, warping.levels)?;
-    let channel_weights = problem
-        .params()
-        .channel_weights_for(sequence.n_channels())?;
-    let weights = *problem.weights();
-    let mesh = sequence.mesh();
-    let mut flow = vec![vec![Vector2::zeros(); mesh.n_vertices()]; sequence.n_slabs()];
+    let mut clock = RunClock::start(start.assembly_seconds);
+    let frames = solver.frames();
+    let warping = start.params.warping;
+    let pyramid = scale_pyramid(frames, warping.levels)?;
+    let channel_weights = start.params.channel_weights_for(frames.n_channels())?;
+    let own = solver.own();
+    // The flow of the frames' slabs: the own ones' from the last solve, zero beyond them (those
+    // only lend their geometry to the window's time links).
+    let mut flow = vec![vec![Vector2::zeros(); frames.mesh().n_vertices()]; frames.n_slabs()];
     let mut result = None;
     let mut solves = 0;
     for level in (0..warping.levels).rev() {
-        let scale = 2f64.powi(level as i32);
         let params = FlowParams {
-            alpha: Weight::Value(weights.alpha),
-            beta: Weight::Value(weights.beta),
-            gamma: Weight::Value(weights.gamma * scale),
+            gamma: Weight::Value(start.weights.gamma * 2f64.powi(level as i32)),
             warping: super::Warping::NONE,
-            ..problem.params().clone()
+            ..start.fixed_params()
         };
         for warp in 0..warping.warps {
             solves += 1;
@@ -70,19 +69,18 @@ pub(super) fn coarse_to_fine(
                 solves: warping.solves(),
             })?;
             clock.begin_step();
-            let slabs = warped_slabs(sequence, &pyramid[level], &flow, &channel_weights)?;
-            let level_problem = FlowProblem::from_slabs(sequence, &params, slabs)?;
-            let solved = level_problem.solve(observer)?;
+            let slabs = warped_slabs(frames, &pyramid[level], &flow, &channel_weights)?;
+            let solved = solver.solve(&params, slabs, observer)?;
             clock.end_step(format!("level {level}, warp {}", warp + 1), &solved);
-            flow.clone_from(&solved.intrinsic);
+            flow[own.clone()].clone_from_slice(&solved.intrinsic);
             result = Some(solved);
         }
     }
     let mut result = result.expect("warping solves at least once");
-    result.scales = *problem.scales();
-    let last = warped_slabs(sequence, &pyramid[0], &flow, &channel_weights)?;
-    result.warped_residual = Some(last.iter().map(warped_residual).collect());
-    result.timings = clock.finish(problem);
+    result.scales = start.scales;
+    let last = warped_slabs(frames, &pyramid[0], &flow, &channel_weights)?;
+    result.warped_residual = Some(last[own].iter().map(warped_residual).collect());
+    result.timings = clock.finish();
     Ok(result)
 }
 

@@ -12,12 +12,16 @@
 //! summed over ranks, the distributed solve ([`super::distributed`]), its slabs' flow and
 //! energy, gathered into one [`FlowResult`] on rank 0.
 //!
-//! Not done per window: the check that the minimizer is unique (`uniqueness`), which couples
-//! all slabs (a singular system then shows as a solver that does not converge); coarse-to-fine
-//! warping and robust smoothness, whose outer iterations are not distributed yet.
+//! Coarse-to-fine warping and robust smoothness change only slab-local data between their
+//! solves, so each rank warps or reweights its own slabs ([`super::outer`]). Not done per
+//! window: the check that the minimizer is unique (`uniqueness`), which couples all slabs (a
+//! singular system then shows as a solver that does not converge).
 
 use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, TimeRanks};
 use super::energy::energy_terms;
+use super::outer::{OuterStart, SlabSolver};
+use super::robust::reweighted;
+use super::warp::coarse_to_fine;
 use super::slab::{build_slabs, embed_where_needed, time_links, Slab};
 use super::system::SystemWindow;
 use super::{intrinsic_fields, slab_vectors, EnergyTerms, FlowResult, SolveObserver, Timings};
@@ -58,6 +62,9 @@ pub struct WindowSlabs {
     slabs: Vec<Slab>,
     offset: usize,
     window: TimeWindow,
+    /// The slabs are the frames' own (not warped or reweighted), so they may be dropped and
+    /// rebuilt from the frames.
+    rebuildable: bool,
 }
 
 impl WindowSlabs {
@@ -80,12 +87,33 @@ impl WindowSlabs {
             });
         }
         let channel_weights = params.channel_weights_for(frames.n_channels())?;
-        let mut slabs = build_slabs(frames, &channel_weights)?;
+        let slabs = build_slabs(frames, &channel_weights)?;
+        let mut window = Self::with_slabs(frames, offset, window, params, slabs)?;
+        window.rebuildable = true;
+        Ok(window)
+    }
+
+    /// The window with given slabs of all its frames (e.g. warped ones), which it keeps.
+    fn with_slabs(
+        frames: &MeshSequence,
+        offset: usize,
+        window: TimeWindow,
+        params: &FlowParams,
+        mut slabs: Vec<Slab>,
+    ) -> Result<Self, FlowError> {
+        if slabs.len() != frames.n_slabs() {
+            return Err(FlowError::CountMismatch {
+                what: "slabs of the window's frames",
+                expected: frames.n_slabs(),
+                got: slabs.len(),
+            });
+        }
         embed_where_needed(&mut slabs, frames, params)?;
         Ok(WindowSlabs {
             slabs,
             offset,
             window,
+            rebuildable: false,
         })
     }
 
@@ -160,7 +188,7 @@ impl WindowSlabs {
     fn release_large(&mut self, frames: &MeshSequence) {
         let mesh = frames.mesh();
         let bytes = self.slabs.len() * (200 * mesh.n_faces() + 8 * mesh.n_halfedges());
-        if bytes > KEEP_SLABS_BYTES {
+        if self.rebuildable && bytes > KEEP_SLABS_BYTES {
             self.slabs = Vec::new();
         }
     }
@@ -186,10 +214,12 @@ impl WindowSlabs {
 /// process's up to the solver's tolerance (the same preconditioner; sums in another order);
 /// the others return `None`. Timings are rank 0's; `factor_entries` are summed over ranks.
 ///
-/// Not distributed (an error on every rank): coarse-to-fine warping, robust smoothness, and
-/// the `direct` and `pcg-jacobi` solvers ([`FlowError::NotDistributed`]). An error on one rank
-/// only (e.g. a broken frame of its window) leaves the others waiting: the caller ends the
-/// job, as `meshflow solve` under `mpirun` does with `MPI_Abort`.
+/// Coarse-to-fine warping and robust smoothness run as in one process ([`super::outer`]):
+/// each rank warps or reweights its own slabs between the collective solves. Not distributed
+/// (an error on every rank): the `direct` and `pcg-jacobi` solvers
+/// ([`FlowError::NotDistributed`]). An error on one rank only (e.g. a broken frame of its
+/// window) leaves the others waiting: the caller ends the job, as `meshflow solve` under
+/// `mpirun` does with `MPI_Abort`.
 pub fn flow_over_ranks(
     frames: &MeshSequence,
     window: &TimeWindow,
@@ -197,100 +227,165 @@ pub fn flow_over_ranks(
     params: &FlowParams,
     observer: &dyn SolveObserver,
 ) -> Result<Option<FlowResult>, FlowError> {
-    if params.warping.is_active() {
-        return Err(FlowError::NotDistributed {
-            what: "coarse-to-fine warping (--large-motion)",
-        });
-    }
-    if params.robust_smoothness.is_some() {
-        return Err(FlowError::NotDistributed {
-            what: "robust smoothness (--robust-smoothness)",
-        });
-    }
     let start = Instant::now();
-    let slabs = WindowSlabs::new(frames, window.frames().start, window.clone(), params)?;
+    let offset = window.frames().start;
+    let slabs = WindowSlabs::new(frames, offset, window.clone(), params)?;
     let mut sums = slabs.scale_sums(frames).to_array();
     ranks.sum(&mut sums);
     let scales = ScaleSums::from_array(sums).scales();
-    let system = slabs.assemble(frames, params, &scales)?;
-    let mut slabs = slabs;
-    slabs.release_large(frames);
-    let assembly = start.elapsed().as_secs_f64();
-    let solution = solve_window(&system, ranks, params, observer)?;
-    let solve = start.elapsed().as_secs_f64() - assembly;
-    let n = system.system.slab_dimension();
-    let mut u = solution.u.clone();
-    u.extend(next_rank_first_slab(ranks, &u[..n]).unwrap_or_default());
-    let weights = params.weights(&scales)?;
-    let terms = slabs.energy_terms(frames, params, &weights, &u);
-    let mut energies = [
-        terms.data,
-        terms.speed,
-        terms.spatial,
-        terms.temporal,
-        system.system.constant(),
-    ];
-    ranks.sum(&mut energies);
-    let intrinsic = intrinsic_fields(&solution.u, n);
-    let vectors = slabs.vectors(frames, params, &intrinsic);
-    let mut message = solution.u.clone();
-    message.extend(
-        vectors
-            .iter()
-            .flatten()
-            .flatten()
-            .flat_map(|v| [v.x, v.y, v.z]),
-    );
-    let Some(all) = gather_to_first(ranks, &message) else {
-        return Ok(None);
+    let solver = RankWindow {
+        frames,
+        window,
+        ranks,
+        scales,
     };
-    let (intrinsic, vectors) = unpack_flow(&all, n / 2, vectors.is_some());
-    let [data, speed, spatial, temporal, energy_at_zero] = energies;
-    let energy_terms = EnergyTerms {
-        data,
-        speed,
-        spatial,
-        temporal,
+    let outer = OuterStart {
+        params,
+        weights: params.weights(&scales)?,
+        scales,
+        assembly_seconds: start.elapsed().as_secs_f64(),
     };
-    let timings = Timings {
-        assembly,
-        factorization: solution.factor_seconds,
-        solve,
-        total: start.elapsed().as_secs_f64(),
-        steps: Vec::new(),
+    let result = match (params.warping.is_active(), params.robust_smoothness) {
+        (true, _) => coarse_to_fine(&solver, &outer, observer)?,
+        (false, Some(epsilon)) => reweighted(&solver, &outer, slabs.slabs, epsilon, observer)?,
+        (false, None) => solver.solve_window_slabs(slabs, params, observer, start)?,
     };
-    Ok(Some(FlowResult::of_solve(
-        solution,
-        (intrinsic, vectors),
-        (energy_terms, energy_at_zero),
-        (weights, scales),
-        timings,
-    )))
+    Ok(gather_result(ranks, result))
 }
 
-/// The flow of all slabs from the ranks' messages (each: its slabs' intrinsic values, `2V`
-/// per slab, then their vectors in R^3, `3V` per slab, when `embedded`).
-#[allow(clippy::type_complexity)]
-fn unpack_flow(
-    messages: &[Vec<f64>],
-    n_vertices: usize,
-    embedded: bool,
-) -> (Vec<Vec<Vector2<f64>>>, Option<Vec<Vec<Vector3<f64>>>>) {
-    let per_slab = match embedded {
-        true => 5 * n_vertices,
-        false => 2 * n_vertices,
-    };
-    let mut intrinsic = Vec::new();
-    let mut vectors = Vec::new();
-    for message in messages {
-        let own = message.len() / per_slab;
-        let (u, v) = message.split_at(own * 2 * n_vertices);
-        intrinsic.extend(intrinsic_fields(u, 2 * n_vertices));
-        vectors.extend(v.chunks(3 * n_vertices).map(|s| {
-            s.chunks(3)
-                .map(|c| Vector3::new(c[0], c[1], c[2]))
-                .collect::<Vec<_>>()
-        }));
+/// One rank's time window as the [`SlabSolver`] of warping and reweighting.
+struct RankWindow<'a> {
+    frames: &'a MeshSequence,
+    window: &'a TimeWindow,
+    ranks: &'a dyn TimeRanks,
+    /// The whole sequence's data scales.
+    scales: DataScales,
+}
+
+impl SlabSolver for RankWindow<'_> {
+    fn frames(&self) -> &MeshSequence {
+        self.frames
     }
-    (intrinsic, embedded.then_some(vectors))
+
+    fn own(&self) -> Range<usize> {
+        let offset = self.window.frames().start;
+        self.window.slabs.start - offset..self.window.slabs.end - offset
+    }
+
+    fn solve(
+        &self,
+        params: &FlowParams,
+        slabs: Vec<Slab>,
+        observer: &dyn SolveObserver,
+    ) -> Result<FlowResult, FlowError> {
+        let start = Instant::now();
+        if let Some(epsilon) = params.robust_smoothness {
+            let outer = OuterStart {
+                params,
+                weights: params.weights(&self.scales)?,
+                scales: self.scales,
+                assembly_seconds: 0.0,
+            };
+            return reweighted(self, &outer, slabs, epsilon, observer);
+        }
+        let offset = self.window.frames().start;
+        let slabs = WindowSlabs::with_slabs(self.frames, offset, self.window.clone(), params, slabs)?;
+        self.solve_window_slabs(slabs, params, observer, start)
+    }
+
+    fn sum(&self, values: &mut [f64]) {
+        self.ranks.sum(values);
+    }
+}
+
+impl RankWindow<'_> {
+    /// One linear solve over all ranks of the window's `slabs`, begun at `start`: the result
+    /// of the window's own slabs (its flow theirs, its energy terms summed over ranks).
+    fn solve_window_slabs(
+        &self,
+        mut slabs: WindowSlabs,
+        params: &FlowParams,
+        observer: &dyn SolveObserver,
+        start: Instant,
+    ) -> Result<FlowResult, FlowError> {
+        let (frames, ranks) = (self.frames, self.ranks);
+        let system = slabs.assemble(frames, params, &self.scales)?;
+        slabs.release_large(frames);
+        let assembly = start.elapsed().as_secs_f64();
+        let solution = solve_window(&system, ranks, params, observer)?;
+        let solve = start.elapsed().as_secs_f64() - assembly;
+        let n = system.system.slab_dimension();
+        let mut u = solution.u.clone();
+        u.extend(next_rank_first_slab(ranks, &u[..n]).unwrap_or_default());
+        let weights = params.weights(&self.scales)?;
+        let terms = slabs.energy_terms(frames, params, &weights, &u);
+        let mut energies = [
+            terms.data,
+            terms.speed,
+            terms.spatial,
+            terms.temporal,
+            system.system.constant(),
+        ];
+        ranks.sum(&mut energies);
+        let [data, speed, spatial, temporal, energy_at_zero] = energies;
+        let energy_terms = EnergyTerms {
+            data,
+            speed,
+            spatial,
+            temporal,
+        };
+        let intrinsic = intrinsic_fields(&solution.u, n);
+        let vectors = slabs.vectors(frames, params, &intrinsic);
+        let timings = Timings {
+            assembly,
+            factorization: solution.factor_seconds,
+            solve,
+            total: start.elapsed().as_secs_f64(),
+            steps: Vec::new(),
+        };
+        Ok(FlowResult::of_solve(
+            solution,
+            (intrinsic, vectors),
+            (energy_terms, energy_at_zero),
+            (weights, self.scales),
+            timings,
+        ))
+    }
+}
+
+/// The whole result on rank 0 from every rank's result of its own slabs (`None` on the
+/// others): the per-slab fields — flow, flow in R^3, warped residual — gathered in rank order.
+fn gather_result(ranks: &dyn TimeRanks, mut result: FlowResult) -> Option<FlowResult> {
+    let intrinsic = gather_fields(ranks, &result.intrinsic, |v| [v.x, v.y]);
+    let vectors = (result.vectors.as_ref()).map(|v| gather_fields(ranks, v, |v| [v.x, v.y, v.z]));
+    let residual = (result.warped_residual.as_ref()).map(|r| gather_fields(ranks, r, |&r| [r]));
+    result.intrinsic = intrinsic?
+        .into_iter()
+        .map(|s| s.chunks(2).map(|c| Vector2::new(c[0], c[1])).collect())
+        .collect();
+    result.vectors = vectors.map(|v| {
+        (v.expect("gathered on rank 0").into_iter())
+            .map(|s| s.chunks(3).map(|c| Vector3::new(c[0], c[1], c[2])).collect())
+            .collect()
+    });
+    result.warped_residual = residual.map(|r| r.expect("gathered on rank 0"));
+    Some(result)
+}
+
+/// Per-slab fields of every rank, in rank order, on rank 0 (`None` on the others), each slab's
+/// values flattened by `values`; collective.
+fn gather_fields<T, const K: usize>(
+    ranks: &dyn TimeRanks,
+    slabs: &[Vec<T>],
+    values: impl Fn(&T) -> [f64; K],
+) -> Option<Vec<Vec<f64>>> {
+    let per_slab = K * slabs.first().map_or(0, Vec::len);
+    let message: Vec<f64> = slabs.iter().flatten().flat_map(&values).collect();
+    let all = gather_to_first(ranks, &message)?;
+    Some(
+        (all.iter().flatten().copied().collect::<Vec<_>>())
+            .chunks(per_slab)
+            .map(<[f64]>::to_vec)
+            .collect(),
+    )
 }

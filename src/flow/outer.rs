@@ -1,0 +1,133 @@
+//! The linear solves of an outer iteration — coarse-to-fine warping ([`super::warp`]) and the
+//! reweighting of robust smoothness ([`super::robust`]) — in one process or over ranks.
+//!
+//! Both outer iterations change only slab-local data between their solves (a slab's warped
+//! images, a slab's per-face smoothness weights), computed from that slab's flow. So they run
+//! unchanged on one rank's time window: each rank updates its own slabs and every solve is
+//! collective. [`SlabSolver`] is that difference: which slabs are this process's and how their
+//! system is solved; the few scalars the iterations decide on (the robust energy) are summed
+//! over processes with [`SlabSolver::sum`].
+
+use super::{DataScales, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence};
+use super::{Slab, SolveObserver, SolveStep, Timings, Weights};
+use std::ops::Range;
+use std::time::Instant;
+
+/// Runs the solves of an outer iteration.
+pub(super) trait SlabSolver {
+    /// The frames this process holds: the whole sequence, or one time window's frames.
+    fn frames(&self) -> &MeshSequence;
+
+    /// The slabs of [`SlabSolver::frames`] this process solves for (the others only lend their
+    /// geometry to the time links at the window's ends).
+    fn own(&self) -> Range<usize>;
+
+    /// Minimizes the model of `params` on the frames' slabs `slabs` (all of them, in order); the
+    /// result's flow is that of [`SlabSolver::own`], its energy terms the whole sequence's.
+    /// Collective over ranks.
+    fn solve(
+        &self,
+        params: &FlowParams,
+        slabs: Vec<Slab>,
+        observer: &dyn SolveObserver,
+    ) -> Result<FlowResult, FlowError>;
+
+    /// Sums `values` over all processes (nothing to do in one).
+    fn sum(&self, values: &mut [f64]);
+}
+
+/// What an outer iteration starts from: the problem's parameters, the weights and scales its
+/// original data resolved, and the seconds its assembly took.
+pub(super) struct OuterStart<'a> {
+    pub params: &'a FlowParams,
+    pub weights: Weights,
+    pub scales: DataScales,
+    pub assembly_seconds: f64,
+}
+
+impl OuterStart<'_> {
+    /// The parameters with the weights fixed at the original data's, so that warped or
+    /// reweighted slabs do not re-resolve them.
+    pub fn fixed_params(&self) -> FlowParams {
+        FlowParams {
+            alpha: super::Weight::Value(self.weights.alpha),
+            beta: super::Weight::Value(self.weights.beta),
+            gamma: super::Weight::Value(self.weights.gamma),
+            ..self.params.clone()
+        }
+    }
+}
+
+/// The whole sequence in one process.
+pub(super) struct WholeSequence<'a>(pub &'a MeshSequence);
+
+impl SlabSolver for WholeSequence<'_> {
+    fn frames(&self) -> &MeshSequence {
+        self.0
+    }
+
+    fn own(&self) -> Range<usize> {
+        0..self.0.n_slabs()
+    }
+
+    fn solve(
+        &self,
+        params: &FlowParams,
+        slabs: Vec<Slab>,
+        observer: &dyn SolveObserver,
+    ) -> Result<FlowResult, FlowError> {
+        FlowProblem::from_slabs(self.0, params, slabs)?.solve(observer)
+    }
+
+    fn sum(&self, _: &mut [f64]) {}
+}
+
+/// The clock of a run of several solves (warping, reweighting): its [`Timings`], step by step.
+pub(super) struct RunClock {
+    /// The assembly before the run's first solve, counted in its total.
+    assembly_seconds: f64,
+    start: Instant,
+    step: Instant,
+    timings: Timings,
+}
+
+impl RunClock {
+    /// Starts a run whose assembly took `assembly_seconds` already.
+    pub fn start(assembly_seconds: f64) -> Self {
+        let now = Instant::now();
+        RunClock {
+            assembly_seconds,
+            start: now,
+            step: now,
+            timings: Timings {
+                assembly: assembly_seconds,
+                ..Timings::default()
+            },
+        }
+    }
+
+    /// A step begins now (the first one begins with the run).
+    pub fn begin_step(&mut self) {
+        self.step = Instant::now();
+    }
+
+    /// The step begun last ends with `part`, its solve, recorded as `label`.
+    pub fn end_step(&mut self, label: String, part: &FlowResult) {
+        let seconds = self.step.elapsed().as_secs_f64();
+        let timings = &mut self.timings;
+        timings.assembly += part.timings.assembly;
+        timings.factorization += part.timings.factorization;
+        timings.solve += part.timings.solve;
+        timings.steps.push(SolveStep {
+            label,
+            seconds,
+            iterations: part.iterations_in_all(),
+        });
+    }
+
+    /// The run's timings, `total` from the first assembly to now.
+    pub fn finish(mut self) -> Timings {
+        self.timings.total = self.assembly_seconds + self.start.elapsed().as_secs_f64();
+        self.timings
+    }
+}
