@@ -219,6 +219,17 @@ const GREY_SCALE: f64 = 20.0;
 /// values in `[0, 1]` the smoothness smears each car's motion over the whole torus, with 8-bit
 /// values the flow breaks up into normal flow around the cars' edges).
 pub fn paper_torus(n1: usize, n2: usize, n_frames: usize) -> Result<MeshSequence, FlowError> {
+    paper_torus_frames(n1, n2, n_frames, 0..n_frames)
+}
+
+/// The frames `frames` of [`paper_torus`]`(n1, n2, n_frames)` alone, at their own times `k`:
+/// what one rank of a solve over time windows holds ([`crate::flow::window`]).
+pub fn paper_torus_frames(
+    n1: usize,
+    n2: usize,
+    n_frames: usize,
+    frames: std::ops::Range<usize>,
+) -> Result<MeshSequence, FlowError> {
     use std::f64::consts::TAU;
     let surface = crate::shapes::torus(2.0, 1.0, n1, n2);
     let mesh = surface.mesh().expect("a periodic grid is a valid torus");
@@ -228,7 +239,7 @@ pub fn paper_torus(n1: usize, n2: usize, n_frames: usize) -> Result<MeshSequence
             (0..n2).map(move |j| (TAU * i as f64 / n1 as f64, TAU * j as f64 / n2 as f64))
         })
         .collect();
-    let frames = (0..n_frames)
+    let positions = (frames.clone())
         .map(|k| {
             let t = k as f64 / t_end;
             parameters
@@ -244,7 +255,7 @@ pub fn paper_torus(n1: usize, n2: usize, n_frames: usize) -> Result<MeshSequence
                 .collect()
         })
         .collect();
-    let intensities = (0..n_frames)
+    let intensities = (frames.clone())
         .map(|k| {
             parameters
                 .iter()
@@ -252,7 +263,8 @@ pub fn paper_torus(n1: usize, n2: usize, n_frames: usize) -> Result<MeshSequence
                 .collect()
         })
         .collect();
-    MeshSequence::new(mesh, frames, intensities, None)
+    let times = frames.map(|k| k as f64).collect();
+    MeshSequence::new(mesh, positions, intensities, Some(times))
 }
 
 /// Background texture plus four Gaussian blobs ("cars") moving through the periodic parameter

@@ -6,8 +6,9 @@
 
 use meshflow::flow::distributed::{solve_window, TimeRanks};
 use meshflow::flow::window::{flow_over_ranks, TimeWindow, WindowSlabs};
-use meshflow::flow::{FlowParams, FlowProblem, FlowResult, MeshSequence, ScaleSums, SolverChoice};
 use meshflow::flow::Warping;
+use meshflow::flow::{FlowParams, FlowProblem, FlowResult, MeshSequence, ScaleSums, SolverChoice};
+use nalgebra::Vector3;
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::{Arc, Barrier, Mutex};
 
@@ -226,7 +227,7 @@ fn check_flow_over_ranks(name: &str, sequence: &MeshSequence, params: &FlowParam
         .unwrap()
         .solve(&|_| {})
         .unwrap();
-    for size in 1..=4 {
+    for size in 1..=sequence.n_slabs().min(4) {
         let results: Vec<Option<FlowResult>> = std::thread::scope(|scope| {
             let handles: Vec<_> = (thread_ranks(size).into_iter())
                 .map(|me| {
@@ -278,7 +279,11 @@ fn check_flow_over_ranks(name: &str, sequence: &MeshSequence, params: &FlowParam
         }
         assert_eq!(result.iterations, single.iterations, "{name}");
         assert_eq!(result.reweightings, single.reweightings, "{name}");
-        assert_eq!(result.timings.steps.len(), single.timings.steps.len(), "{name}");
+        assert_eq!(
+            result.timings.steps.len(),
+            single.timings.steps.len(),
+            "{name}"
+        );
         match (&result.warped_residual, &single.warped_residual) {
             (Some(got), Some(want)) => {
                 let (got, want) = (got.concat(), want.concat());
@@ -286,10 +291,98 @@ fn check_flow_over_ranks(name: &str, sequence: &MeshSequence, params: &FlowParam
                 let scale = want.iter().fold(0.0f64, |m, x| m.max(x.abs()));
                 let difference =
                     (got.iter().zip(&want)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-                assert!(difference <= 1e-10 * scale, "{name}: residual {difference:e}");
+                assert!(
+                    difference <= 1e-10 * scale,
+                    "{name}: residual {difference:e}"
+                );
             }
             (None, None) => {}
             _ => panic!("{name}: warped residual on one side only"),
         }
+    }
+}
+
+/// Frames `0..6` of a 6 × 5 grid whose middle column is stored twice (a texture seam: the
+/// faces right of it use the copies), written as OBJ files with a grey value per vertex; with
+/// `tear_in_last`, the copies leave the originals in the last frame only.
+fn write_seam_sequence(dir: &std::path::Path, tear_in_last: bool) {
+    let (nx, ny, seam) = (6usize, 5usize, 3usize);
+    let index = |i: usize, j: usize| (j * nx + i) as u32;
+    let copy = |j: usize| (nx * ny + j) as u32;
+    let mut faces = Vec::new();
+    for j in 0..ny - 1 {
+        for i in 0..nx - 1 {
+            // Faces right of the seam (i ≥ seam) take its copies.
+            let corner = |ci: usize, cj: usize| match ci == seam && i >= seam {
+                true => copy(cj),
+                false => index(ci, cj),
+            };
+            faces.push([corner(i, j), corner(i + 1, j), corner(i + 1, j + 1)]);
+            faces.push([corner(i, j), corner(i + 1, j + 1), corner(i, j + 1)]);
+        }
+    }
+    for k in 0..6 {
+        let t = k as f64;
+        let mut positions: Vec<Vector3<f64>> = (0..ny)
+            .flat_map(|j| (0..nx).map(move |i| (i, j)))
+            .map(|(i, j)| Vector3::new(i as f64, j as f64, 0.1 * t * (i as f64 * 0.7).sin()))
+            .collect();
+        let tear = if tear_in_last && k == 5 { 0.5 } else { 0.0 };
+        let copies: Vec<_> = (0..ny)
+            .map(|j| positions[index(seam, j) as usize] + Vector3::z() * tear)
+            .collect();
+        positions.extend(copies);
+        let colors: Vec<[f64; 3]> = (positions.iter())
+            .map(|p| [((p.x - 0.3 * t) * 1.3).sin() * 0.4 + 0.5 + 0.05 * p.y; 3])
+            .collect();
+        let file = dir.join(format!("frame_{k}.obj"));
+        meshflow::io::write_obj(&file, &positions, &faces, Some(&colors)).unwrap();
+    }
+}
+
+/// Ranks that read only their windows' frame files (and frame 0) weld as one reader of all
+/// frames does, by summing their verdicts on frame 0's coincident pairs: the seam is welded
+/// when its copies follow the originals in every frame, and left apart when they leave them
+/// in the last frame only, even on ranks whose windows end before it. Positions, image and
+/// times are the whole sequence's frames of the window.
+#[test]
+fn ranks_read_their_windows_and_weld_alike() {
+    for tear_in_last in [false, true] {
+        let dir = tempfile::tempdir().unwrap();
+        write_seam_sequence(dir.path(), tear_in_last);
+        let options = meshflow::io::LoadOptions::default();
+        let whole = meshflow::io::load_sequence(dir.path(), &options).unwrap();
+        let welded = whole.vertex_map.n_welded();
+        assert_eq!(welded > 0, !tear_in_last, "{welded} welded");
+        for size in 1..=3 {
+            let loaded: Vec<_> = std::thread::scope(|scope| {
+                let handles: Vec<_> = (thread_ranks(size).into_iter())
+                    .map(|me| {
+                        let window = TimeWindow::of_rank(me.rank, size, 5);
+                        let frames = (me.rank > 0).then(|| window.frames());
+                        let (path, options) = (dir.path(), &options);
+                        scope.spawn(move || {
+                            let sum = |v: &mut [f64]| me.sum(v);
+                            let loaded = meshflow::io::load_frames(path, options, frames, &sum);
+                            (window, loaded.unwrap().sequence)
+                        })
+                    })
+                    .collect();
+                handles.into_iter().map(|h| h.join().unwrap()).collect()
+            });
+            for (rank, (window, sequence)) in loaded.iter().enumerate().skip(1) {
+                let expected = whole.sequence.frames(window.frames()).unwrap();
+                let name = format!("tear {tear_in_last}, {size} ranks, rank {rank}");
+                assert_eq!(sequence.mesh().faces(), expected.mesh().faces(), "{name}");
+                assert_eq!(sequence.times(), expected.times(), "{name}");
+                for k in 0..sequence.n_frames() {
+                    assert_eq!(sequence.positions(k), expected.positions(k), "{name}");
+                    assert_eq!(sequence.channels(k), expected.channels(k), "{name}");
+                }
+            }
+        }
+        // Alone, a reader of frames 1..4 would weld the torn seam: the sum is what decides.
+        let alone = meshflow::io::load_frames(dir.path(), &options, Some(1..4), &|_| {}).unwrap();
+        assert!(alone.vertex_map.n_welded() > 0, "tear {tear_in_last}");
     }
 }

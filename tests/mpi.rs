@@ -95,7 +95,9 @@ fn meshflow_solve_over_ranks_writes_the_single_process_outputs() {
     let sample = concat!(env!("CARGO_MANIFEST_DIR"), "/meshes/rotating_sphere");
     let dir = tempfile::tempdir().unwrap();
     let run = |ranks: usize, options: &[&str]| {
-        let out = dir.path().join(format!("ranks_{ranks}{}", options.concat()));
+        let out = dir
+            .path()
+            .join(format!("ranks_{ranks}{}", options.concat()));
         let args = [
             sample,
             "--out",

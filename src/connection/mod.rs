@@ -172,7 +172,11 @@ impl Connection {
     /// ([`crate::geometry::trace`]): the vertex as a point of the corner whose scaled sector
     /// `[ϑ, ϑ + s_i θ)` holds `u`'s polar angle `ψ`, and `u` in that face's frame, at the face
     /// angle `φ + (ψ − ϑ) / s_i` (the sector unscaled). At a boundary vertex a direction
-    /// outside the fan is moved to the nearer of its two boundary edges.
+    /// outside the fan by the angle `δ` is projected onto the nearer of its two boundary edges,
+    /// length `|u| max(cos δ, 0)`: a trace may slide along the boundary, never leave it, and
+    /// the start is continuous in `u` where the boundary is straight or convex (the step
+    /// vanishes midway between the edges instead of jumping from one to the other, which made
+    /// warping at the boundary flip with round-off).
     pub fn vertex_trace_start(
         &self,
         mesh: &Mesh,
@@ -190,7 +194,7 @@ impl Connection {
         };
         // Offset of ψ into each sector, clamped to it, and how far ψ lies outside (0 inside);
         // the corner ψ lies least outside of wins.
-        let (corner, offset, _) = fan
+        let (corner, offset, outside) = fan
             .iter()
             .map(|c| {
                 let (start, width) = sector(c);
@@ -206,7 +210,8 @@ impl Connection {
             .expect("every vertex has a corner");
         let (face, local) = (corner.face as usize, corner.local as usize);
         let angle = geometry.triangle(face).first_edge_angles()[local] + offset / scale;
-        let step = u.norm() * Vector2::new(angle.cos(), angle.sin());
+        let length = u.norm() * outside.cos().max(0.0);
+        let step = length * Vector2::new(angle.cos(), angle.sin());
         (SurfacePoint::corner(face, local), step)
     }
 }

@@ -67,8 +67,8 @@ pub use system::{LinkMatrix, SpaceTimeSystem, SystemWindow};
 pub use warp::warped_slab;
 
 use crate::connection::{push_forward, vertex_frames_in_r3};
-use outer::{OuterStart, WholeSequence};
 use nalgebra::{Vector2, Vector3};
+use outer::{OuterStart, WholeSequence};
 use rayon::prelude::*;
 use std::borrow::Cow;
 use std::time::Instant;

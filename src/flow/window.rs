@@ -21,9 +21,9 @@ use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, Ti
 use super::energy::energy_terms;
 use super::outer::{OuterStart, SlabSolver};
 use super::robust::reweighted;
-use super::warp::coarse_to_fine;
 use super::slab::{build_slabs, embed_where_needed, time_links, Slab};
 use super::system::SystemWindow;
+use super::warp::coarse_to_fine;
 use super::{intrinsic_fields, slab_vectors, EnergyTerms, FlowResult, SolveObserver, Timings};
 use super::{DataScales, FlowError, FlowParams, MeshSequence, ScaleSums, SpaceTimeSystem};
 use super::{Weights, KEEP_SLABS_BYTES};
@@ -289,7 +289,8 @@ impl SlabSolver for RankWindow<'_> {
             return reweighted(self, &outer, slabs, epsilon, observer);
         }
         let offset = self.window.frames().start;
-        let slabs = WindowSlabs::with_slabs(self.frames, offset, self.window.clone(), params, slabs)?;
+        let slabs =
+            WindowSlabs::with_slabs(self.frames, offset, self.window.clone(), params, slabs)?;
         self.solve_window_slabs(slabs, params, observer, start)
     }
 
@@ -365,7 +366,11 @@ fn gather_result(ranks: &dyn TimeRanks, mut result: FlowResult) -> Option<FlowRe
         .collect();
     result.vectors = vectors.map(|v| {
         (v.expect("gathered on rank 0").into_iter())
-            .map(|s| s.chunks(3).map(|c| Vector3::new(c[0], c[1], c[2])).collect())
+            .map(|s| {
+                s.chunks(3)
+                    .map(|c| Vector3::new(c[0], c[1], c[2]))
+                    .collect()
+            })
             .collect()
     });
     result.warped_residual = residual.map(|r| r.expect("gathered on rank 0"));

@@ -57,8 +57,9 @@ pub use npy::{
 pub use obj::{read_obj, write_obj, ObjMesh};
 pub use prepare::{load_mesh, mesh_from_arrays, read_mesh_geometry, LoadedMesh};
 pub use sequence::{
-    load_geometry, load_sequence, natural_order, read_intensity_array, read_mesh, read_mesh_with,
-    read_times_file, sequence_from_arrays, LoadOptions, LoadedGeometry, LoadedSequence,
+    count_frames, load_frames, load_geometry, load_sequence, natural_order, read_intensity_array,
+    read_mesh, read_mesh_with, read_times_file, sequence_from_arrays, LoadOptions, LoadedGeometry,
+    LoadedSequence, SumOverReaders,
 };
 pub use texture::Texture;
 pub use vertex_map::VertexMap;

@@ -15,7 +15,7 @@
 
 use super::gltf_read::read_gltf_geometry;
 use super::ply::read_ply;
-use super::weld::{weld, Weld};
+use super::weld::{weld, SumOverReaders, Weld};
 use super::{read_obj, FrameFormat, FrameMesh, IoError, LoadOptions, LoadWarning, VertexMap};
 use crate::mesh::{check_index_range, orient, repair, ConnectivityError, Mesh};
 use crate::mesh::{RepairReport, Repaired};
@@ -36,10 +36,11 @@ pub(crate) struct Prepared {
 pub(crate) fn prepare_mesh(
     file: &Path,
     faces: &[[u32; 3]],
-    frames: &[Vec<Vector3<f64>>],
+    frames: &[&[Vector3<f64>]],
     options: &LoadOptions,
+    sum: SumOverReaders,
 ) -> Result<Prepared, Error> {
-    let n_file = frames.first().map_or(0, Vec::len);
+    let n_file = frames.first().map_or(0, |f| f.len());
     check_index_range(faces, n_file).map_err(|e| Error::from(e).in_file(file))?;
     if !(options.weld_tolerance >= 0.0 && options.weld_tolerance.is_finite()) {
         return Err(IoError::format(
@@ -52,7 +53,7 @@ pub(crate) fn prepare_mesh(
         .into());
     }
     let weld = match options.weld {
-        true => weld(faces, frames, options.weld_tolerance).map_err(|e| {
+        true => weld(faces, frames, options.weld_tolerance, sum).map_err(|e| {
             IoError::format(
                 file,
                 format!(
@@ -309,9 +310,7 @@ fn built_mesh(
 ) -> Result<LoadedMesh, Error> {
     crate::geometry::check_finite_positions(&positions)
         .map_err(|e| Error::from(e).in_file(path))?;
-    let frames = [positions];
-    let prepared = prepare_mesh(path, faces, &frames, options)?;
-    let [positions] = frames;
+    let prepared = prepare_mesh(path, faces, &[&positions], options, &|_| {})?;
     Ok(LoadedMesh {
         positions: prepared.vertex_map.positions(&positions),
         mesh: prepared.mesh,

@@ -19,6 +19,7 @@ use super::input::{FrameFormat, SequenceSource};
 use super::ply::read_ply;
 use super::prepare::{prepare_mesh, Prepared};
 use super::warning::STATIC_IMAGE_TOLERANCE;
+pub use super::weld::SumOverReaders;
 use super::{
     read_npy_float, read_npy_image, read_npy_indices, read_obj, select_channels, texture_colors,
 };
@@ -31,6 +32,7 @@ use crate::Error;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use std::cmp::Ordering;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 /// Choices for [`load_sequence`] (and [`super::load_mesh`]); `Default` is "everything from the
@@ -114,10 +116,140 @@ impl LoadedSequence {
 /// Reads the sequence that `path` names (a directory, a glob, a glTF animation; see
 /// [`SequenceSource`]).
 pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequence, Error> {
+    load_frames(path, options, None, &|_| {})
+}
+
+/// The frames `frames` (all with `None`) of the sequence that `path` names, numbered from the
+/// range's start, at their own times: what one rank of a solve over time windows holds
+/// ([`crate::flow::window`]). Frame files outside the range are not opened, except frame 0,
+/// whose faces are the connectivity and whose positions the weld starts from; a glTF animation
+/// or NPY arrays are read whole and cut. Every process reading some frames of one sequence
+/// passes `sum` over all of them ([`SumOverReaders`]), so that they weld alike; warnings about
+/// the whole sequence (a static image) are for a reader of all frames to give.
+pub fn load_frames(
+    path: &Path,
+    options: &LoadOptions,
+    frames: Option<Range<usize>>,
+    sum: SumOverReaders,
+) -> Result<LoadedSequence, Error> {
     let source = SequenceSource::detect(path)?;
     check_options(&source, options, path)?;
-    let raw = read_raw(&source, options)?;
-    build_sequence(source, raw, options, path)
+    let window = read_window(&source, options, frames, path)?;
+    build_sequence(source, window, options, path, sum)
+}
+
+/// How many frames the sequence that `path` names has, reading as little as its format
+/// allows (frame files: none; a glTF animation or NPY arrays: all of it).
+pub fn count_frames(path: &Path, options: &LoadOptions) -> Result<usize, Error> {
+    let source = SequenceSource::detect(path)?;
+    check_options(&source, options, path)?;
+    Ok(match &source {
+        SequenceSource::Frames { files, .. } => files.len(),
+        _ => read_raw(&source, options)?.positions.len(),
+    })
+}
+
+/// Some consecutive frames of a [`RawSequence`] (`raw` holds only those).
+struct RawWindow {
+    raw: RawSequence,
+    /// The sequence's frames that `raw` holds.
+    held: Range<usize>,
+    n_frames_in_all: usize,
+    /// Frame 0's positions when the window starts later: the weld's reference frame.
+    frame_zero: Option<Vec<Vector3<f64>>>,
+}
+
+impl RawWindow {
+    fn whole(raw: RawSequence) -> Self {
+        RawWindow {
+            n_frames_in_all: raw.positions.len(),
+            held: 0..raw.positions.len(),
+            raw,
+            frame_zero: None,
+        }
+    }
+
+    /// `raw` (frame 0, then the frames `frames` when they start later; else `frames`) as the
+    /// window `frames`.
+    fn of(mut raw: RawSequence, frames: Range<usize>, n_frames_in_all: usize) -> Self {
+        let frame_zero = match frames.start {
+            0 => None,
+            _ => {
+                let zero = raw.positions.remove(0);
+                raw.sources.remove(0);
+                if let Some(images) = &mut raw.images {
+                    images.remove(0);
+                }
+                Some(zero)
+            }
+        };
+        RawWindow {
+            raw,
+            held: frames,
+            n_frames_in_all,
+            frame_zero,
+        }
+    }
+
+    /// The frames of all `values` (one per frame of the sequence) that the window holds.
+    fn cut<T: Clone>(&self, values: &[T]) -> Vec<T> {
+        values[self.held.clone()].to_vec()
+    }
+
+    fn is_whole(&self) -> bool {
+        self.held.len() == self.n_frames_in_all
+    }
+}
+
+/// Reads the frames `frames` of `source` (all with `None`) and frame 0.
+fn read_window(
+    source: &SequenceSource,
+    options: &LoadOptions,
+    frames: Option<Range<usize>>,
+    path: &Path,
+) -> Result<RawWindow, Error> {
+    let Some(frames) = frames else {
+        return Ok(RawWindow::whole(read_raw(source, options)?));
+    };
+    let n_frames_in_all = match source {
+        SequenceSource::Frames { files, .. } => files.len(),
+        _ => {
+            let whole = RawWindow::whole(read_raw(source, options)?);
+            whole.n_frames_in_all
+        }
+    };
+    if frames.is_empty() || frames.end > n_frames_in_all {
+        return Err(IoError::format(
+            path,
+            format!("frames {frames:?} asked of a sequence of {n_frames_in_all} frames"),
+        )
+        .into());
+    }
+    let with_zero = |k: usize| k == 0 || frames.contains(&k);
+    let raw = match source {
+        SequenceSource::Frames { format, files } => {
+            let files: Vec<PathBuf> = (files.iter().enumerate())
+                .filter(|&(k, _)| with_zero(k))
+                .map(|(_, f)| f.clone())
+                .collect();
+            read_frames(*format, &files, options)?
+        }
+        _ => {
+            let mut raw = read_raw(source, options)?;
+            let keep: Vec<bool> = (0..n_frames_in_all).map(with_zero).collect();
+            let mut kept = keep.iter().copied();
+            raw.positions.retain(|_| kept.next().unwrap_or(false));
+            let mut kept = keep.iter().copied();
+            raw.sources.retain(|_| kept.next().unwrap_or(false));
+            if let Some(images) = &mut raw.images {
+                let mut kept = keep.iter().copied();
+                images.retain(|_| kept.next().unwrap_or(false));
+            }
+            raw.times = (raw.times.as_deref()).map(|t| t.get(frames.clone()).unwrap_or(t).to_vec());
+            raw
+        }
+    };
+    Ok(RawWindow::of(raw, frames, n_frames_in_all))
 }
 
 /// A sequence from arrays in memory, through the same steps as [`load_sequence`] (welding,
@@ -144,7 +276,7 @@ pub fn sequence_from_arrays(
         times,
         warnings: Vec::new(),
     };
-    build_sequence(source, raw, options, path)
+    build_sequence(source, RawWindow::whole(raw), options, path, &|_| {})
 }
 
 /// What errors name when the input came as arrays (the Python package, library callers).
@@ -153,9 +285,10 @@ pub(super) const ARRAYS: &str = "arrays";
 /// The steps after reading (module docs): mesh, image channels, times, sequence.
 fn build_sequence(
     source: SequenceSource,
-    raw: RawSequence,
+    window: RawWindow,
     options: &LoadOptions,
     path: &Path,
+    sum: SumOverReaders,
 ) -> Result<LoadedSequence, Error> {
     let RawSequence {
         faces,
@@ -164,13 +297,18 @@ fn build_sequence(
         times,
         sources: files,
         mut warnings,
-    } = raw;
-    if positions.len() < 2 {
-        return Err(FlowError::TooFewFrames(positions.len()).into());
+    } = window.raw;
+    let window = RawWindow {
+        raw: RawSequence::default(),
+        ..window
+    };
+    if window.n_frames_in_all < 2 {
+        return Err(FlowError::TooFewFrames(window.n_frames_in_all).into());
     }
     let n_file_vertices = positions[0].len();
     check_frame_sizes(&positions, images.as_deref(), &files)?;
-    let prepared = prepare_geometry(&faces, &positions, &files, options)?;
+    let frame_zero = window.frame_zero.as_ref();
+    let prepared = prepare_geometry(&faces, &positions, frame_zero, &files, options, sum)?;
     let vertex_map = prepared.vertex_map;
     let counts = [
         VertexCount::new(n_file_vertices, "vertices in the files"),
@@ -178,8 +316,8 @@ fn build_sequence(
     ];
     let (images, images_file, on_mesh) = match &options.intensity {
         Some(file) => {
-            let (images, count) = read_intensity_rows(file, positions.len(), &counts)?;
-            (images, file.as_path(), count == 1)
+            let (images, count) = read_intensity_rows(file, window.n_frames_in_all, &counts)?;
+            (window.cut(&images), file.as_path(), count == 1)
         }
         None => (
             images.ok_or_else(|| {
@@ -203,6 +341,20 @@ fn build_sequence(
     )?;
     let times_file = source.times_file();
     let (times, times_from_file) = frame_times(&source, options, times)?;
+    // Times that came for all frames (options, `times.txt`) are cut to the window's, which
+    // keeps its own numbers without any.
+    let times = match (times, window.is_whole()) {
+        (times, true) => times,
+        (Some(times), false) if times.len() == window.n_frames_in_all => Some(window.cut(&times)),
+        (Some(times), false) => Some(times),
+        (None, false) => Some(
+            window.cut(
+                &(0..window.n_frames_in_all)
+                    .map(|k| k as f64)
+                    .collect::<Vec<_>>(),
+            ),
+        ),
+    };
     let positions = positions.iter().map(|p| vertex_map.positions(p)).collect();
     let on_vertices = |values: &Vec<f64>| match on_mesh {
         true => values.clone(),
@@ -223,7 +375,9 @@ fn build_sequence(
             }
         })?;
     warnings.extend(prepared.warnings);
-    warnings.extend(static_image_warning(&sequence, path));
+    if window.is_whole() {
+        warnings.extend(static_image_warning(&sequence, path));
+    }
     Ok(LoadedSequence {
         sequence,
         source,
@@ -276,7 +430,14 @@ pub struct LoadedGeometry {
 pub fn load_geometry(path: &Path, options: &LoadOptions) -> Result<LoadedGeometry, Error> {
     let source = SequenceSource::detect(path)?;
     let raw = read_raw(&source, options)?;
-    let prepared = prepare_geometry(&raw.faces, &raw.positions, &raw.sources, options)?;
+    let prepared = prepare_geometry(
+        &raw.faces,
+        &raw.positions,
+        None,
+        &raw.sources,
+        options,
+        &|_| {},
+    )?;
     let vertex_map = prepared.vertex_map;
     let positions = raw
         .positions
@@ -298,15 +459,23 @@ pub fn load_geometry(path: &Path, options: &LoadOptions) -> Result<LoadedGeometr
 }
 
 /// Frames of equal size with finite positions, and the mesh built from their faces.
+/// With `frame_zero` (frame 0's positions, when `positions` are later frames only) the weld
+/// starts from it; `sum` as in [`load_frames`].
 fn prepare_geometry(
     faces: &[[u32; 3]],
     positions: &[Vec<Vector3<f64>>],
+    frame_zero: Option<&Vec<Vector3<f64>>>,
     files: &[PathBuf],
     options: &LoadOptions,
+    sum: SumOverReaders,
 ) -> Result<Prepared, Error> {
     check_frame_sizes(positions, None, files)?;
     check_finite_positions(positions).map_err(|e| in_frame_file(e, files))?;
-    prepare_mesh(&files[0], faces, positions, options)
+    let weld_frames: Vec<&[Vector3<f64>]> = (frame_zero.into_iter())
+        .chain(positions)
+        .map(Vec::as_slice)
+        .collect();
+    prepare_mesh(&files[0], faces, &weld_frames, options, sum)
 }
 
 /// Every frame has as many positions (and grey values) as frame 0 has positions: readers

@@ -66,21 +66,31 @@ pub(crate) struct TooManyPairs {
 /// dozen); neighbours within the tolerance make many more.
 const MAX_PAIRS_PER_VERTEX: usize = 16;
 
+/// Adds up, over every process that reads some frames of one sequence, a count per candidate
+/// pair: how the processes of a solve over time windows agree on one weld ([`weld`]). In one
+/// process, nothing to add: `&|_| {}`.
+pub type SumOverReaders<'a> = &'a dyn Fn(&mut [f64]);
+
 /// Welds the file vertices of `faces` by the module's rule; `frames` holds one position per
-/// file vertex each, `tolerance` is relative to frame 0's bounding-box diagonal. Indices must
-/// be in range.
+/// file vertex each, frame 0 first, `tolerance` is relative to frame 0's bounding-box
+/// diagonal. Indices must be in range.
+///
+/// Processes that read different frames (each frame 0 and its own) weld alike when each passes
+/// `sum` over all of them: the candidate pairs come from frame 0 alone, the same everywhere,
+/// and a pair is coincident when no process finds it apart in one of its frames.
 pub(crate) fn weld(
     faces: &[[u32; 3]],
-    frames: &[Vec<Vector3<f64>>],
+    frames: &[&[Vector3<f64>]],
     tolerance: f64,
+    sum: SumOverReaders,
 ) -> Result<Weld, TooManyPairs> {
-    let n = frames.first().map_or(0, Vec::len);
+    let n = frames.first().map_or(0, |f| f.len());
     let mut used = vec![false; n];
     faces
         .iter()
         .flatten()
         .for_each(|&v| used[v as usize] = true);
-    let close = close_pairs(&used, frames, tolerance)?;
+    let close = close_pairs(&used, frames, tolerance, sum)?;
     if close.is_empty() {
         return Ok(Weld::none(n));
     }
@@ -222,10 +232,14 @@ impl Adjacency {
 
 /// Pairs `[a, b]`, `a < b`, of used vertices close in every frame (rule 1 without the face
 /// condition), found through a grid on frame 0.
+/// The pairs of used vertices within the welding radius in every frame of every reader
+/// ([`weld`]): candidates close in frame 0 (`frames[0]`), kept when `sum` finds no reader's
+/// frame where they are apart.
 fn close_pairs(
     used: &[bool],
-    frames: &[Vec<Vector3<f64>>],
+    frames: &[&[Vector3<f64>]],
     tolerance: f64,
+    sum: SumOverReaders,
 ) -> Result<Vec<[u32; 2]>, TooManyPairs> {
     let Some(first) = frames.first() else {
         return Ok(Vec::new());
@@ -251,11 +265,9 @@ fn close_pairs(
         },
         false => Grid::Bitwise,
     };
-    let close = |a: usize, b: usize| {
-        frames.iter().all(|p| match grid {
-            Grid::Bitwise => bitwise_key(&p[a]) == bitwise_key(&p[b]),
-            Grid::Cells { .. } => (p[a] - p[b]).norm() <= radius,
-        })
+    let close_in = |p: &[Vector3<f64>], a: usize, b: usize| match grid {
+        Grid::Bitwise => bitwise_key(&p[a]) == bitwise_key(&p[b]),
+        Grid::Cells { .. } => (p[a] - p[b]).norm() <= radius,
     };
     // Vertices sorted by cell: a cell's vertices are one run, found by binary search.
     let mut cells: Vec<([u64; 3], u32)> = used
@@ -278,7 +290,7 @@ fn close_pairs(
                 let partners = run.map(|&(_, b)| b);
                 pairs.extend(
                     partners
-                        .filter(|&b| a < b && close(a as usize, b as usize))
+                        .filter(|&b| a < b && close_in(first, a as usize, b as usize))
                         .map(|b| [a, b]),
                 );
             });
@@ -286,10 +298,26 @@ fn close_pairs(
             pairs
         })
         .collect();
-    match found.into_inner() > limit {
-        true => Err(TooManyPairs { limit }),
-        false => Ok(pairs),
+    if found.into_inner() > limit {
+        return Err(TooManyPairs { limit });
     }
+    if pairs.is_empty() {
+        return Ok(pairs);
+    }
+    let mut apart: Vec<f64> = pairs
+        .par_iter()
+        .map(|&[a, b]| {
+            let close = frames[1..]
+                .iter()
+                .all(|p| close_in(p, a as usize, b as usize));
+            f64::from(u8::from(!close))
+        })
+        .collect();
+    sum(&mut apart);
+    Ok((pairs.into_iter().zip(apart))
+        .filter(|&(_, apart)| apart == 0.0)
+        .map(|(pair, _)| pair)
+        .collect())
 }
 
 /// Grid cells are this many times the welding radius: a vertex's partners lie in its own cell

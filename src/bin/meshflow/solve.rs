@@ -13,7 +13,7 @@ use meshflow::flow::{
     Weight, Weights,
 };
 use meshflow::io::{
-    load_sequence, read_npy_float, write_flow_outputs, Scores, StagedDir, TrackReport,
+    load_frames, load_sequence, read_npy_float, write_flow_outputs, Scores, StagedDir, TrackReport,
 };
 use meshflow::io::{read_ground_truth, GroundTruthReport, LoadedSequence};
 use meshflow::render::{result_views, View};
@@ -57,9 +57,14 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
     // files that are not an earlier meshflow output.
     let mut out = StagedDir::create_apart_from(&args.input, &args.out, args.force.overwrite())?;
     out.record_command(crate::command_line());
-    let loaded = during(format!("reading {}", args.input.display()), || {
-        load_sequence(&args.input, &args.load_options())
-    })?;
+    // Over ranks, the others read their windows' frames and weld with rank 0 (`load_frames`).
+    let loaded = during(
+        format!("reading {}", args.input.display()),
+        || match ranks {
+            None => load_sequence(&args.input, &args.load_options()),
+            Some(ranks) => load_frames(&args.input, &args.load_options(), None, &|v| ranks.sum(v)),
+        },
+    )?;
     crate::print_warnings(&loaded.warnings);
     let sequence = &loaded.sequence;
     println!(
@@ -101,8 +106,7 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
                 ranks.size(),
                 sequence.n_slabs().div_ceil(ranks.size())
             ));
-            on_rank(sequence, ranks, &params, &|event| show(&progress, event))
-                .map(|result| result.expect("rank 0 gathers the flow"))
+            on_first_rank(sequence, ranks, &params, &|event| show(&progress, event))
         }
     };
     progress.finish();
@@ -191,33 +195,47 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
     Ok(())
 }
 
-/// A rank other than 0 of `mpirun -n R meshflow solve …`: reads the input, solves its time
-/// window with the others, prints nothing (rank 0 reports and writes).
+/// A rank other than 0 of `mpirun -n R meshflow solve …`: reads its time window's frames
+/// only (welding with the others), solves it with them, prints nothing (rank 0 reports and
+/// writes).
 #[cfg(feature = "mpi")]
 pub fn solve_on_rank(args: &SolveArgs, ranks: &dyn TimeRanks) -> Result<(), Error> {
     let params = flow_params(args)?;
-    let loaded = load_sequence(&args.input, &args.load_options())?;
-    on_rank(&loaded.sequence, ranks, &params, &|_| {})?;
+    let options = args.load_options();
+    let n_frames = meshflow::io::count_frames(&args.input, &options)?;
+    if n_frames < 2 {
+        return Err(FlowError::TooFewFrames(n_frames).into());
+    }
+    let window = window_of_rank(ranks, n_frames - 1)?;
+    let frames = Some(window.frames());
+    let loaded = load_frames(&args.input, &options, frames, &|v| ranks.sum(v))?;
+    flow_over_ranks(&loaded.sequence, &window, ranks, &params, &|_| {})?;
     Ok(())
 }
 
-/// This rank's part of the flow over ranks: its window's frames of `sequence`, the solve
-/// (`flow_over_ranks`); the whole result on rank 0.
-fn on_rank(
+/// Rank 0's part of the flow over ranks: its window's frames of the whole `sequence`, the
+/// solve (`flow_over_ranks`); the whole result.
+fn on_first_rank(
     sequence: &MeshSequence,
     ranks: &dyn TimeRanks,
     params: &FlowParams,
     observer: &dyn SolveObserver,
-) -> Result<Option<FlowResult>, FlowError> {
-    if ranks.size() > sequence.n_slabs() {
+) -> Result<FlowResult, FlowError> {
+    let window = window_of_rank(ranks, sequence.n_slabs())?;
+    let frames = sequence.frames(window.frames())?;
+    let result = flow_over_ranks(&frames, &window, ranks, params, observer)?;
+    Ok(result.expect("rank 0 gathers the flow"))
+}
+
+/// This rank's slabs of `n_slabs`; an error with more ranks than slabs.
+fn window_of_rank(ranks: &dyn TimeRanks, n_slabs: usize) -> Result<TimeWindow, FlowError> {
+    if ranks.size() > n_slabs {
         return Err(FlowError::TooManyRanks {
             ranks: ranks.size(),
-            slabs: sequence.n_slabs(),
+            slabs: n_slabs,
         });
     }
-    let window = TimeWindow::of_rank(ranks.rank(), ranks.size(), sequence.n_slabs());
-    let frames = sequence.frames(window.frames())?;
-    flow_over_ranks(&frames, &window, ranks, params, observer)
+    Ok(TimeWindow::of_rank(ranks.rank(), ranks.size(), n_slabs))
 }
 
 /// The solver's progress on the terminal (or in the log).
