@@ -246,7 +246,10 @@ pub fn flow_over_ranks(
         assembly_seconds: start.elapsed().as_secs_f64(),
     };
     let result = match (params.warping.is_active(), params.robust_smoothness) {
-        (true, _) => coarse_to_fine(&solver, &outer, observer)?,
+        (true, _) => {
+            drop(slabs); // warping builds its own slabs from the images
+            coarse_to_fine(&solver, &outer, observer)?
+        }
         (false, Some(epsilon)) => reweighted(&solver, &outer, slabs.slabs, epsilon, observer)?,
         (false, None) => solver.solve_window_slabs(slabs, params, observer, start)?,
     };

@@ -201,7 +201,8 @@ impl RawWindow {
     }
 }
 
-/// Reads the frames `frames` of `source` (all with `None`) and frame 0.
+/// Reads the frames `frames` of `source` (all with `None`) and frame 0: only those files of a
+/// frame sequence, the whole of any other source, cut.
 fn read_window(
     source: &SequenceSource,
     options: &LoadOptions,
@@ -211,45 +212,45 @@ fn read_window(
     let Some(frames) = frames else {
         return Ok(RawWindow::whole(read_raw(source, options)?));
     };
-    let n_frames_in_all = match source {
-        SequenceSource::Frames { files, .. } => files.len(),
-        _ => {
-            let whole = RawWindow::whole(read_raw(source, options)?);
-            whole.n_frames_in_all
-        }
-    };
-    if frames.is_empty() || frames.end > n_frames_in_all {
-        return Err(IoError::format(
+    let in_range = |n_frames_in_all: usize| match frames.is_empty() || frames.end > n_frames_in_all
+    {
+        true => Err(IoError::format(
             path,
             format!("frames {frames:?} asked of a sequence of {n_frames_in_all} frames"),
-        )
-        .into());
-    }
-    let with_zero = |k: usize| k == 0 || frames.contains(&k);
-    let raw = match source {
+        )),
+        false => Ok(n_frames_in_all),
+    };
+    let is_read = |k: usize| k == 0 || frames.contains(&k);
+    let (raw, n_frames_in_all) = match source {
         SequenceSource::Frames { format, files } => {
+            let n_frames_in_all = in_range(files.len())?;
             let files: Vec<PathBuf> = (files.iter().enumerate())
-                .filter(|&(k, _)| with_zero(k))
+                .filter(|&(k, _)| is_read(k))
                 .map(|(_, f)| f.clone())
                 .collect();
-            read_frames(*format, &files, options)?
+            (read_frames(*format, &files, options)?, n_frames_in_all)
         }
         _ => {
             let mut raw = read_raw(source, options)?;
-            let keep: Vec<bool> = (0..n_frames_in_all).map(with_zero).collect();
-            let mut kept = keep.iter().copied();
-            raw.positions.retain(|_| kept.next().unwrap_or(false));
-            let mut kept = keep.iter().copied();
-            raw.sources.retain(|_| kept.next().unwrap_or(false));
+            let n_frames_in_all = in_range(raw.positions.len())?;
+            keep_frames(&mut raw.positions, is_read);
+            keep_frames(&mut raw.sources, is_read);
             if let Some(images) = &mut raw.images {
-                let mut kept = keep.iter().copied();
-                images.retain(|_| kept.next().unwrap_or(false));
+                keep_frames(images, is_read);
             }
-            raw.times = (raw.times.as_deref()).map(|t| t.get(frames.clone()).unwrap_or(t).to_vec());
-            raw
+            (raw, n_frames_in_all)
         }
     };
     Ok(RawWindow::of(raw, frames, n_frames_in_all))
+}
+
+/// Keeps the entries `k` (one per frame) for which `is_read(k)`.
+fn keep_frames<T>(values: &mut Vec<T>, is_read: impl Fn(usize) -> bool) {
+    let mut k = 0;
+    values.retain(|_| {
+        k += 1;
+        is_read(k - 1)
+    });
 }
 
 /// A sequence from arrays in memory, through the same steps as [`load_sequence`] (welding,
@@ -290,6 +291,7 @@ fn build_sequence(
     path: &Path,
     sum: SumOverReaders,
 ) -> Result<LoadedSequence, Error> {
+    let mut window = window;
     let RawSequence {
         faces,
         positions,
@@ -297,11 +299,7 @@ fn build_sequence(
         times,
         sources: files,
         mut warnings,
-    } = window.raw;
-    let window = RawWindow {
-        raw: RawSequence::default(),
-        ..window
-    };
+    } = std::mem::take(&mut window.raw);
     if window.n_frames_in_all < 2 {
         return Err(FlowError::TooFewFrames(window.n_frames_in_all).into());
     }
@@ -341,19 +339,12 @@ fn build_sequence(
     )?;
     let times_file = source.times_file();
     let (times, times_from_file) = frame_times(&source, options, times)?;
-    // Times that came for all frames (options, `times.txt`) are cut to the window's, which
-    // keeps its own numbers without any.
-    let times = match (times, window.is_whole()) {
-        (times, true) => times,
-        (Some(times), false) if times.len() == window.n_frames_in_all => Some(window.cut(&times)),
-        (Some(times), false) => Some(times),
-        (None, false) => Some(
-            window.cut(
-                &(0..window.n_frames_in_all)
-                    .map(|k| k as f64)
-                    .collect::<Vec<_>>(),
-            ),
-        ),
+    // Times for all frames (options, `times.txt`, a glTF animation's) are cut to the window's,
+    // which keeps its own numbers without any; others fail validation below.
+    let times = match times {
+        Some(times) if times.len() == window.n_frames_in_all => Some(window.cut(&times)),
+        None if !window.is_whole() => Some(window.held.clone().map(|k| k as f64).collect()),
+        times => times,
     };
     let positions = positions.iter().map(|p| vertex_map.positions(p)).collect();
     let on_vertices = |values: &Vec<f64>| match on_mesh {
