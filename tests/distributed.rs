@@ -303,9 +303,11 @@ fn check_flow_over_ranks(name: &str, sequence: &MeshSequence, params: &FlowParam
 }
 
 /// Frames `0..6` of a 6 × 5 grid whose middle column is stored twice (a texture seam: the
-/// faces right of it use the copies), written as OBJ files with a grey value per vertex; with
-/// `tear_in_last`, the copies leave the originals in the last frame only.
-fn write_seam_sequence(dir: &std::path::Path, tear_in_last: bool) {
+/// faces right of it use the copies), written as OBJ files with a grey value per vertex (with
+/// `npy`, as an NPY directory: positions, faces, grey values); with `tear_in_last`, the copies
+/// leave the originals in the last frame only. The image moves across the grid
+/// (`image_moves`) or is fixed to it.
+fn write_grid_sequence(dir: &std::path::Path, tear_in_last: bool, image_moves: bool, npy: bool) {
     let (nx, ny, seam) = (6usize, 5usize, 3usize);
     let index = |i: usize, j: usize| (j * nx + i) as u32;
     let copy = |j: usize| (nx * ny + j) as u32;
@@ -321,6 +323,7 @@ fn write_seam_sequence(dir: &std::path::Path, tear_in_last: bool) {
             faces.push([corner(i, j), corner(i + 1, j + 1), corner(i, j + 1)]);
         }
     }
+    let (mut frames, mut greys) = (Vec::new(), Vec::new());
     for k in 0..6 {
         let t = k as f64;
         let mut positions: Vec<Vector3<f64>> = (0..ny)
@@ -332,24 +335,33 @@ fn write_seam_sequence(dir: &std::path::Path, tear_in_last: bool) {
             .map(|j| positions[index(seam, j) as usize] + Vector3::z() * tear)
             .collect();
         positions.extend(copies);
+        let shift = if image_moves { 0.3 * t } else { 0.0 };
         let colors: Vec<[f64; 3]> = (positions.iter())
-            .map(|p| [((p.x - 0.3 * t) * 1.3).sin() * 0.4 + 0.5 + 0.05 * p.y; 3])
+            .map(|p| [((p.x - shift) * 1.3).sin() * 0.4 + 0.5 + 0.05 * p.y; 3])
             .collect();
         let file = dir.join(format!("frame_{k}.obj"));
-        meshflow::io::write_obj(&file, &positions, &faces, Some(&colors)).unwrap();
+        if !npy {
+            meshflow::io::write_obj(&file, &positions, &faces, Some(&colors)).unwrap();
+        }
+        greys.push(colors.iter().map(|c| c[0]).collect::<Vec<f64>>());
+        frames.push(positions);
+    }
+    if npy {
+        let times = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0];
+        meshflow::io::write_npy_sequence(dir, &frames, &faces, Some(&greys), &times).unwrap();
     }
 }
 
-/// Ranks that read only their windows' frame files (and frame 0) weld as one reader of all
-/// frames does, by summing their verdicts on frame 0's coincident pairs: the seam is welded
+/// Ranks that read only their windows' frames and frame 0 (OBJ frame files, or those rows of
+/// NPY arrays) weld as one reader of all frames does, by summing their verdicts on frame 0's coincident pairs: the seam is welded
 /// when its copies follow the originals in every frame, and left apart when they leave them
 /// in the last frame only, even on ranks whose windows end before it. Positions, image and
 /// times are the whole sequence's frames of the window.
 #[test]
 fn ranks_read_their_windows_and_weld_alike() {
-    for tear_in_last in [false, true] {
+    for (tear_in_last, npy) in [(false, false), (true, false), (false, true), (true, true)] {
         let dir = tempfile::tempdir().unwrap();
-        write_seam_sequence(dir.path(), tear_in_last);
+        write_grid_sequence(dir.path(), tear_in_last, true, npy);
         let options = meshflow::io::LoadOptions::default();
         let whole = meshflow::io::load_sequence(dir.path(), &options).unwrap();
         let welded = whole.vertex_map.n_welded();
@@ -384,5 +396,105 @@ fn ranks_read_their_windows_and_weld_alike() {
         // Alone, a reader of frames 1..4 would weld the torn seam: the sum is what decides.
         let alone = meshflow::io::load_frames(dir.path(), &options, Some(1..4), &|_| {}).unwrap();
         assert!(alone.vertex_map.n_welded() > 0, "tear {tear_in_last}");
+    }
+}
+
+/// Ranks that each read only their window and hold only their own slabs write, through rank 0
+/// (`io::write_flow_over_ranks`, the slabs streamed to it one by one), byte for byte the files
+/// one process writes from the whole result: NPY arrays in the files' numbering (a welded
+/// seam), VTU and PVD, and `summary.json` with all frame times, the largest speed and the
+/// static-image warning that only a reader of all frames can give. Three channels, with
+/// warping (a warped residual per slab).
+#[test]
+fn ranks_stream_the_files_one_process_writes() {
+    use meshflow::io::{Channels, LoadOptions, OutputFormat, Overwrite, Scores, StagedDir};
+    let formats = [OutputFormat::Npy, OutputFormat::Vtu];
+    let view = meshflow::render::View::default();
+    for image_moves in [true, false] {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("input");
+        std::fs::create_dir(&input).unwrap();
+        write_grid_sequence(&input, false, image_moves, false);
+        let options = LoadOptions {
+            channels: Channels::Rgb,
+            ..Default::default()
+        };
+        let whole = meshflow::io::load_sequence(&input, &options).unwrap();
+        assert!(whole.vertex_map.n_welded() > 0);
+        let static_warnings = whole.warnings.len();
+        assert_eq!(static_warnings, usize::from(!image_moves));
+        let params = FlowParams {
+            warping: Warping {
+                levels: 2,
+                warps: 1,
+            },
+            ..FlowParams::default()
+        };
+        let result = FlowProblem::new(&whole.sequence, &params)
+            .unwrap()
+            .solve(&|_| {})
+            .unwrap();
+        let single = dir.path().join("single");
+        let out = StagedDir::create(&single, Overwrite::EarlierRun).unwrap();
+        let scores = Scores::default();
+        meshflow::io::write_flow_outputs(&out, &whole, &params, &result, &formats, scores, &view)
+            .unwrap();
+        out.commit().unwrap();
+        for size in 1..=3 {
+            let streamed = dir.path().join(format!("ranks_{size}"));
+            std::thread::scope(|scope| {
+                for me in thread_ranks(size) {
+                    let window = TimeWindow::of_rank(me.rank, size, 5);
+                    let own = own_slabs(&result, &window);
+                    let (input, options, params, streamed) = (&input, &options, &params, &streamed);
+                    scope.spawn(move || {
+                        let frames = Some(window.frames());
+                        let sum = |v: &mut [f64]| me.sum(v);
+                        let loaded =
+                            meshflow::io::load_frames(input, options, frames, &sum).unwrap();
+                        if me.rank > 0 {
+                            return meshflow::io::send_own_slabs(&loaded, &window, &me, &own);
+                        }
+                        let out = StagedDir::create(streamed, Overwrite::EarlierRun).unwrap();
+                        let written = meshflow::io::write_flow_over_ranks(
+                            &out, &loaded, &window, &me, params, &own, &formats, &view,
+                        )
+                        .unwrap();
+                        assert_eq!(written.n_frames, 6);
+                        // Rank 0 alone read all frames, and its reader warned.
+                        assert_eq!(written.static_image.is_some(), !image_moves && size > 1);
+                        out.commit().unwrap();
+                    });
+                }
+            });
+            let names = |d: &std::path::Path| {
+                let mut names: Vec<_> = (std::fs::read_dir(d).unwrap())
+                    .map(|e| e.unwrap().file_name())
+                    .collect();
+                names.sort();
+                names
+            };
+            assert_eq!(names(&streamed), names(&single), "{size} ranks");
+            assert!(names(&single).len() >= 10, "{:?}", names(&single));
+            for name in names(&single) {
+                let read = |d: &std::path::Path| std::fs::read(d.join(&name)).unwrap();
+                let same = read(&streamed) == read(&single);
+                assert!(
+                    same,
+                    "{size} ranks, image moves {image_moves}: {name:?} differs"
+                );
+            }
+        }
+    }
+}
+
+/// `result` cut to the slabs of `window`, as the rank holding them computes it.
+fn own_slabs(result: &FlowResult, window: &TimeWindow) -> FlowResult {
+    let slabs = window.slabs.clone();
+    FlowResult {
+        intrinsic: result.intrinsic[slabs.clone()].to_vec(),
+        vectors: (result.vectors.as_ref()).map(|v| v[slabs.clone()].to_vec()),
+        warped_residual: (result.warped_residual.as_ref()).map(|r| r[slabs].to_vec()),
+        ..result.clone()
     }
 }

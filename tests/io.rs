@@ -134,6 +134,75 @@ fn npy_round_trip_and_validation() {
         .contains("not a valid .npy"));
 }
 
+/// Rows of the first axis read alone (`read_npy_float_rows`, `read_npy_image_rows`: what a rank
+/// reads of a long recording) equal those rows of the whole array, for float32, float64, uint8
+/// and uint16; the file's row count comes with them, and no row at all reads only the header.
+/// A truncated file is refused before any row is read.
+#[test]
+fn npy_rows_are_those_of_the_whole_array() {
+    use meshflow::io::{read_npy_float, read_npy_float_rows, read_npy_image, read_npy_image_rows};
+    let dir = tempfile::tempdir().unwrap();
+    let shape = [5u64, 4, 3];
+    let keep = |k: usize| matches!(k, 0 | 2 | 3);
+    let rows_of = |whole: &[f64]| -> Vec<f64> {
+        (whole.chunks(12).enumerate())
+            .filter(|(k, _)| keep(*k))
+            .flat_map(|(_, row)| row.to_vec())
+            .collect()
+    };
+    fn write<T: npyz::AutoSerialize + Copy>(path: &Path, shape: &[u64], data: &[T]) {
+        use npyz::WriterBuilder;
+        let mut bytes = Vec::new();
+        let mut writer = npyz::WriteOptions::new()
+            .default_dtype()
+            .shape(shape)
+            .writer(&mut bytes)
+            .begin_nd()
+            .unwrap();
+        writer.extend(data.iter().copied()).unwrap();
+        writer.finish().unwrap();
+        std::fs::write(path, bytes).unwrap();
+    }
+    let f32s: Vec<f32> = (0..60).map(|i| i as f32 * 0.37 - 3.0).collect();
+    let f64s: Vec<f64> = (0..60).map(|i| (i as f64).sin()).collect();
+    let u8s: Vec<u8> = (0..60).map(|i| (i * 7 % 256) as u8).collect();
+    let u16s: Vec<u16> = (0..60).map(|i| (i * 1031 % 65536) as u16).collect();
+    let files = [("f32", 0), ("f64", 1), ("u8", 2), ("u16", 3)].map(|(name, kind)| {
+        let path = dir.path().join(format!("{name}.npy"));
+        match kind {
+            0 => write(&path, &shape, &f32s),
+            1 => write(&path, &shape, &f64s),
+            2 => write(&path, &shape, &u8s),
+            _ => write(&path, &shape, &u16s),
+        }
+        path
+    });
+    for (k, path) in files.iter().enumerate() {
+        let whole = read_npy_image(path).unwrap();
+        let (rows, n_rows) = read_npy_image_rows(path, &keep).unwrap();
+        assert_eq!(n_rows, 5);
+        assert_eq!(rows.shape, vec![3, 4, 3], "{path:?}");
+        assert_eq!(rows.data, rows_of(&whole.data), "{path:?}");
+        if k < 2 {
+            let whole = read_npy_float(path).unwrap();
+            let (rows, _) = read_npy_float_rows(path, &keep).unwrap();
+            assert_eq!(rows.data, rows_of(&whole.data), "{path:?}");
+        }
+        let (none, n_rows) = read_npy_image_rows(path, &|_| false).unwrap();
+        assert_eq!((none.shape, none.data.len(), n_rows), (vec![0, 4, 3], 0, 5));
+    }
+    assert_eq!(
+        read_npy_image(&files[0]).unwrap().data[5],
+        f64::from(f32s[5])
+    );
+    let bytes = std::fs::read(&files[1]).unwrap();
+    let cut = write_file(dir.path(), "cut.npy", &bytes[..bytes.len() - 8]);
+    let message = read_npy_float_rows(&cut, &|k| k == 0)
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("does not fit"), "{message}");
+}
+
 #[test]
 fn matrix_market_round_trip_is_exact() {
     let dir = tempfile::tempdir().unwrap();

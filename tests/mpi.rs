@@ -87,8 +87,9 @@ fn a_broken_frame_file_ends_the_job_with_its_name() {
 
 /// `mpirun -n R meshflow solve`: the outputs of one process (the flow to 1e-10 of its largest
 /// value, the same files, the same iterations in the summary), for 2 and 3 ranks, and with
-/// `--large-motion` (each rank warps its own slabs) for 2; more ranks than slabs is a one-line
-/// error.
+/// `--large-motion` (each rank warps its own slabs); with the default formats rank 0 gathers
+/// the flow, without `flow.glb` the ranks stream their slabs to it (each reading only its
+/// window); more ranks than slabs is a one-line error.
 #[test]
 fn meshflow_solve_over_ranks_writes_the_single_process_outputs() {
     let meshflow = std::path::Path::new(env!("CARGO_BIN_EXE_meshflow"));
@@ -114,7 +115,16 @@ fn meshflow_solve_over_ranks_writes_the_single_process_outputs() {
         let array = meshflow::io::read_npy_float(&out.join("flow_intrinsic.npy")).unwrap();
         let summary = std::fs::read_to_string(out.join("summary.json")).unwrap();
         let summary: serde_json::Value = serde_json::from_str(&summary).unwrap();
-        (array.data, array.shape, summary["iterations"].clone())
+        let keys = [
+            "iterations",
+            "frames",
+            "slabs",
+            "times",
+            "warnings",
+            "welded_vertices",
+        ];
+        let facts: Vec<_> = keys.iter().map(|k| summary[k].clone()).collect();
+        (array.data, array.shape, facts)
     };
     let names = |d: &std::path::Path| {
         let mut n: Vec<_> = std::fs::read_dir(d)
@@ -124,7 +134,14 @@ fn meshflow_solve_over_ranks_writes_the_single_process_outputs() {
         n.sort();
         n
     };
-    for (options, rank_counts) in [(&[][..], &[2, 3][..]), (&["--large-motion"][..], &[2][..])] {
+    let streamed = ["--format", "npy,vtu"];
+    let streamed_warping = ["--format", "npy,vtu", "--large-motion"];
+    for (options, rank_counts) in [
+        (&[][..], &[2, 3][..]),
+        (&["--large-motion"][..], &[2][..]),
+        (&streamed[..], &[2, 3][..]),
+        (&streamed_warping[..], &[3][..]),
+    ] {
         let (ok, single, stderr) = run(1, options);
         assert!(ok, "{stderr}");
         let (expected, shape, iterations) = read(&single);

@@ -10,7 +10,9 @@
 //!
 //! [`flow_over_ranks`] is the whole computation on one rank: its window's slabs, the scales
 //! summed over ranks, the distributed solve ([`super::distributed`]), its slabs' flow and
-//! energy, gathered into one [`FlowResult`] on rank 0.
+//! energy, gathered into one [`FlowResult`] on rank 0; [`flow_of_own_slabs`] is the same
+//! without the gathering, for a writer that streams the slabs
+//! ([`crate::io::write_flow_over_ranks`]).
 //!
 //! Coarse-to-fine warping and robust smoothness change only slab-local data between their
 //! solves, so each rank warps or reweights its own slabs ([`super::outer`]). Not done per
@@ -227,6 +229,22 @@ pub fn flow_over_ranks(
     params: &FlowParams,
     observer: &dyn SolveObserver,
 ) -> Result<Option<FlowResult>, FlowError> {
+    let result = flow_of_own_slabs(frames, window, ranks, params, observer)?;
+    Ok(gather_result(ranks, result))
+}
+
+/// [`flow_over_ranks`] without the gathering: every rank returns the [`FlowResult`] of its
+/// own slabs `window.slabs` (their flow, R³ vectors, warped residual), with the whole
+/// sequence's energy, iterations and weights (equal on every rank; timings are each rank's
+/// own). What a writer that streams the slabs to their files needs
+/// ([`crate::io::write_flow_over_ranks`]): no rank ever holds the whole flow.
+pub fn flow_of_own_slabs(
+    frames: &MeshSequence,
+    window: &TimeWindow,
+    ranks: &dyn TimeRanks,
+    params: &FlowParams,
+    observer: &dyn SolveObserver,
+) -> Result<FlowResult, FlowError> {
     let start = Instant::now();
     let offset = window.frames().start;
     let slabs = WindowSlabs::new(frames, offset, window.clone(), params)?;
@@ -253,7 +271,7 @@ pub fn flow_over_ranks(
         (false, Some(epsilon)) => reweighted(&solver, &outer, slabs.slabs, epsilon, observer)?,
         (false, None) => solver.solve_window_slabs(slabs, params, observer, start)?,
     };
-    Ok(gather_result(ranks, result))
+    Ok(result)
 }
 
 /// One rank's time window as the [`SlabSolver`] of warping and reweighting.

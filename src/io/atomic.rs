@@ -60,14 +60,7 @@ pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
 ) -> Result<(), IoError> {
-    let name = path
-        .file_name()
-        .ok_or_else(|| IoError::format(path, "not a file path"))?;
-    let temporary = path.with_file_name(format!(
-        ".{}.{}.partial",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
+    let temporary = temporary_beside(path)?;
     let result = File::create(&temporary).and_then(|file| {
         let mut writer = BufWriter::new(file);
         write(&mut writer)?;
@@ -80,6 +73,18 @@ pub fn write_atomically(
         let _ = std::fs::remove_file(&temporary);
         IoError::file(path, source)
     })
+}
+
+/// Where [`write_atomically`] fills `path` before renaming it: `.NAME.PID.partial` beside it.
+pub(super) fn temporary_beside(path: &Path) -> Result<PathBuf, IoError> {
+    let name = path
+        .file_name()
+        .ok_or_else(|| IoError::format(path, "not a file path"))?;
+    Ok(path.with_file_name(format!(
+        ".{}.{}.partial",
+        name.to_string_lossy(),
+        std::process::id()
+    )))
 }
 
 /// The manifest file that marks a directory as meshflow's output.

@@ -25,12 +25,14 @@
 
 use super::gltf_write::{write_glb_animation, AnimationFrame};
 use super::vtk::{write_pvd, write_vtu_with_cells, NamedArray, PointArray};
-use super::{write_atomically, write_npy, IoError, LoadedSequence, StagedDir, VertexMap};
+use super::{write_atomically, write_npy, IoError, LoadWarning, LoadedSequence, NpyRows};
+use super::{StagedDir, VertexMap};
 use crate::accuracy::{FlowErrors, TrackScores, TrackSummary};
 use crate::flow::{FlowParams, FlowResult, MeshSequence};
 use crate::render::color_wheel::robust_max;
 use crate::render::{screen_flow_colors, Camera, View};
 use nalgebra::{Vector2, Vector3};
+use std::borrow::Cow;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
@@ -116,22 +118,34 @@ fn write_all(
 ) -> Result<(), IoError> {
     let sequence = &loaded.sequence;
     let errors = scores.flow.map(|g| &g.errors);
-    let velocity = (result.vectors.as_ref()).map(|vectors| tissue_velocity(sequence, vectors));
-    if formats.contains(&OutputFormat::Npy) {
-        write_flow_npy(dir, loaded, result, velocity.as_deref())?;
-        if let Some(errors) = errors {
-            write_error_npy(dir, &loaded.vertex_map, errors)?;
-        }
+    let embedded = result.vectors.is_some();
+    let mesh = (&loaded.vertex_map, sequence.mesh().faces());
+    let mut files = SlabFiles::create(dir, mesh, formats, sequence.n_slabs(), embedded)?;
+    for s in 0..sequence.n_slabs() {
+        files.add(s, &SlabOutput::of_result(sequence, s, result, s, errors))?;
     }
-    if let (Some(vectors), Some(velocity)) = (&result.vectors, &velocity) {
-        if formats.contains(&OutputFormat::Vtu) {
-            write_flow_vtk(dir, sequence, result, vectors, velocity, errors)?;
-        }
-        if formats.contains(&OutputFormat::Glb) {
-            write_flow_glb(&dir.join("flow.glb"), sequence, result, view)?;
-        }
+    let max_speed = files.finish()?;
+    if let (true, Some(errors)) = (formats.contains(&OutputFormat::Npy), errors) {
+        write_error_npy(dir, &loaded.vertex_map, errors)?;
     }
-    let mut summary = summary_json(loaded, params, result, scores);
+    if embedded && formats.contains(&OutputFormat::Glb) {
+        write_flow_glb(&dir.join("flow.glb"), sequence, result, view)?;
+    }
+    let facts = SequenceFacts::of(sequence, &loaded.warnings, max_speed);
+    write_summary(
+        dir,
+        &summary_of(&facts, loaded, params, result, scores),
+        view,
+    )
+}
+
+/// `summary.json`: `summary` with the `view` of the pictures.
+pub(super) fn write_summary(
+    dir: &Path,
+    summary: &serde_json::Value,
+    view: &View,
+) -> Result<(), IoError> {
+    let mut summary = summary.clone();
     summary["view"] = serde_json::to_value(view).expect("views serialize");
     write_atomically(&dir.join("summary.json"), |w| {
         serde_json::to_writer_pretty(&mut *w, &summary).map_err(std::io::Error::other)?;
@@ -139,36 +153,203 @@ fn write_all(
     })
 }
 
-fn write_flow_npy(
-    dir: &Path,
-    loaded: &LoadedSequence,
-    result: &FlowResult,
-    velocity: Option<&[Vec<Vector3<f64>>]>,
-) -> Result<(), IoError> {
-    let map = &loaded.vertex_map;
-    let (s, v) = (result.intrinsic.len() as u64, map.n_file_vertices() as u64);
-    let intrinsic: Vec<f64> = result
-        .intrinsic
-        .iter()
-        .flat_map(|slab| map.file_rows(slab, Vector2::repeat(f64::NAN)))
-        .flat_map(|u| [u.x, u.y])
-        .collect();
-    write_npy(&dir.join("flow_intrinsic.npy"), &[s, v, 2], &intrinsic)?;
-    if let (Some(vectors), Some(velocity)) = (&result.vectors, velocity) {
-        let write_vectors = |name: &str, slabs: &[Vec<Vector3<f64>>]| {
-            let rows: Vec<Vector3<f64>> = (slabs.iter())
-                .flat_map(|slab| map.file_rows(slab, Vector3::repeat(f64::NAN)))
-                .collect();
-            write_npy(&dir.join(name), &[s, v, 3], &flatten3(rows.iter()))
+/// One slab's outputs: its first frame (time, positions, image) and its flow there. Borrowed
+/// from a whole result ([`SlabOutput::of_result`]) or owned, as received from the rank that
+/// computed it ([`super::flow_over_ranks`]).
+#[derive(Clone, Debug)]
+pub(super) struct SlabOutput<'a> {
+    pub time: f64,
+    pub positions: Option<Cow<'a, [Vector3<f64>]>>,
+    /// The grey value ([`MeshSequence::intensities`]) and, with several, the channels.
+    pub intensity: Cow<'a, [f64]>,
+    pub channels: Option<Cow<'a, [Vec<f64>]>>,
+    pub intrinsic: Cow<'a, [Vector2<f64>]>,
+    pub vectors: Option<Cow<'a, [Vector3<f64>]>>,
+    pub velocity: Option<Vec<Vector3<f64>>>,
+    pub warped_residual: Option<Cow<'a, [f64]>>,
+    /// Against a ground truth: angular, endpoint and direction errors.
+    pub errors: Option<[&'a [f64]; 3]>,
+}
+
+impl<'a> SlabOutput<'a> {
+    /// Frame `k` of `sequence` alone (no flow): its time, positions and image.
+    pub fn frame(sequence: &'a MeshSequence, k: usize) -> Self {
+        SlabOutput {
+            time: sequence.times()[k],
+            positions: sequence.positions(k).map(Cow::Borrowed),
+            intensity: Cow::Borrowed(sequence.intensities(k)),
+            channels: (sequence.n_channels() > 1).then(|| Cow::Borrowed(sequence.channels(k))),
+            intrinsic: Cow::Borrowed(&[]),
+            vectors: None,
+            velocity: None,
+            warped_residual: None,
+            errors: None,
+        }
+    }
+
+    /// Slab `slab` of `result` (its `slab`-th slab), on frame `frame` of `sequence`.
+    pub fn of_result(
+        sequence: &'a MeshSequence,
+        frame: usize,
+        result: &'a FlowResult,
+        slab: usize,
+        errors: Option<&'a FlowErrors>,
+    ) -> Self {
+        let vectors = result.vectors.as_ref().map(|v| v[slab].as_slice());
+        let residual = result.warped_residual.as_ref();
+        SlabOutput {
+            intrinsic: Cow::Borrowed(&result.intrinsic[slab]),
+            vectors: vectors.map(Cow::Borrowed),
+            velocity: vectors.map(|u| slab_velocity(sequence, frame, u)),
+            warped_residual: residual.map(|r| Cow::Borrowed(&r[slab][..])),
+            errors: errors.map(|e| {
+                [
+                    &e.angular_degrees[slab],
+                    &e.endpoint[slab],
+                    &e.direction_degrees[slab],
+                ]
+                .map(Vec::as_slice)
+            }),
+            ..Self::frame(sequence, frame)
+        }
+    }
+
+    fn max_speed(&self) -> f64 {
+        max_speed(&self.intrinsic, self.vectors.as_deref())
+    }
+
+    /// The image's channels (the grey values when there is one).
+    pub fn channels_or_grey(&self) -> Vec<Vec<f64>> {
+        match &self.channels {
+            Some(channels) => channels.to_vec(),
+            None => vec![self.intensity.to_vec()],
+        }
+    }
+
+    /// The point arrays of its `flow_SSSS.vtu` (see the module table).
+    fn vtu_arrays(&self, vectors: &[Vector3<f64>], velocity: &[Vector3<f64>]) -> Vec<NamedArray> {
+        let speed: Vec<f64> = vectors.iter().map(|u| u.norm()).collect();
+        let mut arrays = vec![
+            NamedArray::vectors("flow", vectors),
+            NamedArray::vectors("velocity", velocity),
+            NamedArray::vectors2("flow_intrinsic", &self.intrinsic),
+            NamedArray::scalars("speed", &speed),
+            NamedArray::scalars("intensity", &self.intensity),
+        ];
+        if let Some(channels) = &self.channels {
+            arrays.push(NamedArray::channels("image", channels));
+        }
+        if let Some(residual) = &self.warped_residual {
+            arrays.push(NamedArray::scalars("warped_residual", residual));
+        }
+        if let Some([angular, endpoint, direction]) = self.errors {
+            arrays.extend([
+                NamedArray::scalars("angular_error", angular),
+                NamedArray::scalars("endpoint_error", endpoint),
+                NamedArray::scalars("direction_error", direction),
+            ]);
+        }
+        arrays
+    }
+}
+
+/// The largest speed of a slab's flow: of its R³ vectors, or of the intrinsic flow without them.
+fn max_speed(intrinsic: &[Vector2<f64>], vectors: Option<&[Vector3<f64>]>) -> f64 {
+    match vectors {
+        Some(vectors) => vectors.iter().map(|u| u.norm()).fold(0.0, f64::max),
+        None => intrinsic.iter().map(|u| u.norm()).fold(0.0, f64::max),
+    }
+}
+
+/// The per-slab files of a flow, filled slab by slab in order: the rows of `flow_intrinsic.npy`,
+/// `flow.npy` and `velocity.npy`, one `flow_SSSS.vtu` per slab, and at the end `flow.pvd` and
+/// `vertex_map.npy`. No slab is kept after it is written.
+pub(super) struct SlabFiles<'a> {
+    dir: &'a Path,
+    map: &'a VertexMap,
+    faces: &'a [[u32; 3]],
+    /// `flow_intrinsic.npy`, and for an embedded sequence `flow.npy` and `velocity.npy`.
+    npy: Option<(NpyRows, Option<[NpyRows; 2]>)>,
+    vtu: bool,
+    datasets: Vec<(f64, String)>,
+    max_speed: f64,
+}
+
+impl<'a> SlabFiles<'a> {
+    pub fn create(
+        dir: &'a Path,
+        (map, faces): (&'a VertexMap, &'a [[u32; 3]]),
+        formats: &[OutputFormat],
+        n_slabs: usize,
+        embedded: bool,
+    ) -> Result<Self, IoError> {
+        let (s, v) = (n_slabs as u64, map.n_file_vertices() as u64);
+        let npy = match formats.contains(&OutputFormat::Npy) {
+            true => Some((
+                NpyRows::create(&dir.join("flow_intrinsic.npy"), &[s, v, 2])?,
+                match embedded {
+                    true => Some([
+                        NpyRows::create(&dir.join("flow.npy"), &[s, v, 3])?,
+                        NpyRows::create(&dir.join("velocity.npy"), &[s, v, 3])?,
+                    ]),
+                    false => None,
+                },
+            )),
+            false => None,
         };
-        write_vectors("flow.npy", vectors)?;
-        write_vectors("velocity.npy", velocity)?;
+        Ok(SlabFiles {
+            dir,
+            map,
+            faces,
+            npy,
+            vtu: embedded && formats.contains(&OutputFormat::Vtu),
+            datasets: Vec::with_capacity(n_slabs),
+            max_speed: 0.0,
+        })
     }
-    if !map.is_identity() {
-        let table = map.to_npy();
-        write_npy(&dir.join("vertex_map.npy"), &[table.len() as u64], &table)?;
+
+    /// Slab `s`, the one after the last added.
+    pub fn add(&mut self, s: usize, slab: &SlabOutput) -> Result<(), IoError> {
+        self.max_speed = self.max_speed.max(slab.max_speed());
+        let map = self.map;
+        if let Some((intrinsic, vectors)) = &mut self.npy {
+            let rows = map.file_rows(&slab.intrinsic, Vector2::repeat(f64::NAN));
+            intrinsic.extend(rows.iter().flat_map(|u| [u.x, u.y]))?;
+            if let (Some(files), Some(u), Some(v)) = (vectors, &slab.vectors, &slab.velocity) {
+                for (file, values) in files.iter_mut().zip([&u[..], &v[..]]) {
+                    let rows = map.file_rows(values, Vector3::repeat(f64::NAN));
+                    file.extend(rows.iter().flat_map(|u| [u.x, u.y, u.z]))?;
+                }
+            }
+        }
+        if let (true, Some(positions), Some(u), Some(v)) =
+            (self.vtu, &slab.positions, &slab.vectors, &slab.velocity)
+        {
+            let arrays = slab.vtu_arrays(u, v);
+            let file = write_slab_vtu(self.dir, "flow", s, positions, self.faces, &arrays, &[])?;
+            self.datasets.push((slab.time, file));
+        }
+        Ok(())
     }
-    Ok(())
+
+    /// Closes the files; the largest speed of all slabs.
+    pub fn finish(self) -> Result<f64, IoError> {
+        if let Some((intrinsic, vectors)) = self.npy {
+            intrinsic.finish()?;
+            for file in vectors.into_iter().flatten() {
+                file.finish()?;
+            }
+            if !self.map.is_identity() {
+                let table = self.map.to_npy();
+                let path = self.dir.join("vertex_map.npy");
+                write_npy(&path, &[table.len() as u64], &table)?;
+            }
+        }
+        if self.vtu {
+            write_pvd(&self.dir.join("flow.pvd"), &self.datasets)?;
+        }
+        Ok(self.max_speed)
+    }
 }
 
 /// `angular_error.npy`, `endpoint_error.npy` and `direction_error.npy`, (S, V_file).
@@ -197,57 +378,21 @@ pub fn tissue_velocity(
     flow: &[Vec<Vector3<f64>>],
 ) -> Vec<Vec<Vector3<f64>>> {
     (flow.iter().enumerate())
-        .map(
-            |(s, u)| match (sequence.positions(s), sequence.positions(s + 1)) {
-                (Some(x0), Some(x1)) => {
-                    let dt = sequence.slab_duration(s);
-                    (x0.iter().zip(x1).zip(u))
-                        .map(|((a, b), u)| (b - a) / dt + u)
-                        .collect()
-                }
-                _ => u.clone(),
-            },
-        )
+        .map(|(s, u)| slab_velocity(sequence, s, u))
         .collect()
 }
 
-fn flatten3<'a>(vectors: impl Iterator<Item = &'a Vector3<f64>>) -> Vec<f64> {
-    vectors.flat_map(|u| [u.x, u.y, u.z]).collect()
-}
-
-/// One `.vtu` per slab on the positions of its first frame, and the `.pvd` that plays them.
-fn write_flow_vtk(
-    dir: &Path,
-    sequence: &MeshSequence,
-    result: &FlowResult,
-    vectors: &[Vec<Vector3<f64>>],
-    velocity: &[Vec<Vector3<f64>>],
-    errors: Option<&FlowErrors>,
-) -> Result<(), IoError> {
-    write_slab_vtus(dir, "flow", sequence, |s| {
-        let speed: Vec<f64> = vectors[s].iter().map(|u| u.norm()).collect();
-        let mut arrays = vec![
-            NamedArray::vectors("flow", &vectors[s]),
-            NamedArray::vectors("velocity", &velocity[s]),
-            NamedArray::vectors2("flow_intrinsic", &result.intrinsic[s]),
-            NamedArray::scalars("speed", &speed),
-            NamedArray::scalars("intensity", sequence.intensities(s)),
-        ];
-        if sequence.n_channels() > 1 {
-            arrays.push(NamedArray::channels("image", sequence.channels(s)));
+/// [`tissue_velocity`] of slab `s` with the flow `u`.
+fn slab_velocity(sequence: &MeshSequence, s: usize, u: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+    match (sequence.positions(s), sequence.positions(s + 1)) {
+        (Some(x0), Some(x1)) => {
+            let dt = sequence.slab_duration(s);
+            (x0.iter().zip(x1).zip(u))
+                .map(|((a, b), u)| (b - a) / dt + u)
+                .collect()
         }
-        if let Some(residual) = &result.warped_residual {
-            arrays.push(NamedArray::scalars("warped_residual", &residual[s]));
-        }
-        if let Some(errors) = errors {
-            arrays.extend([
-                NamedArray::scalars("angular_error", &errors.angular_degrees[s]),
-                NamedArray::scalars("endpoint_error", &errors.endpoint[s]),
-                NamedArray::scalars("direction_error", &errors.direction_degrees[s]),
-            ]);
-        }
-        arrays
-    })
+        _ => u.to_vec(),
+    }
 }
 
 /// A sequence's slabs for ParaView: `NAME_SSSS.vtu` with the positions of frame `s`, the mesh's
@@ -272,26 +417,35 @@ pub fn write_slab_vtus_with_cells(
 ) -> Result<(), IoError> {
     let mut datasets = Vec::with_capacity(sequence.n_slabs());
     for s in 0..sequence.n_slabs() {
-        let file = format!("{name}_{s:04}.vtu");
         let positions = sequence.positions(s).ok_or_else(|| {
             IoError::format(
-                dir.join(&file),
+                dir.join(format!("{name}_{s:04}.vtu")),
                 "an intrinsic sequence has no positions to write",
             )
         })?;
         let (points, cells) = arrays(s);
-        let point_data: Vec<PointArray> = points.iter().map(NamedArray::as_point_array).collect();
-        let cell_data: Vec<PointArray> = cells.iter().map(NamedArray::as_point_array).collect();
-        write_vtu_with_cells(
-            &dir.join(&file),
-            positions,
-            sequence.mesh().faces(),
-            &point_data,
-            &cell_data,
-        )?;
+        let faces = sequence.mesh().faces();
+        let file = write_slab_vtu(dir, name, s, positions, faces, &points, &cells)?;
         datasets.push((sequence.times()[s], file));
     }
     write_pvd(&dir.join(format!("{name}.pvd")), &datasets)
+}
+
+/// `NAME_SSSS.vtu` of slab `s`; its file name.
+fn write_slab_vtu(
+    dir: &Path,
+    name: &str,
+    s: usize,
+    positions: &[Vector3<f64>],
+    faces: &[[u32; 3]],
+    points: &[NamedArray],
+    cells: &[NamedArray],
+) -> Result<String, IoError> {
+    let file = format!("{name}_{s:04}.vtu");
+    let point_data: Vec<PointArray> = points.iter().map(NamedArray::as_point_array).collect();
+    let cell_data: Vec<PointArray> = cells.iter().map(NamedArray::as_point_array).collect();
+    write_vtu_with_cells(&dir.join(&file), positions, faces, &point_data, &cell_data)?;
+    Ok(file)
 }
 
 /// All frames as a morph animation; frame `k` is coloured by slab `min(k, S − 1)` with the
@@ -331,6 +485,34 @@ fn write_flow_glb(
     write_glb_animation(path, sequence.mesh().faces(), &frames)
 }
 
+/// What `summary.json` says about the whole sequence and its flow beyond the result's own
+/// figures: what a writer that streams the slabs learns as they pass
+/// ([`super::write_flow_over_ranks`]), a whole sequence at once ([`SequenceFacts::of`]).
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct SequenceFacts {
+    pub n_frames: usize,
+    pub n_vertices: usize,
+    pub n_faces: usize,
+    pub n_channels: usize,
+    pub times: Vec<f64>,
+    pub warnings: Vec<String>,
+    pub max_speed: f64,
+}
+
+impl SequenceFacts {
+    pub fn of(sequence: &MeshSequence, warnings: &[LoadWarning], max_speed: f64) -> Self {
+        SequenceFacts {
+            n_frames: sequence.n_frames(),
+            n_vertices: sequence.mesh().n_vertices(),
+            n_faces: sequence.mesh().n_faces(),
+            n_channels: sequence.n_channels(),
+            times: sequence.times().to_vec(),
+            warnings: warnings.iter().map(ToString::to_string).collect(),
+            max_speed,
+        }
+    }
+}
+
 /// The summary written next to the flow.
 pub fn summary_json(
     loaded: &LoadedSequence,
@@ -338,16 +520,22 @@ pub fn summary_json(
     result: &FlowResult,
     scores: Scores,
 ) -> serde_json::Value {
-    let sequence = &loaded.sequence;
-    let speeds: Vec<f64> = match &result.vectors {
-        Some(vectors) => vectors.iter().flatten().map(|u| u.norm()).collect(),
-        None => result
-            .intrinsic
-            .iter()
-            .flatten()
-            .map(|u| u.norm())
-            .collect(),
-    };
+    let vectors = |s: usize| result.vectors.as_ref().map(|v| v[s].as_slice());
+    let max_speed = (result.intrinsic.iter().enumerate())
+        .map(|(s, intrinsic)| max_speed(intrinsic, vectors(s)))
+        .fold(0.0, f64::max);
+    let facts = SequenceFacts::of(&loaded.sequence, &loaded.warnings, max_speed);
+    summary_of(&facts, loaded, params, result, scores)
+}
+
+/// [`summary_json`] with the whole sequence's `facts`.
+pub(super) fn summary_of(
+    facts: &SequenceFacts,
+    loaded: &LoadedSequence,
+    params: &FlowParams,
+    result: &FlowResult,
+    scores: Scores,
+) -> serde_json::Value {
     let files: Vec<String> = loaded
         .source
         .files()
@@ -359,7 +547,7 @@ pub fn summary_json(
         "input_files": files,
         "welded_vertices": loaded.vertex_map.n_welded(),
         "dropped_vertices": loaded.vertex_map.n_dropped(),
-        "warnings": loaded.warnings.iter().map(ToString::to_string).collect::<Vec<_>>(),
+        "warnings": facts.warnings,
         "energy": result.energy,
         "energy_terms": result.energy_terms,
         "energy_at_zero": result.energy_at_zero,
@@ -371,13 +559,13 @@ pub fn summary_json(
         "time_levels": result.time_levels,
         "factor_entries": result.factor_entries,
         "preconditioned_spectrum": result.preconditioned_spectrum,
-        "frames": sequence.n_frames(),
-        "slabs": sequence.n_slabs(),
-        "vertices": sequence.mesh().n_vertices(),
-        "faces": sequence.mesh().n_faces(),
-        "channels": sequence.n_channels(),
-        "times": sequence.times(),
-        "max_speed": speeds.iter().cloned().fold(0.0, f64::max),
+        "frames": facts.n_frames,
+        "slabs": facts.n_frames - 1,
+        "vertices": facts.n_vertices,
+        "faces": facts.n_faces,
+        "channels": facts.n_channels,
+        "times": facts.times,
+        "max_speed": facts.max_speed,
         "params": params,
         "weights": result.weights,
         "scales": result.scales,

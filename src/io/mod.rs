@@ -4,7 +4,8 @@
 //! node transforms), or NPY arrays ([`load_sequence`]); a known flow to compare with
 //! ([`read_ground_truth`]); single meshes ([`load_mesh`]). Both loaders weld seams, drop unused vertices, orient and optionally
 //! repair the faces, and keep a [`VertexMap`] between the files' vertices and the mesh's. Out: the flow (and its errors against a known one) as NPY, ParaView
-//! VTU/PVD and glTF ([`write_flow_outputs`]), operators as MatrixMarket.
+//! VTU/PVD and glTF ([`write_flow_outputs`]; over ranks, slab by slab as the ranks send their
+//! slabs: [`write_flow_over_ranks`]), operators as MatrixMarket.
 //!
 //! Every writer goes through [`write_atomically`]: the bytes land in a temporary file next to the
 //! target, which is renamed over it only when complete, so a failed run never leaves a
@@ -15,6 +16,7 @@ mod analysis_output;
 mod atomic;
 mod channels;
 mod flow_output;
+mod flow_over_ranks;
 mod frame;
 mod glb;
 pub mod gltf_read;
@@ -45,14 +47,16 @@ pub use flow_output::{
     write_slab_vtus, write_slab_vtus_with_cells, GroundTruthReport, OutputFormat, Scores,
     TrackReport,
 };
+pub use flow_over_ranks::{send_own_slabs, write_flow_over_ranks, WrittenFlow};
 pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use ground_truth::read_ground_truth;
 pub use input::{frame_files, FrameFormat, SequenceSource};
 pub use mtl::{texture_colors, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};
 pub use npy::{
-    read_npy, read_npy_f32, read_npy_float, read_npy_image, read_npy_indices, write_npy,
-    write_npy_sequence, write_npy_vectors, NpyArray,
+    read_npy, read_npy_f32, read_npy_float, read_npy_float_rows, read_npy_image,
+    read_npy_image_rows, read_npy_indices, write_npy, write_npy_sequence, write_npy_vectors,
+    KeepRows, NpyArray, NpyRows,
 };
 pub use obj::{read_obj, write_obj, ObjMesh};
 pub use prepare::{load_mesh, mesh_from_arrays, read_mesh_geometry, LoadedMesh};

@@ -1,8 +1,11 @@
 //! NumPy `.npy` arrays through npyz: float64 (or float32) data, integer index arrays.
 
+use super::atomic::temporary_beside;
 use super::{write_atomically, IoError};
 use npyz::WriterBuilder;
-use std::path::Path;
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Seek};
+use std::path::{Path, PathBuf};
 
 /// A float64 array in C (row-major) order.
 #[derive(Clone, Debug, PartialEq)]
@@ -39,6 +42,61 @@ pub fn write_npy<T: npyz::AutoSerialize + Copy>(
     })
 }
 
+/// A float64 `.npy` of a known shape written in pieces (slab by slab as the slabs arrive), as
+/// atomically as [`write_npy`]: it is filled beside `path` and appears there only when
+/// [`NpyRows::finish`] has checked that every value of the shape came.
+pub struct NpyRows {
+    path: PathBuf,
+    temporary: PathBuf,
+    /// The temporary file itself, synced before the rename (`writer` owns a clone).
+    file: File,
+    writer: Option<npyz::NpyWriter<f64, BufWriter<File>>>,
+}
+
+impl NpyRows {
+    pub fn create(path: &Path, shape: &[u64]) -> Result<Self, IoError> {
+        let temporary = temporary_beside(path)?;
+        let in_file = |source| IoError::file(path, source);
+        let file = File::create(&temporary).map_err(in_file)?;
+        let mut rows = Self {
+            path: path.to_path_buf(),
+            file: file.try_clone().map_err(in_file)?,
+            temporary,
+            writer: None,
+        };
+        let writer = (npyz::WriteOptions::new().default_dtype().shape(shape))
+            .writer(BufWriter::new(file))
+            .begin_nd()
+            .map_err(in_file)?;
+        rows.writer = Some(writer);
+        Ok(rows)
+    }
+
+    /// Appends values in C order.
+    pub fn extend(&mut self, values: impl IntoIterator<Item = f64>) -> Result<(), IoError> {
+        let writer = self.writer.as_mut().expect("open until finished");
+        writer
+            .extend(values)
+            .map_err(|source| IoError::file(&self.path, source))
+    }
+
+    /// Checks the count, syncs and renames the file onto its path.
+    pub fn finish(mut self) -> Result<(), IoError> {
+        let writer = self.writer.take().expect("finished once");
+        (writer.finish())
+            .and_then(|()| self.file.sync_all())
+            .and_then(|()| std::fs::rename(&self.temporary, &self.path))
+            .map_err(|source| IoError::file(&self.path, source))
+    }
+}
+
+impl Drop for NpyRows {
+    fn drop(&mut self) {
+        // Unfinished or failed: nothing appears at the path.
+        let _ = std::fs::remove_file(&self.temporary);
+    }
+}
+
 /// Reads a float64 `.npy` file in C order (either byte order), checking that the header's shape
 /// matches the data actually present before allocating for it.
 pub fn read_npy(path: &Path) -> Result<NpyArray, IoError> {
@@ -53,23 +111,79 @@ pub fn read_npy_float(path: &Path) -> Result<NpyArray, IoError> {
 
 /// A float `.npy` whose item size (bytes) is one of `sizes`, described as `expected`.
 fn read_floats(path: &Path, sizes: &[u64], expected: &str) -> Result<NpyArray, IoError> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
-    let file = open_npy(
-        path,
-        &bytes,
-        |t| t.type_char() == npyz::TypeChar::Float && sizes.contains(&t.size_field()),
-        expected,
-    )?;
-    let shape = file.shape().to_vec();
-    let single = matches!(file.dtype(), npyz::DType::Plain(t) if t.size_field() == 4);
-    let data = match single {
-        true => file
-            .into_vec::<f32>()
-            .map(|values| values.into_iter().map(f64::from).collect()),
-        false => file.into_vec::<f64>(),
+    let file = open_npy(path, |t| is_float_of(t, sizes), expected)?;
+    Ok(float_rows(path, file, &|_| true)?.0)
+}
+
+fn is_float_of(t: &npyz::TypeStr, sizes: &[u64]) -> bool {
+    t.type_char() == npyz::TypeChar::Float && sizes.contains(&t.size_field())
+}
+
+/// Which rows of an array (indices along its first axis: the frames of a sequence) to read.
+pub type KeepRows<'a> = &'a dyn Fn(usize) -> bool;
+
+/// The rows `keep` of a float32 or float64 `.npy` ([`read_npy_float`]) as float64, the others
+/// skipped on disk, never read: the array of the kept rows (its first axis their count) and the
+/// number of rows in the file. What a rank reading its time window of a long recording needs.
+pub fn read_npy_float_rows(path: &Path, keep: KeepRows) -> Result<(NpyArray, u64), IoError> {
+    let file = open_npy(path, |t| is_float_of(t, &[4, 8]), "float32 or float64")?;
+    float_rows(path, file, keep)
+}
+
+/// [`read_npy_float_rows`] of an opened float32 or float64 file.
+fn float_rows(path: &Path, file: NpyFile, keep: KeepRows) -> Result<(NpyArray, u64), IoError> {
+    match matches!(file.dtype(), npyz::DType::Plain(t) if t.size_field() == 4) {
+        true => kept_rows(path, file, keep, |v: f32| f64::from(v)),
+        false => kept_rows(path, file, keep, |v: f64| v),
     }
-    .map_err(|e| IoError::format(path, format!("truncated or corrupt data ({e})")))?;
-    Ok(NpyArray { shape, data })
+}
+
+/// The rows `keep` of an image `.npy` ([`read_npy_image`]), as [`read_npy_float_rows`] reads
+/// them.
+pub fn read_npy_image_rows(path: &Path, keep: KeepRows) -> Result<(NpyArray, u64), IoError> {
+    use npyz::TypeChar::Float;
+    let file = open_npy(path, is_image_type, IMAGE_TYPES)?;
+    let npyz::DType::Plain(dtype) = file.dtype() else {
+        unreachable!("open_npy accepts plain types only")
+    };
+    match (dtype.type_char(), dtype.size_field()) {
+        (Float, 4) => kept_rows(path, file, keep, |v: f32| f64::from(v)),
+        (Float, _) => kept_rows(path, file, keep, |v: f64| v),
+        (_, 1) => kept_rows(path, file, keep, |v: u8| f64::from(v)),
+        _ => kept_rows(path, file, keep, |v: u16| f64::from(v)),
+    }
+}
+
+/// The rows `keep` of `file`, each element converted by `to`, seeking past the others.
+fn kept_rows<T: npyz::Deserialize>(
+    path: &Path,
+    file: NpyFile,
+    keep: KeepRows,
+    to: impl Fn(T) -> f64,
+) -> Result<(NpyArray, u64), IoError> {
+    let mut shape = file.shape().to_vec();
+    // A 0-dimensional array is one row of one value.
+    let rows = shape.first().copied().unwrap_or(1);
+    let row: u64 = shape.iter().skip(1).product();
+    let mut reader = file
+        .data::<T>()
+        .map_err(|e| IoError::format(path, e.to_string()))?;
+    let kept: Vec<u64> = (0..rows).filter(|&r| keep(r as usize)).collect();
+    let mut data = Vec::with_capacity(kept.len() * row as usize);
+    for r in &kept {
+        reader.seek_to(r * row).map_err(|e| corrupt(path, e))?;
+        for value in reader.by_ref().take(row as usize) {
+            data.push(to(value.map_err(|e| corrupt(path, e))?));
+        }
+    }
+    if let Some(first) = shape.first_mut() {
+        *first = kept.len() as u64;
+    }
+    Ok((NpyArray { shape, data }, rows))
+}
+
+fn corrupt(path: &Path, e: std::io::Error) -> IoError {
+    IoError::format(path, format!("truncated or corrupt data ({e})"))
 }
 
 /// The element types of images and volumes: what microscopes and image tools write.
@@ -93,8 +207,7 @@ pub fn read_npy_f32(path: &Path) -> Result<(Vec<u64>, Vec<f32>), IoError> {
 /// Reads a float32, float64, uint8 or uint16 `.npy` (per-vertex images: what microscopes and
 /// image tools write) as `f64` values in C order, exactly, with its shape.
 pub fn read_npy_image(path: &Path) -> Result<NpyArray, IoError> {
-    let (shape, data) = read_image(path, f64::from, |v| v, f64::from, f64::from)?;
-    Ok(NpyArray { shape, data })
+    Ok(read_npy_image_rows(path, &|_| true)?.0)
 }
 
 /// An image `.npy` ([`IMAGE_TYPES`]) with each element type converted by its function.
@@ -106,11 +219,9 @@ fn read_image<U>(
     from_u16: fn(u16) -> U,
 ) -> Result<(Vec<u64>, Vec<U>), IoError> {
     use npyz::TypeChar::Float;
-    let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
-    let file = open_npy(path, &bytes, is_image_type, IMAGE_TYPES)?;
+    let file = open_npy(path, is_image_type, IMAGE_TYPES)?;
     let shape = file.shape().to_vec();
-    let corrupt =
-        |e: std::io::Error| IoError::format(path, format!("truncated or corrupt data ({e})"));
+    let corrupt = |e| corrupt(path, e);
     let npyz::DType::Plain(dtype) = file.dtype() else {
         unreachable!("open_npy accepts plain types only")
     };
@@ -131,16 +242,13 @@ fn convert<T, U>(values: Vec<T>, to: impl Fn(T) -> U) -> Vec<U> {
 /// C order) as `u32`, with its shape; negative or ≥ 2³² values are errors naming the entry.
 pub fn read_npy_indices(path: &Path) -> Result<(Vec<u64>, Vec<u32>), IoError> {
     use npyz::TypeChar::{Int, Uint};
-    let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
     let file = open_npy(
         path,
-        &bytes,
         |t| matches!(t.type_char(), Int | Uint),
         "an integer type",
     )?;
     let shape = file.shape().to_vec();
-    let corrupt =
-        |e: std::io::Error| IoError::format(path, format!("truncated or corrupt data ({e})"));
+    let corrupt = |e| corrupt(path, e);
     let npyz::DType::Plain(dtype) = file.dtype() else {
         unreachable!("open_npy accepts plain integer types only")
     };
@@ -170,16 +278,25 @@ fn widen<T: Into<i128>>(values: Vec<T>) -> Vec<i128> {
     values.into_iter().map(Into::into).collect()
 }
 
-/// Parses the header, checks the dtype with `accepts` (described as `expected` in the error),
-/// C order, and that the shape fits the bytes present (before anything is allocated for it).
-fn open_npy<'a>(
+/// An open `.npy` file, positioned at its data.
+type NpyFile = npyz::NpyFile<BufReader<File>>;
+
+/// Opens `path` and parses its header, checks the dtype with `accepts` (described as
+/// `expected` in the error), C order, and that the shape fits the bytes present (before
+/// anything is allocated for it); nothing of the data is read yet.
+fn open_npy(
     path: &Path,
-    bytes: &'a [u8],
     accepts: impl Fn(&npyz::TypeStr) -> bool,
     expected: &str,
-) -> Result<npyz::NpyFile<&'a [u8]>, IoError> {
-    let file = npyz::NpyFile::new(bytes)
+) -> Result<NpyFile, IoError> {
+    let in_file = |e| IoError::file(path, e);
+    let file = File::open(path).map_err(in_file)?;
+    let length = file.metadata().map_err(in_file)?.len();
+    let mut reader = BufReader::new(file);
+    let header = npyz::NpyHeader::from_reader(&mut reader)
         .map_err(|e| IoError::format(path, format!("not a valid .npy file ({e})")))?;
+    let data_offset = reader.stream_position().map_err(in_file)?;
+    let file = npyz::NpyFile::with_header(header, reader);
     let dtype = file.dtype();
     let npyz::DType::Plain(type_str) = &dtype else {
         return Err(IoError::format(
@@ -202,7 +319,7 @@ fn open_npy<'a>(
     let shape = file.shape();
     let item = type_str.size_field();
     let needed = shape.iter().try_fold(item, |acc, &d| acc.checked_mul(d));
-    let present = bytes.len().saturating_sub(data_offset(bytes)) as u64;
+    let present = length.saturating_sub(data_offset);
     if needed != Some(present) {
         return Err(IoError::format(
             path,
@@ -210,20 +327,6 @@ fn open_npy<'a>(
         ));
     }
     Ok(file)
-}
-
-/// Where the data starts: magic (6 bytes), version (2), header length (2 bytes in format 1.0,
-/// 4 bytes later), header.
-fn data_offset(bytes: &[u8]) -> usize {
-    let le = |range: std::ops::Range<usize>| {
-        bytes
-            .get(range)
-            .map(|b| b.iter().rev().fold(0usize, |acc, &x| acc << 8 | x as usize))
-    };
-    match bytes.get(6) {
-        Some(1) => 10 + le(8..10).unwrap_or(0),
-        _ => 12 + le(8..12).unwrap_or(0),
-    }
 }
 
 /// Writes a sequence as the NPY directory that `meshflow solve` reads: `positions.npy`

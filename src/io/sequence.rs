@@ -21,7 +21,8 @@ use super::prepare::{prepare_mesh, Prepared};
 use super::warning::STATIC_IMAGE_TOLERANCE;
 pub use super::weld::SumOverReaders;
 use super::{
-    read_npy_float, read_npy_image, read_npy_indices, read_obj, select_channels, texture_colors,
+    read_npy_float_rows, read_npy_image_rows, read_npy_indices, read_obj, select_channels,
+    texture_colors, KeepRows,
 };
 use super::{Channels, VertexValues};
 use super::{FrameMesh, IoError, LoadWarning, RawSequence, TextureCache, VertexMap};
@@ -89,6 +90,8 @@ impl Default for LoadOptions {
 #[derive(Clone, Debug)]
 pub struct LoadedSequence {
     pub sequence: MeshSequence,
+    /// The path it was read from (a directory, a glob, a glTF file).
+    pub path: PathBuf,
     pub source: SequenceSource,
     /// File vertices ↔ mesh vertices.
     pub vertex_map: VertexMap,
@@ -122,8 +125,8 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
 /// The frames `frames` (all with `None`) of the sequence that `path` names, numbered from the
 /// range's start, at their own times: what one rank of a solve over time windows holds
 /// ([`crate::flow::window`]). Frame files outside the range are not opened, except frame 0,
-/// whose faces are the connectivity and whose positions the weld starts from; a glTF animation
-/// or NPY arrays are read whole and cut. Every process reading some frames of one sequence
+/// whose faces are the connectivity and whose positions the weld starts from; NPY arrays are
+/// read by rows (the others skipped on disk), a glTF animation whole and cut. Every process reading some frames of one sequence
 /// passes `sum` over all of them ([`SumOverReaders`]), so that they weld alike; warnings about
 /// the whole sequence (a static image) are for a reader of all frames to give.
 pub fn load_frames(
@@ -139,12 +142,14 @@ pub fn load_frames(
 }
 
 /// How many frames the sequence that `path` names has, reading as little as its format
-/// allows (frame files: none; a glTF animation or NPY arrays: all of it).
+/// allows (frame files: none; NPY arrays: their headers and faces; a glTF animation: all of
+/// it).
 pub fn count_frames(path: &Path, options: &LoadOptions) -> Result<usize, Error> {
     let source = SequenceSource::detect(path)?;
     check_options(&source, options, path)?;
     Ok(match &source {
         SequenceSource::Frames { files, .. } => files.len(),
+        SequenceSource::Npy(dir) => read_npy_sequence(dir, &|_| false)?.1,
         _ => read_raw(&source, options)?.positions.len(),
     })
 }
@@ -230,6 +235,10 @@ fn read_window(
                 .collect();
             (read_frames(*format, &files, options)?, n_frames_in_all)
         }
+        SequenceSource::Npy(dir) => {
+            let (raw, n_frames_in_all) = read_npy_sequence(dir, &is_read)?;
+            (raw, in_range(n_frames_in_all)?)
+        }
         _ => {
             let mut raw = read_raw(source, options)?;
             let n_frames_in_all = in_range(raw.positions.len())?;
@@ -314,8 +323,9 @@ fn build_sequence(
     ];
     let (images, images_file, on_mesh) = match &options.intensity {
         Some(file) => {
-            let (images, count) = read_intensity_rows(file, window.n_frames_in_all, &counts)?;
-            (window.cut(&images), file.as_path(), count == 1)
+            let held = |k: usize| window.held.contains(&k);
+            let (images, count) = read_intensity_rows(file, window.n_frames_in_all, &counts, &held)?;
+            (images, file.as_path(), count == 1)
         }
         None => (
             images.ok_or_else(|| {
@@ -371,6 +381,7 @@ fn build_sequence(
     }
     Ok(LoadedSequence {
         sequence,
+        path: path.to_path_buf(),
         source,
         vertex_map,
         frame_files: files,
@@ -508,37 +519,69 @@ fn check_frame_sizes(
 /// [`STATIC_IMAGE_TOLERANCE`] of its range) while some position changes (beyond round-off of
 /// the surface's size).
 fn static_image_warning(sequence: &MeshSequence, path: &Path) -> Option<LoadWarning> {
-    let frames = sequence.n_frames();
-    let same_channel = |c: usize| {
-        let channel = |k: usize| sequence.channels(k)[c].as_slice();
-        let (low, high) = (0..frames)
-            .flat_map(channel)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &g| {
-                (l.min(g), h.max(g))
-            });
-        let tolerance = STATIC_IMAGE_TOLERANCE * (high - low);
-        (1..frames).all(|k| {
-            channel(k)
-                .iter()
-                .zip(channel(0))
-                .all(|(a, b)| (a - b).abs() <= tolerance)
+    let frame = |k: usize| (sequence.positions(k), sequence.channels(k));
+    let mut check = StaticImageCheck::new(frame(0));
+    (1..sequence.n_frames()).for_each(|k| check.add(frame(k)));
+    check.warning(path)
+}
+
+/// [`static_image_warning`] taking the frames one at a time, in order from frame 0: what a
+/// reader that sees each frame once (streamed from other ranks) can tell.
+pub(super) struct StaticImageCheck {
+    frame_zero: (Option<Vec<Vector3<f64>>>, Vec<Vec<f64>>),
+    /// Per channel: lowest and highest value, largest difference from frame 0.
+    ranges: Vec<(f64, f64)>,
+    differences: Vec<f64>,
+    /// The largest coordinate of frame 0 (`None`: intrinsic, no warning) and whether any
+    /// position moved beyond round-off of it.
+    size: Option<f64>,
+    moves: bool,
+    frames: usize,
+}
+
+impl StaticImageCheck {
+    pub fn new((positions, channels): (Option<&[Vector3<f64>]>, &[Vec<f64>])) -> Self {
+        let mut check = StaticImageCheck {
+            frame_zero: (positions.map(<[_]>::to_vec), channels.to_vec()),
+            ranges: vec![(f64::INFINITY, f64::NEG_INFINITY); channels.len()],
+            differences: vec![0.0; channels.len()],
+            size: positions.map(|p| p.iter().map(|p| p.amax()).fold(0.0, f64::max)),
+            moves: false,
+            frames: 0,
+        };
+        check.add((positions, channels));
+        check
+    }
+
+    /// The next frame.
+    pub fn add(&mut self, (positions, channels): (Option<&[Vector3<f64>]>, &[Vec<f64>])) {
+        self.frames += 1;
+        let zero = &self.frame_zero;
+        for (c, channel) in channels.iter().enumerate() {
+            let (low, high) = &mut self.ranges[c];
+            for &g in channel {
+                (*low, *high) = (low.min(g), high.max(g));
+            }
+            let difference = (channel.iter().zip(&zero.1[c]))
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            self.differences[c] = self.differences[c].max(difference);
+        }
+        if let (Some(p), Some(q), Some(size)) = (positions, &zero.0, self.size) {
+            self.moves |= p.iter().zip(q).any(|(p, q)| (p - q).amax() > 1e-12 * size);
+        }
+    }
+
+    /// The warning for the frames added, read from `path`.
+    pub fn warning(&self, path: &Path) -> Option<LoadWarning> {
+        self.size?;
+        let same_image = (self.ranges.iter().zip(&self.differences))
+            .all(|((low, high), d)| *d <= STATIC_IMAGE_TOLERANCE * (high - low));
+        (same_image && self.moves).then(|| LoadWarning::StaticImage {
+            file: path.to_path_buf(),
+            frames: self.frames,
         })
-    };
-    let same_image = (0..sequence.n_channels()).all(same_channel);
-    let positions: Vec<&[Vector3<f64>]> = (0..frames)
-        .map(|k| sequence.positions(k))
-        .collect::<Option<_>>()?;
-    let size = positions[0].iter().map(|p| p.amax()).fold(0.0, f64::max);
-    let moves = positions[1..].iter().any(|frame| {
-        frame
-            .iter()
-            .zip(positions[0])
-            .any(|(p, q)| (p - q).amax() > 1e-12 * size)
-    });
-    (same_image && moves).then(|| LoadWarning::StaticImage {
-        file: path.to_path_buf(),
-        frames,
-    })
+    }
 }
 
 fn check_options(
@@ -591,7 +634,7 @@ fn read_raw(source: &SequenceSource, options: &LoadOptions) -> Result<RawSequenc
     match source {
         SequenceSource::Frames { format, files } => read_frames(*format, files, options),
         SequenceSource::GltfAnimation(file) => Ok(read_gltf_animation(file, options)?),
-        SequenceSource::Npy(dir) => read_npy_sequence(dir),
+        SequenceSource::Npy(dir) => Ok(read_npy_sequence(dir, &|_| true)?.0),
         SequenceSource::Arrays => unreachable!("arrays are not read"),
     }
 }
@@ -737,13 +780,19 @@ fn ply_property(
 
 /// `positions.npy` (K, V, 3), `faces.npy` (F, 3) and, if present, `intensity.npy` (K, V) or
 /// (K, V, C).
-fn read_npy_sequence(dir: &Path) -> Result<RawSequence, Error> {
+/// The frames `keep` of an NPY directory (the other rows of its arrays are not read), and how
+/// many frames it has.
+fn read_npy_sequence(dir: &Path, keep: KeepRows) -> Result<(RawSequence, usize), Error> {
     let positions_file = dir.join("positions.npy");
-    let array = read_npy_float(&positions_file)?;
+    let (array, k_all) = read_npy_float_rows(&positions_file, keep)?;
     let [k, v, 3] = array.shape[..] else {
+        let mut shape = array.shape.clone();
+        if let Some(first) = shape.first_mut() {
+            *first = k_all;
+        }
         return Err(IoError::format(
             &positions_file,
-            format!("shape {:?}, expected (frames, vertices, 3)", array.shape),
+            format!("shape {shape:?}, expected (frames, vertices, 3)"),
         )
         .into());
     };
@@ -778,24 +827,24 @@ fn read_npy_sequence(dir: &Path) -> Result<RawSequence, Error> {
     }
     let intensity_file = dir.join("intensity.npy");
     let images = match intensity_file.exists() {
-        true => Some(read_intensity_array(
-            &intensity_file,
-            k as usize,
-            v as usize,
-        )?),
+        true => {
+            let counts = [VertexCount::new(v as usize, "vertices")];
+            Some(read_intensity_rows(&intensity_file, k_all as usize, &counts, keep)?.0)
+        }
         false => None,
     };
     if let Some(message) = images.as_deref().and_then(first_non_finite) {
         return Err(IoError::format(&intensity_file, message).into());
     }
-    Ok(RawSequence {
+    let raw = RawSequence {
         faces,
         positions,
         images,
         times: None,
         sources: vec![positions_file; k as usize],
         warnings: Vec::new(),
-    })
+    };
+    Ok((raw, k_all as usize))
 }
 
 /// Where the first value that is not a finite number is, as a sentence.
@@ -914,33 +963,38 @@ pub fn read_intensity_array(
     n_vertices: usize,
 ) -> Result<Vec<VertexValues>, IoError> {
     let counts = [VertexCount::new(n_vertices, "vertices")];
-    Ok(read_intensity_rows(path, n_frames, &counts)?.0)
+    Ok(read_intensity_rows(path, n_frames, &counts, &|_| true)?.0)
 }
 
 /// [`read_intensity_array`] with rows for any of the vertex `counts` (say, the files' and the
 /// mesh's, when they differ): the image and which count its rows matched. The first matching
-/// count wins, so equal counts are never ambiguous.
+/// count wins, so equal counts are never ambiguous. Only the frames `keep` are read.
 fn read_intensity_rows(
     path: &Path,
     n_frames: usize,
     counts: &[VertexCount],
+    keep: KeepRows,
 ) -> Result<(Vec<VertexValues>, usize), IoError> {
-    let array = read_npy_image(path)?;
+    let (array, rows) = read_npy_image_rows(path, keep)?;
+    let mut shape = array.shape.clone();
+    if let Some(first) = shape.first_mut() {
+        *first = rows;
+    }
     let matches = |v: u64| counts.iter().position(|c| c.n as u64 == v);
     let k = n_frames as u64;
-    let (count, channels) = match array.shape[..] {
+    let (count, channels) = match shape[..] {
         [a, b] if a == k && matches(b).is_some() => (matches(b), None),
         [a, b, c] if a == k && matches(b).is_some() && c > 0 => (matches(b), Some(c as usize)),
         _ => {
             return Err(IoError::format(
                 path,
-                intensity_shape_error(&array.shape, n_frames, counts),
+                intensity_shape_error(&shape, n_frames, counts),
             ))
         }
     };
     let count = count.expect("matched above");
     let row = counts[count].n * channels.unwrap_or(1);
-    let images = split_frames(&array.data, n_frames, row)
+    let images = split_frames(&array.data, array.shape[0] as usize, row)
         .into_iter()
         .map(|frame| VertexValues::from_rows(frame, channels))
         .collect();

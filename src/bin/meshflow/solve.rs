@@ -7,7 +7,7 @@ use meshflow::accuracy::{
     check_embedded, compare_result, score_result, AccuracyError, FlowErrors, TrackSummary, Tracks,
 };
 use meshflow::flow::distributed::TimeRanks;
-use meshflow::flow::window::{flow_over_ranks, TimeWindow};
+use meshflow::flow::window::{flow_of_own_slabs, flow_over_ranks, TimeWindow};
 use meshflow::flow::{
     FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence, SolveEvent, SolveObserver,
     Weight, Weights,
@@ -16,6 +16,7 @@ use meshflow::io::{
     load_frames, load_sequence, read_npy_float, write_flow_outputs, Scores, StagedDir, TrackReport,
 };
 use meshflow::io::{read_ground_truth, GroundTruthReport, LoadedSequence};
+use meshflow::io::{write_flow_over_ranks, OutputFormat};
 use meshflow::render::{result_views, View};
 use meshflow::Error;
 use nalgebra::Vector3;
@@ -57,6 +58,9 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
     // files that are not an earlier meshflow output.
     let mut out = StagedDir::create_apart_from(&args.input, &args.out, args.force.overwrite())?;
     out.record_command(crate::command_line());
+    if let Some(ranks) = ranks.filter(|_| streams_outputs(args)) {
+        return solve_streamed(args, ranks, &params, out);
+    }
     // Over ranks, the others read their windows' frames and weld with rank 0 (`load_frames`).
     let loaded = during(
         format!("reading {}", args.input.display()),
@@ -67,18 +71,7 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
     )?;
     crate::print_warnings(&loaded.warnings);
     let sequence = &loaded.sequence;
-    println!(
-        "{}: {}, {} vertices, {} faces{}{}",
-        args.input.display(),
-        loaded.source.describe(),
-        sequence.mesh().n_vertices(),
-        sequence.mesh().n_faces(),
-        crate::welded_note(loaded.vertex_map.n_welded()),
-        match sequence.n_channels() {
-            1 => String::new(),
-            c => format!(", {c} image channels"),
-        }
-    );
+    print_input(args, &loaded);
     let slabs = match args.png {
         true => args.pictures.slabs(sequence.n_slabs())?,
         false => Vec::new(),
@@ -101,11 +94,7 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
         })
         .and_then(|problem| problem.solve(&|event| show(&progress, event))),
         Some(ranks) => {
-            progress.println(format!(
-                "solving over {} ranks (time windows of about {} slabs)",
-                ranks.size(),
-                sequence.n_slabs().div_ceil(ranks.size())
-            ));
+            progress.println(solving_over(ranks, sequence.n_slabs()));
             on_first_rank(sequence, ranks, &params, &|event| show(&progress, event))
         }
     };
@@ -148,25 +137,12 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
         false => Vec::new(),
     };
     out.commit()?;
-    println!(
-        "{}: {} frames x {} vertices -> {} slabs; {} solver, {} iterations, residual {:.1e}; energy {:.4e} (zero flow {:.4e}); {:.2} s -> {}",
-        args.input.display(),
-        sequence.n_frames(),
-        sequence.mesh().n_vertices(),
-        sequence.n_slabs(),
-        result.method,
-        result.iterations_in_all(),
-        result.relative_residual,
-        result.energy,
-        result.energy_at_zero,
-        result.timings.total,
-        args.out.display()
+    print_result(
+        args,
+        (sequence.n_frames(), sequence.mesh().n_vertices()),
+        &params,
+        &result,
     );
-    println!("{}", describe_weights(&result.weights, &params));
-    println!("solver: {}", describe_solver(&result));
-    if !result.timings.steps.is_empty() {
-        println!("{}", describe_steps(&result));
-    }
     if args.png {
         println!(
             "pictures: {} PNG files for {} slab{} in {}",
@@ -174,12 +150,6 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
             slabs.len(),
             if slabs.len() == 1 { "" } else { "s" },
             args.out.display()
-        );
-    }
-    if result.reweightings > 0 {
-        println!(
-            "robust smoothness: {} reweighted solves until the energy settled",
-            result.reweightings
         );
     }
     if let Some(report) = &report {
@@ -201,6 +171,129 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
 #[cfg(feature = "mpi")]
 pub fn solve_on_rank(args: &SolveArgs, ranks: &dyn TimeRanks) -> Result<(), Error> {
     let params = flow_params(args)?;
+    let (window, loaded) = read_window(args, ranks)?;
+    let sequence = &loaded.sequence;
+    match streams_outputs(args) {
+        true => {
+            let result = flow_of_own_slabs(sequence, &window, ranks, &params, &|_| {})?;
+            meshflow::io::send_own_slabs(&loaded, &window, ranks, &result);
+        }
+        false => {
+            flow_over_ranks(sequence, &window, ranks, &params, &|_| {})?;
+        }
+    }
+    Ok(())
+}
+
+/// The input as read: its source, mesh size, welding and channels.
+fn print_input(args: &SolveArgs, loaded: &LoadedSequence) {
+    let sequence = &loaded.sequence;
+    println!(
+        "{}: {}, {} vertices, {} faces{}{}",
+        args.input.display(),
+        loaded.source.describe(),
+        sequence.mesh().n_vertices(),
+        sequence.mesh().n_faces(),
+        crate::welded_note(loaded.vertex_map.n_welded()),
+        match sequence.n_channels() {
+            1 => String::new(),
+            c => format!(", {c} image channels"),
+        }
+    );
+}
+
+/// The solve's outcome: sizes, solver, energy, time, weights and steps.
+fn print_result(
+    args: &SolveArgs,
+    (n_frames, n_vertices): (usize, usize),
+    params: &FlowParams,
+    result: &FlowResult,
+) {
+    println!(
+        "{}: {} frames x {} vertices -> {} slabs; {} solver, {} iterations, residual {:.1e}; energy {:.4e} (zero flow {:.4e}); {:.2} s -> {}",
+        args.input.display(),
+        n_frames,
+        n_vertices,
+        n_frames - 1,
+        result.method,
+        result.iterations_in_all(),
+        result.relative_residual,
+        result.energy,
+        result.energy_at_zero,
+        result.timings.total,
+        args.out.display()
+    );
+    println!("{}", describe_weights(&result.weights, params));
+    println!("solver: {}", describe_solver(result));
+    if !result.timings.steps.is_empty() {
+        println!("{}", describe_steps(result));
+    }
+    if result.reweightings > 0 {
+        println!(
+            "robust smoothness: {} reweighted solves until the energy settled",
+            result.reweightings
+        );
+    }
+}
+
+/// Whether the ranks of a solve over ranks can write its outputs slab by slab, each sending its
+/// own to rank 0 ([`write_flow_over_ranks`]), so that no rank reads or holds more than its
+/// window: all outputs but `flow.glb`, pictures and ground-truth scores, which need every
+/// frame at once on rank 0 (it then reads the whole input and gathers the whole flow).
+fn streams_outputs(args: &SolveArgs) -> bool {
+    !args.format.contains(&OutputFormat::Glb)
+        && !args.png
+        && args.ground_truth.is_none()
+        && args.ground_truth_tracks.is_none()
+}
+
+/// Rank 0 of a solve over ranks whose outputs stream ([`streams_outputs`]): it reads its
+/// window only, like every rank, and writes the slabs as their ranks send them.
+fn solve_streamed(
+    args: &SolveArgs,
+    ranks: &dyn TimeRanks,
+    params: &FlowParams,
+    out: StagedDir,
+) -> Result<(), Error> {
+    let reading = format!("reading {} (rank 0's window)", args.input.display());
+    let (window, loaded) = during(reading, || read_window(args, ranks))?;
+    crate::print_warnings(&loaded.warnings);
+    print_input(args, &loaded);
+    let view = args.pictures.announced_view(&loaded.default_up());
+    let progress = solver_progress(params.tolerance);
+    progress.println(solving_over(ranks, window.n_slabs_in_all));
+    let observer = |event| show(&progress, event);
+    let result = flow_of_own_slabs(&loaded.sequence, &window, ranks, params, &observer);
+    progress.finish();
+    let result = result?;
+    let written = during(format!("writing {}", args.out.display()), || {
+        let formats = &args.format;
+        write_flow_over_ranks(
+            &out, &loaded, &window, ranks, params, &result, formats, &view,
+        )
+    })?;
+    crate::print_warnings(written.static_image.as_slice());
+    out.commit()?;
+    let n_vertices = loaded.sequence.mesh().n_vertices();
+    print_result(args, (written.n_frames, n_vertices), params, &result);
+    Ok(())
+}
+
+/// What rank 0 says before a solve over ranks.
+fn solving_over(ranks: &dyn TimeRanks, n_slabs: usize) -> String {
+    format!(
+        "solving over {} ranks (time windows of about {} slabs)",
+        ranks.size(),
+        n_slabs.div_ceil(ranks.size())
+    )
+}
+
+/// This rank's window of the sequence at `args.input` and its frames, welded alike on all
+/// ranks ([`load_frames`]).
+fn read_window(
+    args: &SolveArgs,
+    ranks: &dyn TimeRanks,
+) -> Result<(TimeWindow, LoadedSequence), Error> {
     let options = args.load_options();
     let n_frames = meshflow::io::count_frames(&args.input, &options)?;
     if n_frames < 2 {
@@ -209,8 +302,7 @@ pub fn solve_on_rank(args: &SolveArgs, ranks: &dyn TimeRanks) -> Result<(), Erro
     let window = window_of_rank(ranks, n_frames - 1)?;
     let frames = Some(window.frames());
     let loaded = load_frames(&args.input, &options, frames, &|v| ranks.sum(v))?;
-    flow_over_ranks(&loaded.sequence, &window, ranks, &params, &|_| {})?;
-    Ok(())
+    Ok((window, loaded))
 }
 
 /// Rank 0's part of the flow over ranks: its window's frames of the whole `sequence`, the
