@@ -138,3 +138,38 @@ fn a_trace_from_a_vertex_follows_its_frame_vector() {
         );
     }
 }
+
+/// A trace from a boundary vertex along a boundary edge — what a flow tangent to the boundary
+/// asks of warping, and what a direction pointing out of the surface is projected onto — runs
+/// along the boundary through the next vertices, whichever way round-off tilts its direction:
+/// directions within 1e-13 rad of the edge, inside or outside, land where the exact one does.
+/// (A tilt of 1e-16 out of the surface used to end the trace at its start, or stall it at the
+/// next boundary vertex: warping then jumped by the whole step under round-off.)
+#[test]
+fn a_trace_along_the_boundary_does_not_depend_on_round_off() {
+    let plane = grid(6, 6, 1.0, 1.0);
+    let mesh: Mesh = plane.mesh().unwrap();
+    let geometry = IntrinsicGeometry::from_positions(&mesh, &plane.positions).unwrap();
+    let connection = Connection::new(&mesh, &geometry);
+    let frames = vertex_frames_in_r3(&mesh, &geometry, &connection, &plane.positions).unwrap();
+    let length = 0.3; // crosses the next boundary vertex (cells are 1/6 wide)
+                      // Bottom edge (y = 0), then the left edge (x = 0), each from a vertex on it.
+    for (vertex, along) in [(3, Vector3::x()), (3 * 7, Vector3::y())] {
+        let tangent = frames[vertex].transpose() * along;
+        let psi = tangent.y.atan2(tangent.x);
+        for sign in [1.0, -1.0] {
+            for tilt in [0.0, 1e-16, -1e-16, 1e-13, -1e-13] {
+                let angle = psi + tilt;
+                let u = sign * length * Vector2::new(angle.cos(), angle.sin());
+                let (start, step) = connection.vertex_trace_start(&mesh, &geometry, vertex, u);
+                let end = trace(&mesh, &geometry, start, step);
+                let expected = plane.positions[vertex] + sign * length * along;
+                let reached = end.point.position(&mesh, &plane.positions);
+                assert!(
+                    (reached - expected).norm() < 1e-12,
+                    "vertex {vertex}, sign {sign}, tilt {tilt:e}: {reached:?} vs {expected:?}"
+                );
+            }
+        }
+    }
+}

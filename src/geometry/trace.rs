@@ -60,6 +60,16 @@ pub struct TraceEnd {
     pub reached_boundary: bool,
 }
 
+/// How far (the sine of the angle) a direction must point out through an edge for a path to
+/// leave through it; closer to parallel, it runs along the edge. Round-off tilts a direction
+/// meant to run along an edge by ~1e-16 either way — a flow tangent to the boundary, a
+/// direction projected onto a boundary edge ([`crate::connection::Connection::vertex_trace_start`])
+/// — and a path that left through a boundary edge at once, or stalled at the next vertex,
+/// would jump by its whole length with that round-off (warping on open surfaces did:
+/// `tests/trace.rs`). A path within 1e-12 of parallel strays from the edge by at most 1e-12
+/// of its length.
+const PARALLEL: f64 = 1e-12;
+
 /// Follows `step` (a vector in `start.face`'s layout frame; its length is the distance to go)
 /// from `start` along the straightest geodesic.
 pub fn trace(
@@ -85,7 +95,8 @@ pub fn trace(
         let b = end.point.barycentric;
         // Corner k's coordinate reaches 0 on the edge opposite k, halfedge (k + 1) % 3.
         let exit = (0..3)
-            .filter(|&k| rates[k] < 0.0 && Some((k + 1) % 3) != entry_edge)
+            .filter(|&k| rates[k] < -PARALLEL * gradients[k].norm())
+            .filter(|&k| Some((k + 1) % 3) != entry_edge)
             .map(|k| (k, (-b[k] / rates[k]).max(0.0)))
             .min_by(|x, y| x.1.total_cmp(&y.1));
         let advance = |t: f64| std::array::from_fn(|k| (b[k] + t * rates[k]).max(0.0));
