@@ -498,3 +498,72 @@ fn own_slabs(result: &FlowResult, window: &TimeWindow) -> FlowResult {
         ..result.clone()
     }
 }
+
+/// With `β = 0` a field the image cannot see makes the minimizer not unique: ranks refuse it as
+/// one process does ([`FlowError::Singular`], the same message, on every rank), each checking
+/// its own slabs and summing what couples them. A flat grid whose image varies along x only in
+/// frames 3 and 4: slab 3 alone is blind to `u = ŷ` (frame by frame, the error names it, on
+/// whichever rank holds it); coupled in time, the steady field `ŷ` is still seen by the other
+/// slabs (unique), and with the image striped in every frame it is not.
+#[test]
+fn ranks_refuse_a_flow_the_image_cannot_determine_as_one_process_does() {
+    use meshflow::flow::{FlowError, Weight};
+    let grid = meshflow::shapes::grid(6, 5, 1.0, 1.0);
+    let image = |striped: fn(usize) -> bool| {
+        common::still_sequence(&grid, 6, move |p, k| {
+            let stripes = (4.0 * p.x - 0.2 * k as f64).sin();
+            match striped(k) {
+                true => stripes,
+                false => stripes + 0.3 * (3.0 * p.y).sin(),
+            }
+        })
+    };
+    let in_slab_3 = image(|k| matches!(k, 3 | 4));
+    let everywhere = image(|_| true);
+    for (sequence, alpha, singular) in [
+        (&in_slab_3, f64::INFINITY, true),
+        (&in_slab_3, 1.0, false),
+        (&everywhere, 1.0, true),
+    ] {
+        let params = FlowParams {
+            alpha: Weight::Value(alpha),
+            solver: SolverChoice::PcgTimeMultigrid,
+            ..FlowParams::default()
+        };
+        let single = FlowProblem::new(sequence, &params).map(|_| ());
+        assert_eq!(single.is_err(), singular, "α {alpha}: {single:?}");
+        for size in 1..=3 {
+            let results: Vec<Result<(), String>> = std::thread::scope(|scope| {
+                let handles: Vec<_> = (thread_ranks(size).into_iter())
+                    .map(|me| {
+                        let window = TimeWindow::of_rank(me.rank, size, 5);
+                        let frames = sequence.frames(window.frames()).unwrap();
+                        let params = &params;
+                        scope.spawn(move || {
+                            flow_over_ranks(&frames, &window, &me, params, &|_| {})
+                                .map(|_| ())
+                                .map_err(|e| {
+                                    assert!(matches!(e, FlowError::Singular { .. }), "{e}");
+                                    e.to_string()
+                                })
+                        })
+                    })
+                    .collect();
+                handles.into_iter().map(|h| h.join().unwrap()).collect()
+            });
+            let expected = single.as_ref().map_err(ToString::to_string).cloned();
+            for result in results {
+                assert_eq!(result, expected, "α {alpha}, {size} ranks");
+            }
+        }
+    }
+    let frame_by_frame = FlowParams {
+        alpha: Weight::Value(f64::INFINITY),
+        ..FlowParams::default()
+    };
+    let message = FlowProblem::new(&in_slab_3, &frame_by_frame)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(message.contains("slab 3 "), "{message}");
+}

@@ -242,7 +242,14 @@ impl<'a> FlowProblem<'a> {
         let weights = params.weights(&scales)?;
         let links = slab::time_links(&slabs, &weights);
         let mesh = sequence.mesh();
-        uniqueness::check_unique_minimizer(mesh, &slabs, &links, params, &weights)?;
+        let checked = uniqueness::CheckedSlabs {
+            slabs: &slabs,
+            links: &links,
+            own: 0..slabs.len(),
+            offset: 0,
+        };
+        let one = solve::distributed::OneProcess;
+        uniqueness::check_unique_minimizer(mesh, &checked, params, &weights, &one)?;
         let system = SpaceTimeSystem::assemble(mesh, &slabs, &links, params, &weights);
         let slab_bytes = slabs.len() * (200 * mesh.n_faces() + 8 * mesh.n_halfedges());
         Ok(Self {

@@ -18,10 +18,14 @@
 //! `h_T = Rot(−θ_T) G_T` is singular. Dirichlet boundaries pin such fields to zero.
 
 use super::slab::{Slab, TimeLink};
+#[cfg(doc)]
+use super::solve::distributed::OneProcess;
+use super::solve::distributed::TimeRanks;
 use super::{Boundary, FlowError, FlowParams, Weights};
 use crate::connection::{rotation, wrap_angle};
 use crate::mesh::Mesh;
 use nalgebra::Matrix2;
+use std::ops::Range;
 
 /// Angles agreeing to this many radians are equal: far above round-off, far below any
 /// holonomy a real mesh produces.
@@ -29,13 +33,28 @@ const ANGLE_TOLERANCE: f64 = 1e-8;
 /// `det N ≤ this · (tr N)²` means `N` has a null direction.
 const SINGULAR_RATIO: f64 = 1e-10;
 
-/// `Ok` when the minimizer is unique; [`FlowError::Singular`] otherwise.
+/// The slabs a check sees: the whole sequence's, or over ranks one window's frames' slabs, of
+/// which `own` (local indices; slab `l` is the sequence's `l + offset`) are this rank's and the
+/// one after them, if any, lends its angles to their last link.
+pub struct CheckedSlabs<'a> {
+    pub slabs: &'a [Slab],
+    /// `links[l]` joins `slabs[l]` and `slabs[l + 1]` (none without time coupling).
+    pub links: &'a [TimeLink],
+    pub own: Range<usize>,
+    pub offset: usize,
+}
+
+/// `Ok` when the minimizer is unique; [`FlowError::Singular`] otherwise. Over ranks every rank
+/// calls it with its window ([`CheckedSlabs`]) and gets the same answer: each checks its own
+/// slabs and links, and the parts that couple all slabs (the first singular slab, whether
+/// every slab and link carries the parallel field, the rotation accumulated along the links,
+/// the data matrix `N`) are summed over `ranks` ([`OneProcess`] in one process).
 pub fn check_unique_minimizer(
     mesh: &Mesh,
-    slabs: &[Slab],
-    links: &[TimeLink],
+    checked: &CheckedSlabs,
     params: &FlowParams,
     weights: &Weights,
+    ranks: &dyn TimeRanks,
 ) -> Result<(), FlowError> {
     if weights.beta > 0.0 {
         return Ok(());
@@ -46,27 +65,26 @@ pub fn check_unique_minimizer(
         if pinned {
             continue;
         }
-        let angles: Vec<Option<Vec<f64>>> = slabs
-            .iter()
+        // The own slabs' angles and the next slab's (its link needs them).
+        let seen = checked.own.start..(checked.own.end + 1).min(checked.slabs.len());
+        let angles: Vec<Option<Vec<f64>>> = (checked.slabs[seen.clone()].iter())
             .map(|slab| parallel_face_angles(mesh, slab, component[0]))
             .collect();
+        let theta = |l: usize| angles[l - seen.start].as_ref();
         if !weights.is_coupled() {
-            for (s, face_angles) in angles.iter().enumerate() {
-                if let Some(theta) = face_angles {
-                    if is_singular(&data_matrix(mesh, &slabs[s], theta, &component)) {
-                        return Err(singular(format!("slab {s} carries a covariantly constant field along which the image has no gradient")));
-                    }
-                }
+            let singular_slab = checked.own.clone().find(|&l| {
+                theta(l).is_some_and(|theta| {
+                    is_singular(&data_matrix(mesh, &checked.slabs[l], theta, &component))
+                })
+            });
+            let first = first_over_ranks(ranks, singular_slab.map(|l| l + checked.offset));
+            if let Some(s) = first {
+                return Err(singular(format!("slab {s} carries a covariantly constant field along which the image has no gradient")));
             }
             continue;
         }
-        let Some(theta) = angles.into_iter().collect::<Option<Vec<_>>>() else {
-            continue;
-        };
-        let Some(total) = steady_data_matrix(mesh, slabs, links, &theta, &component) else {
-            continue;
-        };
-        if is_singular(&total) {
+        let total = steady_data_matrix(mesh, checked, &theta, &component, ranks);
+        if total.is_some_and(|total| is_singular(&total)) {
             return Err(singular(format!(
                 "vertex {} lies on a part of the surface that carries a covariantly constant field, steady in time, along which the image has no gradient",
                 component[0]
@@ -76,35 +94,62 @@ pub fn check_unique_minimizer(
     Ok(())
 }
 
+/// The smallest of the ranks' `value`s (`None` where a rank has none); collective.
+fn first_over_ranks(ranks: &dyn TimeRanks, value: Option<usize>) -> Option<usize> {
+    let mut slots = vec![0.0; ranks.size()];
+    slots[ranks.rank()] = value.map_or(0.0, |v| v as f64 + 1.0);
+    ranks.sum(&mut slots);
+    slots.iter().find(|&&v| v > 0.0).map(|&v| v as usize - 1)
+}
+
 /// `N` for a field that is parallel in every slab, or `None` when the time links do not carry
-/// one slab's parallel field onto the next by a single rotation.
-fn steady_data_matrix(
+/// one slab's parallel field onto the next by a single rotation; collective. Each rank adds
+/// its slabs' terms, rotated by the angle accumulated along all links before them (the sum of
+/// the earlier ranks' link angles).
+fn steady_data_matrix<'a>(
     mesh: &Mesh,
-    slabs: &[Slab],
-    links: &[TimeLink],
-    theta: &[Vec<f64>],
+    checked: &CheckedSlabs,
+    theta: &dyn Fn(usize) -> Option<&'a Vec<f64>>,
     component: &[usize],
+    ranks: &dyn TimeRanks,
 ) -> Option<Matrix2<f64>> {
     let faces = component_faces(mesh, component);
-    let mut total = Matrix2::zeros();
-    let mut phi = 0.0;
-    for (s, slab) in slabs.iter().enumerate() {
-        let rotate = rotation(phi);
-        total +=
-            rotate.transpose() * data_matrix(mesh, slab, &theta[s], component) * rotate * slab.dt;
-        if let Some(link) = links.get(s) {
-            let kappa = |f: usize| link.polar_angles[f] + theta[s][f] - theta[s + 1][f];
-            let first = kappa(faces[0]);
-            if faces
-                .iter()
-                .any(|&f| wrap_angle(kappa(f) - first).abs() > ANGLE_TOLERANCE)
-            {
-                return None;
-            }
-            phi += first;
-        }
+    // The angle by which each own link carries the field on, `None` where it does not.
+    let link_angle = |l: usize| -> Option<f64> {
+        let link = checked.links.get(l)?;
+        let (before, after) = (theta(l)?, theta(l + 1)?);
+        let kappa = |f: usize| link.polar_angles[f] + before[f] - after[f];
+        let first = kappa(faces[0]);
+        (faces.iter())
+            .all(|&f| wrap_angle(kappa(f) - first).abs() <= ANGLE_TOLERANCE)
+            .then_some(first)
+    };
+    let own_links = checked.own.start..checked.own.end.min(checked.links.len());
+    let kappas: Option<Vec<f64>> = own_links.clone().map(link_angle).collect();
+    let parallel = checked.own.clone().all(|l| theta(l).is_some());
+    // Per rank: [1 where this rank's slabs or links break the field] then each rank's angle sum.
+    let mut sums = vec![0.0; 1 + ranks.size()];
+    match (&kappas, parallel) {
+        (Some(kappas), true) => sums[1 + ranks.rank()] = kappas.iter().sum(),
+        _ => sums[0] = 1.0,
     }
-    Some(total)
+    ranks.sum(&mut sums);
+    if sums[0] > 0.0 {
+        return None;
+    }
+    let kappas = kappas.expect("checked above");
+    let mut phi: f64 = sums[1..1 + ranks.rank()].iter().sum();
+    let mut total = Matrix2::zeros();
+    for (k, l) in checked.own.clone().enumerate() {
+        let rotate = rotation(phi);
+        let slab = &checked.slabs[l];
+        let theta = theta(l).expect("checked above");
+        total += rotate.transpose() * data_matrix(mesh, slab, theta, component) * rotate * slab.dt;
+        phi += kappas.get(k).copied().unwrap_or(0.0);
+    }
+    let mut entries = [total[(0, 0)], total[(0, 1)], total[(1, 0)], total[(1, 1)]];
+    ranks.sum(&mut entries);
+    Some(Matrix2::new(entries[0], entries[1], entries[2], entries[3]))
 }
 
 fn singular(reason: String) -> FlowError {

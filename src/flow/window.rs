@@ -15,16 +15,17 @@
 //! ([`crate::io::write_flow_over_ranks`]).
 //!
 //! Coarse-to-fine warping and robust smoothness change only slab-local data between their
-//! solves, so each rank warps or reweights its own slabs ([`super::outer`]). Not done per
-//! window: the check that the minimizer is unique (`uniqueness`), which couples all slabs (a
-//! singular system then shows as a solver that does not converge).
+//! solves, so each rank warps or reweights its own slabs (`flow::outer`). The check that
+//! the minimizer is unique (`β = 0`, `FlowError::Singular`) runs over the ranks before each solve:
+//! each checks its own slabs and links and the parts that couple all slabs are summed.
 
 use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, TimeRanks};
 use super::energy::energy_terms;
 use super::outer::{OuterStart, SlabSolver};
 use super::robust::reweighted;
-use super::slab::{build_slabs, embed_where_needed, time_links, Slab};
+use super::slab::{build_slabs, embed_where_needed, time_links, Slab, TimeLink};
 use super::system::SystemWindow;
+use super::uniqueness::{check_unique_minimizer, CheckedSlabs};
 use super::warp::coarse_to_fine;
 use super::{intrinsic_fields, slab_vectors, EnergyTerms, FlowResult, SolveObserver, Timings};
 use super::{DataScales, FlowError, FlowParams, MeshSequence, ScaleSums, SpaceTimeSystem};
@@ -58,7 +59,7 @@ impl TimeWindow {
     }
 }
 
-/// The slabs of one time window, built from its frames ([`window_frames`]).
+/// The slabs of one time window, built from its frames ([`TimeWindow::frames`]).
 pub struct WindowSlabs {
     /// The slabs of the frames, from slab `offset` on.
     slabs: Vec<Slab>,
@@ -138,12 +139,41 @@ impl WindowSlabs {
     ) -> Result<SystemWindow, FlowError> {
         let weights = params.weights(scales)?;
         let links = time_links(&self.slabs, &weights);
-        let system =
-            SpaceTimeSystem::assemble(frames.mesh(), &self.slabs, &links, params, &weights);
+        Ok(self.assemble_with(frames, params, &weights, &links))
+    }
+
+    /// [`WindowSlabs::assemble`] after [`check_unique_minimizer`] over `ranks` (collective).
+    fn check_and_assemble(
+        &self,
+        frames: &MeshSequence,
+        params: &FlowParams,
+        scales: &DataScales,
+        ranks: &dyn TimeRanks,
+    ) -> Result<SystemWindow, FlowError> {
+        let weights = params.weights(scales)?;
+        let links = time_links(&self.slabs, &weights);
+        let checked = CheckedSlabs {
+            slabs: &self.slabs,
+            links: &links,
+            own: self.local(&self.window.slabs),
+            offset: self.offset,
+        };
+        check_unique_minimizer(frames.mesh(), &checked, params, &weights, ranks)?;
+        Ok(self.assemble_with(frames, params, &weights, &links))
+    }
+
+    fn assemble_with(
+        &self,
+        frames: &MeshSequence,
+        params: &FlowParams,
+        weights: &Weights,
+        links: &[TimeLink],
+    ) -> SystemWindow {
+        let system = SpaceTimeSystem::assemble(frames.mesh(), &self.slabs, links, params, weights);
         let mut window = system.into_window(self.local(&self.window.slabs));
         window.slabs = self.window.slabs.clone();
         window.n_slabs_in_all = self.window.n_slabs_in_all;
-        Ok(window)
+        window
     }
 
     /// Global slabs as indices into the window's frames' slabs.
@@ -216,7 +246,7 @@ impl WindowSlabs {
 /// process's up to the solver's tolerance (the same preconditioner; sums in another order);
 /// the others return `None`. Timings are rank 0's; `factor_entries` are summed over ranks.
 ///
-/// Coarse-to-fine warping and robust smoothness run as in one process ([`super::outer`]):
+/// Coarse-to-fine warping and robust smoothness run as in one process (`flow::outer`):
 /// each rank warps or reweights its own slabs between the collective solves. Not distributed
 /// (an error on every rank): the `direct` and `pcg-jacobi` solvers
 /// ([`FlowError::NotDistributed`]). An error on one rank only (e.g. a broken frame of its
@@ -331,7 +361,7 @@ impl RankWindow<'_> {
         start: Instant,
     ) -> Result<FlowResult, FlowError> {
         let (frames, ranks) = (self.frames, self.ranks);
-        let system = slabs.assemble(frames, params, &self.scales)?;
+        let system = slabs.check_and_assemble(frames, params, &self.scales, ranks)?;
         slabs.release_large(frames);
         let assembly = start.elapsed().as_secs_f64();
         let solution = solve_window(&system, ranks, params, observer)?;

@@ -67,7 +67,7 @@ pub(crate) struct TooManyPairs {
 const MAX_PAIRS_PER_VERTEX: usize = 16;
 
 /// Adds up, over every process that reads some frames of one sequence, a count per candidate
-/// pair: how the processes of a solve over time windows agree on one weld ([`weld`]). In one
+/// pair: how the processes of a solve over time windows agree on one weld (`weld`). In one
 /// process, nothing to add: `&|_| {}`.
 pub type SumOverReaders<'a> = &'a dyn Fn(&mut [f64]);
 

@@ -5,7 +5,7 @@
 //!
 //! **The same preconditioners as one process.** The odd–even sweeps solve the even slabs, then
 //! the odd ones, by their index in the whole sequence, whatever the split; the multigrid in time
-//! pairs slabs `(2k, 2k + 1)` of the whole sequence as [`super::multigrid`] does. So the
+//! pairs slabs `(2k, 2k + 1)` of the whole sequence as the multigrid in time of one process does. So the
 //! iterates equal the single process's up to the order of the dot products' sums, and the
 //! iteration count does not depend on the number of ranks.
 //!
@@ -14,7 +14,7 @@
 //! an odd slab lends that slab's block and link to the rank before once, when the levels are
 //! built, and in every cycle its residual (restriction) and receives its correction back
 //! (prolongation); a window that ends at an odd slab borrows the same from the rank after
-//! ([`SystemWindow::merge_slab_pairs`]). As levels coarsen, windows shrink to nothing and their
+//! (`SystemWindow::merge_slab_pairs`). As levels coarsen, windows shrink to nothing and their
 //! ranks fall idle, until the one slab of the coarsest level lies on rank 0: ranks pair up
 //! level by level, a binary tree over time.
 //!
@@ -24,7 +24,7 @@
 //! restriction and prolongation. Messages between neighbours follow a fixed order (the lower
 //! rank of a pair sends first; even positions in the chain talk to the right first), so blocking
 //! sends cannot deadlock. How the ranks talk is the caller's ([`TimeRanks`]): MPI on a cluster
-//! ([`MpiRanks`], feature `mpi`), threads in the tests.
+//! (`MpiRanks`, feature `mpi`), threads in the tests.
 
 use super::cholesky::{analyze, CholeskyFactor, Precision};
 use super::multigrid::{prolong_add, residual, restrict};
@@ -304,7 +304,7 @@ impl<T: Precision> Preconditioner for WindowPreconditioner<'_, '_, T> {
 
 /// Solves the whole system of which `window` is this rank's part; every rank calls it with
 /// its window (the windows in rank order, each at least one slab, covering the sequence).
-/// Returns this rank's part of the solution (`u` on its slabs; the rest of [`Solution`] is the
+/// Returns this rank's part of the solution (`u` on its slabs; the rest of the `Solution` is the
 /// same on every rank).
 ///
 /// `params.solver`: `pcg-slab-gauss-seidel` and `pcg-time-multigrid` as in one process;
@@ -635,6 +635,31 @@ pub(crate) fn next_rank_first_slab(ranks: &dyn TimeRanks, first: &[f64]) -> Opti
         ..Default::default()
     };
     chain.talk(ranks, messages).1
+}
+
+/// A computation in one process seen as ranks: one rank, whose sums are its own values. For
+/// the code written once for both (e.g. the check that the minimizer is unique); it sends no
+/// messages.
+pub struct OneProcess;
+
+impl TimeRanks for OneProcess {
+    fn rank(&self) -> usize {
+        0
+    }
+
+    fn size(&self) -> usize {
+        1
+    }
+
+    fn sum(&self, _: &mut [f64]) {}
+
+    fn send(&self, _: usize, _: &[f64]) {
+        unreachable!("one process has no other rank to send to")
+    }
+
+    fn receive(&self, _: usize) -> Vec<f64> {
+        unreachable!("one process has no other rank to receive from")
+    }
 }
 
 /// Every rank's `values` on rank 0, in rank order (`None` on the other ranks): every rank
