@@ -302,12 +302,27 @@ fn check_flow_over_ranks(name: &str, sequence: &MeshSequence, params: &FlowParam
     }
 }
 
+/// How [`write_grid_sequence`] stores the frames.
+#[derive(Clone, Copy, Debug)]
+enum GridFormat {
+    /// `frame_K.obj` with a grey value per vertex.
+    Obj,
+    /// An NPY directory: positions, faces, grey values, times.
+    Npy,
+    /// One glTF animation `grid.glb` (morph targets, grey vertex colours).
+    Glb,
+}
+
 /// Frames `0..6` of a 6 × 5 grid whose middle column is stored twice (a texture seam: the
-/// faces right of it use the copies), written as OBJ files with a grey value per vertex (with
-/// `npy`, as an NPY directory: positions, faces, grey values); with `tear_in_last`, the copies
-/// leave the originals in the last frame only. The image moves across the grid
-/// (`image_moves`) or is fixed to it.
-fn write_grid_sequence(dir: &std::path::Path, tear_in_last: bool, image_moves: bool, npy: bool) {
+/// faces right of it use the copies), written in `format` into `dir`; the path to read. With
+/// `tear_in_last`, the copies leave the originals in the last frame only. The image moves
+/// across the grid (`image_moves`) or is fixed to it.
+fn write_grid_sequence(
+    dir: &std::path::Path,
+    tear_in_last: bool,
+    image_moves: bool,
+    format: GridFormat,
+) -> std::path::PathBuf {
     let (nx, ny, seam) = (6usize, 5usize, 3usize);
     let index = |i: usize, j: usize| (j * nx + i) as u32;
     let copy = |j: usize| (nx * ny + j) as u32;
@@ -323,7 +338,7 @@ fn write_grid_sequence(dir: &std::path::Path, tear_in_last: bool, image_moves: b
             faces.push([corner(i, j), corner(i + 1, j + 1), corner(i, j + 1)]);
         }
     }
-    let (mut frames, mut greys) = (Vec::new(), Vec::new());
+    let (mut frames, mut all_colors) = (Vec::new(), Vec::new());
     for k in 0..6 {
         let t = k as f64;
         let mut positions: Vec<Vector3<f64>> = (0..ny)
@@ -339,40 +354,64 @@ fn write_grid_sequence(dir: &std::path::Path, tear_in_last: bool, image_moves: b
         let colors: Vec<[f64; 3]> = (positions.iter())
             .map(|p| [((p.x - shift) * 1.3).sin() * 0.4 + 0.5 + 0.05 * p.y; 3])
             .collect();
-        let file = dir.join(format!("frame_{k}.obj"));
-        if !npy {
-            meshflow::io::write_obj(&file, &positions, &faces, Some(&colors)).unwrap();
-        }
-        greys.push(colors.iter().map(|c| c[0]).collect::<Vec<f64>>());
         frames.push(positions);
+        all_colors.push(colors);
     }
-    if npy {
-        let times = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0];
-        meshflow::io::write_npy_sequence(dir, &frames, &faces, Some(&greys), &times).unwrap();
+    let times = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0];
+    match format {
+        GridFormat::Obj => {
+            for (k, (positions, colors)) in frames.iter().zip(&all_colors).enumerate() {
+                let file = dir.join(format!("frame_{k}.obj"));
+                meshflow::io::write_obj(&file, positions, &faces, Some(colors)).unwrap();
+            }
+            dir.to_path_buf()
+        }
+        GridFormat::Npy => {
+            let greys: Vec<Vec<f64>> = (all_colors.iter())
+                .map(|colors| colors.iter().map(|c| c[0]).collect())
+                .collect();
+            meshflow::io::write_npy_sequence(dir, &frames, &faces, Some(&greys), &times).unwrap();
+            dir.to_path_buf()
+        }
+        GridFormat::Glb => {
+            let path = dir.join("grid.glb");
+            let animation: Vec<_> = (frames.iter().zip(&all_colors).zip(times))
+                .map(
+                    |((positions, colors), time)| meshflow::io::gltf_write::AnimationFrame {
+                        time,
+                        positions,
+                        colors,
+                    },
+                )
+                .collect();
+            meshflow::io::gltf_write::write_glb_animation(&path, &faces, &animation).unwrap();
+            path
+        }
     }
 }
 
-/// Ranks that read only their windows' frames and frame 0 (OBJ frame files, or those rows of
-/// NPY arrays) weld as one reader of all frames does, by summing their verdicts on frame 0's coincident pairs: the seam is welded
+/// Ranks that read only their windows' frames and frame 0 (OBJ frame files, those rows of NPY
+/// arrays, a glTF animation evaluated at those frames) weld as one reader of all frames does, by summing their verdicts on frame 0's coincident pairs: the seam is welded
 /// when its copies follow the originals in every frame, and left apart when they leave them
 /// in the last frame only, even on ranks whose windows end before it. Positions, image and
 /// times are the whole sequence's frames of the window.
 #[test]
 fn ranks_read_their_windows_and_weld_alike() {
-    for (tear_in_last, npy) in [(false, false), (true, false), (false, true), (true, true)] {
+    let formats = [GridFormat::Obj, GridFormat::Npy, GridFormat::Glb];
+    for (tear_in_last, format) in formats.iter().flat_map(|&f| [(false, f), (true, f)]) {
         let dir = tempfile::tempdir().unwrap();
-        write_grid_sequence(dir.path(), tear_in_last, true, npy);
+        let input = write_grid_sequence(dir.path(), tear_in_last, true, format);
         let options = meshflow::io::LoadOptions::default();
-        let whole = meshflow::io::load_sequence(dir.path(), &options).unwrap();
+        let whole = meshflow::io::load_sequence(&input, &options).unwrap();
         let welded = whole.vertex_map.n_welded();
-        assert_eq!(welded > 0, !tear_in_last, "{welded} welded");
+        assert_eq!(welded > 0, !tear_in_last, "{format:?}: {welded} welded");
         for size in 1..=3 {
             let loaded: Vec<_> = std::thread::scope(|scope| {
                 let handles: Vec<_> = (thread_ranks(size).into_iter())
                     .map(|me| {
                         let window = TimeWindow::of_rank(me.rank, size, 5);
                         let frames = (me.rank > 0).then(|| window.frames());
-                        let (path, options) = (dir.path(), &options);
+                        let (path, options) = (&input, &options);
                         scope.spawn(move || {
                             let sum = |v: &mut [f64]| me.sum(v);
                             let loaded = meshflow::io::load_frames(path, options, frames, &sum);
@@ -384,7 +423,7 @@ fn ranks_read_their_windows_and_weld_alike() {
             });
             for (rank, (window, sequence)) in loaded.iter().enumerate().skip(1) {
                 let expected = whole.sequence.frames(window.frames()).unwrap();
-                let name = format!("tear {tear_in_last}, {size} ranks, rank {rank}");
+                let name = format!("{format:?}, tear {tear_in_last}, {size} ranks, rank {rank}");
                 assert_eq!(sequence.mesh().faces(), expected.mesh().faces(), "{name}");
                 assert_eq!(sequence.times(), expected.times(), "{name}");
                 for k in 0..sequence.n_frames() {
@@ -394,8 +433,11 @@ fn ranks_read_their_windows_and_weld_alike() {
             }
         }
         // Alone, a reader of frames 1..4 would weld the torn seam: the sum is what decides.
-        let alone = meshflow::io::load_frames(dir.path(), &options, Some(1..4), &|_| {}).unwrap();
-        assert!(alone.vertex_map.n_welded() > 0, "tear {tear_in_last}");
+        let alone = meshflow::io::load_frames(&input, &options, Some(1..4), &|_| {}).unwrap();
+        assert!(
+            alone.vertex_map.n_welded() > 0,
+            "{format:?}, tear {tear_in_last}"
+        );
     }
 }
 
@@ -414,7 +456,7 @@ fn ranks_stream_the_files_one_process_writes() {
         let dir = tempfile::tempdir().unwrap();
         let input = dir.path().join("input");
         std::fs::create_dir(&input).unwrap();
-        write_grid_sequence(&input, false, image_moves, false);
+        write_grid_sequence(&input, false, image_moves, GridFormat::Obj);
         let options = LoadOptions {
             channels: Channels::Rgb,
             ..Default::default()

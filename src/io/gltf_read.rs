@@ -49,7 +49,7 @@ mod file;
 mod nodes;
 mod skin;
 
-use super::{FrameMesh, IoError, LoadOptions, RawSequence, Texture, VertexValues};
+use super::{FrameMesh, IoError, KeepRows, LoadOptions, RawSequence, Texture, VertexValues};
 pub(crate) use animation::clip_list;
 pub use animation::AnimationClip;
 use animation::{resampled_times, Motion};
@@ -69,6 +69,17 @@ use std::rc::Rc;
 /// documentation for what the file must contain. `times` are the frame times, `sources` the
 /// path once per frame; the other options are not used here.
 pub fn read_gltf_animation(path: &Path, options: &LoadOptions) -> Result<RawSequence, IoError> {
+    Ok(read_gltf_animation_frames(path, options, &|_| true)?.0)
+}
+
+/// [`read_gltf_animation`] evaluated at the frames `keep` only (`positions`, `images` and
+/// `sources` hold those; `times` all of them), and the number of frames: what a rank reading
+/// its time window needs. With no frame kept, only the animation's times are read.
+pub fn read_gltf_animation_frames(
+    path: &Path,
+    options: &LoadOptions,
+    keep: KeepRows,
+) -> Result<(RawSequence, usize), IoError> {
     let file = GltfFile::open(path)?;
     let node = mesh_node(&file)?;
     let nodes = Nodes::read(&file);
@@ -86,21 +97,27 @@ pub fn read_gltf_animation(path: &Path, options: &LoadOptions) -> Result<RawSequ
         Some(fps) => resampled_times(&motion.times, fps).map_err(|m| file.error(m))?,
     };
     let rest_weights = default_weights(&file, &node, surface.target_count)?;
-    let mut positions = Vec::with_capacity(times.len());
-    let mut images = Vec::with_capacity(times.len());
-    for &t in &times {
+    let kept: Vec<f64> = (times.iter().enumerate())
+        .filter(|&(k, _)| keep(k))
+        .map(|(_, &t)| t)
+        .collect();
+    let mut positions = Vec::with_capacity(kept.len());
+    let mut images = Vec::with_capacity(kept.len());
+    for &t in &kept {
         let weights = motion.weights(t).unwrap_or_else(|| rest_weights.clone());
         positions.push(surface.positions(&weights, &nodes.pose(&motion, t), &file)?);
         images.push(surface.image(&weights, &file)?);
     }
-    Ok(RawSequence {
+    let n_frames = times.len();
+    let raw = RawSequence {
         faces: surface.faces,
         positions,
         images: images.into_iter().collect(),
-        sources: vec![path.to_path_buf(); times.len()],
+        sources: vec![path.to_path_buf(); kept.len()],
         times: Some(times),
         warnings: warning.into_iter().collect(),
-    })
+    };
+    Ok((raw, n_frames))
 }
 
 /// Reads one static mesh (for sequences stored one file per frame): the mesh node's

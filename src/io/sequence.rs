@@ -14,7 +14,7 @@
 //! `times.txt` next to the frames (numbers separated by white space or commas, `#` comments),
 //! else `0, 1, 2, …`.
 
-use super::gltf_read::{read_gltf_animation, read_gltf_frame};
+use super::gltf_read::{read_gltf_animation, read_gltf_animation_frames, read_gltf_frame};
 use super::input::{FrameFormat, SequenceSource};
 use super::ply::read_ply;
 use super::prepare::{prepare_mesh, Prepared};
@@ -126,7 +126,7 @@ pub fn load_sequence(path: &Path, options: &LoadOptions) -> Result<LoadedSequenc
 /// range's start, at their own times: what one rank of a solve over time windows holds
 /// ([`crate::flow::window`]). Frame files outside the range are not opened, except frame 0,
 /// whose faces are the connectivity and whose positions the weld starts from; NPY arrays are
-/// read by rows (the others skipped on disk), a glTF animation whole and cut. Every process reading some frames of one sequence
+/// read by rows (the others skipped on disk), a glTF animation evaluated at those frames only. Every process reading some frames of one sequence
 /// passes `sum` over all of them ([`SumOverReaders`]), so that they weld alike; warnings about
 /// the whole sequence (a static image) are for a reader of all frames to give.
 pub fn load_frames(
@@ -142,15 +142,18 @@ pub fn load_frames(
 }
 
 /// How many frames the sequence that `path` names has, reading as little as its format
-/// allows (frame files: none; NPY arrays: their headers and faces; a glTF animation: all of
-/// it).
+/// allows (frame files: none; NPY arrays: their headers and faces; a glTF animation: its
+/// mesh and animation, evaluated at no frame).
 pub fn count_frames(path: &Path, options: &LoadOptions) -> Result<usize, Error> {
     let source = SequenceSource::detect(path)?;
     check_options(&source, options, path)?;
     Ok(match &source {
         SequenceSource::Frames { files, .. } => files.len(),
         SequenceSource::Npy(dir) => read_npy_sequence(dir, &|_| false)?.1,
-        _ => read_raw(&source, options)?.positions.len(),
+        SequenceSource::GltfAnimation(file) => {
+            read_gltf_animation_frames(file, options, &|_| false)?.1
+        }
+        SequenceSource::Arrays => unreachable!("arrays are not read"),
     })
 }
 
@@ -239,27 +242,13 @@ fn read_window(
             let (raw, n_frames_in_all) = read_npy_sequence(dir, &is_read)?;
             (raw, in_range(n_frames_in_all)?)
         }
-        _ => {
-            let mut raw = read_raw(source, options)?;
-            let n_frames_in_all = in_range(raw.positions.len())?;
-            keep_frames(&mut raw.positions, is_read);
-            keep_frames(&mut raw.sources, is_read);
-            if let Some(images) = &mut raw.images {
-                keep_frames(images, is_read);
-            }
-            (raw, n_frames_in_all)
+        SequenceSource::GltfAnimation(file) => {
+            let (raw, n_frames_in_all) = read_gltf_animation_frames(file, options, &is_read)?;
+            (raw, in_range(n_frames_in_all)?)
         }
+        SequenceSource::Arrays => unreachable!("arrays are not read"),
     };
     Ok(RawWindow::of(raw, frames, n_frames_in_all))
-}
-
-/// Keeps the entries `k` (one per frame) for which `is_read(k)`.
-fn keep_frames<T>(values: &mut Vec<T>, is_read: impl Fn(usize) -> bool) {
-    let mut k = 0;
-    values.retain(|_| {
-        k += 1;
-        is_read(k - 1)
-    });
 }
 
 /// A sequence from arrays in memory, through the same steps as [`load_sequence`] (welding,
