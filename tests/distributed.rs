@@ -530,6 +530,34 @@ fn ranks_stream_the_files_one_process_writes() {
     }
 }
 
+/// A glTF animation needs every frame at once: streaming it is refused with the file named.
+#[test]
+fn streaming_refuses_a_gltf_animation() {
+    use meshflow::io::{OutputFormat, Overwrite, StagedDir};
+    let dir = tempfile::tempdir().unwrap();
+    let input = write_grid_sequence(dir.path(), false, true, GridFormat::Obj);
+    let loaded = meshflow::io::load_sequence(&input, &Default::default()).unwrap();
+    let params = FlowParams::default();
+    let result = FlowProblem::new(&loaded.sequence, &params)
+        .unwrap()
+        .solve(&|_| {})
+        .unwrap();
+    let out = StagedDir::create(&dir.path().join("out"), Overwrite::EarlierRun).unwrap();
+    let me = thread_ranks(1).remove(0);
+    let window = TimeWindow::of_rank(0, 1, 5);
+    let formats = [OutputFormat::Npy, OutputFormat::Glb];
+    let view = meshflow::render::View::default();
+    let error = meshflow::io::write_flow_over_ranks(
+        &out, &loaded, &window, &me, &params, &result, &formats, &view,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        error.contains("flow.glb") && error.contains("all frames"),
+        "{error}"
+    );
+}
+
 /// `result` cut to the slabs of `window`, as the rank holding them computes it.
 fn own_slabs(result: &FlowResult, window: &TimeWindow) -> FlowResult {
     let slabs = window.slabs.clone();

@@ -36,8 +36,8 @@ pub struct WrittenFlow {
 
 /// Rank 0's part: writes the outputs of the flow whose own slabs are `result` (of the frames
 /// `loaded`, this rank's window `window`) into `out`, receiving the other ranks' slabs as
-/// [`send_own_slabs`] sends them; `formats` without [`OutputFormat::Glb`] (see the module
-/// docs).
+/// [`send_own_slabs`] sends them. [`OutputFormat::Glb`] is an error (a glTF animation needs
+/// all frames at once: gather the flow with `flow_over_ranks` and write it whole).
 #[allow(clippy::too_many_arguments)]
 pub fn write_flow_over_ranks(
     out: &StagedDir,
@@ -49,6 +49,10 @@ pub fn write_flow_over_ranks(
     formats: &[OutputFormat],
     view: &View,
 ) -> Result<WrittenFlow, IoError> {
+    if formats.contains(&OutputFormat::Glb) {
+        let message = "a glTF animation needs all frames at once: gather the flow to write it";
+        return Err(out.in_target(IoError::format(out.path().join("flow.glb"), message)));
+    }
     let sequence = &loaded.sequence;
     let layout = Layout::of(sequence, result);
     let owners = slab_owners(ranks.size(), window.n_slabs_in_all);
