@@ -62,6 +62,9 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
         return solve_streamed(args, ranks, &params, out);
     }
     // Over ranks, the others read their windows' frames and weld with rank 0 (`load_frames`).
+    if ranks.is_some() {
+        println!("{}", gathering_note(args));
+    }
     let loaded = during(
         format!("reading {}", args.input.display()),
         || match ranks {
@@ -245,6 +248,29 @@ fn streams_outputs(args: &SolveArgs) -> bool {
         && !args.png
         && args.ground_truth.is_none()
         && args.ground_truth_tracks.is_none()
+}
+
+/// Why rank 0 reads all frames and gathers the whole flow, and how to avoid it.
+fn gathering_note(args: &SolveArgs) -> String {
+    let mut needs = Vec::new();
+    if args.format.contains(&OutputFormat::Glb) {
+        needs.push("flow.glb");
+    }
+    if args.png {
+        needs.push("--png");
+    }
+    if args.ground_truth.is_some() || args.ground_truth_tracks.is_some() {
+        needs.push("the ground-truth scores");
+    }
+    let (verb, them) = match needs.len() {
+        1 => ("needs", "it"),
+        _ => ("need", "them"),
+    };
+    format!(
+        "ranks: {} {verb} every frame at once, so rank 0 reads the whole input and gathers the \
+         whole flow; without {them} (e.g. --format npy,vtu) every rank holds only its window",
+        needs.join(" and ")
+    )
 }
 
 /// Rank 0 of a solve over ranks whose outputs stream ([`streams_outputs`]): it reads its
