@@ -62,7 +62,7 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
         return solve_streamed(args, ranks, &params, out);
     }
     // Over ranks, the others read their windows' frames and weld with rank 0 (`load_frames`).
-    if ranks.is_some() {
+    if ranks.is_some_and(|ranks| ranks.size() > 1) {
         println!("{}", gathering_note(args));
     }
     let loaded = during(
