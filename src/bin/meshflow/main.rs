@@ -308,7 +308,9 @@ struct SolveArgs {
     /// "ground_truth_tracks" in summary.json
     #[arg(long, value_name = "TRACKS.npy")]
     ground_truth_tracks: Option<PathBuf>,
-    /// Output files: any of npy, vtu, glb (summary.json is always written)
+    /// Output files: any of npy, vtu, glb (summary.json is always written). Under mpirun,
+    /// without glb (and --png, ground truth) the ranks stream their slabs to rank 0 and none
+    /// holds more than its time window
     #[arg(long, value_delimiter = ',', default_value = "npy,vtu,glb")]
     format: Vec<OutputFormat>,
     /// Also draw the pictures of `meshflow render` (of every slab, or those of --slabs)
