@@ -132,35 +132,37 @@ pub fn read_npy_float_rows(path: &Path, keep: KeepRows) -> Result<(NpyArray, u64
 
 /// [`read_npy_float_rows`] of an opened float32 or float64 file.
 fn float_rows(path: &Path, file: NpyFile, keep: KeepRows) -> Result<(NpyArray, u64), IoError> {
-    match matches!(file.dtype(), npyz::DType::Plain(t) if t.size_field() == 4) {
-        true => kept_rows(path, file, keep, |v: f32| f64::from(v)),
-        false => kept_rows(path, file, keep, |v: f64| v),
-    }
+    let single = matches!(file.dtype(), npyz::DType::Plain(t) if t.size_field() == 4);
+    let Rows { shape, data, of } = match single {
+        true => kept_rows(path, file, keep, |v: f32| f64::from(v))?,
+        false => kept_rows(path, file, keep, |v: f64| v)?,
+    };
+    Ok((NpyArray { shape, data }, of))
 }
 
 /// The rows `keep` of an image `.npy` ([`read_npy_image`]), as [`read_npy_float_rows`] reads
 /// them.
 pub fn read_npy_image_rows(path: &Path, keep: KeepRows) -> Result<(NpyArray, u64), IoError> {
-    use npyz::TypeChar::Float;
-    let file = open_npy(path, is_image_type, IMAGE_TYPES)?;
-    let npyz::DType::Plain(dtype) = file.dtype() else {
-        unreachable!("open_npy accepts plain types only")
-    };
-    match (dtype.type_char(), dtype.size_field()) {
-        (Float, 4) => kept_rows(path, file, keep, |v: f32| f64::from(v)),
-        (Float, _) => kept_rows(path, file, keep, |v: f64| v),
-        (_, 1) => kept_rows(path, file, keep, |v: u8| f64::from(v)),
-        _ => kept_rows(path, file, keep, |v: u16| f64::from(v)),
-    }
+    let Rows { shape, data, of } = read_image(path, keep, f64::from, |v| v, f64::from, f64::from)?;
+    Ok((NpyArray { shape, data }, of))
+}
+
+/// Some rows of an array ([`kept_rows`]).
+struct Rows<U> {
+    /// The shape of the kept rows (the first axis their count).
+    shape: Vec<u64>,
+    data: Vec<U>,
+    /// Rows in the file.
+    of: u64,
 }
 
 /// The rows `keep` of `file`, each element converted by `to`, seeking past the others.
-fn kept_rows<T: npyz::Deserialize>(
+fn kept_rows<T: npyz::Deserialize, U>(
     path: &Path,
     file: NpyFile,
     keep: KeepRows,
-    to: impl Fn(T) -> f64,
-) -> Result<(NpyArray, u64), IoError> {
+    to: impl Fn(T) -> U,
+) -> Result<Rows<U>, IoError> {
     let mut shape = file.shape().to_vec();
     // A 0-dimensional array is one row of one value.
     let rows = shape.first().copied().unwrap_or(1);
@@ -172,14 +174,19 @@ fn kept_rows<T: npyz::Deserialize>(
     let mut data = Vec::with_capacity(kept.len() * row as usize);
     for r in &kept {
         reader.seek_to(r * row).map_err(|e| corrupt(path, e))?;
-        for value in reader.by_ref().take(row as usize) {
-            data.push(to(value.map_err(|e| corrupt(path, e))?));
-        }
+        let values: Vec<T> = (reader.by_ref().take(row as usize))
+            .collect::<std::io::Result<_>>()
+            .map_err(|e| corrupt(path, e))?;
+        data.extend(values.into_iter().map(&to));
     }
     if let Some(first) = shape.first_mut() {
         *first = kept.len() as u64;
     }
-    Ok((NpyArray { shape, data }, rows))
+    Ok(Rows {
+        shape,
+        data,
+        of: rows,
+    })
 }
 
 fn corrupt(path: &Path, e: std::io::Error) -> IoError {
@@ -201,7 +208,8 @@ fn is_image_type(t: &npyz::TypeStr) -> bool {
 /// Reads a float32, float64, uint8 or uint16 `.npy` (microscope volumes) as `f32` values in C
 /// order, with its shape; float64 values are rounded to the nearest `f32`.
 pub fn read_npy_f32(path: &Path) -> Result<(Vec<u64>, Vec<f32>), IoError> {
-    read_image(path, |v| v, |v| v as f32, f32::from, f32::from)
+    let rows = read_image(path, &|_| true, |v| v, |v| v as f32, f32::from, f32::from)?;
+    Ok((rows.shape, rows.data))
 }
 
 /// Reads a float32, float64, uint8 or uint16 `.npy` (per-vertex images: what microscopes and
@@ -210,32 +218,27 @@ pub fn read_npy_image(path: &Path) -> Result<NpyArray, IoError> {
     Ok(read_npy_image_rows(path, &|_| true)?.0)
 }
 
-/// An image `.npy` ([`IMAGE_TYPES`]) with each element type converted by its function.
+/// The rows `keep` of an image `.npy` ([`IMAGE_TYPES`]) with each element type converted by
+/// its function ([`kept_rows`]).
 fn read_image<U>(
     path: &Path,
+    keep: KeepRows,
     from_f32: fn(f32) -> U,
     from_f64: fn(f64) -> U,
     from_u8: fn(u8) -> U,
     from_u16: fn(u16) -> U,
-) -> Result<(Vec<u64>, Vec<U>), IoError> {
+) -> Result<Rows<U>, IoError> {
     use npyz::TypeChar::Float;
     let file = open_npy(path, is_image_type, IMAGE_TYPES)?;
-    let shape = file.shape().to_vec();
-    let corrupt = |e| corrupt(path, e);
     let npyz::DType::Plain(dtype) = file.dtype() else {
         unreachable!("open_npy accepts plain types only")
     };
-    let values = match (dtype.type_char(), dtype.size_field()) {
-        (Float, 4) => convert(file.into_vec::<f32>().map_err(corrupt)?, from_f32),
-        (Float, _) => convert(file.into_vec::<f64>().map_err(corrupt)?, from_f64),
-        (_, 1) => convert(file.into_vec::<u8>().map_err(corrupt)?, from_u8),
-        _ => convert(file.into_vec::<u16>().map_err(corrupt)?, from_u16),
-    };
-    Ok((shape, values))
-}
-
-fn convert<T, U>(values: Vec<T>, to: impl Fn(T) -> U) -> Vec<U> {
-    values.into_iter().map(to).collect()
+    match (dtype.type_char(), dtype.size_field()) {
+        (Float, 4) => kept_rows(path, file, keep, from_f32),
+        (Float, _) => kept_rows(path, file, keep, from_f64),
+        (_, 1) => kept_rows(path, file, keep, from_u8),
+        _ => kept_rows(path, file, keep, from_u16),
+    }
 }
 
 /// Reads an integer `.npy` of vertex indices (int8…int64 or uint8…uint64, either byte order,
