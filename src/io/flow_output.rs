@@ -134,7 +134,7 @@ fn write_all(
     let facts = SequenceFacts::of(sequence, &loaded.warnings, max_speed);
     write_summary(
         dir,
-        &summary_of(&facts, loaded, params, result, scores),
+        summary_of(&facts, loaded, params, result, scores),
         view,
     )
 }
@@ -142,10 +142,9 @@ fn write_all(
 /// `summary.json`: `summary` with the `view` of the pictures.
 pub(super) fn write_summary(
     dir: &Path,
-    summary: &serde_json::Value,
+    mut summary: serde_json::Value,
     view: &View,
 ) -> Result<(), IoError> {
-    let mut summary = summary.clone();
     summary["view"] = serde_json::to_value(view).expect("views serialize");
     write_atomically(&dir.join("summary.json"), |w| {
         serde_json::to_writer_pretty(&mut *w, &summary).map_err(std::io::Error::other)?;

@@ -99,7 +99,7 @@ pub fn write_flow_over_ranks(
     let mut facts = SequenceFacts::of(sequence, &warnings, max_speed);
     (facts.n_frames, facts.times) = (n_slabs + 1, times);
     let summary = summary_of(&facts, loaded, params, result, Scores::default());
-    write_summary(dir, &summary, view).map_err(|e| out.in_target(e))?;
+    write_summary(dir, summary, view).map_err(|e| out.in_target(e))?;
     Ok(WrittenFlow {
         n_frames: n_slabs + 1,
         static_image,

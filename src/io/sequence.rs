@@ -209,8 +209,8 @@ impl RawWindow {
     }
 }
 
-/// Reads the frames `frames` of `source` (all with `None`) and frame 0: only those files of a
-/// frame sequence, the whole of any other source, cut.
+/// Reads the frames `frames` of `source` (all with `None`) and frame 0, and no others: only
+/// those files of a frame sequence, those rows of NPY arrays, a glTF animation at those frames.
 fn read_window(
     source: &SequenceSource,
     options: &LoadOptions,
@@ -517,7 +517,9 @@ fn static_image_warning(sequence: &MeshSequence, path: &Path) -> Option<LoadWarn
 /// [`static_image_warning`] taking the frames one at a time, in order from frame 0: what a
 /// reader that sees each frame once (streamed from other ranks) can tell.
 pub(super) struct StaticImageCheck {
-    frame_zero: (Option<Vec<Vector3<f64>>>, Vec<Vec<f64>>),
+    /// Frame 0's positions (`None`: intrinsic) and channels.
+    zero_positions: Option<Vec<Vector3<f64>>>,
+    zero_channels: Vec<Vec<f64>>,
     /// Per channel: lowest and highest value, largest difference from frame 0.
     ranges: Vec<(f64, f64)>,
     differences: Vec<f64>,
@@ -531,7 +533,8 @@ pub(super) struct StaticImageCheck {
 impl StaticImageCheck {
     pub fn new((positions, channels): (Option<&[Vector3<f64>]>, &[Vec<f64>])) -> Self {
         let mut check = StaticImageCheck {
-            frame_zero: (positions.map(<[_]>::to_vec), channels.to_vec()),
+            zero_positions: positions.map(<[_]>::to_vec),
+            zero_channels: channels.to_vec(),
             ranges: vec![(f64::INFINITY, f64::NEG_INFINITY); channels.len()],
             differences: vec![0.0; channels.len()],
             size: positions.map(|p| p.iter().map(|p| p.amax()).fold(0.0, f64::max)),
@@ -545,18 +548,17 @@ impl StaticImageCheck {
     /// The next frame.
     pub fn add(&mut self, (positions, channels): (Option<&[Vector3<f64>]>, &[Vec<f64>])) {
         self.frames += 1;
-        let zero = &self.frame_zero;
         for (c, channel) in channels.iter().enumerate() {
             let (low, high) = &mut self.ranges[c];
             for &g in channel {
                 (*low, *high) = (low.min(g), high.max(g));
             }
-            let difference = (channel.iter().zip(&zero.1[c]))
+            let difference = (channel.iter().zip(&self.zero_channels[c]))
                 .map(|(a, b)| (a - b).abs())
                 .fold(0.0, f64::max);
             self.differences[c] = self.differences[c].max(difference);
         }
-        if let (Some(p), Some(q), Some(size)) = (positions, &zero.0, self.size) {
+        if let (Some(p), Some(q), Some(size)) = (positions, &self.zero_positions, self.size) {
             self.moves |= p.iter().zip(q).any(|(p, q)| (p - q).amax() > 1e-12 * size);
         }
     }
