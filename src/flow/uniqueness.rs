@@ -20,7 +20,7 @@
 use super::slab::{Slab, TimeLink};
 #[cfg(doc)]
 use super::solve::distributed::OneProcess;
-use super::solve::distributed::TimeRanks;
+use super::solve::distributed::{all_gather, TimeRanks};
 use super::{Boundary, FlowError, FlowParams, Weights};
 use crate::connection::{rotation, wrap_angle};
 use crate::mesh::Mesh;
@@ -94,12 +94,13 @@ pub fn check_unique_minimizer(
     Ok(())
 }
 
-/// The smallest of the ranks' `value`s (`None` where a rank has none); collective.
+/// The first rank's `value` that is not `None` (ranks hold slabs in order, so for a slab, the
+/// smallest); collective.
 fn first_over_ranks(ranks: &dyn TimeRanks, value: Option<usize>) -> Option<usize> {
-    let mut slots = vec![0.0; ranks.size()];
-    slots[ranks.rank()] = value.map_or(0.0, |v| v as f64 + 1.0);
-    ranks.sum(&mut slots);
-    slots.iter().find(|&&v| v > 0.0).map(|&v| v as usize - 1)
+    let mine = [value.map_or(0.0, |v| v as f64 + 1.0)];
+    (all_gather(ranks, &mine).iter())
+        .find(|v| v[0] > 0.0)
+        .map(|v| v[0] as usize - 1)
 }
 
 /// `N` for a field that is parallel in every slab, or `None` when the time links do not carry
@@ -127,18 +128,18 @@ fn steady_data_matrix<'a>(
     let own_links = checked.own.start..checked.own.end.min(checked.links.len());
     let kappas: Option<Vec<f64>> = own_links.clone().map(link_angle).collect();
     let parallel = checked.own.clone().all(|l| theta(l).is_some());
-    // Per rank: [1 where this rank's slabs or links break the field] then each rank's angle sum.
-    let mut sums = vec![0.0; 1 + ranks.size()];
-    match (&kappas, parallel) {
-        (Some(kappas), true) => sums[1 + ranks.rank()] = kappas.iter().sum(),
-        _ => sums[0] = 1.0,
-    }
-    ranks.sum(&mut sums);
-    if sums[0] > 0.0 {
+    // Per rank: whether its slabs and links carry the field (1) or break it (0), and the
+    // angle its links turn it by.
+    let mine = match (&kappas, parallel) {
+        (Some(kappas), true) => [1.0, kappas.iter().sum()],
+        _ => [0.0, 0.0],
+    };
+    let all = all_gather(ranks, &mine);
+    if all.iter().any(|rank| rank[0] == 0.0) {
         return None;
     }
     let kappas = kappas.expect("checked above");
-    let mut phi: f64 = sums[1..1 + ranks.rank()].iter().sum();
+    let mut phi: f64 = all[..ranks.rank()].iter().map(|rank| rank[1]).sum();
     let mut total = Matrix2::zeros();
     for (k, l) in checked.own.clone().enumerate() {
         let rotate = rotation(phi);

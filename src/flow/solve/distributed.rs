@@ -484,12 +484,8 @@ fn all_windows(
     window: &SystemWindow,
     ranks: &dyn TimeRanks,
 ) -> Result<Vec<Range<usize>>, FlowError> {
-    let mut bounds = vec![0.0; 2 * ranks.size()];
-    bounds[2 * ranks.rank()] = window.slabs.start as f64;
-    bounds[2 * ranks.rank() + 1] = window.slabs.end as f64;
-    ranks.sum(&mut bounds);
-    let windows: Vec<Range<usize>> = bounds
-        .chunks(2)
+    let bounds = [window.slabs.start as f64, window.slabs.end as f64];
+    let windows: Vec<Range<usize>> = (all_gather(ranks, &bounds).iter())
         .map(|b| b[0] as usize..b[1] as usize)
         .collect();
     let tiled = windows.iter().all(|w| !w.is_empty())
@@ -660,6 +656,19 @@ impl TimeRanks for OneProcess {
     fn receive(&self, _: usize) -> Vec<f64> {
         unreachable!("one process has no other rank to receive from")
     }
+}
+
+/// Every rank's `values` (as many on each) on every rank, in rank order: one sum over slots
+/// in which each rank fills its own (adding zeros changes no value); collective.
+pub(crate) fn all_gather(ranks: &dyn TimeRanks, values: &[f64]) -> Vec<Vec<f64>> {
+    let k = values.len();
+    if k == 0 {
+        return vec![Vec::new(); ranks.size()];
+    }
+    let mut slots = vec![0.0; k * ranks.size()];
+    slots[k * ranks.rank()..k * (ranks.rank() + 1)].copy_from_slice(values);
+    ranks.sum(&mut slots);
+    slots.chunks(k).map(<[f64]>::to_vec).collect()
 }
 
 /// Every rank's `values` on rank 0, in rank order (`None` on the other ranks): every rank
