@@ -230,11 +230,9 @@ impl Adjacency {
     }
 }
 
-/// Pairs `[a, b]`, `a < b`, of used vertices close in every frame (rule 1 without the face
-/// condition), found through a grid on frame 0.
-/// The pairs of used vertices within the welding radius in every frame of every reader
-/// ([`weld`]): candidates close in frame 0 (`frames[0]`), kept when `sum` finds no reader's
-/// frame where they are apart.
+/// Pairs `[a, b]`, `a < b`, of used vertices close in every frame of every reader (rule 1
+/// without the face condition): candidates found through a grid on frame 0 (`frames[0]`),
+/// kept when `sum` finds no reader's frame where they are apart ([`weld`]).
 fn close_pairs(
     used: &[bool],
     frames: &[&[Vector3<f64>]],
