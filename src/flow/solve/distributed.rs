@@ -565,7 +565,7 @@ fn build_levels<'a>(
                 ..Default::default()
             },
         );
-        coarse.link_before = before.as_deref().and_then(LinkMatrix::from_message);
+        coarse.set_coarse_link_before(before.as_deref().and_then(LinkMatrix::from_message));
         window = Cow::Owned(coarse);
     }
     (levels, n_levels_in_all)

@@ -170,7 +170,7 @@ pub(super) fn prolong_add(
 mod tests {
     use super::*;
     use crate::flow::system::for_each_column;
-    use crate::flow::{FlowParams, FlowProblem, TimeCoupling};
+    use crate::flow::{FlowParams, FlowProblem, LinkMatrix, TimeCoupling};
     use nalgebra::DMatrix;
 
     fn dense(system: &SpaceTimeSystem) -> DMatrix<f64> {
@@ -196,10 +196,12 @@ mod tests {
         p
     }
 
-    /// Every level of the hierarchy is `Pᵀ A P` of the one above, formed densely, and
-    /// `restrict` is `Pᵀ`: even and odd slab counts, lumped and consistent coupling.
+    /// Every level of the hierarchy is `Pᵀ A P` of the one above, formed densely, less the
+    /// halved coupling energy `E` of its lumped links (`E` formed densely with eigenvalue square
+    /// roots, and positive semidefinite; none for consistent links), and `restrict` is `Pᵀ`:
+    /// even and odd slab counts, lumped and consistent coupling.
     #[test]
-    fn coarse_levels_are_the_dense_galerkin_products() {
+    fn coarse_levels_are_the_galerkin_products_with_halved_time_coupling() {
         for (frames, coupling) in [(6, TimeCoupling::Lumped), (5, TimeCoupling::Consistent)] {
             let sequence = crate::synth::paper_torus(8, 6, frames).unwrap();
             let params = FlowParams {
@@ -212,9 +214,12 @@ mod tests {
                 let transports = fine.pair_transports();
                 let coarse = fine.merge_slab_pairs(&transports);
                 let p = prolongation(&transports, fine.n_slabs(), coarse.n_slabs());
-                let expected = p.transpose() * dense(&fine) * &p;
+                let energy = halved_coupling_energy(&coarse);
+                let min_energy = energy.clone().symmetric_eigen().eigenvalues.min();
+                assert!(min_energy > -1e-12 * energy.amax().max(1.0), "E not PSD: {min_energy:e}");
+                let expected = p.transpose() * dense(&fine) * &p - energy;
                 let error = (dense(&coarse) - &expected).amax() / expected.amax();
-                assert!(error < 1e-13, "{frames} frames: Galerkin error {error:e}");
+                assert!(error < 1e-13, "{frames} frames: coarse level error {error:e}");
                 let r: Vec<f64> = (0..fine.dimension()).map(|i| (i as f64).sin()).collect();
                 let restricted = restrict(&transports, &r, fine.slab_dimension());
                 let expected = p.transpose() * DMatrix::from_column_slice(r.len(), 1, &r);
@@ -224,6 +229,73 @@ mod tests {
                 assert!(error < 1e-12, "restriction differs from Pᵀ by {error:e}");
                 fine = coarse;
             }
+        }
+    }
+
+    /// The energy a coarse level's lumped links take off `Pᵀ A P`: for each link `X` (halved)
+    /// between coarse slabs `k` and `k + 1`, `|X|` on block `k`, `|Xᵀ|` on block `k + 1`, and
+    /// `X` itself below and above the diagonal.
+    fn halved_coupling_energy(coarse: &SpaceTimeSystem) -> DMatrix<f64> {
+        let n = coarse.slab_dimension();
+        let mut e = DMatrix::zeros(coarse.dimension(), coarse.dimension());
+        let sqrt = |m: Matrix2<f64>| {
+            let eigen = m.symmetric_eigen();
+            let roots = eigen.eigenvalues.map(|l| l.max(0.0).sqrt());
+            eigen.eigenvectors * Matrix2::from_diagonal(&roots) * eigen.eigenvectors.transpose()
+        };
+        for k in 0..coarse.n_slabs() - 1 {
+            let LinkMatrix::Lumped(blocks) = coarse.link(k) else {
+                return DMatrix::zeros(coarse.dimension(), coarse.dimension());
+            };
+            for (i, x) in blocks.iter().enumerate() {
+                let (a, b) = (k * n + 2 * i, (k + 1) * n + 2 * i);
+                let mut put = |r: usize, c: usize, m: Matrix2<f64>| {
+                    let mut view = e.fixed_view_mut::<2, 2>(r, c);
+                    view += m;
+                };
+                put(a, a, sqrt(x.transpose() * x));
+                put(b, b, sqrt(x * x.transpose()));
+                put(b, a, *x);
+                put(a, b, x.transpose());
+            }
+        }
+        e
+    }
+
+    /// A coarse level is the space-time system of every other frame, to first order in the
+    /// frame spacing: its lumped links agree with the links assembled on frames `0, 2, 4, …`
+    /// (time step `2h`, weight `c / 2`); the Galerkin product alone keeps `c`, twice as stiff.
+    #[test]
+    fn coarse_links_are_those_of_every_other_frame() {
+        let params = FlowParams::paper(0.3, 0.0, 1.0);
+        let frames = 9;
+        let sequence = crate::synth::paper_torus(16, 12, frames).unwrap();
+        let fine = FlowProblem::new(&sequence, &params).unwrap().system().clone();
+        let coarse = fine.merge_slab_pairs(&fine.pair_transports());
+        let every_other = {
+            let positions = (0..frames).step_by(2).map(|k| sequence.positions(k).unwrap().to_vec());
+            let grey = (0..frames).step_by(2).map(|k| sequence.intensities(k).to_vec());
+            let times = (0..frames).step_by(2).map(|k| sequence.times()[k]).collect();
+            let subsampled = crate::flow::MeshSequence::new(
+                sequence.mesh().clone(),
+                positions.collect(),
+                grey.collect(),
+                Some(times),
+            )
+            .unwrap();
+            FlowProblem::new(&subsampled, &params).unwrap().system().clone()
+        };
+        assert_eq!(coarse.n_slabs(), every_other.n_slabs());
+        for k in 0..coarse.n_slabs() - 1 {
+            let (LinkMatrix::Lumped(x), LinkMatrix::Lumped(y)) =
+                (coarse.link(k), every_other.link(k))
+            else {
+                panic!("lumped links expected");
+            };
+            let norm = |m: &[Matrix2<f64>]| m.iter().map(|b| b.norm_squared()).sum::<f64>().sqrt();
+            let difference: Vec<Matrix2<f64>> = x.iter().zip(y).map(|(x, y)| x - y).collect();
+            let relative = norm(&difference) / norm(y);
+            assert!(relative < 0.01, "link {k}: relative difference {relative:.3}");
         }
     }
 }
