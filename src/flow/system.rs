@@ -470,7 +470,9 @@ pub fn dot(x: &[f64], y: &[f64]) -> f64 {
 /// ```
 ///
 /// Both keep the vertex pattern (and a lumped link stays lumped), so a coarse system is again a
-/// [`SpaceTimeSystem`]; it has no right-hand side and no energy constant.
+/// [`SpaceTimeSystem`]; it has no right-hand side and no energy constant. Lumped links are then
+/// halved with their share of the diagonal blocks ([`LinkMatrix::halve`]): the coarse system
+/// is `Pᵀ A P` less half its time coupling.
 impl SpaceTimeSystem {
     /// `T_k` for every pair: per vertex, the rotation that minimizes the link energy of
     /// `X_{2k}` for fields transported as `u_{2k+1} = T u_{2k}`, the polar factor of `−X_ii`

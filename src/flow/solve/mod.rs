@@ -21,9 +21,10 @@
 //!   `α = 0.1` on the 128×95×20 torus.
 //! - **PCG with multigrid in time** ([`multigrid`]): a V-cycle whose smoother is the slab
 //!   sweep and whose coarse levels merge slab pairs (semi-coarsening in time) with the
-//!   Galerkin operator of the transported prolongation `u_{2k+1} = T_k ũ_k`. It represents the
-//!   smooth-in-time error on the coarse levels whatever the ratio of temporal to spatial
-//!   coupling. A V-cycle costs about 2.5 Gauss–Seidel sweeps (the coarse levels hold as many
+//!   Galerkin operator of the transported prolongation `u_{2k+1} = T_k ũ_k`, less half the
+//!   coarse links' coupling energy (a coarse slab spans twice the time step: see "Coarse levels
+//!   at twice the time step" below). It represents the smooth-in-time error on the coarse
+//!   levels whatever the ratio of temporal to spatial coupling. A V-cycle costs about 2.5 Gauss–Seidel sweeps (the coarse levels hold as many
 //!   blocks again) and the coarse blocks need factors too.
 //! - **PCG with Jacobi**: no factors; only when not even one slab factor fits the budget.
 //!
@@ -87,6 +88,42 @@
 //! under spatial refinement); the same with symmetric Gauss–Seidel as pre- and post-smoother
 //! (41 / 66 / –). The piecewise-constant prolongation stays: 15 / 17 / 15, flat in `α` and in
 //! the mesh size.
+//!
+//! **Coarse levels at twice the time step.** The Galerkin product of the piecewise-constant
+//! prolongation keeps the fine link weight `c = γ / (α² h)` between coarse slabs, where a
+//! coarse slab spans `2h` and rediscretization gives `c / 2`: each level is twice too stiff
+//! in time for the error between neighbouring coarse slabs, and the V-cycle compounds that
+//! level by level, so iterations grew with the number of frames (the tables above, at 20
+//! frames, did not show it). Now every coarse level subtracts half of its lumped links'
+//! coupling energy (`LinkMatrix::halve` in `flow::system`: positive semidefinite, and no more
+//! than the true coupling, so the coarse operators stay positive definite). Multigrid alone
+//! (`--solver pcg-time-multigrid`), `α = 0.01`, `γ = 1`, 64×48 torus:
+//!
+//! | frames | 20 | 40 | 100 | 200 |
+//! |---|---|---|---|---|
+//! | Galerkin levels: iterations | 17 | 25 | 42 | 58 (19.9 s) |
+//! | halved coupling: iterations | 9 | 10 | 10 | 10 (4.8 s) |
+//!
+//! On the 128×95×20 torus, multigrid alone at `α` = 1 / 0.1 / 0.01 / 0.001: 7 / 9 / 9 / 7
+//! iterations at `γ = 1` (before: – / 16 / 17 / 15), 5 / 8 / 11 / 7 at `γ = 0.01` (– / 13 /
+//! 17 / 14). Under `auto` (4 Gauss–Seidel iterations, then multigrid; solve seconds with
+//! factorization): `γ = 1`: 13, 2.6 s / 13, 2.6 s / 11, 2.2 s at `α` = 0.1 / 0.01 / 0.001
+//! (before 19, 3.6 s / 22, 4.0 s / 20, 3.6 s); `γ = 0.01`: 11, 2.2 s / 15, 2.9 s / 11, 2.3 s
+//! (before 16, 3.0 s / 21, 3.9 s / 20, 3.7 s); default weights at 30 frames per second 12,
+//! 2.5 s (before 16, 3.0 s). `t(α = 0.01) / t(α = 1)`: 1.9 at `γ = 1` (1.6 with assembly;
+//! target 2.5 met), 3.9 at `γ = 0.01` (3.0 with assembly; missed: at `α = 1, γ = 0.01` slab
+//! Gauss–Seidel needs 8 iterations, 0.76 s, while the coarse levels' factorizations and
+//! assembly alone take about 0.6 s). Real data, Khronos `Fox.glb` (83 frames, `--intensity`),
+//! multigrid alone at `--time-scale` 1 / 30 / 1000: 11 / 35 / 37 → 8 / 11 / 10 iterations.
+//! Consistent time coupling keeps Galerkin levels (its links' diagonal part is a rotated mass
+//! matrix that the link does not determine): 11 / 35 / 43 on the Fox.
+//!
+//! Measured and rejected: reduction to the even slabs on the finest level (exact odd-slab
+//! solves before and after the coarse correction, `z = S r + (I − S A) P B_c Pᵀ (I − A S) r`,
+//! no products with `A`, half the finest level's slab solves). On the torus at `α = 0.01` it
+//! cut multigrid's time from 2.7 to 1.9 s at equal iterations, but on a sphere dark outside a
+//! textured cap (`tests/solver.rs`) it doubled the iterations at `α = 0.1` (7 → 14, 8 → 16):
+//! the Galerkin coarse operator is then far from the Schur complement of the odd slabs.
 //!
 //! Results agree with the direct solver to 1e-9 relative (`tests/solver.rs`), for lumped and
 //! consistent coupling, Neumann and Dirichlet boundaries, even and odd slab counts.
@@ -347,9 +384,9 @@ enum Preconditioning {
 /// Iterations of slab Gauss–Seidel from which `Adaptive` projects its convergence.
 pub const PROBE_ITERATIONS: usize = 4;
 /// Projected Gauss–Seidel iterations above which `Adaptive` builds the multigrid levels.
-/// Measured (`examples/bench_solver.rs`): a V-cycle costs about 2.5 Gauss–Seidel sweeps and
-/// its coarse levels about one more round of factorizations; multigrid needs at most ~17
-/// iterations, so it pays from about 30 Gauss–Seidel iterations on.
+/// Measured (`examples/bench_solver.rs`): a V-cycle costs about 3 Gauss–Seidel sweeps and
+/// its coarse levels about one more round of factorizations; multigrid needs at most ~11
+/// iterations after the probe, so it pays from about 30 Gauss–Seidel iterations on.
 pub const SWITCH_ITERATIONS: f64 = 30.0;
 
 /// PCG preconditioned with exact slab solves: slab Gauss–Seidel, multigrid in time, or the

@@ -1,8 +1,11 @@
-//! Multigrid in time: slab sweeps as smoother, semi-coarsening in time, Galerkin coarse levels.
+//! Multigrid in time: slab sweeps as smoother, semi-coarsening in time, coarse levels at twice
+//! the time step.
 //!
 //! Level 0 is the space-time system; level `l + 1` merges the slabs of level `l` in pairs with
 //! the transported prolongation `u_{2k} = ũ_k`, `u_{2k+1} = T_k ũ_k` and has the operator
-//! `Pᵀ A P` ([`SpaceTimeSystem::merge_slab_pairs`]), down to a single slab. One application is
+//! `Pᵀ A P − E` ([`SpaceTimeSystem::merge_slab_pairs`]), down to a single slab: `E` is half the
+//! coupling energy of its lumped links, so that the coarse time coupling is that of the doubled
+//! time step (`c / 2`) rather than the fine one (see `LinkMatrix::halve`). One application is
 //! a V-cycle: forward sweep `(D + L)⁻¹`, restrict the residual, cycle on the coarse level,
 //! prolong and add, backward sweep `(D + Lᵀ)⁻¹`. Pre- and post-smoother are transposes of each
 //! other, so the cycle is a symmetric positive definite preconditioner for CG.
