@@ -150,19 +150,6 @@ fn npy_rows_are_those_of_the_whole_array() {
             .flat_map(|(_, row)| row.to_vec())
             .collect()
     };
-    fn write<T: npyz::AutoSerialize + Copy>(path: &Path, shape: &[u64], data: &[T]) {
-        use npyz::WriterBuilder;
-        let mut bytes = Vec::new();
-        let mut writer = npyz::WriteOptions::new()
-            .default_dtype()
-            .shape(shape)
-            .writer(&mut bytes)
-            .begin_nd()
-            .unwrap();
-        writer.extend(data.iter().copied()).unwrap();
-        writer.finish().unwrap();
-        std::fs::write(path, bytes).unwrap();
-    }
     let f32s: Vec<f32> = (0..60).map(|i| i as f32 * 0.37 - 3.0).collect();
     let f64s: Vec<f64> = (0..60).map(|i| (i as f64).sin()).collect();
     let u8s: Vec<u8> = (0..60).map(|i| (i * 7 % 256) as u8).collect();
@@ -170,10 +157,10 @@ fn npy_rows_are_those_of_the_whole_array() {
     let files = [("f32", 0), ("f64", 1), ("u8", 2), ("u16", 3)].map(|(name, kind)| {
         let path = dir.path().join(format!("{name}.npy"));
         match kind {
-            0 => write(&path, &shape, &f32s),
-            1 => write(&path, &shape, &f64s),
-            2 => write(&path, &shape, &u8s),
-            _ => write(&path, &shape, &u16s),
+            0 => common::write_npy(&path, &shape, &f32s),
+            1 => common::write_npy(&path, &shape, &f64s),
+            2 => common::write_npy(&path, &shape, &u8s),
+            _ => common::write_npy(&path, &shape, &u16s),
         }
         path
     });

@@ -116,22 +116,53 @@ fn traces_are_intrinsic() {
     }
 }
 
+/// The 6×6 grid on the unit square with what a trace from a vertex needs.
+struct FramedGrid {
+    plane: Surface,
+    mesh: Mesh,
+    geometry: IntrinsicGeometry,
+    connection: Connection,
+    /// `P_i`, each vertex frame in R³.
+    frames: Vec<nalgebra::Matrix3x2<f64>>,
+}
+
+impl FramedGrid {
+    fn new() -> Self {
+        let plane = grid(6, 6, 1.0, 1.0);
+        let mesh: Mesh = plane.mesh().unwrap();
+        let geometry = IntrinsicGeometry::from_positions(&mesh, &plane.positions).unwrap();
+        let connection = Connection::new(&mesh, &geometry);
+        let frames = vertex_frames_in_r3(&mesh, &geometry, &connection, &plane.positions).unwrap();
+        Self {
+            plane,
+            mesh,
+            geometry,
+            connection,
+            frames,
+        }
+    }
+
+    /// Where the trace of the vertex-frame vector `u` from `vertex` ends, in R³.
+    fn trace_end(&self, vertex: usize, u: Vector2<f64>) -> Vector3<f64> {
+        let (mesh, geometry) = (&self.mesh, &self.geometry);
+        let (start, step) = self
+            .connection
+            .vertex_trace_start(mesh, geometry, vertex, u);
+        let end = trace(mesh, geometry, start, step);
+        end.point.position(mesh, &self.plane.positions)
+    }
+}
+
 /// From a vertex, a vertex-frame vector `u` goes where its R³ image `P_i u` (geometry-central's
 /// frames) points, on a flat mesh exactly.
 #[test]
 fn a_trace_from_a_vertex_follows_its_frame_vector() {
-    let plane = grid(6, 6, 1.0, 1.0);
-    let mesh: Mesh = plane.mesh().unwrap();
-    let geometry = IntrinsicGeometry::from_positions(&mesh, &plane.positions).unwrap();
-    let connection = Connection::new(&mesh, &geometry);
-    let frames = vertex_frames_in_r3(&mesh, &geometry, &connection, &plane.positions).unwrap();
+    let plane = FramedGrid::new();
     let vertex = 3 * 7 + 3; // interior
     for angle in [0.1, 1.7, 3.0, 4.4, 6.0] {
         let u = 0.3 * Vector2::new(f64::cos(angle), f64::sin(angle));
-        let (start, step) = connection.vertex_trace_start(&mesh, &geometry, vertex, u);
-        let end = trace(&mesh, &geometry, start, step);
-        let expected = plane.positions[vertex] + frames[vertex] * u;
-        let reached = end.point.position(&mesh, &plane.positions);
+        let expected = plane.plane.positions[vertex] + plane.frames[vertex] * u;
+        let reached = plane.trace_end(vertex, u);
         assert!(
             (reached - expected).norm() < 1e-12,
             "angle {angle}: {reached:?} vs {expected:?}"
@@ -147,24 +178,19 @@ fn a_trace_from_a_vertex_follows_its_frame_vector() {
 /// next boundary vertex: warping then jumped by the whole step under round-off.)
 #[test]
 fn a_trace_along_the_boundary_does_not_depend_on_round_off() {
-    let plane = grid(6, 6, 1.0, 1.0);
-    let mesh: Mesh = plane.mesh().unwrap();
-    let geometry = IntrinsicGeometry::from_positions(&mesh, &plane.positions).unwrap();
-    let connection = Connection::new(&mesh, &geometry);
-    let frames = vertex_frames_in_r3(&mesh, &geometry, &connection, &plane.positions).unwrap();
-    let length = 0.3; // crosses the next boundary vertex (cells are 1/6 wide)
-                      // Bottom edge (y = 0), then the left edge (x = 0), each from a vertex on it.
+    let plane = FramedGrid::new();
+    // Crosses the next boundary vertex (cells are 1/6 wide).
+    let length = 0.3;
+    // Bottom edge (y = 0), then the left edge (x = 0), each from a vertex on it.
     for (vertex, along) in [(3, Vector3::x()), (3 * 7, Vector3::y())] {
-        let tangent = frames[vertex].transpose() * along;
+        let tangent = plane.frames[vertex].transpose() * along;
         let psi = tangent.y.atan2(tangent.x);
         for sign in [1.0, -1.0] {
             for tilt in [0.0, 1e-16, -1e-16, 1e-13, -1e-13] {
                 let angle = psi + tilt;
                 let u = sign * length * Vector2::new(angle.cos(), angle.sin());
-                let (start, step) = connection.vertex_trace_start(&mesh, &geometry, vertex, u);
-                let end = trace(&mesh, &geometry, start, step);
-                let expected = plane.positions[vertex] + sign * length * along;
-                let reached = end.point.position(&mesh, &plane.positions);
+                let expected = plane.plane.positions[vertex] + sign * length * along;
+                let reached = plane.trace_end(vertex, u);
                 assert!(
                     (reached - expected).norm() < 1e-12,
                     "vertex {vertex}, sign {sign}, tilt {tilt:e}: {reached:?} vs {expected:?}"

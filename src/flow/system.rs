@@ -541,10 +541,11 @@ impl SpaceTimeSystem {
 
     /// `D_s −= diag(blocks)` (one 2×2 block per vertex).
     fn subtract_vertex_diagonal(&mut self, s: usize, blocks: &[Matrix2<f64>]) {
-        self.blocks[s] = map_vertex_blocks(&self.pattern, &self.blocks[s], |i, j, d| match i == j {
-            true => d - blocks[i],
-            false => d,
-        });
+        self.blocks[s] =
+            map_vertex_blocks(&self.pattern, &self.blocks[s], |i, j, d| match i == j {
+                true => d - blocks[i],
+                false => d,
+            });
     }
 
     /// `D_{2k} + Tᵀ D_{2k+1} T + Tᵀ X_{2k} + X_{2k}ᵀ T`.
@@ -607,10 +608,9 @@ impl LinkMatrix {
     /// consistent link's diagonal part is a rotated mass matrix, which `X` does not determine;
     /// those levels stay Galerkin.
     fn halve(&mut self) -> Option<LinkAbsoluteValues> {
-        let LinkMatrix::Lumped(blocks) = self else {
-            return None;
-        };
-        blocks.iter_mut().for_each(|x| *x *= 0.5);
+        if let LinkMatrix::Lumped(blocks) = self {
+            blocks.iter_mut().for_each(|x| *x *= 0.5);
+        }
         self.absolute_values()
     }
 
@@ -620,8 +620,14 @@ impl LinkMatrix {
             return None;
         };
         Some(LinkAbsoluteValues {
-            before: blocks.iter().map(|x| spd_sqrt(&(x.transpose() * x))).collect(),
-            after: blocks.iter().map(|x| spd_sqrt(&(x * x.transpose()))).collect(),
+            before: blocks
+                .iter()
+                .map(|x| spd_sqrt(&(x.transpose() * x)))
+                .collect(),
+            after: blocks
+                .iter()
+                .map(|x| spd_sqrt(&(x * x.transpose())))
+                .collect(),
         })
     }
 
@@ -755,7 +761,6 @@ impl SystemWindow {
     }
 }
 
-/// The rotation `R` of the polar decomposition `M = R S` of a 2×2 matrix (the identity for 0).
 /// The square root of a symmetric positive semidefinite 2×2 matrix: `(S + √det S I) / √(tr S +
 /// 2 √det S)` (Cayley–Hamilton), zero for `S = 0`.
 fn spd_sqrt(s: &Matrix2<f64>) -> Matrix2<f64> {
@@ -766,6 +771,7 @@ fn spd_sqrt(s: &Matrix2<f64>) -> Matrix2<f64> {
     }
 }
 
+/// The rotation `R` of the polar decomposition `M = R S` of a 2×2 matrix (the identity for 0).
 fn polar_rotation(m: &Matrix2<f64>) -> Matrix2<f64> {
     let angle = (m[(1, 0)] - m[(0, 1)]).atan2(m[(0, 0)] + m[(1, 1)]);
     let (s, c) = angle.sin_cos();

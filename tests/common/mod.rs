@@ -245,11 +245,11 @@ pub fn assert_same_intrinsic_flow(a: &FlowResult, b: &FlowResult) {
     assert!((a.energy - b.energy).abs() < 1e-10 * a.energy);
 }
 
-/// Writes `values` as a float64 `.npy` file of `shape` (C order).
-pub fn write_npy(path: &Path, shape: &[u64], values: &[f64]) {
+/// Writes `values` as a `.npy` file of `shape` (C order) in their own dtype (float64 for `f64`).
+pub fn write_npy<T: npyz::AutoSerialize + Copy>(path: &Path, shape: &[u64], values: &[T]) {
     use npyz::WriterBuilder;
     let mut file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
-    let mut writer = npyz::WriteOptions::<f64>::new()
+    let mut writer = npyz::WriteOptions::<T>::new()
         .default_dtype()
         .shape(shape)
         .writer(&mut file)

@@ -5,9 +5,10 @@
 //!
 //! **The same preconditioners as one process.** The odd–even sweeps solve the even slabs, then
 //! the odd ones, by their index in the whole sequence, whatever the split; the multigrid in time
-//! pairs slabs `(2k, 2k + 1)` of the whole sequence as the multigrid in time of one process does. So the
-//! iterates equal the single process's up to the order of the dot products' sums, and the
-//! iteration count does not depend on the number of ranks.
+//! pairs slabs `(2k, 2k + 1)` of the whole sequence as the multigrid in time of one process
+//! does, and halves the coarse links that cross ranks as it halves the others. So the iterates
+//! equal the single process's up to the order of the dot products' sums, and the iteration count
+//! does not depend on the number of ranks.
 //!
 //! **Coarse levels gather onto fewer ranks.** Coarse slab `k` belongs to the rank that owns
 //! slab `2k`: a window `[a, b)` has the coarse window `[⌈a/2⌉, ⌈b/2⌉)`. A window that starts at

@@ -219,10 +219,16 @@ mod tests {
                 let p = prolongation(&transports, fine.n_slabs(), coarse.n_slabs());
                 let energy = halved_coupling_energy(&coarse);
                 let min_energy = energy.clone().symmetric_eigen().eigenvalues.min();
-                assert!(min_energy > -1e-12 * energy.amax().max(1.0), "E not PSD: {min_energy:e}");
+                assert!(
+                    min_energy > -1e-12 * energy.amax().max(1.0),
+                    "E not PSD: {min_energy:e}"
+                );
                 let expected = p.transpose() * dense(&fine) * &p - energy;
                 let error = (dense(&coarse) - &expected).amax() / expected.amax();
-                assert!(error < 1e-13, "{frames} frames: coarse level error {error:e}");
+                assert!(
+                    error < 1e-13,
+                    "{frames} frames: coarse level error {error:e}"
+                );
                 let r: Vec<f64> = (0..fine.dimension()).map(|i| (i as f64).sin()).collect();
                 let restricted = restrict(&transports, &r, fine.slab_dimension());
                 let expected = p.transpose() * DMatrix::from_column_slice(r.len(), 1, &r);
@@ -273,12 +279,22 @@ mod tests {
         let params = FlowParams::paper(0.3, 0.0, 1.0);
         let frames = 9;
         let sequence = crate::synth::paper_torus(16, 12, frames).unwrap();
-        let fine = FlowProblem::new(&sequence, &params).unwrap().system().clone();
+        let fine = FlowProblem::new(&sequence, &params)
+            .unwrap()
+            .system()
+            .clone();
         let coarse = fine.merge_slab_pairs(&fine.pair_transports());
         let every_other = {
-            let positions = (0..frames).step_by(2).map(|k| sequence.positions(k).unwrap().to_vec());
-            let grey = (0..frames).step_by(2).map(|k| sequence.intensities(k).to_vec());
-            let times = (0..frames).step_by(2).map(|k| sequence.times()[k]).collect();
+            let positions = (0..frames)
+                .step_by(2)
+                .map(|k| sequence.positions(k).unwrap().to_vec());
+            let grey = (0..frames)
+                .step_by(2)
+                .map(|k| sequence.intensities(k).to_vec());
+            let times = (0..frames)
+                .step_by(2)
+                .map(|k| sequence.times()[k])
+                .collect();
             let subsampled = crate::flow::MeshSequence::new(
                 sequence.mesh().clone(),
                 positions.collect(),
@@ -286,7 +302,10 @@ mod tests {
                 Some(times),
             )
             .unwrap();
-            FlowProblem::new(&subsampled, &params).unwrap().system().clone()
+            FlowProblem::new(&subsampled, &params)
+                .unwrap()
+                .system()
+                .clone()
         };
         assert_eq!(coarse.n_slabs(), every_other.n_slabs());
         for k in 0..coarse.n_slabs() - 1 {
@@ -298,7 +317,10 @@ mod tests {
             let norm = |m: &[Matrix2<f64>]| m.iter().map(|b| b.norm_squared()).sum::<f64>().sqrt();
             let difference: Vec<Matrix2<f64>> = x.iter().zip(y).map(|(x, y)| x - y).collect();
             let relative = norm(&difference) / norm(y);
-            assert!(relative < 0.01, "link {k}: relative difference {relative:.3}");
+            assert!(
+                relative < 0.01,
+                "link {k}: relative difference {relative:.3}"
+            );
         }
     }
 }
