@@ -21,8 +21,29 @@ use rayon::prelude::*;
 pub enum LinkMatrix {
     /// One 2×2 block per vertex.
     Lumped(Vec<Matrix2<f64>>),
-    /// Values of a `2V × 2V` matrix on the vertex pattern (not symmetric).
-    Consistent(Vec<f64>),
+    /// A `2V × 2V` matrix on the vertex pattern (not symmetric), with its diagonal parts.
+    Consistent(ConsistentLink),
+}
+
+/// A consistent link on the vertex pattern: its cross block `X` and the parts `B`, `A` it adds
+/// to the diagonal blocks of the slabs before and after. Together they are the link's energy,
+/// `[u_a; u_b]ᵀ [B Xᵀ; X A] [u_a; u_b] = c ‖u_b − P u_a‖²_M ≥ 0`; multigrid in time halves it
+/// on coarse levels ([`LinkMatrix::halve`]), which `X` alone does not allow (`B` and `A` are
+/// mass matrices rotated by each slab's connection).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConsistentLink {
+    /// `X` (rows: the slab after, columns: the slab before).
+    pub cross: Vec<f64>,
+    /// `B`, on the slab before.
+    pub before: Vec<f64>,
+    /// `A`, on the slab after.
+    pub after: Vec<f64>,
+}
+
+impl ConsistentLink {
+    fn parts_mut(&mut self) -> [&mut Vec<f64>; 3] {
+        [&mut self.cross, &mut self.before, &mut self.after]
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -41,11 +62,13 @@ impl LinkMatrix {
     pub fn mul(&self, pattern: &VertexPattern, x: &[f64], ys: &mut [f64]) {
         match self {
             LinkMatrix::Lumped(blocks) => add_block_diagonal_mul(blocks, false, x, ys),
-            LinkMatrix::Consistent(m) => for_each_column(pattern.view(m), |j, rows, values| {
-                for (&i, &v) in rows.iter().zip(values) {
-                    ys[i] += v * x[j];
-                }
-            }),
+            LinkMatrix::Consistent(m) => {
+                for_each_column(pattern.view(&m.cross), |j, rows, values| {
+                    for (&i, &v) in rows.iter().zip(values) {
+                        ys[i] += v * x[j];
+                    }
+                })
+            }
         }
     }
 
@@ -53,13 +76,15 @@ impl LinkMatrix {
     pub fn transpose_mul(&self, pattern: &VertexPattern, x: &[f64], ys: &mut [f64]) {
         match self {
             LinkMatrix::Lumped(blocks) => add_block_diagonal_mul(blocks, true, x, ys),
-            LinkMatrix::Consistent(m) => for_each_column(pattern.view(m), |j, rows, values| {
-                ys[j] += rows
-                    .iter()
-                    .zip(values)
-                    .map(|(&i, &v)| v * x[i])
-                    .sum::<f64>();
-            }),
+            LinkMatrix::Consistent(m) => {
+                for_each_column(pattern.view(&m.cross), |j, rows, values| {
+                    ys[j] += rows
+                        .iter()
+                        .zip(values)
+                        .map(|(&i, &v)| v * x[i])
+                        .sum::<f64>();
+                })
+            }
         }
     }
 }
@@ -288,7 +313,7 @@ impl SpaceTimeSystem {
         for (s, link) in self.links.iter().enumerate() {
             let lumped;
             let m = match link {
-                LinkMatrix::Consistent(values) => self.pattern.view(values),
+                LinkMatrix::Consistent(link) => self.pattern.view(&link.cross),
                 LinkMatrix::Lumped(blocks) => {
                     lumped = block_diagonal(blocks);
                     lumped.as_ref()
@@ -310,7 +335,11 @@ impl SpaceTimeSystem {
         }
         for link in &mut self.links {
             match link {
-                LinkMatrix::Consistent(values) => mask(&self.pattern, values, fixed, false),
+                LinkMatrix::Consistent(link) => {
+                    for values in link.parts_mut() {
+                        mask(&self.pattern, values, fixed, false);
+                    }
+                }
                 LinkMatrix::Lumped(blocks) => {
                     for (i, b) in blocks.iter_mut().enumerate() {
                         if fixed[2 * i] {
@@ -386,7 +415,15 @@ fn assemble_link(
             LinkMatrix::Lumped(blocks)
         }
         TimeCoupling::Consistent => {
-            LinkMatrix::Consistent(pattern.assemble_values(mesh.n_faces(), cross))
+            let part = |slab| {
+                let element = |f| link.diagonal_element(before, after, slab, f, coupling);
+                pattern.assemble_values(mesh.n_faces(), element)
+            };
+            LinkMatrix::Consistent(ConsistentLink {
+                cross: pattern.assemble_values(mesh.n_faces(), cross),
+                before: part(before),
+                after: part(after),
+            })
         }
     }
 }
@@ -470,9 +507,10 @@ pub fn dot(x: &[f64], y: &[f64]) -> f64 {
 /// ```
 ///
 /// Both keep the vertex pattern (and a lumped link stays lumped), so a coarse system is again a
-/// [`SpaceTimeSystem`]; it has no right-hand side and no energy constant. Lumped links are then
-/// halved with their share of the diagonal blocks ([`LinkMatrix::halve`]): the coarse system
-/// is `Pᵀ A P` less half its time coupling.
+/// [`SpaceTimeSystem`]; it has no right-hand side and no energy constant (a consistent link's
+/// parts follow: `B̃_k = T_kᵀ B_{2k+1} T_k`, `Ã_k = A_{2k+1}`). The links are then halved with
+/// their share of the diagonal blocks ([`LinkMatrix::halve`]): the coarse system is `Pᵀ A P`
+/// less half its time coupling.
 impl SpaceTimeSystem {
     /// `T_k` for every pair: per vertex, the rotation that minimizes the link energy of
     /// `X_{2k}` for fields transported as `u_{2k+1} = T u_{2k}`, the polar factor of `−X_ii`
@@ -491,9 +529,9 @@ impl SpaceTimeSystem {
     fn link_diagonal_blocks(&self, s: usize) -> Vec<Matrix2<f64>> {
         match &self.links[s] {
             LinkMatrix::Lumped(blocks) => blocks.clone(),
-            LinkMatrix::Consistent(values) => {
+            LinkMatrix::Consistent(link) => {
                 let mut diagonal = vec![Matrix2::zeros(); self.pattern.dimension() / 2];
-                for_each_vertex_block(&self.pattern, values, |i, j, block| {
+                for_each_vertex_block(&self.pattern, &link.cross, |i, j, block| {
                     if i == j {
                         diagonal[i] = block;
                     }
@@ -528,24 +566,30 @@ impl SpaceTimeSystem {
         coarse
     }
 
-    /// Halves the coupling energy of every lumped link ([`LinkMatrix::halve`]): the coarse
-    /// level's time step is twice the fine one's, and its weight `γ / (α² h)` half.
+    /// Halves the coupling energy of every link ([`LinkMatrix::halve`]): the coarse level's
+    /// time step is twice the fine one's, and its weight `γ / (α² h)` half.
     fn halve_time_coupling(&mut self) {
         for s in 0..self.links.len() {
-            if let Some(shares) = self.links[s].halve() {
-                self.subtract_vertex_diagonal(s, &shares.before);
-                self.subtract_vertex_diagonal(s + 1, &shares.after);
-            }
+            let shares = self.links[s].halve();
+            self.subtract_share(s, &shares.before);
+            self.subtract_share(s + 1, &shares.after);
         }
     }
 
-    /// `D_s −= diag(blocks)` (one 2×2 block per vertex).
-    fn subtract_vertex_diagonal(&mut self, s: usize, blocks: &[Matrix2<f64>]) {
-        self.blocks[s] =
-            map_vertex_blocks(&self.pattern, &self.blocks[s], |i, j, d| match i == j {
-                true => d - blocks[i],
-                false => d,
-            });
+    /// `D_s −= share`.
+    fn subtract_share(&mut self, s: usize, share: &DiagonalShare) {
+        match share {
+            DiagonalShare::Vertex(blocks) => {
+                self.blocks[s] =
+                    map_vertex_blocks(&self.pattern, &self.blocks[s], |i, j, d| match i == j {
+                        true => d - blocks[i],
+                        false => d,
+                    })
+            }
+            DiagonalShare::Pattern(values) => (self.blocks[s].iter_mut())
+                .zip(values)
+                .for_each(|(d, v)| *d -= v),
+        }
     }
 
     /// `D_{2k} + Tᵀ D_{2k+1} T + Tᵀ X_{2k} + X_{2k}ᵀ T`.
@@ -565,8 +609,9 @@ impl SpaceTimeSystem {
                     false => m,
                 });
             }
-            LinkMatrix::Consistent(x) => {
-                let tx = map_vertex_blocks(&self.pattern, x, |i, _, x| t[i].transpose() * x);
+            LinkMatrix::Consistent(link) => {
+                let tx =
+                    map_vertex_blocks(&self.pattern, &link.cross, |i, _, x| t[i].transpose() * x);
                 let txt = transposed_values(&self.pattern, &tx);
                 merged
                     .iter_mut()
@@ -583,74 +628,95 @@ impl SpaceTimeSystem {
     }
 }
 
-/// A lumped link's share of the diagonal blocks it joins: `|X|` per vertex on the slab before,
-/// `|Xᵀ|` on the slab after.
-struct LinkAbsoluteValues {
-    before: Vec<Matrix2<f64>>,
-    after: Vec<Matrix2<f64>>,
+/// What a link adds to one of the diagonal blocks it joins: one 2×2 block per vertex, or values
+/// on the vertex pattern.
+enum DiagonalShare {
+    Vertex(Vec<Matrix2<f64>>),
+    Pattern(Vec<f64>),
+}
+
+/// A link's shares of the diagonal blocks of the slabs before and after it.
+struct LinkShares {
+    before: DiagonalShare,
+    after: DiagonalShare,
 }
 
 impl LinkMatrix {
-    /// Halves a lumped link's coupling energy as far as the link shows it: `X ← X / 2`, and
-    /// returns `(|X|, |Xᵀ|)` of the halved link per vertex (`|X| = (XᵀX)^½`), which the
-    /// caller subtracts from the diagonal blocks of the slabs before and after the link.
-    /// `None` for a consistent link, left as it is.
+    /// Halves the link's coupling energy: `X ← X / 2`, and returns the halved link's shares
+    /// of the diagonal blocks ([`Self::shares`]), which the caller subtracts from the blocks
+    /// of the slabs before and after the link.
     ///
     /// Why: the Galerkin product `Pᵀ A P` of the piecewise-constant prolongation keeps the
     /// fine coupling weight `c` between coarse slabs, while a coarse slab spans twice the time
     /// step and rediscretization gives `c / 2`: the coarse level is twice too stiff in time,
     /// and a V-cycle compounds that error level by level (iterations grew with the number of
-    /// frames: 17, 25, 42, 58 at 20, 40, 100, 200 frames, 64×48 torus, `α = 0.01`). `E(u_a,
-    /// u_b) = u_aᵀ|X|u_a + u_bᵀ|Xᵀ|u_b + 2 u_bᵀ X u_a` is positive semidefinite (with the polar
-    /// decomposition `X = U |X|`, `E = ‖|X|^½ (u_a + Uᵀ u_b)‖²`), and the link's true
-    /// diagonal part `c m_i I` dominates `|X|` (`X_ii` is `−c m_i` times a mean of rotations),
-    /// so subtracting `E` of the halved link leaves the coarse operator positive definite. A
-    /// consistent link's diagonal part is a rotated mass matrix, which `X` does not determine;
-    /// those levels stay Galerkin.
-    fn halve(&mut self) -> Option<LinkAbsoluteValues> {
-        if let LinkMatrix::Lumped(blocks) = self {
-            blocks.iter_mut().for_each(|x| *x *= 0.5);
+    /// frames: 17, 25, 42, 58 at 20, 40, 100, 200 frames, 64×48 torus, `α = 0.01`). The
+    /// energy taken off, `[u_a; u_b]ᵀ [S_a Xᵀ; X S_b] [u_a; u_b]`, is positive semidefinite and
+    /// no more than half the link's, so the coarse operator stays positive definite.
+    fn halve(&mut self) -> LinkShares {
+        match self {
+            LinkMatrix::Lumped(blocks) => blocks.iter_mut().for_each(|x| *x *= 0.5),
+            LinkMatrix::Consistent(link) => {
+                for part in link.parts_mut() {
+                    part.iter_mut().for_each(|v| *v *= 0.5);
+                }
+            }
         }
-        self.absolute_values()
+        self.shares()
     }
 
-    /// `|X|` and `|Xᵀ|` per vertex of a lumped link (see [`Self::halve`]).
-    fn absolute_values(&self) -> Option<LinkAbsoluteValues> {
-        let LinkMatrix::Lumped(blocks) = self else {
-            return None;
-        };
-        Some(LinkAbsoluteValues {
-            before: blocks
-                .iter()
-                .map(|x| spd_sqrt(&(x.transpose() * x)))
-                .collect(),
-            after: blocks
-                .iter()
-                .map(|x| spd_sqrt(&(x * x.transpose())))
-                .collect(),
-        })
+    /// The link's shares of the diagonal blocks, for [`Self::halve`]: a consistent link's own
+    /// parts `(B, A)`; for a lumped one, `(|X|, |Xᵀ|)` per vertex (`|X| = (XᵀX)^½`), since a
+    /// lumped link does not keep its parts. `E(u_a, u_b) = u_aᵀ|X|u_a + u_bᵀ|Xᵀ|u_b + 2 u_bᵀ X
+    /// u_a` is positive semidefinite (with the polar decomposition `X = U |X|`, `E = ‖|X|^½
+    /// (u_a + Uᵀ u_b)‖²`), and the lumped link's true part `c m_i I` dominates `|X|` (`X_ii`
+    /// is `−c m_i` times a mean of rotations).
+    fn shares(&self) -> LinkShares {
+        match self {
+            LinkMatrix::Lumped(blocks) => {
+                let absolute = |f: fn(&Matrix2<f64>) -> Matrix2<f64>| {
+                    let blocks = blocks.iter().map(|x| spd_sqrt(&f(x)));
+                    DiagonalShare::Vertex(blocks.collect())
+                };
+                LinkShares {
+                    before: absolute(|x| x.transpose() * x),
+                    after: absolute(|x| x * x.transpose()),
+                }
+            }
+            LinkMatrix::Consistent(link) => LinkShares {
+                before: DiagonalShare::Pattern(link.before.clone()),
+                after: DiagonalShare::Pattern(link.after.clone()),
+            },
+        }
     }
 
-    /// `X T` for a block-diagonal `T` (one 2×2 block per vertex).
+    /// The link between `u_a = T ũ_a` and `u_b`, for a block-diagonal `T` (one 2×2 block per
+    /// vertex): `X T`, and a consistent link's part before becomes `Tᵀ B T`.
     fn right_multiplied(&self, pattern: &VertexPattern, t: &[Matrix2<f64>]) -> LinkMatrix {
         match self {
             LinkMatrix::Lumped(x) => {
                 LinkMatrix::Lumped(x.iter().zip(t).map(|(x, t)| x * t).collect())
             }
-            LinkMatrix::Consistent(x) => {
-                LinkMatrix::Consistent(map_vertex_blocks(pattern, x, |_, j, x| x * t[j]))
-            }
+            LinkMatrix::Consistent(link) => LinkMatrix::Consistent(ConsistentLink {
+                cross: map_vertex_blocks(pattern, &link.cross, |_, j, x| x * t[j]),
+                before: map_vertex_blocks(pattern, &link.before, |i, j, b| {
+                    t[i].transpose() * b * t[j]
+                }),
+                after: link.after.clone(),
+            }),
         }
     }
 
     /// The link as numbers to send to another rank: `[0, blocks…]` (lumped, 4 per vertex,
-    /// column-major) or `[1, values…]` (consistent).
+    /// column-major) or `[1, X…, B…, A…]` (consistent).
     pub fn to_message(&self) -> Vec<f64> {
         match self {
             LinkMatrix::Lumped(blocks) => std::iter::once(0.0)
                 .chain(blocks.iter().flat_map(|b| b.iter().copied()))
                 .collect(),
-            LinkMatrix::Consistent(values) => [&[1.0][..], values].concat(),
+            LinkMatrix::Consistent(link) => {
+                [&[1.0][..], &link.cross, &link.before, &link.after].concat()
+            }
         }
     }
 
@@ -664,7 +730,15 @@ impl LinkMatrix {
                     .map(Matrix2::from_column_slice)
                     .collect(),
             ),
-            false => LinkMatrix::Consistent(values.to_vec()),
+            false => {
+                let mut parts = values.chunks_exact(values.len() / 3).map(<[f64]>::to_vec);
+                let mut next = || parts.next().unwrap_or_default();
+                LinkMatrix::Consistent(ConsistentLink {
+                    cross: next(),
+                    before: next(),
+                    after: next(),
+                })
+            }
         })
     }
 }
@@ -692,8 +766,8 @@ impl SystemWindow {
     /// [`Self::merge_slab_pairs`]) and takes its share of the halved coupling off the first
     /// block, as [`SpaceTimeSystem::merge_slab_pairs`] does inside a whole system.
     pub(crate) fn set_coarse_link_before(&mut self, link: Option<LinkMatrix>) {
-        if let Some(shares) = link.as_ref().and_then(LinkMatrix::absolute_values) {
-            self.system.subtract_vertex_diagonal(0, &shares.after);
+        if let Some(link) = &link {
+            self.system.subtract_share(0, &link.shares().after);
         }
         self.link_before = link;
     }
@@ -743,9 +817,8 @@ impl SystemWindow {
         let link_after = match (link_after, transports.last()) {
             (Some(link), Some(t)) => {
                 let mut link = link.right_multiplied(&own.pattern, t);
-                if let Some(shares) = link.halve() {
-                    system.subtract_vertex_diagonal(system.n_slabs() - 1, &shares.before);
-                }
+                let shares = link.halve();
+                system.subtract_share(system.n_slabs() - 1, &shares.before);
                 Some(link)
             }
             _ => None,

@@ -4,8 +4,8 @@
 //! Level 0 is the space-time system; level `l + 1` merges the slabs of level `l` in pairs with
 //! the transported prolongation `u_{2k} = ũ_k`, `u_{2k+1} = T_k ũ_k` and has the operator
 //! `Pᵀ A P − E` ([`SpaceTimeSystem::merge_slab_pairs`]), down to a single slab: `E` is half the
-//! coupling energy of its lumped links, so that the coarse time coupling is that of the doubled
-//! time step (`c / 2`) rather than the fine one (see `LinkMatrix::halve`). One application is
+//! coupling energy of its links, so that the coarse time coupling is that of the doubled time
+//! step (`c / 2`) rather than the fine one (see `LinkMatrix::halve`). One application is
 //! a V-cycle: forward sweep `(D + L)⁻¹`, restrict the residual, cycle on the coarse level,
 //! prolong and add, backward sweep `(D + Lᵀ)⁻¹`. Pre- and post-smoother are transposes of each
 //! other, so the cycle is a symmetric positive definite preconditioner for CG.
@@ -177,9 +177,12 @@ mod tests {
     use nalgebra::DMatrix;
 
     fn dense(system: &SpaceTimeSystem) -> DMatrix<f64> {
-        let n = system.dimension();
-        let mut m = DMatrix::zeros(n, n);
-        for_each_column(system.to_sparse().as_ref(), |j, rows, values| {
+        dense_values(system.to_sparse().as_ref())
+    }
+
+    fn dense_values(a: crate::fem::SparseMatrixRef<'_>) -> DMatrix<f64> {
+        let mut m = DMatrix::zeros(a.nrows(), a.ncols());
+        for_each_column(a, |j, rows, values| {
             rows.iter().zip(values).for_each(|(&i, &v)| m[(i, j)] += v);
         });
         m
@@ -200,9 +203,9 @@ mod tests {
     }
 
     /// Every level of the hierarchy is `Pᵀ A P` of the one above, formed densely, less the
-    /// halved coupling energy `E` of its lumped links (`E` formed densely with eigenvalue square
-    /// roots, and positive semidefinite; none for consistent links), and `restrict` is `Pᵀ`:
-    /// even and odd slab counts, lumped and consistent coupling.
+    /// halved coupling energy `E` of its links (formed densely, with eigenvalue square roots
+    /// for lumped links; positive semidefinite), and `restrict` is `Pᵀ`: even and odd slab
+    /// counts, lumped and consistent coupling.
     #[test]
     fn coarse_levels_are_the_galerkin_products_with_halved_time_coupling() {
         for (frames, coupling) in [(6, TimeCoupling::Lumped), (5, TimeCoupling::Consistent)] {
@@ -241,9 +244,9 @@ mod tests {
         }
     }
 
-    /// The energy a coarse level's lumped links take off `Pᵀ A P`: for each link `X` (halved)
-    /// between coarse slabs `k` and `k + 1`, `|X|` on block `k`, `|Xᵀ|` on block `k + 1`, and
-    /// `X` itself below and above the diagonal.
+    /// The energy a coarse level's links take off `Pᵀ A P`: for each link `X` (halved)
+    /// between coarse slabs `k` and `k + 1`, `X` below and above the diagonal, and on blocks
+    /// `k` and `k + 1` `|X|` and `|Xᵀ|` (lumped) or the link's parts `B` and `A` (consistent).
     fn halved_coupling_energy(coarse: &SpaceTimeSystem) -> DMatrix<f64> {
         let n = coarse.slab_dimension();
         let mut e = DMatrix::zeros(coarse.dimension(), coarse.dimension());
@@ -253,30 +256,51 @@ mod tests {
             eigen.eigenvectors * Matrix2::from_diagonal(&roots) * eigen.eigenvectors.transpose()
         };
         for k in 0..coarse.n_slabs() - 1 {
-            let LinkMatrix::Lumped(blocks) = coarse.link(k) else {
-                return DMatrix::zeros(coarse.dimension(), coarse.dimension());
+            let (a, b) = (k * n, (k + 1) * n);
+            let mut put = |r: usize, c: usize, m: DMatrix<f64>| {
+                let mut view = e.view_mut((r, c), m.shape());
+                view += m;
             };
-            for (i, x) in blocks.iter().enumerate() {
-                let (a, b) = (k * n + 2 * i, (k + 1) * n + 2 * i);
-                let mut put = |r: usize, c: usize, m: Matrix2<f64>| {
-                    let mut view = e.fixed_view_mut::<2, 2>(r, c);
-                    view += m;
-                };
-                put(a, a, sqrt(x.transpose() * x));
-                put(b, b, sqrt(x * x.transpose()));
-                put(b, a, *x);
-                put(a, b, x.transpose());
+            match coarse.link(k) {
+                LinkMatrix::Lumped(blocks) => {
+                    for (i, x) in blocks.iter().enumerate() {
+                        let dense =
+                            |m: Matrix2<f64>| DMatrix::from_column_slice(2, 2, m.as_slice());
+                        let (a, b) = (a + 2 * i, b + 2 * i);
+                        put(a, a, dense(sqrt(x.transpose() * x)));
+                        put(b, b, dense(sqrt(x * x.transpose())));
+                        put(b, a, dense(*x));
+                        put(a, b, dense(x.transpose()));
+                    }
+                }
+                LinkMatrix::Consistent(link) => {
+                    let dense = |values: &[f64]| dense_values(coarse.pattern().view(values));
+                    put(a, a, dense(&link.before));
+                    put(b, b, dense(&link.after));
+                    put(b, a, dense(&link.cross));
+                    put(a, b, dense(&link.cross).transpose());
+                }
             }
         }
         e
     }
 
     /// A coarse level is the space-time system of every other frame, to first order in the
-    /// frame spacing: its lumped links agree with the links assembled on frames `0, 2, 4, …`
-    /// (time step `2h`, weight `c / 2`); the Galerkin product alone keeps `c`, twice as stiff.
+    /// frame spacing: its links (a consistent one with its diagonal parts) agree with the links
+    /// assembled on frames `0, 2, 4, …` (time step `2h`, weight `c / 2`); the Galerkin product
+    /// alone keeps `c`, twice as stiff.
     #[test]
     fn coarse_links_are_those_of_every_other_frame() {
-        let params = FlowParams::paper(0.3, 0.0, 1.0);
+        for coupling in [TimeCoupling::Lumped, TimeCoupling::Consistent] {
+            coarse_links_are_those_of_every_other_frame_with(coupling);
+        }
+    }
+
+    fn coarse_links_are_those_of_every_other_frame_with(coupling: TimeCoupling) {
+        let params = FlowParams {
+            time_coupling: coupling,
+            ..FlowParams::paper(0.3, 0.0, 1.0)
+        };
         let frames = 9;
         let sequence = crate::synth::paper_torus(16, 12, frames).unwrap();
         let fine = FlowProblem::new(&sequence, &params)
@@ -308,18 +332,20 @@ mod tests {
                 .clone()
         };
         assert_eq!(coarse.n_slabs(), every_other.n_slabs());
+        let values = |link: &LinkMatrix| match link {
+            LinkMatrix::Lumped(blocks) => blocks.iter().flat_map(|b| b.iter().copied()).collect(),
+            LinkMatrix::Consistent(link) => [&link.cross[..], &link.before, &link.after].concat(),
+        };
         for k in 0..coarse.n_slabs() - 1 {
-            let (LinkMatrix::Lumped(x), LinkMatrix::Lumped(y)) =
-                (coarse.link(k), every_other.link(k))
-            else {
-                panic!("lumped links expected");
-            };
-            let norm = |m: &[Matrix2<f64>]| m.iter().map(|b| b.norm_squared()).sum::<f64>().sqrt();
-            let difference: Vec<Matrix2<f64>> = x.iter().zip(y).map(|(x, y)| x - y).collect();
-            let relative = norm(&difference) / norm(y);
+            let (x, y): (Vec<f64>, Vec<f64>) =
+                (values(coarse.link(k)), values(every_other.link(k)));
+            assert_eq!(x.len(), y.len(), "{coupling:?}: link kinds differ");
+            let norm = |v: &[f64]| v.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let difference: Vec<f64> = x.iter().zip(&y).map(|(x, y)| x - y).collect();
+            let relative = norm(&difference) / norm(&y);
             assert!(
                 relative < 0.01,
-                "link {k}: relative difference {relative:.3}"
+                "{coupling:?}, link {k}: relative difference {relative:.3}"
             );
         }
     }
