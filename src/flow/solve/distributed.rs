@@ -32,7 +32,7 @@ use super::multigrid::{prolong_add, residual, restrict};
 use super::pcg::{self, Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings};
 use super::{factorization_error, Solution, SolveObserver, SolverMethod};
-use super::{PROBE_ITERATIONS, SWITCH_ITERATIONS};
+use super::{gauss_seidel_verdict, PROBE_ITERATIONS, SWITCH_ITERATIONS};
 use crate::flow::system::{dot, SystemWindow};
 use crate::flow::{FlowError, FlowParams, LinkMatrix, SolverChoice, SpaceTimeSystem};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
@@ -402,21 +402,16 @@ impl<'a> WindowJob<'a> {
                     ..stop
                 };
                 let outcome = self.pcg(&levels, 1, vec![0.0; b.len()], probe)?;
-                let enough = outcome.converged || outcome.iterations != PROBE_ITERATIONS;
-                if sweeps_or_auto == Some(false) || enough {
+                let verdict = gauss_seidel_verdict(&outcome);
+                if sweeps_or_auto == Some(false) || outcome.gave_up.is_none() {
                     let reason = match sweeps_or_auto {
-                        Some(false) => "asked for",
-                        _ => "slab Gauss-Seidel converges fast enough",
+                        Some(false) => "asked for".into(),
+                        _ => verdict,
                     };
                     let method = SolverMethod::PcgSlabGaussSeidel;
-                    return self.finish(outcome, method, reason.into(), &levels, 1);
+                    return self.finish(outcome, method, reason, &levels, 1);
                 }
-                let reason = format!(
-                    "slab Gauss-Seidel reached {:.1e} in {} iterations, too slow: the time \
-                     coupling dominates",
-                    outcome.relative_residual, outcome.iterations
-                );
-                (outcome.x, outcome.iterations, reason)
+                (outcome.x, outcome.iterations, verdict)
             }
         };
         let (plans, n_levels_in_all) = build_levels(self.window, self.windows, self.ranks);
