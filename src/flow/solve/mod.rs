@@ -129,10 +129,14 @@
 //! link itself bounds (`|X_ii| ≤ c m_i`), but a consistent link's is a mass matrix rotated by
 //! each slab's connection, which the link does not determine. Consistent links therefore carry
 //! their two diagonal parts from assembly (`ConsistentLink`: three times a link's values) and
-//! halve exactly. The Fox at `--time-scale` 1 / 30 / 1000 / 10⁴, multigrid alone: Galerkin
-//! levels 11 / 35 / 43 / – iterations, halved 8 / 11 / 17 / 18 (preconditioned spectrum at
-//! 10⁴: `[0.60, 1.79]`, lumped `[0.81, 1.38]`: bounded, as the halved coarse operators are
-//! no softer than half the Galerkin ones). Subtracting less than half (0.9 or 0.8 of it) is
+//! halve exactly. Multigrid alone, Galerkin levels → halved: the Fox at `--time-scale` 1 / 30
+//! / 1000 / 10⁴, 11 / 35 / 43 / – → 8 / 11 / 17 / 18 iterations (preconditioned spectrum at
+//! 10⁴: `[0.60, 1.79]`, lumped `[0.81, 1.38]`: bounded, as the halved coarse operators are no
+//! softer than half the Galerkin ones); Khronos `CesiumMan.glb` (48 frames × 2,338 vertices,
+//! a grey pattern fixed in space as `--intensity`) at 1 / 30 / 1000, 11 / 28 / 32 → 9 / 11 /
+//! 16 (lumped: 9 / 10 / 11); the 48,450-vertex torus × 40 frames with default weights, 14 →
+//! 10 iterations, 44.3 → 39.2 s end to end, peak memory 6.5 → 8.0 GB (the parts are kept from
+//! assembly on, whichever solver runs). Subtracting less than half (0.9 or 0.8 of it) is
 //! far worse (264 and 354 iterations at 30): the diagonal parts then no longer cancel the
 //! links for fields constant in time, and at a large `c` the remainder acts as a huge mass
 //! term that blocks the coarse correction.
@@ -146,6 +150,36 @@
 //! Skipping the smoothing and factors of every other coarse level (coarsening by 4): at 20
 //! frames 2.8 → 2.3 s (`γ = 0.01`, `α = 0.01`, 11 iterations either way), but at 200 frames
 //! (64×48) 10 → 15 iterations and slower: iterations grow with frames again.
+//!
+//! Measured and rejected, operator-dependent coarse levels (reduction in time with an
+//! algebraic interpolation): the coarse level is the even slabs, with the Galerkin operator of
+//! `u_o = −diag(D_o)⁻¹ (X_{o−1} u_{o−1} + X_oᵀ u_{o+1})` per vertex, the harmonic extension
+//! into each odd slab with its block replaced by its vertex diagonal (checked against the dense
+//! `P̂ᵀ A P̂` to 4e-16; its coarse links carry the odd slabs' spatial pattern). With exact
+//! odd-slab solves before and after and no smoothing of the even slabs it is nearly exact on
+//! an 8×6 torus (preconditioned eigenvalues in `[0.998, 1]`), but on the 128×95×20 torus it
+//! took 126 / 152 / 61 iterations at `α` = 0.1 / 0.01 / 0.001 (`γ = 1`) and 51 / 66 / 33 at
+//! `γ = 0.01`; as the coarse levels of the V-cycle (both sweeps), 99 / 130 / 58 and 40 / 56 /
+//! 32. The vertex diagonal stands in for the odd slab's inverse only where `c m_i` dominates
+//! `γ L_ii`, and `c m_i` shrinks with the square of the mesh spacing while `γ L_ii` does not:
+//! it degrades under spatial refinement. The piecewise-constant transported prolongation asks
+//! nothing of `D_o⁻¹`, which is why it stays flat. Weighting the halving instead (coarse links
+//! `X ← (1 − θ) X` with `θ |X|` off the diagonal blocks, which keeps fields constant in time
+//! free of coupling energy for any `θ`; `θ = ½` is the doubled time step): `θ` = 0.4 / 0.45 /
+//! 0.55 gave 10 / 10 / 9, 9 / 9 / 8 and 9 / 10 / 8 iterations at `γ = 1`, `α` = 0.1 / 0.01 /
+//! 0.001 (`θ = ½`: 9 / 9 / 7), and at `γ = 0.01`, `α = 0.01` 11 for every `θ` (12 at 0.55).
+//!
+//! Where the time goes at `α = 0.01`, `γ = 0.01` (multigrid alone, 2.7 s): fine factors
+//! 0.31 s, building the coarse levels 0.085 s, their factors 0.3 s, 11 V-cycles of 0.165 s
+//! (85 % slab sweeps, 11 % residual products). A slab solve streams its single-precision
+//! factor twice (2.18 M entries, 17.5 MB) and takes 1.75 ms on one core alone and about twice
+//! that while the other core solves too: the sweeps are bound by memory bandwidth (~10 GB/s),
+//! not arithmetic, and a V-cycle, which solves 82 slab blocks (both sweeps over the 20 fine and
+//! 21 coarse blocks) against a Gauss–Seidel iteration's 30, costs what it reads. `t(α = 0.01)
+//! / t(α = 1) ≤ 2.5` at `γ = 0.01` (1.9 s for the solve) would need at most 7 V-cycles, or a
+//! cycle that reads half as much; every candidate above that reads less (reduction to the
+//! even slabs, skipping levels, operator-dependent levels) loses flatness in `α`, in the
+//! number of frames or in the mesh size.
 //!
 //! Results agree with the direct solver to 1e-9 relative (`tests/solver.rs`), for lumped and
 //! consistent coupling, Neumann and Dirichlet boundaries, even and odd slab counts.
