@@ -23,7 +23,7 @@ use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, Ti
 use super::energy::energy_terms;
 use super::outer::{OuterStart, SlabSolver};
 use super::robust::reweighted;
-use super::slab::{build_slabs, embed_where_needed, time_links, Slab, TimeLink};
+use super::slab::{build_slabs, embed_where_needed, time_links, Slab};
 use super::system::SystemWindow;
 use super::uniqueness::{check_unique_minimizer, CheckedSlabs};
 use super::warp::coarse_to_fine;
@@ -137,43 +137,35 @@ impl WindowSlabs {
         params: &FlowParams,
         scales: &DataScales,
     ) -> Result<SystemWindow, FlowError> {
-        let weights = params.weights(scales)?;
-        let links = time_links(&self.slabs, &weights);
-        Ok(self.assemble_with(frames, params, &weights, &links))
+        self.assemble_checked(frames, params, scales, None)
     }
 
-    /// [`WindowSlabs::assemble`] after [`check_unique_minimizer`] over `ranks` (collective).
-    fn check_and_assemble(
+    /// [`WindowSlabs::assemble`], after [`check_unique_minimizer`] over `ranks` (collective)
+    /// when there are any.
+    fn assemble_checked(
         &self,
         frames: &MeshSequence,
         params: &FlowParams,
         scales: &DataScales,
-        ranks: &dyn TimeRanks,
+        check_over: Option<&dyn TimeRanks>,
     ) -> Result<SystemWindow, FlowError> {
         let weights = params.weights(scales)?;
         let links = time_links(&self.slabs, &weights);
-        let checked = CheckedSlabs {
-            slabs: &self.slabs,
-            links: &links,
-            own: self.local(&self.window.slabs),
-            offset: self.offset,
-        };
-        check_unique_minimizer(frames.mesh(), &checked, params, &weights, ranks)?;
-        Ok(self.assemble_with(frames, params, &weights, &links))
-    }
-
-    fn assemble_with(
-        &self,
-        frames: &MeshSequence,
-        params: &FlowParams,
-        weights: &Weights,
-        links: &[TimeLink],
-    ) -> SystemWindow {
-        let system = SpaceTimeSystem::assemble(frames.mesh(), &self.slabs, links, params, weights);
+        if let Some(ranks) = check_over {
+            let checked = CheckedSlabs {
+                slabs: &self.slabs,
+                links: &links,
+                own: self.local(&self.window.slabs),
+                offset: self.offset,
+            };
+            check_unique_minimizer(frames.mesh(), &checked, params, &weights, ranks)?;
+        }
+        let system =
+            SpaceTimeSystem::assemble(frames.mesh(), &self.slabs, &links, params, &weights);
         let mut window = system.into_window(self.local(&self.window.slabs));
         window.slabs = self.window.slabs.clone();
         window.n_slabs_in_all = self.window.n_slabs_in_all;
-        window
+        Ok(window)
     }
 
     /// Global slabs as indices into the window's frames' slabs.
@@ -361,7 +353,7 @@ impl RankWindow<'_> {
         start: Instant,
     ) -> Result<FlowResult, FlowError> {
         let (frames, ranks) = (self.frames, self.ranks);
-        let system = slabs.check_and_assemble(frames, params, &self.scales, ranks)?;
+        let system = slabs.assemble_checked(frames, params, &self.scales, Some(ranks))?;
         slabs.release_large(frames);
         let assembly = start.elapsed().as_secs_f64();
         let solution = solve_window(&system, ranks, params, observer)?;
