@@ -6,7 +6,9 @@
 //! **The same preconditioners as one process.** The odd–even sweeps solve the even slabs, then
 //! the odd ones, by their index in the whole sequence, whatever the split; the multigrid in time
 //! pairs slabs `(2k, 2k + 1)` of the whole sequence as the multigrid in time of one process
-//! does, and halves the coarse links that cross ranks as it halves the others. So the iterates
+//! does, and halves the coarse links that cross ranks as it halves the others. The V-cycle is
+//! the one process's code (`multigrid::v_cycle`); a rank gives it its windows of the levels and
+//! transfers that talk to the neighbouring ranks (`multigrid::CycleLevels`). So the iterates
 //! equal the single process's up to the order of the dot products' sums, and the iteration count
 //! does not depend on the number of ranks.
 //!
@@ -28,7 +30,7 @@
 //! (`MpiRanks`, feature `mpi`), threads in the tests.
 
 use super::cholesky::{analyze, CholeskyFactor, Precision};
-use super::multigrid::{prolong_add, residual, restrict};
+use super::multigrid::{prolong_add, restrict, v_cycle, CycleLevels};
 use super::pcg::{self, Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings};
 use super::{factorization_error, Solution, SolveObserver, SolverMethod};
@@ -236,40 +238,61 @@ impl<T: Precision> WindowPreconditioner<'_, '_, T> {
     fn view(&self, l: usize) -> LevelView<'_> {
         self.levels[l].plan.view(self.ranks)
     }
+}
 
-    /// `z ≈ A_l⁻¹ r` by one V-cycle from level `l` ([`super::multigrid`]), the pairs that
-    /// straddle two windows restricted and prolonged across the ranks.
-    fn cycle(&self, l: usize, r: &[f64], z: &mut [f64]) {
-        let (level, view) = (&self.levels[l], self.view(l));
-        let system = &level.plan.window.system;
-        z.copy_from_slice(r);
-        level.sweeps.forward(system, z, &view);
-        if l + 1 == self.n_levels_in_all {
-            return;
-        }
-        let n = view.n();
-        let lent = level.plan.window.lends_first();
-        let borrows = level.plan.window.borrows_next();
-        let fine_residual = residual(&view, r, z);
-        let (_, borrowed) = level.plan.chain.talk(
+/// The V-cycle's levels on a rank ([`super::multigrid`]): the pairs that straddle two windows
+/// are restricted and prolonged across the ranks.
+impl<T: Precision> CycleLevels<T> for WindowPreconditioner<'_, '_, T> {
+    fn n_levels(&self) -> usize {
+        self.n_levels_in_all
+    }
+
+    fn holds(&self, l: usize) -> bool {
+        l < self.levels.len()
+    }
+
+    fn system(&self, l: usize) -> &SpaceTimeSystem {
+        &self.levels[l].plan.window.system
+    }
+
+    fn sweeps(&self, l: usize) -> &SlabSweeps<T> {
+        &self.levels[l].sweeps
+    }
+
+    fn with_view<R>(&self, l: usize, f: impl FnOnce(&dyn Operator, &dyn Surroundings) -> R) -> R {
+        let view = self.view(l);
+        f(&view, &view)
+    }
+
+    /// Lends the first slab's residual to the rank before when its window starts at an odd
+    /// slab, borrows the rank after's when it ends at one, and restricts its pairs.
+    fn restrict(&self, l: usize, r: &[f64]) -> Vec<f64> {
+        let plan = &self.levels[l].plan;
+        let n = self.system(l).slab_dimension();
+        let lent = plan.window.lends_first();
+        let (_, borrowed) = plan.chain.talk(
             self.ranks,
             Messages {
-                to_before: lent.then(|| &fine_residual[..n]),
-                from_after: borrows,
+                to_before: lent.then(|| &r[..n]),
+                from_after: plan.window.borrows_next(),
                 ..Default::default()
             },
         );
-        let mut paired = fine_residual[usize::from(lent) * n..].to_vec();
+        let mut paired = r[usize::from(lent) * n..].to_vec();
         paired.extend(borrowed.unwrap_or_default());
-        let coarse_r = restrict(&level.plan.transports, &paired, n);
-        let mut coarse_z = vec![0.0; coarse_r.len()];
-        if l + 1 < self.levels.len() {
-            self.cycle(l + 1, &coarse_r, &mut coarse_z);
-        }
-        let mut increment = vec![0.0; paired.len()];
-        prolong_add(&level.plan.transports, &coarse_z, &mut increment, n);
-        let own = increment.len() - usize::from(borrows) * n;
-        let (from_before, _) = level.plan.chain.talk(
+        restrict(&plan.transports, &paired, n)
+    }
+
+    /// Prolongs onto its pairs, returns the borrowed slab's share to the rank after and takes
+    /// the lent slab's from the rank before.
+    fn prolong_add(&self, l: usize, coarse: &[f64], z: &mut [f64]) {
+        let plan = &self.levels[l].plan;
+        let n = self.system(l).slab_dimension();
+        let (lent, borrows) = (plan.window.lends_first(), plan.window.borrows_next());
+        let own = z.len() - usize::from(lent) * n;
+        let mut increment = vec![0.0; own + usize::from(borrows) * n];
+        prolong_add(&plan.transports, coarse, &mut increment, n);
+        let (from_before, _) = plan.chain.talk(
             self.ranks,
             Messages {
                 to_after: borrows.then(|| &increment[own..]),
@@ -281,16 +304,13 @@ impl<T: Precision> WindowPreconditioner<'_, '_, T> {
         if let Some(correction) = from_before {
             add(&mut z[..n], &correction);
         }
-        let mut correction = residual(&view, r, z);
-        level.sweeps.backward(system, &mut correction, &view);
-        add(z, &correction);
     }
 }
 
 impl<T: Precision> Preconditioner for WindowPreconditioner<'_, '_, T> {
     fn apply(&self, r: &[f64], z: &mut [f64]) {
         match self.n_levels_in_all > 1 {
-            true => self.cycle(0, r, z),
+            true => v_cycle(self, 0, r, z),
             false => {
                 z.copy_from_slice(r);
                 self.levels[0].sweeps.symmetric(

@@ -18,7 +18,7 @@
 
 use super::cholesky::Precision;
 use super::pcg::{Operator, Preconditioner};
-use super::precondition::{SlabSweeps, Whole};
+use super::precondition::{add, SlabSweeps, Surroundings, Whole};
 use crate::flow::system::SpaceTimeSystem;
 use nalgebra::{Matrix2, Vector2};
 use rayon::prelude::*;
@@ -84,39 +84,96 @@ impl<'a, T: Precision> TimeMultigrid<'a, T> {
             sweeps,
         }
     }
+}
 
-    fn system(&self, level: usize) -> &SpaceTimeSystem {
-        match level {
+/// What a V-cycle needs of its levels: level `l`'s system, sweeps and surroundings, and the
+/// transfers between levels `l` and `l + 1`. A whole hierarchy in one process is one
+/// ([`TimeMultigrid`]); a rank's windows of it, whose pairs may straddle two ranks, the other
+/// (`super::distributed`).
+pub(super) trait CycleLevels<T: Precision> {
+    /// Levels of the whole hierarchy (the last has one slab).
+    fn n_levels(&self) -> usize;
+    /// Whether this process holds level `l` (a rank falls idle below its last).
+    fn holds(&self, l: usize) -> bool;
+    fn system(&self, l: usize) -> &SpaceTimeSystem;
+    fn sweeps(&self, l: usize) -> &SlabSweeps<T>;
+    /// Calls `f` with level `l` as an operator (for residuals) and as the sweeps' surroundings.
+    fn with_view<R>(&self, l: usize, f: impl FnOnce(&dyn Operator, &dyn Surroundings) -> R) -> R;
+    /// `Pᵀ r` from level `l` to `l + 1`.
+    fn restrict(&self, l: usize, r: &[f64]) -> Vec<f64>;
+    /// `z += P zc` from level `l + 1` to `l`.
+    fn prolong_add(&self, l: usize, coarse: &[f64], z: &mut [f64]);
+}
+
+/// `z ≈ A_l⁻¹ r` by one V-cycle from level `l`: forward sweep, coarse correction, backward
+/// sweep on the residual.
+pub(super) fn v_cycle<T: Precision>(
+    levels: &impl CycleLevels<T>,
+    l: usize,
+    r: &[f64],
+    z: &mut [f64],
+) {
+    levels.with_view(l, |operator, around| {
+        let (system, sweeps) = (levels.system(l), levels.sweeps(l));
+        z.copy_from_slice(r);
+        sweeps.forward(system, z, around);
+        if l + 1 == levels.n_levels() {
+            // One slab: the forward sweep was an exact solve.
+            return;
+        }
+        let coarse_r = levels.restrict(l, &residual(operator, r, z));
+        let mut coarse_z = vec![0.0; coarse_r.len()];
+        if levels.holds(l + 1) {
+            v_cycle(levels, l + 1, &coarse_r, &mut coarse_z);
+        }
+        levels.prolong_add(l, &coarse_z, z);
+        let mut correction = residual(operator, r, z);
+        sweeps.backward(system, &mut correction, around);
+        add(z, &correction);
+    })
+}
+
+impl<T: Precision> CycleLevels<T> for TimeMultigrid<'_, T> {
+    fn n_levels(&self) -> usize {
+        self.sweeps.len()
+    }
+
+    fn holds(&self, _: usize) -> bool {
+        true
+    }
+
+    fn system(&self, l: usize) -> &SpaceTimeSystem {
+        match l {
             0 => self.fine,
             l => &self.hierarchy.coarse[l - 1],
         }
     }
 
-    /// `z ≈ A_l⁻¹ r` by one V-cycle from level `level`.
-    fn cycle(&self, level: usize, r: &[f64], z: &mut [f64]) {
-        let system = self.system(level);
-        z.copy_from_slice(r);
-        self.sweeps[level].forward(system, z, &Whole);
-        if level == self.hierarchy.coarse.len() {
-            // One slab: the forward sweep was an exact solve.
-            return;
-        }
-        let transports = &self.hierarchy.transports[level];
-        let n = system.slab_dimension();
-        let fine_residual = residual(system, r, z);
-        let coarse_r = restrict(transports, &fine_residual, n);
-        let mut coarse_z = vec![0.0; coarse_r.len()];
-        self.cycle(level + 1, &coarse_r, &mut coarse_z);
-        prolong_add(transports, &coarse_z, z, n);
-        let mut correction = residual(system, r, z);
-        self.sweeps[level].backward(system, &mut correction, &Whole);
-        z.par_iter_mut().zip(&correction).for_each(|(z, c)| *z += c);
+    fn sweeps(&self, l: usize) -> &SlabSweeps<T> {
+        &self.sweeps[l]
+    }
+
+    fn with_view<R>(&self, l: usize, f: impl FnOnce(&dyn Operator, &dyn Surroundings) -> R) -> R {
+        f(self.system(l), &Whole)
+    }
+
+    fn restrict(&self, l: usize, r: &[f64]) -> Vec<f64> {
+        restrict(
+            &self.hierarchy.transports[l],
+            r,
+            self.system(l).slab_dimension(),
+        )
+    }
+
+    fn prolong_add(&self, l: usize, coarse: &[f64], z: &mut [f64]) {
+        let n = self.system(l).slab_dimension();
+        prolong_add(&self.hierarchy.transports[l], coarse, z, n);
     }
 }
 
 impl<T: Precision> Preconditioner for TimeMultigrid<'_, T> {
     fn apply(&self, r: &[f64], z: &mut [f64]) {
-        self.cycle(0, r, z);
+        v_cycle(self, 0, r, z);
     }
 }
 
