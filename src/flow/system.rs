@@ -580,11 +580,7 @@ impl SpaceTimeSystem {
     fn subtract_share(&mut self, s: usize, share: &DiagonalShare) {
         match share {
             DiagonalShare::Vertex(blocks) => {
-                self.blocks[s] =
-                    map_vertex_blocks(&self.pattern, &self.blocks[s], |i, j, d| match i == j {
-                        true => d - blocks[i],
-                        false => d,
-                    })
+                update_vertex_diagonal(&self.pattern, &mut self.blocks[s], |i, d| d - blocks[i])
             }
             DiagonalShare::Pattern(values) => (self.blocks[s].iter_mut())
                 .zip(values)
@@ -602,13 +598,10 @@ impl SpaceTimeSystem {
             .zip(&self.blocks[2 * k])
             .for_each(|(m, d)| *m += d);
         match &self.links[2 * k] {
-            LinkMatrix::Lumped(x) => {
-                let coupling: Vec<_> = x.iter().zip(t).map(|(x, t)| t.transpose() * x).collect();
-                merged = map_vertex_blocks(&self.pattern, &merged, |i, j, m| match i == j {
-                    true => m + coupling[i] + coupling[i].transpose(),
-                    false => m,
-                });
-            }
+            LinkMatrix::Lumped(x) => update_vertex_diagonal(&self.pattern, &mut merged, |i, m| {
+                let coupling = t[i].transpose() * x[i];
+                m + coupling + coupling.transpose()
+            }),
             LinkMatrix::Consistent(link) => {
                 let tx =
                     map_vertex_blocks(&self.pattern, &link.cross, |i, _, x| t[i].transpose() * x);
@@ -869,6 +862,10 @@ fn read_block(values: &[f64], [a, b, c, d]: [usize; 4]) -> Matrix2<f64> {
     Matrix2::new(values[a], values[b], values[c], values[d])
 }
 
+fn write_block(values: &mut [f64], [a, b, c, d]: [usize; 4], m: &Matrix2<f64>) {
+    [values[a], values[b], values[c], values[d]] = [m[(0, 0)], m[(0, 1)], m[(1, 0)], m[(1, 1)]];
+}
+
 /// Calls `f(i, j, M_ij)` for every stored vertex block of `values` on `pattern`.
 fn for_each_vertex_block(
     pattern: &VertexPattern,
@@ -876,6 +873,21 @@ fn for_each_vertex_block(
     mut f: impl FnMut(usize, usize, Matrix2<f64>),
 ) {
     vertex_blocks(pattern).for_each(|(i, j, slots)| f(i, j, read_block(values, slots)));
+}
+
+/// Replaces every diagonal vertex block `M_ii` of `values` by `f(i, M_ii)`, in place (a coarse
+/// level's blocks are each updated a few times; new buffers would be fresh pages each time).
+fn update_vertex_diagonal(
+    pattern: &VertexPattern,
+    values: &mut [f64],
+    f: impl Fn(usize, Matrix2<f64>) -> Matrix2<f64>,
+) {
+    for (i, j, slots) in vertex_blocks(pattern) {
+        if i == j {
+            let m = f(i, read_block(values, slots));
+            write_block(values, slots, &m);
+        }
+    }
 }
 
 /// The values of the matrix whose block `(i, j)` is `f(i, j, M_ij)`.
@@ -886,10 +898,7 @@ fn map_vertex_blocks(
 ) -> Vec<f64> {
     let mut out = vec![0.0; values.len()];
     for (i, j, slots) in vertex_blocks(pattern) {
-        let m = f(i, j, read_block(values, slots));
-        for (slot, k) in slots.into_iter().zip(0..4) {
-            out[slot] = m[(k / 2, k % 2)];
-        }
+        write_block(&mut out, slots, &f(i, j, read_block(values, slots)));
     }
     out
 }
