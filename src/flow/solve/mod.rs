@@ -169,16 +169,16 @@
 //! 0.55 gave 10 / 10 / 9, 9 / 9 / 8 and 9 / 10 / 8 iterations at `γ = 1`, `α` = 0.1 / 0.01 /
 //! 0.001 (`θ = ½`: 9 / 9 / 7), and at `γ = 0.01`, `α = 0.01` 11 for every `θ` (12 at 0.55).
 //!
-//! Where the time goes at `α = 0.01`, `γ = 0.01` (multigrid alone, 2.7 s): fine factors
-//! 0.31 s, building the coarse levels 0.085 s (0.063 s since they are updated in place), their factors 0.3 s, 11 V-cycles of 0.165 s
-//! (85 % slab sweeps, 11 % residual products). A slab solve streams its single-precision
-//! factor twice (2.18 M entries, 17.5 MB) and takes 1.75 ms on one core alone and about twice
-//! that while the other core solves too: the sweeps are bound by memory bandwidth (~10 GB/s),
-//! not arithmetic, and a V-cycle, which solves 82 slab blocks (both sweeps over the 20 fine and
-//! 21 coarse blocks) against a Gauss–Seidel iteration's 30, costs what it reads. `t(α = 0.01)
-//! / t(α = 1) ≤ 2.5` at `γ = 0.01` (1.9 s for the solve) would need at most 7 V-cycles, or a
-//! cycle that reads half as much; every candidate above that reads less (reduction to the
-//! even slabs, skipping levels, operator-dependent levels) loses flatness in `α`, in the
+//! Where the time goes at `α = 0.01`, `γ = 0.01` (multigrid alone, 2.7 s): fine factors 0.31 s,
+//! building the coarse levels 0.085 s (0.063 s since they are updated in place), their factors
+//! 0.3 s, 11 V-cycles of 0.165 s (85 % slab sweeps, 11 % residual products). A slab solve streams
+//! its single-precision factor twice (2.18 M entries, 17.5 MB) and takes 1.75 ms on one core
+//! alone and about twice that while the other core solves too: the sweeps are bound by memory
+//! bandwidth (~10 GB/s), not arithmetic, and a V-cycle, which solves 82 slab blocks (both sweeps
+//! over the 20 fine and 21 coarse blocks) against a Gauss–Seidel iteration's 30, costs what it
+//! reads. `t(α = 0.01) / t(α = 1) ≤ 2.5` at `γ = 0.01` (1.9 s for the solve) would need at most 7
+//! V-cycles, or a cycle that reads half as much; every candidate above that reads less (reduction
+//! to the even slabs, skipping levels, operator-dependent levels) loses flatness in `α`, in the
 //! number of frames or in the mesh size.
 //!
 //! Results agree with the direct solver to 1e-9 relative (`tests/solver.rs`), for lumped and
