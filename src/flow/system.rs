@@ -569,23 +569,17 @@ impl SpaceTimeSystem {
     /// Halves the coupling energy of every link ([`LinkMatrix::halve`]): the coarse level's
     /// time step is twice the fine one's, and its weight `γ / (α² h)` half.
     fn halve_time_coupling(&mut self) {
-        for s in 0..self.links.len() {
-            let shares = self.links[s].halve();
-            self.subtract_share(s, &shares.before);
-            self.subtract_share(s + 1, &shares.after);
+        for (s, link) in self.links.iter_mut().enumerate() {
+            link.halve();
+            let shares = link.shares();
+            subtract_share(&self.pattern, &mut self.blocks[s], &shares.before);
+            subtract_share(&self.pattern, &mut self.blocks[s + 1], &shares.after);
         }
     }
 
     /// `D_s −= share`.
     fn subtract_share(&mut self, s: usize, share: &DiagonalShare) {
-        match share {
-            DiagonalShare::Vertex(blocks) => {
-                update_vertex_diagonal(&self.pattern, &mut self.blocks[s], |i, d| d - blocks[i])
-            }
-            DiagonalShare::Pattern(values) => (self.blocks[s].iter_mut())
-                .zip(values)
-                .for_each(|(d, v)| *d -= v),
-        }
+        subtract_share(&self.pattern, &mut self.blocks[s], share);
     }
 
     /// `D_{2k} + Tᵀ D_{2k+1} T + Tᵀ X_{2k} + X_{2k}ᵀ T`.
@@ -622,22 +616,32 @@ impl SpaceTimeSystem {
 }
 
 /// What a link adds to one of the diagonal blocks it joins: one 2×2 block per vertex, or values
-/// on the vertex pattern.
-enum DiagonalShare {
+/// on the vertex pattern (a consistent link's own part, borrowed).
+enum DiagonalShare<'a> {
     Vertex(Vec<Matrix2<f64>>),
-    Pattern(Vec<f64>),
+    Pattern(&'a [f64]),
 }
 
 /// A link's shares of the diagonal blocks of the slabs before and after it.
-struct LinkShares {
-    before: DiagonalShare,
-    after: DiagonalShare,
+struct LinkShares<'a> {
+    before: DiagonalShare<'a>,
+    after: DiagonalShare<'a>,
+}
+
+/// `D −= share` for a diagonal block's values `block`.
+fn subtract_share(pattern: &VertexPattern, block: &mut [f64], share: &DiagonalShare) {
+    match share {
+        DiagonalShare::Vertex(blocks) => {
+            update_vertex_diagonal(pattern, block, |i, d| d - blocks[i])
+        }
+        DiagonalShare::Pattern(values) => block.iter_mut().zip(*values).for_each(|(d, v)| *d -= v),
+    }
 }
 
 impl LinkMatrix {
-    /// Halves the link's coupling energy: `X ← X / 2`, and returns the halved link's shares
-    /// of the diagonal blocks ([`Self::shares`]), which the caller subtracts from the blocks
-    /// of the slabs before and after the link.
+    /// Halves the link's coupling energy: `X ← X / 2`; the caller then subtracts the halved
+    /// link's shares of the diagonal blocks ([`Self::shares`]) from the blocks of the slabs
+    /// before and after the link.
     ///
     /// Why: the Galerkin product `Pᵀ A P` of the piecewise-constant prolongation keeps the
     /// fine coupling weight `c` between coarse slabs, while a coarse slab spans twice the time
@@ -646,7 +650,7 @@ impl LinkMatrix {
     /// frames: 17, 25, 42, 58 at 20, 40, 100, 200 frames, 64×48 torus, `α = 0.01`). The
     /// energy taken off, `[u_a; u_b]ᵀ [S_a Xᵀ; X S_b] [u_a; u_b]`, is positive semidefinite and
     /// no more than half the link's, so the coarse operator stays positive definite.
-    fn halve(&mut self) -> LinkShares {
+    fn halve(&mut self) {
         match self {
             LinkMatrix::Lumped(blocks) => blocks.iter_mut().for_each(|x| *x *= 0.5),
             LinkMatrix::Consistent(link) => {
@@ -655,7 +659,6 @@ impl LinkMatrix {
                 }
             }
         }
-        self.shares()
     }
 
     /// The link's shares of the diagonal blocks, for [`Self::halve`]: a consistent link's own
@@ -664,7 +667,7 @@ impl LinkMatrix {
     /// u_a` is positive semidefinite (with the polar decomposition `X = U |X|`, `E = ‖|X|^½
     /// (u_a + Uᵀ u_b)‖²`), and the lumped link's true part `c m_i I` dominates `|X|` (`X_ii`
     /// is `−c m_i` times a mean of rotations).
-    fn shares(&self) -> LinkShares {
+    fn shares(&self) -> LinkShares<'_> {
         match self {
             LinkMatrix::Lumped(blocks) => {
                 let absolute = |f: fn(&Matrix2<f64>) -> Matrix2<f64>| {
@@ -677,8 +680,8 @@ impl LinkMatrix {
                 }
             }
             LinkMatrix::Consistent(link) => LinkShares {
-                before: DiagonalShare::Pattern(link.before.clone()),
-                after: DiagonalShare::Pattern(link.after.clone()),
+                before: DiagonalShare::Pattern(&link.before),
+                after: DiagonalShare::Pattern(&link.after),
             },
         }
     }
@@ -810,8 +813,8 @@ impl SystemWindow {
         let link_after = match (link_after, transports.last()) {
             (Some(link), Some(t)) => {
                 let mut link = link.right_multiplied(&own.pattern, t);
-                let shares = link.halve();
-                system.subtract_share(system.n_slabs() - 1, &shares.before);
+                link.halve();
+                system.subtract_share(system.n_slabs() - 1, &link.shares().before);
                 Some(link)
             }
             _ => None,
