@@ -70,6 +70,7 @@ pub mod fem;
 pub mod flow;
 pub mod geometry;
 pub mod io;
+pub mod limits;
 pub mod mesh;
 pub mod render;
 pub mod shapes;

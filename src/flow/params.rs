@@ -170,7 +170,8 @@ pub struct FlowParams {
     pub max_iterations: usize,
     /// Above this many unknowns `Auto` does not use the direct solver.
     pub direct_limit: usize,
-    /// Bytes the per-slab Cholesky factors may take before `Auto` falls back to Jacobi.
+    /// Bytes the per-slab Cholesky factors may take before `Auto` falls back to Jacobi
+    /// [default: [`crate::limits::factor_budget`], 35 % of the memory limit].
     pub factor_memory_limit: usize,
     /// Coarse-to-fine warping for large motions ([`Warping::NONE`]: the paper's single linear
     /// solve).
@@ -258,7 +259,7 @@ impl Default for FlowParams {
             tolerance: 1e-8,
             max_iterations: 5000,
             direct_limit: 60_000,
-            factor_memory_limit: 8 << 30,
+            factor_memory_limit: crate::limits::factor_budget(),
             warping: Warping::NONE,
         }
     }

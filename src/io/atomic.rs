@@ -23,6 +23,7 @@
 //! removed by the next run into the same target. The command line also removes its own on
 //! SIGINT, SIGTERM and SIGHUP ([`remove_live_staging`], called from its signal handler).
 
+use super::guard::{refuse_output_over_inputs, OutputKind};
 use super::IoError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
@@ -105,6 +106,54 @@ pub struct RunManifest {
     /// (absent in manifests of earlier versions).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub directory: Option<PathBuf>,
+    /// The files outside the directory that the first command read, as it read them: a later
+    /// command that reads them again (`advect`, `analyze`) uses them only while they still
+    /// hold this ([`RunManifest::check_inputs`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub inputs: Vec<RecordedInput>,
+}
+
+/// A file a run read, as it was then.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RecordedInput {
+    /// The file with links resolved.
+    pub path: PathBuf,
+    pub bytes: u64,
+    /// The BLAKE3 hash of its contents, in hex.
+    pub blake3: String,
+}
+
+impl RecordedInput {
+    /// `path`'s size and hash now.
+    pub fn of(path: &Path) -> Result<Self, IoError> {
+        let in_file = |e| IoError::file(path, e);
+        let resolved = path.canonicalize().map_err(in_file)?;
+        let mut hasher = blake3::Hasher::new();
+        let bytes = std::io::copy(&mut File::open(&resolved).map_err(in_file)?, &mut hasher)
+            .map_err(in_file)?;
+        Ok(Self {
+            path: resolved,
+            bytes,
+            blake3: hasher.finalize().to_hex().to_string(),
+        })
+    }
+}
+
+/// The regular files that the inputs `paths` stand for: a file itself, the regular files
+/// directly in a directory, the files a glob matches; sorted.
+pub fn input_files(paths: &[&Path]) -> Vec<PathBuf> {
+    let mut files = BTreeSet::new();
+    for path in paths {
+        if path.is_file() {
+            files.insert(path.to_path_buf());
+        } else if let Ok(entries) = std::fs::read_dir(path) {
+            let entries = entries.filter_map(Result::ok).map(|e| e.path());
+            files.extend(entries.filter(|p| p.is_file()));
+        } else if let Ok(matches) = glob::glob(&path.to_string_lossy()) {
+            files.extend(matches.filter_map(Result::ok).filter(|p| p.is_file()));
+        }
+    }
+    files.into_iter().collect()
 }
 
 const MANIFEST_FORMAT: &str = "meshflow run";
@@ -115,6 +164,84 @@ impl RunManifest {
         match (&self.directory, path.is_relative()) {
             (Some(directory), true) => directory.join(path),
             _ => path.to_path_buf(),
+        }
+    }
+
+    /// The manifest of the run `dir`, with a message that tells a missing manifest from a
+    /// corrupt one.
+    pub fn read_run(dir: &Path) -> Result<Self, IoError> {
+        let path = dir.join(RUN_MANIFEST);
+        let text = match std::fs::read(&path) {
+            Ok(text) => text,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Err(IoError::format(
+                    dir,
+                    format!("not a meshflow output (no {RUN_MANIFEST})"),
+                ))
+            }
+            Err(e) => return Err(IoError::file(path, e)),
+        };
+        let manifest = serde_json::from_slice::<Self>(&text)
+            .map_err(|e| IoError::format(&path, format!("corrupt run manifest ({e})")))?;
+        match manifest.format == MANIFEST_FORMAT {
+            true => Ok(manifest),
+            false => Err(IoError::format(
+                &path,
+                format!("not a meshflow run manifest (format {:?})", manifest.format),
+            )),
+        }
+    }
+
+    /// Checks that the files `paths` stand for ([`input_files`]) are the ones the run recorded
+    /// and still hold what they held then; errors about `run` name what changed.
+    pub fn check_inputs(&self, run: &Path, paths: &[&Path]) -> Result<(), IoError> {
+        let refuse = |message: String| IoError::format(run, format!("{message}; solve again"));
+        if self.inputs.is_empty() {
+            return Err(refuse(format!(
+                "its {RUN_MANIFEST} records no fingerprints of its inputs (an earlier meshflow \
+                 wrote it, or it was edited)"
+            )));
+        }
+        let now = input_files(paths);
+        let now: Vec<RecordedInput> = now
+            .iter()
+            .map(|p| RecordedInput::of(p))
+            .collect::<Result<_, _>>()?;
+        for file in &now {
+            let recorded = self.inputs.iter().find(|r| r.path == file.path);
+            match recorded {
+                None => {
+                    return Err(refuse(format!(
+                        "its manifest names {}, which the run did not read (was {RUN_MANIFEST} \
+                         edited?)",
+                        file.path.display()
+                    )))
+                }
+                Some(r) if r != file => {
+                    return Err(refuse(format!(
+                        "its input {} changed since the run ({} bytes, BLAKE3 {:.12}… then; \
+                         {} bytes, {:.12}… now)",
+                        file.path.display(),
+                        r.bytes,
+                        r.blake3,
+                        file.bytes,
+                        file.blake3
+                    )))
+                }
+                Some(_) => {}
+            }
+        }
+        let roots: Vec<PathBuf> = paths.iter().filter_map(|p| p.canonicalize().ok()).collect();
+        let gone = self.inputs.iter().find(|r| {
+            roots.iter().any(|root| r.path.starts_with(root))
+                && !now.iter().any(|n| n.path == r.path)
+        });
+        match gone {
+            Some(r) => Err(refuse(format!(
+                "its input {} is gone since the run",
+                r.path.display()
+            ))),
+            None => Ok(()),
         }
     }
 
@@ -236,6 +363,8 @@ pub struct StagedDir {
     directory: Option<PathBuf>,
     /// Files of the earlier output that stay (see [`StagedDir::update`]).
     kept: Vec<String>,
+    /// The files outside the output that the first command read.
+    inputs: Vec<RecordedInput>,
     committed: bool,
 }
 
@@ -246,15 +375,16 @@ impl StagedDir {
         Self::create(target, Overwrite::EarlierRun)
     }
 
-    /// [`StagedDir::create`] for a command that reads `input`: refused, before anything is
-    /// written, when `target` is the input or holds it (its outputs would mix with the
-    /// input's files, and e.g. a `flow.glb` among OBJ frames breaks the next run).
+    /// [`StagedDir::create`] for a command that reads `inputs`: refused, before anything is
+    /// written, when `target` is an input, holds one or lies inside an input directory (its
+    /// outputs would mix with the input's files, and e.g. a `flow.glb` among OBJ frames breaks
+    /// the next run). Call it before reading the inputs.
     pub fn create_apart_from(
-        input: &Path,
+        inputs: &[&Path],
         target: &Path,
         overwrite: Overwrite,
     ) -> Result<Self, IoError> {
-        check_apart(input, target)?;
+        check_apart(inputs, target)?;
         Self::create(target, overwrite)
     }
 
@@ -312,6 +442,7 @@ impl StagedDir {
             commands: Vec::new(),
             directory: std::env::current_dir().ok(),
             kept: Vec::new(),
+            inputs: Vec::new(),
             committed: false,
         };
         let manifest = match &existing {
@@ -322,6 +453,7 @@ impl StagedDir {
         if let (Some(keep), Some(manifest)) = (keep, manifest) {
             staged.commands = manifest.commands.clone();
             staged.directory = manifest.directory.clone();
+            staged.inputs = manifest.inputs.clone();
             staged.kept = manifest.files.iter().filter(|n| keep(n)).cloned().collect();
         }
         // A whole directory is swapped in: the kept files must be in it. (Forced into a
@@ -361,6 +493,18 @@ impl StagedDir {
             .push(arguments.into_iter().map(Into::into).collect());
     }
 
+    /// Records the files `paths` stand for ([`input_files`]) with their sizes and hashes, for
+    /// the commands that read them again later ([`RunManifest::check_inputs`]).
+    pub fn record_inputs(&mut self, paths: &[&Path]) -> Result<(), IoError> {
+        for file in input_files(paths) {
+            let recorded = RecordedInput::of(&file)?;
+            if !self.inputs.contains(&recorded) {
+                self.inputs.push(recorded);
+            }
+        }
+        Ok(())
+    }
+
     /// `error` with a staged file's path replaced by its final path, for messages.
     pub fn in_target(&self, error: IoError) -> IoError {
         relabel(error, &self.staging, &self.target)
@@ -386,6 +530,7 @@ impl StagedDir {
             commands: std::mem::take(&mut self.commands),
             files: files.into_iter().collect(),
             directory: self.directory.take(),
+            inputs: std::mem::take(&mut self.inputs),
         };
         write_atomically(&self.staging.join(RUN_MANIFEST), |w| {
             serde_json::to_writer_pretty(&mut *w, &manifest).map_err(std::io::Error::other)?;
@@ -573,36 +718,24 @@ fn relabel(mut error: IoError, from: &Path, to: &Path) -> IoError {
     error
 }
 
-/// `Err` when the directory `target` exists and is `input` or holds it (a glob input: its
-/// directory part).
-fn check_apart(input: &Path, target: &Path) -> Result<(), IoError> {
-    let Ok(out) = std::fs::canonicalize(target) else {
-        return Ok(()); // not there yet: it holds nothing
-    };
-    let location: PathBuf = match input.exists() {
-        true => input.to_path_buf(),
-        false => (input.components())
-            .take_while(|c| !c.as_os_str().to_string_lossy().contains(['*', '?', '[']))
-            .collect(),
-    };
-    let location = match location.as_os_str().is_empty() {
+/// Refuses `target` when it is one of `inputs`, holds one or lies inside an input directory
+/// ([`refuse_output_over_inputs`]); a glob input counts as the directory it lists.
+fn check_apart(inputs: &[&Path], target: &Path) -> Result<(), IoError> {
+    let locations: Vec<PathBuf> = inputs.iter().map(|input| glob_location(input)).collect();
+    let locations: Vec<&Path> = locations.iter().map(PathBuf::as_path).collect();
+    refuse_output_over_inputs(target, OutputKind::Directory, &locations)
+}
+
+/// `input`, or for a glob that names no file the directory its pattern lists.
+fn glob_location(input: &Path) -> PathBuf {
+    if input.exists() {
+        return input.to_path_buf();
+    }
+    let location: PathBuf = (input.components())
+        .take_while(|c| !c.as_os_str().to_string_lossy().contains(['*', '?', '[']))
+        .collect();
+    match location.as_os_str().is_empty() {
         true => PathBuf::from("."),
         false => location,
-    };
-    let Ok(read) = std::fs::canonicalize(&location) else {
-        return Ok(());
-    };
-    let relation = match (read == out, read.starts_with(&out)) {
-        (true, _) => "is",
-        (false, true) => "holds",
-        (false, false) => return Ok(()),
-    };
-    Err(IoError::format(
-        target,
-        format!(
-            "{relation} the input {}: the outputs would mix with the input's files; choose \
-             another output directory",
-            input.display()
-        ),
-    ))
+    }
 }

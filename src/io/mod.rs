@@ -22,7 +22,9 @@ mod glb;
 pub mod gltf_read;
 pub mod gltf_write;
 mod ground_truth;
+mod guard;
 mod input;
+mod linked;
 mod mtl;
 mod mtx;
 mod npy;
@@ -40,7 +42,10 @@ pub use analysis_output::{
     analysis_arrays, analysis_json, file_faces, write_analysis_outputs, AnalysisArray,
 };
 pub use atomic::RUN_MANIFEST;
-pub use atomic::{remove_live_staging, write_atomically, Overwrite, RunManifest, StagedDir};
+pub use atomic::{
+    input_files, remove_live_staging, write_atomically, Overwrite, RecordedInput, RunManifest,
+    StagedDir,
+};
 pub use channels::{select_channels, Channels, VertexValues};
 pub use flow_output::{
     summary_json, tissue_velocity, track_scores_json, write_flow_outputs, write_run_input,
@@ -50,7 +55,9 @@ pub use flow_output::{
 pub use flow_over_ranks::{send_own_slabs, write_flow_over_ranks, WrittenFlow};
 pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use ground_truth::read_ground_truth;
+pub use guard::{refuse_output_over_inputs, OutputKind};
 pub use input::{frame_files, FrameFormat, SequenceSource};
+pub use linked::resolve_linked;
 pub use mtl::{texture_colors, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};
 pub use npy::{
@@ -69,7 +76,19 @@ pub use texture::Texture;
 pub use vertex_map::VertexMap;
 pub use warning::{LoadWarning, STATIC_IMAGE_TOLERANCE};
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+/// The whole of a regular file, after checking its size against the memory limit
+/// ([`crate::limits`]): a device such as `/dev/zero` or a FIFO would never end.
+pub fn read_file(path: &Path) -> Result<Vec<u8>, IoError> {
+    let metadata = std::fs::metadata(path).map_err(|e| IoError::file(path, e))?;
+    if !metadata.is_file() {
+        return Err(IoError::format(path, "not a regular file"));
+    }
+    crate::limits::check_declared("the file", metadata.len())
+        .map_err(|e| IoError::too_large(path, e))?;
+    std::fs::read(path).map_err(|e| IoError::file(path, e))
+}
 
 /// A file could not be read, parsed or written.
 #[derive(Debug, thiserror::Error)]
@@ -97,6 +116,16 @@ pub enum IoError {
         #[source]
         source: crate::mesh::ConnectivityError,
     },
+    /// A size `path` declares does not fit the memory limit ([`crate::limits`]).
+    #[error("{}: {source}", path.display())]
+    TooLarge {
+        path: PathBuf,
+        #[source]
+        source: crate::limits::OverBudget,
+    },
+    /// An output would replace or lie among a command's inputs.
+    #[error("{}: {message}", path.display())]
+    OverInput { path: PathBuf, message: String },
     /// A file that `path` refers to (an OBJ's material library or texture) failed.
     #[error("{}: {context}: {source}", path.display())]
     Referenced {
@@ -115,6 +144,14 @@ impl IoError {
         }
     }
 
+    /// A declared size of `path` over the memory limit.
+    pub fn too_large(path: impl Into<PathBuf>, source: crate::limits::OverBudget) -> Self {
+        Self::TooLarge {
+            path: path.into(),
+            source,
+        }
+    }
+
     /// The file the error is about.
     pub fn path(&self) -> &std::path::Path {
         match self {
@@ -122,6 +159,8 @@ impl IoError {
             | Self::Parse { path, .. }
             | Self::Format { path, .. }
             | Self::Connectivity { path, .. }
+            | Self::TooLarge { path, .. }
+            | Self::OverInput { path, .. }
             | Self::Referenced { path, .. } => path,
         }
     }
@@ -132,6 +171,8 @@ impl IoError {
             | Self::Parse { path, .. }
             | Self::Format { path, .. }
             | Self::Connectivity { path, .. }
+            | Self::TooLarge { path, .. }
+            | Self::OverInput { path, .. }
             | Self::Referenced { path, .. } => path,
         }
     }

@@ -28,7 +28,7 @@
 //! The file is read here (so a missing one is an error naming it) and decoded leniently, so a
 //! file name in another encoding does not fail the whole library.
 
-use super::{IoError, ObjMesh, Texture};
+use super::{resolve_linked, IoError, ObjMesh, Texture};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
@@ -120,7 +120,6 @@ fn material_textures(
     if obj.materials.is_empty() || obj.face_texcoords.iter().all(Option::is_none) {
         return Ok(vec![None; obj.materials.len()]);
     }
-    let base = obj_path.parent().unwrap_or(Path::new(""));
     let referenced = |context: String| {
         move |source: IoError| IoError::Referenced {
             path: obj_path.to_path_buf(),
@@ -131,7 +130,7 @@ fn material_textures(
     // Material name → (image, the library that names it).
     let mut maps = HashMap::new();
     for library in &obj.material_libraries {
-        let path = base.join(library);
+        let path = resolve_linked(obj_path, "mtllib", library)?;
         let images = read_mtl(&path).map_err(referenced(format!("material library {library}")))?;
         maps.extend(
             images
@@ -153,7 +152,7 @@ fn material_textures(
 
 /// Material name → absolute path of its `map_Kd` image, from one `.mtl` file.
 fn read_mtl(path: &Path) -> Result<HashMap<String, PathBuf>, IoError> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
+    let bytes = super::read_file(path)?;
     let text = statements_read_here(&String::from_utf8_lossy(&bytes));
     if let Some(line) = map_before_any_newmtl(&text) {
         let message = "map_Kd before any newmtl".to_string();
@@ -161,7 +160,6 @@ fn read_mtl(path: &Path) -> Result<HashMap<String, PathBuf>, IoError> {
     }
     let (materials, _) = tobj::load_mtl_buf(&mut text.as_bytes())
         .map_err(|error| IoError::at_line(path, rejected_line(&text, error)))?;
-    let base = path.parent().unwrap_or(Path::new(""));
     let textured = materials
         .into_iter()
         .filter_map(|m| Some((m.name, m.diffuse_texture?)));
@@ -171,7 +169,10 @@ fn read_mtl(path: &Path) -> Result<HashMap<String, PathBuf>, IoError> {
                 path,
                 format!("material '{name}': map_Kd '{map}' names no image, only options"),
             )),
-            file => Ok((name, base.join(file))),
+            file => {
+                let image = resolve_linked(path, &format!("material '{name}': map_Kd"), &file)?;
+                Ok((name, image))
+            }
         })
         .collect()
 }

@@ -36,7 +36,7 @@ pub struct ObjMesh {
 
 /// Reads an OBJ file (see the module docs for the supported subset).
 pub fn read_obj(path: &Path) -> Result<ObjMesh, IoError> {
-    let text = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
+    let text = super::read_file(path)?;
     let text = String::from_utf8_lossy(&text);
     parse_obj(&text).map_err(|(line, message)| {
         // A statement that breaks off where the file does: the file was cut short.

@@ -68,7 +68,7 @@ pub enum PlyEncoding {
 
 /// Reads a PLY file (see the module docs for what is read and what is skipped).
 pub fn read_ply(path: &Path) -> Result<PlyMesh, IoError> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
+    let bytes = super::read_file(path)?;
     parse_ply(&bytes).map_err(|e| IoError::at_line(path, e))
 }
 

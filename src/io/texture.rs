@@ -27,13 +27,30 @@ impl Texture {
         })
     }
 
-    /// Decodes an image (PNG or JPEG) with channels scaled to `[0, 1]` (alpha ignored).
+    /// Decodes an image file (PNG or JPEG) with channels scaled to `[0, 1]` (alpha ignored).
     pub fn open(path: &Path) -> Result<Self, IoError> {
-        let image = image::open(path).map_err(|e| match e {
-            image::ImageError::IoError(e) => IoError::file(path, e),
-            e => IoError::format(path, format!("cannot decode the image ({e})")),
-        })?;
-        Self::from_image(&image).ok_or_else(|| IoError::format(path, "the image has no pixels"))
+        let bytes = super::read_file(path)?;
+        Self::decode(&bytes).map_err(|message| IoError::format(path, message))
+    }
+
+    /// Decodes an image in memory (PNG or JPEG) like [`Self::open`]. Its declared size is
+    /// checked against the memory limit ([`crate::limits`]) before any pixel is decoded: a
+    /// small file can declare a gigapixel image.
+    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
+        let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| format!("cannot read the image ({e})"))?;
+        let (width, height) = reader
+            .into_dimensions()
+            .map_err(|e| format!("cannot decode the image ({e})"))?;
+        // Decoded pixels, their f32 RGB copy and the f64 texels.
+        let per_pixel = 8 + 12 + 24;
+        let declared = format!("an image of {width} × {height} pixels");
+        crate::limits::check_items(declared, u64::from(width) * u64::from(height), per_pixel)
+            .map_err(|e| e.to_string())?;
+        let image =
+            image::load_from_memory(bytes).map_err(|e| format!("cannot decode the image ({e})"))?;
+        Self::from_image(&image).ok_or_else(|| "the image has no pixels".to_string())
     }
 
     /// The colours of a decoded image (channels scaled to `[0, 1]`, alpha ignored).

@@ -20,9 +20,15 @@ pub fn advect(
     seeds_file: Option<&Path>,
     overwrite: Overwrite,
 ) -> Result<(), Error> {
-    let mut staged = StagedDir::create_apart_from(run, out, overwrite)?;
-    staged.record_command(crate::command_line());
-    let FinishedRun { args, loaded, flow } = FinishedRun::read(run)?;
+    let args = crate::run::solve_command(run)?;
+    let staged = crate::run::stage_output(
+        run,
+        &args,
+        &seeds_file.into_iter().collect::<Vec<_>>(),
+        out,
+        overwrite,
+    )?;
+    let FinishedRun { args, loaded, flow } = FinishedRun::read(run, args)?;
     let sequence = &loaded.sequence;
     let seeds = match seeds_file {
         Some(file) => located_seeds(file, sequence)?,

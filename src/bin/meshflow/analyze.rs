@@ -6,7 +6,7 @@ use crate::pictures::PictureArgs;
 use crate::progress::{count_progress, during};
 use crate::run::FinishedRun;
 use meshflow::analysis::{analyze_flow, SlabAnalysis};
-use meshflow::io::{write_analysis_outputs, LoadedSequence, OutputFormat, Overwrite, StagedDir};
+use meshflow::io::{write_analysis_outputs, LoadedSequence, OutputFormat, Overwrite};
 use meshflow::render::colormap::symmetric_range;
 use meshflow::render::text::format_number;
 use meshflow::render::{
@@ -35,9 +35,9 @@ pub fn analyze(request: AnalyzeRequest) -> Result<(), Error> {
         formats,
         pictures,
     } = request;
-    let mut staged = StagedDir::create_apart_from(run, out, overwrite)?;
-    staged.record_command(crate::command_line());
-    let FinishedRun { loaded, flow, .. } = FinishedRun::read(run)?;
+    let args = crate::run::solve_command(run)?;
+    let staged = crate::run::stage_output(run, &args, &[], out, overwrite)?;
+    let FinishedRun { loaded, flow, .. } = FinishedRun::read(run, args)?;
     let start = std::time::Instant::now();
     let slabs = during("analysing the flow", || {
         analyze_flow(&loaded.sequence, &flow)

@@ -33,6 +33,16 @@ struct Cli {
     /// is drawn as bars on a terminal and written as plain time-stamped lines to a log or pipe
     #[arg(long, global = true)]
     quiet: bool,
+    /// Memory this run may take, e.g. 1.5G, 800M (suffixes K, M, G, T): sizes that input
+    /// files declare are checked against it before anything is allocated, and the solver's
+    /// factors take at most 35 % of it [default: the machine's physical memory]
+    #[arg(long, global = true, value_name = "SIZE", value_parser = meshflow::limits::parse_size)]
+    memory_limit: Option<u64>,
+    /// Read files that input files name (glTF buffers and images, OBJ material libraries and
+    /// textures) also outside the naming file's directory: absolute paths and '..' (for
+    /// trusted data only)
+    #[arg(long, global = true)]
+    allow_external_files: bool,
 }
 
 #[derive(Subcommand)]
@@ -598,6 +608,16 @@ impl SolveArgs {
         }
     }
 
+    /// The files and directories the solve reads: its input, `--intensity`, `--ground-truth`
+    /// and `--ground-truth-tracks`.
+    fn input_files(&self) -> Vec<&std::path::Path> {
+        std::iter::once(self.input.as_path())
+            .chain(self.intensity.as_deref())
+            .chain(self.ground_truth.as_deref())
+            .chain(self.ground_truth_tracks.as_deref())
+            .collect()
+    }
+
     /// `--regularizer` with `--dirichlet-mix`.
     fn regularizer(&self) -> Result<meshflow::flow::Regularizer, meshflow::flow::FlowError> {
         meshflow::flow::Regularizer::with_mix(self.regularizer, self.dirichlet_mix)
@@ -644,6 +664,12 @@ fn main() -> ExitCode {
         Err(error) => return usage_error(error),
     };
     progress::configure(cli.quiet);
+    if let Some(bytes) = cli.memory_limit {
+        meshflow::limits::set_memory_limit(bytes);
+    }
+    if cli.allow_external_files {
+        meshflow::limits::set_linked_files(meshflow::limits::LinkedFiles::Anywhere);
+    }
     remove_staging_on_signals();
     #[cfg(feature = "mpi")]
     if !matches!(cli.command, Command::Solve(_)) && ranks::launched_as_one_of_several() {

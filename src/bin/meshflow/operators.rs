@@ -18,7 +18,7 @@ pub fn write_operators(
     options: &LoadOptions,
     overwrite: Overwrite,
 ) -> Result<(), Error> {
-    let mut staged = StagedDir::create_apart_from(mesh_path, out, overwrite)?;
+    let mut staged = StagedDir::create_apart_from(&[mesh_path], out, overwrite)?;
     staged.record_command(crate::command_line());
     let loaded = during(format!("reading {}", mesh_path.display()), || {
         load_mesh(mesh_path, options)

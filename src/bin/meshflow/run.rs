@@ -3,7 +3,9 @@
 use crate::progress::during;
 use crate::{Cli, Command, SolveArgs};
 use clap::Parser;
-use meshflow::io::{load_sequence, read_npy_float, IoError, LoadedSequence, RunManifest};
+use meshflow::io::{
+    load_sequence, read_npy_float, IoError, LoadedSequence, Overwrite, RunManifest, StagedDir,
+};
 use meshflow::Error;
 use nalgebra::Vector2;
 use std::path::Path;
@@ -17,9 +19,9 @@ pub struct FinishedRun {
 }
 
 impl FinishedRun {
-    /// Reads `run`: its manifest's solve command, that command's input, `flow_intrinsic.npy`.
-    pub fn read(run: &Path) -> Result<Self, Error> {
-        let args = solve_command(run)?;
+    /// Reads `run` made by the solve `args` ([`solve_command`], which checked its inputs):
+    /// that command's input and `flow_intrinsic.npy`.
+    pub fn read(run: &Path, args: Box<SolveArgs>) -> Result<Self, Error> {
         let loaded = during(format!("reading {}", args.input.display()), || {
             load_sequence(&args.input, &args.load_options())
         })?;
@@ -28,29 +30,63 @@ impl FinishedRun {
     }
 }
 
-/// The `solve` arguments that made `run`, from its manifest.
-fn solve_command(run: &Path) -> Result<Box<crate::SolveArgs>, Error> {
+/// The files outside `run` that its solve read, as the solve named them.
+pub fn external_inputs<'a>(run: &Path, args: &'a SolveArgs) -> Vec<&'a Path> {
+    std::iter::once(args.input.as_path())
+        .chain(args.intensity.as_deref())
+        .filter(|path| *path != run)
+        .collect()
+}
+
+/// The output directory of a command that reads `run` and its solve's input again (`advect`,
+/// `analyze`): refused, before anything is read, when it is or holds one of them or lies
+/// inside one.
+pub fn stage_output(
+    run: &Path,
+    args: &SolveArgs,
+    extra_inputs: &[&Path],
+    out: &Path,
+    overwrite: Overwrite,
+) -> Result<StagedDir, Error> {
+    let inputs: Vec<&Path> = std::iter::once(run)
+        .chain(external_inputs(run, args))
+        .chain(extra_inputs.iter().copied())
+        .collect();
+    let mut staged = StagedDir::create_apart_from(&inputs, out, overwrite)?;
+    staged.record_command(crate::command_line());
+    Ok(staged)
+}
+
+/// The `solve` arguments that made `run`, from its manifest, with its external inputs checked
+/// against what the run recorded of them (an edited manifest cannot make a later command read
+/// elsewhere, and a changed input is named).
+pub fn solve_command(run: &Path) -> Result<Box<crate::SolveArgs>, Error> {
     let not_a_run = |why: &str| Error::from(IoError::format(run, why.to_string()));
-    let manifest = RunManifest::read(run)
-        .ok_or_else(|| not_a_run("not a meshflow output (no meshflow_run.json)"))?;
+    let manifest = RunManifest::read_run(run)?;
     let command = manifest
         .commands
         .first()
         .ok_or_else(|| not_a_run("its manifest lists no command"))?;
-    match Cli::try_parse_from(command).map(|cli| cli.command) {
+    let args = match Cli::try_parse_from(command).map(|cli| cli.command) {
         // Its paths as the solve meant them, wherever `advect` runs from.
         // A flow computed from arrays holds its input itself (`meshflow::io::write_run_input`).
         Ok(Command::Solve(mut args)) if args.input == args.out => {
             args.input = run.to_path_buf();
-            Ok(args)
+            args.intensity = None;
+            args
         }
         Ok(Command::Solve(mut args)) => {
             args.input = manifest.resolve(&args.input);
             args.intensity = args.intensity.map(|file| manifest.resolve(&file));
-            Ok(args)
+            args
         }
-        _ => Err(not_a_run("not the output of `meshflow solve`")),
+        _ => return Err(not_a_run("not the output of `meshflow solve`")),
+    };
+    let external = external_inputs(run, &args);
+    if !external.is_empty() {
+        manifest.check_inputs(run, &external)?;
     }
+    Ok(args)
 }
 
 /// `flow_intrinsic.npy` of the run, per mesh vertex.
@@ -68,6 +104,17 @@ fn read_flow(
             format!(
                 "shape {:?}, expected ({s}, {v}, 2) for the run's input (was it changed since?)",
                 array.shape
+            ),
+        )
+        .into());
+    }
+    if let Some(at) = array.data.iter().position(|v| !v.is_finite()) {
+        let (slab, vertex) = (at / (2 * v), at / 2 % v);
+        return Err(IoError::format(
+            &file,
+            format!(
+                "slab {slab}, vertex {vertex} holds {}: not a flow",
+                array.data[at]
             ),
         )
         .into());

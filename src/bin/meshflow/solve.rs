@@ -56,8 +56,10 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
     let params = flow_params(args)?;
     // Before any long computation: fail now if the output cannot be written or would replace
     // files that are not an earlier meshflow output.
-    let mut out = StagedDir::create_apart_from(&args.input, &args.out, args.force.overwrite())?;
+    let inputs = args.input_files();
+    let mut out = StagedDir::create_apart_from(&inputs, &args.out, args.force.overwrite())?;
     out.record_command(crate::command_line());
+    out.record_inputs(&inputs)?;
     if let Some(ranks) = ranks.filter(|_| streams_outputs(args)) {
         return solve_streamed(args, ranks, &params, out);
     }

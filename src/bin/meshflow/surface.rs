@@ -19,7 +19,8 @@ pub struct SurfaceRequest<'a> {
 }
 
 pub fn run(request: SurfaceRequest) -> Result<(), Error> {
-    let mut staged = StagedDir::create_apart_from(request.points, request.out, request.overwrite)?;
+    let mut staged =
+        StagedDir::create_apart_from(&[request.points], request.out, request.overwrite)?;
     staged.record_command(crate::command_line());
     let frames = during(format!("reading {}", request.points.display()), || {
         read_points(request.points)

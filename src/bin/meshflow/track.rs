@@ -29,8 +29,19 @@ pub struct TrackRequest<'a> {
     pub overwrite: Overwrite,
 }
 
+impl TrackRequest<'_> {
+    /// The files and directories `track` reads: the frames, `--reference` and `--intensity`.
+    fn inputs(&self) -> Vec<&Path> {
+        std::iter::once(self.input)
+            .chain(self.reference)
+            .chain(self.load.intensity.as_deref())
+            .collect()
+    }
+}
+
 pub fn run(request: TrackRequest) -> Result<(), Error> {
-    let mut staged = StagedDir::create_apart_from(request.input, request.out, request.overwrite)?;
+    let mut staged =
+        StagedDir::create_apart_from(&request.inputs(), request.out, request.overwrite)?;
     staged.record_command(crate::command_line());
     let input = crate::progress::during(format!("reading {}", request.input.display()), || {
         read_frames(request.input, &request.load)

@@ -10,7 +10,7 @@
 //! normalized `u8`/`u16` to `c / (2ⁿ − 1)`, normalized `i8`/`i16` to `max(c / (2ⁿ⁻¹ − 1), −1)`,
 //! other integers to their value.
 
-use crate::io::{glb, IoError, Texture};
+use crate::io::{glb, resolve_linked, IoError, Texture};
 use base64::Engine;
 use gltf::accessor::DataType;
 use gltf::buffer::View;
@@ -32,7 +32,7 @@ impl<'p> GltfFile<'p> {
     /// Reads and validates `path` (`.gltf` JSON or `.glb` binary) and loads its buffers.
     pub fn open(path: &'p Path) -> Result<Self, IoError> {
         let error = |message: String| IoError::format(path, message);
-        let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
+        let bytes = crate::io::read_file(path)?;
         let (json, blob) = if glb::is_glb(&bytes) {
             let chunks = glb::split(&bytes).map_err(error)?;
             (chunks.json, chunks.bin)
@@ -105,13 +105,8 @@ impl<'p> GltfFile<'p> {
         }
         let relative = percent_decode(uri)
             .ok_or_else(|| self.error(format!("{label}: invalid URI {uri:?}")))?;
-        let referenced = self.path.with_file_name(relative);
-        std::fs::read(&referenced).map_err(|e| {
-            self.error(format!(
-                "{label}: cannot read {}: {e}",
-                referenced.display()
-            ))
-        })
+        let referenced = resolve_linked(self.path, &format!("{label} uri"), &relative)?;
+        crate::io::read_file(&referenced)
     }
 
     /// The elements of `accessor` (whose type must have one of `widths` components), first `N`
@@ -282,9 +277,7 @@ impl<'p> GltfFile<'p> {
             ),
             gltf::image::Source::Uri { uri, .. } => Cow::Owned(self.read_uri(uri, &label)?),
         };
-        let decoded = image::load_from_memory(&bytes)
-            .map_err(|e| self.error(format!("{label}: cannot decode ({e})")))?;
-        Texture::from_image(&decoded).ok_or_else(|| self.error(format!("{label} has no pixels")))
+        Texture::decode(&bytes).map_err(|message| self.error(format!("{label}: {message}")))
     }
 }
 

@@ -87,14 +87,14 @@ impl NamedArray {
 /// Reads a VTK XML UnstructuredGrid of triangles (see the module docs of [`super`] for what is
 /// accepted). Errors name the file and, where it helps, the line, array and cell.
 pub fn read_vtu(path: &Path) -> Result<VtuMesh, IoError> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
+    let bytes = crate::io::read_file(path)?;
     parse_vtu(&bytes).map_err(|e| IoError::at_line(path, e))
 }
 
 /// Reads a ParaView collection: `(timestep, file)` of every `<DataSet>`, the files resolved
 /// against the `.pvd`'s directory, in order of time (equal times keep their listed order).
 pub fn read_pvd(path: &Path) -> Result<Vec<(f64, PathBuf)>, IoError> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::file(path, e))?;
+    let bytes = crate::io::read_file(path)?;
     let directory = path.parent().unwrap_or(Path::new(""));
     let mut datasets = parse_pvd(&bytes).map_err(|e| IoError::at_line(path, e))?;
     datasets.sort_by(|(a, _), (b, _)| a.total_cmp(b));
