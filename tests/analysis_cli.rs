@@ -168,11 +168,64 @@ fn broken_runs_fail_in_one_line_without_output() {
     let saved = std::fs::read(&manifest).unwrap();
     std::fs::remove_file(&manifest).unwrap();
     failing(&run, "not a meshflow output (no meshflow_run.json)");
-    std::fs::write(&manifest, saved).unwrap();
-    std::fs::remove_file(input.join("frame_3.obj")).unwrap();
+    std::fs::write(&manifest, "{\"format\": \"meshflow run\", ").unwrap();
+    failing(&run, "meshflow_run.json: corrupt run manifest");
+    std::fs::write(&manifest, &saved).unwrap();
+    let frame = input.join("frame_3.obj");
+    let frame_bytes = std::fs::read(&frame).unwrap();
+    std::fs::remove_file(&frame).unwrap();
+    failing(&run, "frame_3.obj is gone since the run; solve again");
+    let mut edited = frame_bytes.clone();
+    edited.extend_from_slice(b"# edited\n");
+    std::fs::write(&frame, &edited).unwrap();
+    failing(&run, "frame_3.obj changed since the run");
+    std::fs::write(&frame, &frame_bytes).unwrap();
+    let flow = run.join("flow_intrinsic.npy");
+    let flow_bytes = std::fs::read(&flow).unwrap();
+    let mut poisoned = flow_bytes.clone();
+    let last = poisoned.len() - 8;
+    poisoned[last..].copy_from_slice(&f64::NAN.to_le_bytes());
+    std::fs::write(&flow, &poisoned).unwrap();
+    failing(&run, "holds NaN: not a flow");
+    std::fs::remove_file(&flow).unwrap();
     failing(&run, "flow_intrinsic.npy");
-    std::fs::remove_file(run.join("flow_intrinsic.npy")).unwrap();
-    failing(&run, "flow_intrinsic.npy");
+}
+
+/// An edited manifest cannot make `analyze` or `advect` read a file the solve did not read:
+/// the run's recorded inputs (sizes and BLAKE3 hashes) must hold.
+#[test]
+fn an_edited_manifest_reads_nothing_else() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    solve(&shipped("rotating_sphere"), &run);
+    let elsewhere = dir.path().join("elsewhere");
+    std::fs::create_dir(&elsewhere).unwrap();
+    for entry in std::fs::read_dir(shipped("rotating_sphere")).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, elsewhere.join(path.file_name().unwrap())).unwrap();
+    }
+    let manifest = run.join("meshflow_run.json");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    json["commands"][0][2] = serde_json::Value::from(elsewhere.to_str().unwrap());
+    std::fs::write(&manifest, json.to_string()).unwrap();
+    for command in ["analyze", "advect"] {
+        let out = dir.path().join(command);
+        let done = meshflow(&[command, run.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&done.stderr);
+        assert_eq!(done.status.code(), Some(1), "{command}: {stderr}");
+        assert!(
+            stderr.contains("which the run did not read (was meshflow_run.json edited?)"),
+            "{command}: {stderr}"
+        );
+        assert!(!out.exists());
+    }
+    json["inputs"] = serde_json::Value::Array(Vec::new());
+    std::fs::write(&manifest, json.to_string()).unwrap();
+    let out = dir.path().join("analysis");
+    let done = meshflow(&["analyze", run.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&done.stderr);
+    assert!(stderr.contains("records no fingerprints of its inputs"), "{stderr}");
 }
 
 /// `--out` naming the run itself is refused before anything is written: the run would be
@@ -193,6 +246,17 @@ fn the_run_is_never_its_own_output() {
         let stderr = String::from_utf8_lossy(&done.stderr);
         assert_eq!(done.status.code(), Some(1), "{command}: {stderr}");
         assert!(stderr.contains("is the input"), "{command}: {stderr}");
+        assert_eq!(listing(&run), before, "{command} left the run alone");
+        let inside = run.join("sub");
+        let done = meshflow(&[
+            command,
+            run.to_str().unwrap(),
+            "--out",
+            inside.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&done.stderr);
+        assert_eq!(done.status.code(), Some(1), "{command}: {stderr}");
+        assert!(stderr.contains("lies inside the input directory"), "{command}: {stderr}");
         assert_eq!(listing(&run), before, "{command} left the run alone");
     }
 }

@@ -32,7 +32,13 @@ pub fn refuse_output_over_inputs(
         };
         let refuse = |what: String| IoError::OverInput {
             path: out.to_path_buf(),
-            message: format!("{what}; choose an output outside the inputs"),
+            message: match kind {
+                OutputKind::File => format!("{what}; choose another output file"),
+                OutputKind::Directory => format!(
+                    "{what}: the outputs would mix with the input's files; choose another output \
+                     directory"
+                ),
+            },
         };
         if resolved_out == resolved_input || same_file(out, input) {
             return Err(refuse(format!("is the input {}", input.display())));
