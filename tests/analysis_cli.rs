@@ -211,7 +211,12 @@ fn an_edited_manifest_reads_nothing_else() {
     std::fs::write(&manifest, json.to_string()).unwrap();
     for command in ["analyze", "advect"] {
         let out = dir.path().join(command);
-        let done = meshflow(&[command, run.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+        let done = meshflow(&[
+            command,
+            run.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
         let stderr = String::from_utf8_lossy(&done.stderr);
         assert_eq!(done.status.code(), Some(1), "{command}: {stderr}");
         assert!(
@@ -223,9 +228,17 @@ fn an_edited_manifest_reads_nothing_else() {
     json["inputs"] = serde_json::Value::Array(Vec::new());
     std::fs::write(&manifest, json.to_string()).unwrap();
     let out = dir.path().join("analysis");
-    let done = meshflow(&["analyze", run.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let done = meshflow(&[
+        "analyze",
+        run.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     let stderr = String::from_utf8_lossy(&done.stderr);
-    assert!(stderr.contains("records no fingerprints of its inputs"), "{stderr}");
+    assert!(
+        stderr.contains("records no fingerprints of its inputs"),
+        "{stderr}"
+    );
 }
 
 /// `--out` naming the run itself is refused before anything is written: the run would be
@@ -256,7 +269,10 @@ fn the_run_is_never_its_own_output() {
         ]);
         let stderr = String::from_utf8_lossy(&done.stderr);
         assert_eq!(done.status.code(), Some(1), "{command}: {stderr}");
-        assert!(stderr.contains("lies inside the input directory"), "{command}: {stderr}");
+        assert!(
+            stderr.contains("lies inside the input directory"),
+            "{command}: {stderr}"
+        );
         assert_eq!(listing(&run), before, "{command} left the run alone");
     }
 }

@@ -13,11 +13,16 @@ use super::IoError;
 use crate::limits::{linked_files, LinkedFiles};
 use std::path::{Component, Path, PathBuf};
 
-/// The path of the file that `naming` names as `name` in `field` ("buffer 0 uri", "mtllib"),
-/// checked against the linked-file policy. `name` is taken as written (glTF URIs are
-/// percent-decoded by their reader first).
-pub fn resolve_linked(naming: &Path, field: &str, name: &str) -> Result<PathBuf, IoError> {
-    let refuse = |why: &str| IoError::format(naming, format!("{field} {name:?}: {why}"));
+/// The path of the file that `naming` names as `written` in `field` ("buffer 0 uri",
+/// "mtllib"), checked against the linked-file policy. `name` is the path `written` stands for
+/// (a glTF URI percent-decoded; an OBJ name as written); errors quote `written`.
+pub fn resolve_linked(
+    naming: &Path,
+    field: &str,
+    written: &str,
+    name: &str,
+) -> Result<PathBuf, IoError> {
+    let refuse = |why: &str| IoError::format(naming, format!("{field} {written:?}: {why}"));
     let trusted = linked_files() == LinkedFiles::Anywhere;
     let hint = "(--allow-external-files reads linked files outside the file's directory)";
     let relative = Path::new(name);
@@ -101,7 +106,7 @@ mod tests {
         std::fs::write(inner.join("data.bin"), [0u8; 8]).unwrap();
         let naming = inner.join("model.gltf");
         assert_eq!(
-            resolve_linked(&naming, "buffer 0 uri", "data.bin").unwrap(),
+            resolve_linked(&naming, "buffer 0 uri", "data.bin", "data.bin").unwrap(),
             inner.join("data.bin")
         );
         for name in [
@@ -110,7 +115,7 @@ mod tests {
             "/dev/zero",
             "sub/../../secret.txt",
         ] {
-            let error = resolve_linked(&naming, "buffer 0 uri", name).unwrap_err();
+            let error = resolve_linked(&naming, "buffer 0 uri", name, name).unwrap_err();
             let text = error.to_string();
             assert!(
                 text.contains("model.gltf") && text.contains("buffer 0 uri") && text.contains(name),
@@ -121,12 +126,12 @@ mod tests {
         {
             std::os::unix::fs::symlink(dir.path().join("secret.txt"), inner.join("link.bin"))
                 .unwrap();
-            let text = resolve_linked(&naming, "buffer 0 uri", "link.bin")
+            let text = resolve_linked(&naming, "buffer 0 uri", "link.bin", "link.bin")
                 .unwrap_err()
                 .to_string();
             assert!(text.contains("link that leads out"), "{text}");
         }
-        let text = resolve_linked(&naming, "buffer 0 uri", ".")
+        let text = resolve_linked(&naming, "buffer 0 uri", ".", ".")
             .unwrap_err()
             .to_string();
         assert!(text.contains("not a regular file"), "{text}");

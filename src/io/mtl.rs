@@ -130,7 +130,7 @@ fn material_textures(
     // Material name → (image, the library that names it).
     let mut maps = HashMap::new();
     for library in &obj.material_libraries {
-        let path = resolve_linked(obj_path, "mtllib", library)?;
+        let path = resolve_linked(obj_path, "mtllib", library, library)?;
         let images = read_mtl(&path).map_err(referenced(format!("material library {library}")))?;
         maps.extend(
             images
@@ -170,7 +170,8 @@ fn read_mtl(path: &Path) -> Result<HashMap<String, PathBuf>, IoError> {
                 format!("material '{name}': map_Kd '{map}' names no image, only options"),
             )),
             file => {
-                let image = resolve_linked(path, &format!("material '{name}': map_Kd"), &file)?;
+                let image =
+                    resolve_linked(path, &format!("material '{name}': map_Kd"), &file, &file)?;
                 Ok((name, image))
             }
         })

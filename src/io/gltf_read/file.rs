@@ -105,7 +105,7 @@ impl<'p> GltfFile<'p> {
         }
         let relative = percent_decode(uri)
             .ok_or_else(|| self.error(format!("{label}: invalid URI {uri:?}")))?;
-        let referenced = resolve_linked(self.path, &format!("{label} uri"), &relative)?;
+        let referenced = resolve_linked(self.path, &format!("{label} uri"), uri, &relative)?;
         crate::io::read_file(&referenced)
     }
 
