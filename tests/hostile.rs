@@ -94,7 +94,10 @@ fn gltf_buffers_outside_the_file_directory_are_refused() {
         assert_eq!(code, Some(1), "{uri}: {stderr}");
         assert_eq!(stderr.lines().count(), 1, "{uri}: {stderr}");
         let named = format!("square.gltf: buffer 0 uri {uri:?}: ");
-        assert!(stderr.contains(&named) && stderr.contains(why), "{uri}: {stderr}");
+        assert!(
+            stderr.contains(&named) && stderr.contains(why),
+            "{uri}: {stderr}"
+        );
         assert!(
             !stderr.contains("root:"),
             "nothing of the file leaks: {stderr}"

@@ -99,6 +99,50 @@ fn flow_scale_sets_the_saturation_of_the_flow_colours() {
     assert!(whiteness(&strong) < 0.5, "{:?}", strong.get_pixel(160, 120));
 }
 
+/// Pictures go into the run or beside it, never inside it, and the slab files a `flow.pvd`
+/// lists must lie in the run: an edited collection cannot make `render` read elsewhere.
+#[test]
+fn render_stays_apart_from_other_files() {
+    let out = tempfile::tempdir().unwrap();
+    let dir = out.path().join("run");
+    meshflow_ok(&[
+        "solve",
+        &shipped("rotating_sphere"),
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    let inside = dir.join("pictures");
+    let run = meshflow(&[
+        "render",
+        dir.to_str().unwrap(),
+        "--out",
+        inside.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("lies inside the input directory"),
+        "{stderr}"
+    );
+    assert!(!inside.exists());
+    let pvd = dir.join("flow.pvd");
+    let text = std::fs::read_to_string(&pvd).unwrap();
+    let outside = out.path().join("flow_0000.vtu");
+    std::fs::copy(dir.join("flow_0000.vtu"), &outside).unwrap();
+    std::fs::write(
+        &pvd,
+        text.replace("\"flow_0000.vtu\"", "\"../flow_0000.vtu\""),
+    )
+    .unwrap();
+    let run = meshflow(&["render", dir.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("flow.pvd: DataSet file \"../flow_0000.vtu\": leads out"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn render_errors_name_the_file() {
     let out = tempfile::tempdir().unwrap();

@@ -227,3 +227,32 @@ fn a_failed_run_shows_the_frames_done_and_where_the_fault_is() {
     );
     assert!(!out.exists());
 }
+
+/// Simplification only removes vertices: asking for more than the mesh has is an error that
+/// says so, not a silent run at the mesh's own size under a header that promises the number.
+#[test]
+fn a_reference_larger_than_the_mesh_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = frames();
+    let input = write_obj_frames(dir.path(), &frames);
+    let out = dir.path().join("out");
+    let done = meshflow(&[
+        "track",
+        input.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--reference-vertices",
+        "100000000",
+        "--quiet",
+    ]);
+    let stderr = String::from_utf8_lossy(&done.stderr);
+    assert_eq!(done.status.code(), Some(1), "{stderr}");
+    let has = frames[0].positions.len();
+    assert!(
+        stderr.contains(&format!(
+            "--reference-vertices 100000000 asks for more than the {has} vertices"
+        )),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+}

@@ -362,6 +362,11 @@ fn pvd_round_trip_gives_times_and_resolved_paths() {
         .zip(names.map(String::from))
         .collect();
     write_pvd(&path, &datasets).unwrap();
+    // The listed files must exist and lie beside the collection (`io::resolve_linked`).
+    std::fs::create_dir(dir.path().join("sub")).unwrap();
+    for name in names.iter().chain(&["a.vtu", "b.vtu", "c.vtu", "d.vtu"]) {
+        std::fs::write(dir.path().join(name), b"").unwrap();
+    }
     let read = read_pvd(&path).unwrap();
     let expected: Vec<(f64, PathBuf)> = datasets
         .iter()

@@ -286,6 +286,12 @@ pub enum TrackError {
     BadMaxStep(f64),
     #[error("a reference of {0} vertices cannot be made: ask for at least 4")]
     BadReferenceVertices(usize),
+    #[error(
+        "--reference-vertices {asked} asks for more than the {has} vertices of the mesh it \
+         simplifies (simplification only removes vertices); ask for at most {has}, or leave it \
+         out to track the mesh as it is"
+    )]
+    ReferenceVerticesAboveMesh { asked: usize, has: usize },
     #[error("frame {frame}: the relaxation's system is singular ({detail})")]
     Relaxation { frame: usize, detail: String },
     #[error("the reference mesh: {0}")]
@@ -450,6 +456,12 @@ fn reference_surface(first: &TrackFrame, options: &TrackOptions) -> Result<Surfa
     };
     match options.reference_vertices {
         Some(n) if n < 4 => Err(TrackError::BadReferenceVertices(n)),
+        Some(asked) if asked > given.positions.len() => {
+            Err(TrackError::ReferenceVerticesAboveMesh {
+                asked,
+                has: given.positions.len(),
+            })
+        }
         Some(n) => Ok(simplified_reference(&given.positions, &given.faces, n)),
         None => Ok(given),
     }

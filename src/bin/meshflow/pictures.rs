@@ -192,15 +192,15 @@ pub fn render_output(
                        (the default), or with --png";
         return Err(IoError::format(dir, message).into());
     }
-    let datasets = read_pvd(&pvd)?;
     let into_run = out.is_none_or(|out| same_directory(out, dir));
     let target = out.unwrap_or(dir);
     let mut staged = match into_run {
         // Pictures are the run's only PNG files.
         true => StagedDir::update(dir, overwrite, |name| !name.ends_with(".png"))?,
-        false => StagedDir::create(target, overwrite)?,
+        false => StagedDir::create_apart_from(&[dir], target, overwrite)?,
     };
     staged.record_command(crate::command_line());
+    let datasets = read_pvd(&pvd)?;
     let slabs: Vec<SlabFile> = during(format!("reading {} slab files", datasets.len()), || {
         datasets
             .into_iter()

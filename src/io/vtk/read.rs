@@ -95,13 +95,15 @@ pub fn read_vtu(path: &Path) -> Result<VtuMesh, IoError> {
 /// against the `.pvd`'s directory, in order of time (equal times keep their listed order).
 pub fn read_pvd(path: &Path) -> Result<Vec<(f64, PathBuf)>, IoError> {
     let bytes = crate::io::read_file(path)?;
-    let directory = path.parent().unwrap_or(Path::new(""));
     let mut datasets = parse_pvd(&bytes).map_err(|e| IoError::at_line(path, e))?;
     datasets.sort_by(|(a, _), (b, _)| a.total_cmp(b));
-    Ok(datasets
+    datasets
         .into_iter()
-        .map(|(time, file)| (time, directory.join(file)))
-        .collect())
+        .map(|(time, file)| {
+            let resolved = crate::io::resolve_linked(path, "DataSet file", &file, &file)?;
+            Ok((time, resolved))
+        })
+        .collect()
 }
 
 /// The root `<VTKFile>` of `bytes`, which must have `type="{kind}"`.
