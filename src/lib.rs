@@ -25,7 +25,9 @@
 //! a computed flow against a known one or at tracked points. Before the flow, recordings
 //! become moving meshes: [`track`] follows frames meshed each on its own, [`surface`] fits a
 //! moving surface through points (cell centres) and [`volume`] carries 3-D images (microscope
-//! stacks) onto it. The user guide is `docs/guide.md`.
+//! stacks) onto it. Every reader treats its files as hostile: [`limits`] holds the process's
+//! memory limit, against which declared sizes are checked before allocating, and the policy
+//! for files named inside other files. The user guide is `docs/guide.md`.
 //!
 //! ```
 //! use meshflow::{connection::Connection, fem, geometry::IntrinsicGeometry, shapes};
