@@ -24,7 +24,9 @@ Functions (NumPy arrays in, NumPy/SciPy out):
 - :func:`match_tracks`, :func:`score_tracks` — tracks from point clouds (cells, beads), and a
   flow scored at them;
 - :func:`fit_surface`, :func:`sample_volume` — a moving surface fitted through point clouds,
-  and a microscope recording (3-D volumes) read onto it: the mesh and the image a flow needs.
+  and a microscope recording (3-D volumes) read onto it: the mesh and the image a flow needs;
+- :func:`set_limits` — the memory limit that files' declared sizes meet, and whether files
+  named inside files may lie outside the naming file's directory.
 
 Keyword names and defaults are the command line's (``meshflow solve --help``). Errors are
 ``ValueError`` (bad data, broken files, bad parameters) or ``OSError`` and its subclasses
@@ -57,6 +59,7 @@ __all__ = [
     "load_mesh_sequence",
     "load_sequence",
     "match_tracks",
+    "set_limits",
     "operators",
     "render",
     "sample_volume",
@@ -593,6 +596,26 @@ def _path(path: Union[str, PathLike]) -> str:
     import os
 
     return os.fspath(path)
+
+
+def set_limits(
+    *,
+    memory_limit: Union[int, str, None] = None,
+    allow_external_files: Optional[bool] = None,
+) -> Dict[str, Any]:
+    """The process's guards against hostile files, as ``--memory-limit`` and
+    ``--allow-external-files`` set them on the command line; returns both as they are then.
+
+    ``memory_limit``: bytes (an int) or a size such as ``"1.5G"``, ``"800M"``; ``"default"``
+    for the machine's physical memory. Sizes that files declare (NPY shapes, TIFF pages, PLY
+    counts, glTF buffers, images) are checked against it before anything is allocated, and
+    the solver's factors take at most 35 % of it. ``allow_external_files``: read files that
+    files name (glTF buffers and images, OBJ material libraries and textures) also outside the
+    naming file's directory (trusted data only). The settings hold for the whole process.
+    """
+    size = None if memory_limit is None else str(memory_limit)
+    limit, external = _meshflow.limits(size, allow_external_files)
+    return {"memory_limit": limit, "allow_external_files": external}
 
 
 def match_tracks(

@@ -122,6 +122,10 @@ def track(
     keep_going: bool,
     reference: Optional[Tuple[Any, Any]],
 ) -> Tuple[Any, ...]: ...
+def limits(
+    memory_limit: Optional[str],
+    allow_external_files: Optional[bool],
+) -> Tuple[int, bool]: ...
 def match_tracks(
     frames: List[npt.NDArray[np.float64]],
     max_distance: Optional[float],

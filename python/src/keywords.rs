@@ -16,6 +16,10 @@ const SWITCHES: &[(&str, &str)] = &[
     ("--keep-going", "keep_going=True"),
     ("--keep-uncovered", "keep_uncovered=True"),
     ("--whole-sphere", "whole_sphere=True"),
+    (
+        "--allow-external-files",
+        "meshflow.set_limits(allow_external_files=True)",
+    ),
 ];
 
 /// Flags whose value is a word, with the words they take (a word after any other flag is

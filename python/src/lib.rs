@@ -1045,6 +1045,33 @@ fn load_mesh_sequence<'py>(
     ))
 }
 
+/// The process's memory limit and linked-file policy (`--memory-limit`,
+/// `--allow-external-files`): sets those given (`"default"`: the machine's physical memory),
+/// returns both as they are then.
+#[pyfunction]
+#[pyo3(signature = (memory_limit=None, allow_external_files=None))]
+fn limits(memory_limit: Option<&str>, allow_external_files: Option<bool>) -> PyResult<(u64, bool)> {
+    use meshflow::limits::{self, LinkedFiles};
+    match memory_limit {
+        Some("default") => limits::set_memory_limit(0),
+        Some(size) => limits::set_memory_limit(
+            limits::parse_size(size)
+                .map_err(|e| PyValueError::new_err(format!("memory_limit: {e}")))?,
+        ),
+        None => {}
+    }
+    if let Some(allow) = allow_external_files {
+        limits::set_linked_files(match allow {
+            true => LinkedFiles::Anywhere,
+            false => LinkedFiles::Contained,
+        });
+    }
+    Ok((
+        limits::memory_limit(),
+        limits::linked_files() == LinkedFiles::Anywhere,
+    ))
+}
+
 /// The library's message `message` in the Python package's words (for tests).
 #[pyfunction]
 fn python_words(message: &str) -> String {
@@ -1361,6 +1388,7 @@ fn _meshflow(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load_sequence, m)?)?;
     m.add_function(wrap_pyfunction!(load_mesh_sequence, m)?)?;
     m.add_function(wrap_pyfunction!(python_words, m)?)?;
+    m.add_function(wrap_pyfunction!(limits, m)?)?;
     m.add_function(wrap_pyfunction!(track, m)?)?;
     m.add_function(wrap_pyfunction!(match_tracks, m)?)?;
     m.add_function(wrap_pyfunction!(fit_surface, m)?)?;

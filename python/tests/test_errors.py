@@ -105,3 +105,18 @@ def test_write_outputs_refuses_what_it_did_not_write(sample, tmp_path):
         meshflow.write_outputs(flow, blocker / "out")
     with pytest.raises(ValueError, match="unknown output format 'png'"):
         meshflow.write_outputs(flow, tmp_path / "x", formats=["png"])
+
+
+def test_limits_guard_against_hostile_files(tmp_path):
+    glb = ROOT / "meshes" / "rotating_sphere.glb"
+    before = meshflow.set_limits()
+    assert before["memory_limit"] > 1 << 30 and before["allow_external_files"] is False
+    try:
+        assert meshflow.set_limits(memory_limit="1K")["memory_limit"] == 1024
+        with pytest.raises(ValueError, match=r"rotating_sphere\.glb: the file declares .* over the memory limit of 1.0 kB"):
+            meshflow.load_sequence(glb)
+        with pytest.raises(ValueError, match="not a size"):
+            meshflow.set_limits(memory_limit="lots")
+    finally:
+        assert meshflow.set_limits(memory_limit="default")["memory_limit"] == before["memory_limit"]
+    assert meshflow.load_sequence(glb).positions.shape[0] > 1
