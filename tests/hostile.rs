@@ -214,3 +214,31 @@ fn the_memory_limit_is_checked_before_reading() {
     let (code, stderr) = operators(&gltf, &out, &["--memory-limit", "1.5G"]);
     assert_eq!(code, Some(0), "{stderr}");
 }
+
+/// The solve checks the space-time system against the memory limit before assembling it: a
+/// sequence of small files can make a large system.
+#[test]
+fn the_solve_refuses_a_system_over_the_memory_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let input = common::shipped("rotating_sphere");
+    let done = meshflow(&[
+        "solve",
+        &input,
+        "--out",
+        out.to_str().unwrap(),
+        "--memory-limit",
+        "200K",
+    ]);
+    let stderr = String::from_utf8_lossy(&done.stderr);
+    assert_eq!(done.status.code(), Some(1), "{stderr}");
+    // 5 slabs × 642 vertices × 2 unknowns × 140 bytes.
+    assert!(
+        stderr.contains(
+            "the space-time system of 5 slabs × 642 vertices (6420 unknowns, 140 bytes each at \
+             least) declares 898.8 kB, over the memory limit of 204.8 kB (--memory-limit)"
+        ),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+}

@@ -5,6 +5,9 @@ use crate::geometry::GeometryError;
 /// Why a flow could not be computed. Variants name the frame, vertex or parameter at fault.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FlowError {
+    /// The space-time system would not fit the memory limit ([`crate::limits`]).
+    #[error(transparent)]
+    OverMemoryLimit(#[from] crate::limits::OverBudget),
     #[error("a sequence needs at least 2 frames, got {0}")]
     TooFewFrames(usize),
     #[error("expected {expected} {what}, got {got}")]

@@ -206,6 +206,7 @@ impl<'a> FlowProblem<'a> {
     /// assembles the space-time system, and checks that the minimizer is unique.
     pub fn new(sequence: &'a MeshSequence, params: &FlowParams) -> Result<Self, FlowError> {
         params.validate()?;
+        check_system_memory(sequence)?;
         let channel_weights = params.channel_weights_for(sequence.n_channels())?;
         let slabs = slab::build_slabs(sequence, &channel_weights)?;
         Self::with_slabs(sequence, params, slabs, true)
@@ -400,6 +401,26 @@ pub(super) fn slab_vectors(
     let frames = vertex_frames_in_r3(mesh, &slab.geometry, &slab.connection, positions)
         .expect("positions were validated with the sequence");
     push_forward(&frames, u)
+}
+
+/// Bytes per unknown that the space-time system takes besides the slab factors (blocks,
+/// links, CG's vectors): a lower bound from the 200-frame torus of `docs/scaling.md`, 11.4 GB
+/// peak with 8.6 GB of factors over 19.3 M unknowns (≈ 145 B).
+const SYSTEM_BYTES_PER_UNKNOWN: u64 = 140;
+
+/// Refuses, before anything is assembled, a sequence whose system cannot fit the memory limit
+/// even without factors.
+fn check_system_memory(sequence: &MeshSequence) -> Result<(), crate::limits::OverBudget> {
+    let (slabs, vertices) = (
+        sequence.n_slabs() as u64,
+        sequence.mesh().n_vertices() as u64,
+    );
+    let unknowns = 2 * vertices * slabs;
+    let what = format!(
+        "the space-time system of {slabs} slabs × {vertices} vertices ({unknowns} unknowns, \
+         {SYSTEM_BYTES_PER_UNKNOWN} bytes each at least)"
+    );
+    crate::limits::check_items(what, unknowns, SYSTEM_BYTES_PER_UNKNOWN)
 }
 
 /// The flow of `sequence`: [`FlowProblem::new`] then [`FlowProblem::solve`], silently.
