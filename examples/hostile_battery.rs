@@ -438,7 +438,7 @@ impl Files {
                 std::fs::create_dir(&dir).unwrap();
                 for k in 0..2 {
                     let rows: String = (0..20)
-                        .map(|i| format!("{:e},{:e},{:e}\n", i as f64 * 1e100, (i * i) as f64 * 1e100, (k + 1) as f64 * 1e100))
+                        .map(|i| format!("{:e},{:e},{:e}\n", i as f64 * 1e100, (i * i % 7) as f64 * 1e100, (i as f64).sin() * (k + 1) as f64 * 1e100))
                         .collect();
                     std::fs::write(dir.join(format!("t{k}.csv")), format!("x,y,z\n{rows}")).unwrap();
                 }
