@@ -1,0 +1,112 @@
+//! Hostile input files: headers that declare more than the file holds or the memory limit
+//! allows, zero-length dimensions, absurd counts. Every one must end in a typed error that
+//! names the file (and the place in it), before anything is allocated for the declared size.
+//!
+//! Every test sets the same low memory limit (64 MiB): the limit is process-wide and the tests
+//! of this binary run in parallel.
+
+use meshflow::io::IoError;
+use std::path::{Path, PathBuf};
+
+const LIMIT: u64 = 64 << 20;
+
+fn low_limit() -> tempfile::TempDir {
+    meshflow::limits::set_memory_limit(LIMIT);
+    tempfile::tempdir().unwrap()
+}
+
+/// Writes `bytes` to `name` in `dir`.
+fn file(dir: &tempfile::TempDir, name: &str, bytes: &[u8]) -> PathBuf {
+    let path = dir.path().join(name);
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+/// An `.npy` (version 1.0) with the given dtype and shape (Python tuple text) and `data`.
+fn npy(descr: &str, shape: &str, data: &[u8]) -> Vec<u8> {
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend((header.len() as u16).to_le_bytes());
+    bytes.extend(header.as_bytes());
+    bytes.extend(data);
+    bytes
+}
+
+/// The error's text, after checking that it names `path` and is one line.
+fn message<T: std::fmt::Debug>(result: Result<T, IoError>, path: &Path) -> String {
+    let error = result.expect_err("hostile input must fail");
+    let text = error.to_string();
+    assert_eq!(error.path(), path, "{text}");
+    assert!(text.contains(&path.display().to_string()), "{text}");
+    assert!(!text.contains('\n'), "one line: {text}");
+    text
+}
+
+#[test]
+fn npy_zero_dimension_with_terabyte_rows_is_refused() {
+    let dir = low_limit();
+    let path = file(
+        &dir,
+        "huge.npy",
+        &npy("<f8", "(1000000000000, 0, 4, 4)", &[]),
+    );
+    let text = message(meshflow::io::read_npy_float(&path), &path);
+    assert!(
+        text.contains("dimension 1 of shape [1000000000000, 0, 4, 4] is 0"),
+        "{text}"
+    );
+    let text = message(meshflow::io::read_npy_image(&path), &path);
+    assert!(text.contains("dimension 1"), "{text}");
+}
+
+#[test]
+fn npy_widening_over_the_limit_is_refused_before_allocating() {
+    let dir = low_limit();
+    // 10 MB of uint8 read as f64 is 80 MB, over 64 MiB.
+    let count = 10_000_000;
+    let path = file(
+        &dir,
+        "wide.npy",
+        &npy("|u1", &format!("({count},)"), &vec![7; count]),
+    );
+    let text = message(meshflow::io::read_npy_image(&path), &path);
+    assert!(
+        text.contains("shape [10000000] (read as 8-byte values) declares 80.0 MB")
+            && text.contains("--memory-limit"),
+        "{text}"
+    );
+    // As f32 it is 40 MB, under the limit.
+    let (shape, values) = meshflow::io::read_npy_f32(&path).unwrap();
+    assert_eq!(
+        (shape, values.len(), values[0]),
+        (vec![count as u64], count, 7.0)
+    );
+}
+
+#[test]
+fn npy_indices_over_the_limit_are_refused_before_allocating() {
+    let dir = low_limit();
+    // 20 MB of int8 indices are 80 MB of u32.
+    let count = 20_000_000;
+    let path = file(
+        &dir,
+        "faces.npy",
+        &npy("|i1", &format!("({count},)"), &vec![1; count]),
+    );
+    let text = message(meshflow::io::read_npy_indices(&path), &path);
+    assert!(text.contains("declares 80.0 MB"), "{text}");
+    let path = file(&dir, "empty.npy", &npy("<i8", "(0, 3)", &[]));
+    let text = message(meshflow::io::read_npy_indices(&path), &path);
+    assert!(text.contains("dimension 0 of shape [0, 3] is 0"), "{text}");
+    let path = file(
+        &dir,
+        "negative.npy",
+        &npy("<i2", "(3,)", &[1, 0, 255, 255, 2, 0]),
+    );
+    let text = message(meshflow::io::read_npy_indices(&path), &path);
+    assert!(text.contains("entry 1 is -1, not a vertex index"), "{text}");
+}
