@@ -110,3 +110,55 @@ fn npy_indices_over_the_limit_are_refused_before_allocating() {
     let text = message(meshflow::io::read_npy_indices(&path), &path);
     assert!(text.contains("entry 1 is -1, not a vertex index"), "{text}");
 }
+
+const MTX_BANNER: &str = "%%MatrixMarket matrix coordinate real general\n";
+
+#[test]
+fn mtx_declared_entries_over_the_limit_are_refused() {
+    let dir = low_limit();
+    let text = format!("{MTX_BANNER}% comment\n3 3 1000000000000\n1 1 2.0\n");
+    let path = file(&dir, "huge.mtx", text.as_bytes());
+    let text = message(meshflow::io::read_matrix_market(&path), &path);
+    assert!(
+        text.contains("line 3: 1000000000000 entries declares 24.0 TB"),
+        "{text}"
+    );
+    let text = format!("{MTX_BANNER}1000000000000 1000000000000 1\n1 1 2.0\n");
+    let path = file(&dir, "wide.mtx", text.as_bytes());
+    let text = message(meshflow::io::read_matrix_market(&path), &path);
+    assert!(text.contains("--memory-limit"), "{text}");
+}
+
+#[test]
+fn mtx_without_size_line_ends_with_an_error() {
+    // sprs looped forever on this.
+    let dir = low_limit();
+    let path = file(&dir, "banner.mtx", MTX_BANNER.as_bytes());
+    let text = message(meshflow::io::read_matrix_market(&path), &path);
+    assert!(text.contains("no size line"), "{text}");
+}
+
+#[test]
+fn mtx_bad_entries_name_their_line() {
+    let dir = low_limit();
+    for (body, expected) in [
+        (
+            "2 2 2\n1 1 1.0\n3 1 1.0\n",
+            "line 4: entry (3, 1) lies outside the 2 × 2 matrix",
+        ),
+        ("2 2 1\n1 1 nan\n", "line 3: '1 1 nan' has no finite value"),
+        (
+            "2 2 2\n1 1 1.0\n",
+            "truncated file: 1 entries of the 2 declared",
+        ),
+        (
+            "2 2 1\n1 1 1.0\n2 2 1.0\n",
+            "line 4: more entries than the 1",
+        ),
+        ("2 -2 1\n", "line 2: '2 -2 1' does not start with 3"),
+    ] {
+        let path = file(&dir, "bad.mtx", format!("{MTX_BANNER}{body}").as_bytes());
+        let text = message(meshflow::io::read_matrix_market(&path), &path);
+        assert!(text.contains(expected), "{text}");
+    }
+}
