@@ -162,3 +162,51 @@ fn mtx_bad_entries_name_their_line() {
         assert!(text.contains(expected), "{text}");
     }
 }
+
+/// A binary little-endian PLY header declaring `vertices` vertices of uchar coordinates and
+/// one face with a uint-counted list.
+fn ply_header(vertices: usize) -> Vec<u8> {
+    format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {vertices}\nproperty uchar x\n\
+         property uchar y\nproperty uchar z\nelement face 1\n\
+         property list uint int vertex_indices\nend_header\n"
+    )
+    .into_bytes()
+}
+
+#[test]
+fn ply_vertices_over_the_limit_are_refused_before_allocating() {
+    let dir = low_limit();
+    // 9 MB of one-byte coordinates are 72 MB of f64 positions.
+    let vertices = 3_000_000;
+    let mut bytes = ply_header(vertices);
+    bytes.extend(vec![1u8; 3 * vertices]);
+    bytes.extend([3, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]);
+    let path = file(&dir, "wide.ply", &bytes);
+    let text = message(meshflow::io::ply::read_ply(&path), &path);
+    assert!(
+        text.contains("element 'vertex' of 3000000 records declares 72.0 MB"),
+        "{text}"
+    );
+}
+
+#[test]
+fn ply_list_longer_than_the_file_is_refused() {
+    let dir = low_limit();
+    let mut bytes = ply_header(3);
+    bytes.extend([0, 0, 0, 1, 0, 0, 0, 1, 0]);
+    bytes.extend(4_000_000_000u32.to_le_bytes());
+    bytes.extend([0; 12]);
+    let path = file(&dir, "list.ply", &bytes);
+    let text = message(meshflow::io::ply::read_ply(&path), &path);
+    assert!(
+        text.contains("truncated file: the data ends in face 0 (the header declares 1)"),
+        "{text}"
+    );
+    let ascii = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                 property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+                 end_header\n0 0 0\n1 0 0\n0 1 0\n200 0 1 2\n";
+    let path = file(&dir, "list_ascii.ply", ascii.as_bytes());
+    let text = message(meshflow::io::ply::read_ply(&path), &path);
+    assert!(text.contains("the data ends in face 0"), "{text}");
+}
