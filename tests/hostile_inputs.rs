@@ -210,3 +210,28 @@ fn ply_list_longer_than_the_file_is_refused() {
     let text = message(meshflow::io::ply::read_ply(&path), &path);
     assert!(text.contains("the data ends in face 0"), "{text}");
 }
+
+/// Found by tests/fuzz_readers.rs: npyz's parse error quotes the header over several lines.
+#[test]
+fn npy_bad_header_error_is_one_line() {
+    let dir = low_limit();
+    let mut bytes = npy("<f8", "(2, 3)", &[0; 48]);
+    bytes[10] = b'z';
+    let path = file(&dir, "bad.npy", &bytes);
+    let text = message(meshflow::io::read_npy_float(&path), &path);
+    assert!(
+        text.contains("not a valid .npy file (could not parse"),
+        "{text}"
+    );
+}
+
+/// Found by tests/fuzz_readers.rs: quick-xml quotes a closing tag with a line break in it.
+#[test]
+fn vtu_xml_error_with_a_line_break_is_one_line() {
+    let dir = low_limit();
+    let text = "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\">\n\
+                <UnstructuredGrid>\n</UnstructuredGrid?\n<x>\n</VTKFile>\n";
+    let path = file(&dir, "bad.vtu", text.as_bytes());
+    let text = message(meshflow::io::vtk::read_vtu(&path), &path);
+    assert!(text.contains("not well-formed XML"), "{text}");
+}

@@ -210,6 +210,16 @@ fn check_output<U>(path: &Path, shape: &[u64]) -> Result<(), IoError> {
     .map_err(|e| IoError::too_large(path, e))
 }
 
+/// The first line of an error: npyz's header errors quote the header over several lines.
+fn first_line(error: &impl std::fmt::Display) -> String {
+    let text = error.to_string();
+    text.lines()
+        .next()
+        .unwrap_or_default()
+        .trim_end()
+        .to_string()
+}
+
 fn corrupt(path: &Path, e: std::io::Error) -> IoError {
     IoError::format(path, format!("truncated or corrupt data ({e})"))
 }
@@ -323,8 +333,9 @@ fn open_npy(
     let file = File::open(path).map_err(in_file)?;
     let length = file.metadata().map_err(in_file)?.len();
     let mut reader = BufReader::new(file);
-    let header = npyz::NpyHeader::from_reader(&mut reader)
-        .map_err(|e| IoError::format(path, format!("not a valid .npy file ({e})")))?;
+    let header = npyz::NpyHeader::from_reader(&mut reader).map_err(|e| {
+        IoError::format(path, format!("not a valid .npy file ({})", first_line(&e)))
+    })?;
     let data_offset = reader.stream_position().map_err(in_file)?;
     let file = npyz::NpyFile::with_header(header, reader);
     let dtype = file.dtype();
