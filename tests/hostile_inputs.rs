@@ -235,3 +235,39 @@ fn vtu_xml_error_with_a_line_break_is_one_line() {
     let text = message(meshflow::io::vtk::read_vtu(&path), &path);
     assert!(text.contains("not well-formed XML"), "{text}");
 }
+
+#[test]
+fn times_file_non_finite_values_name_their_line() {
+    let dir = low_limit();
+    for (text, expected) in [
+        ("0\n0.5\nnan\n", "line 3: 'nan' is not a finite time"),
+        ("0, 1e400\n", "line 1: '1e400' is not a finite time"),
+        ("# t\n\ninf\n", "line 3: 'inf' is not a finite time"),
+    ] {
+        let path = file(&dir, "times.txt", text.as_bytes());
+        let text = message(meshflow::io::read_times_file(&path), &path);
+        assert!(text.contains(expected), "{text}");
+    }
+    let path = dir.path().join("missing.txt");
+    assert_eq!(meshflow::io::read_times_file(&path).unwrap(), None);
+}
+
+/// Found by tests/fuzz_readers.rs: `gltf` panicked reading an unknown animation target path.
+#[test]
+fn gltf_unknown_animation_path_is_an_error() {
+    let dir = low_limit();
+    let json = r#"{"asset":{"version":"2.0"},"nodes":[{"mesh":0}],
+"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],
+"buffers":[{"byteLength":44,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}],
+"bufferViews":[{"buffer":0,"byteLength":36}],
+"accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}],
+"animations":[{"samplers":[{"input":0,"output":0}],"channels":[{"sampler":0,"target":{"node":0,"path":"weighus"}}]}]}"#;
+    let path = file(&dir, "bad.gltf", json.as_bytes());
+    let options = meshflow::io::LoadOptions::default();
+    let result = meshflow::io::gltf_read::read_gltf_animation(&path, &options);
+    let text = message(result, &path);
+    assert!(
+        text.contains("animation 0, channel 0: target path \"weighus\" is not translation"),
+        "{text}"
+    );
+}
