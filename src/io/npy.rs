@@ -157,6 +157,9 @@ struct Rows<U> {
 }
 
 /// The rows `keep` of `file`, each element converted by `to`, seeking past the others.
+///
+/// The rows are visited lazily (a header may declare 10¹² of them) and the output is checked
+/// against the memory limit before it is allocated.
 fn kept_rows<T: npyz::Deserialize, U>(
     path: &Path,
     file: NpyFile,
@@ -164,29 +167,57 @@ fn kept_rows<T: npyz::Deserialize, U>(
     to: impl Fn(T) -> U,
 ) -> Result<Rows<U>, IoError> {
     let mut shape = file.shape().to_vec();
+    check_output::<U>(path, &shape)?;
     // A 0-dimensional array is one row of one value.
     let rows = shape.first().copied().unwrap_or(1);
     let row: u64 = shape.iter().skip(1).product();
     let mut reader = file
         .data::<T>()
         .map_err(|e| IoError::format(path, e.to_string()))?;
-    let kept: Vec<u64> = (0..rows).filter(|&r| keep(r as usize)).collect();
-    let mut data = Vec::with_capacity(kept.len() * row as usize);
-    for r in &kept {
+    let kept = || (0..rows).filter(|&r| keep(r as usize));
+    // Bounded by the bytes present ([`open_npy`]) and by the limit (above).
+    let count = kept().count() as u64;
+    let mut data = Vec::with_capacity((count * row) as usize);
+    for r in kept() {
         reader.seek_to(r * row).map_err(|e| corrupt(path, e))?;
-        let values: Vec<T> = (reader.by_ref().take(row as usize))
-            .collect::<std::io::Result<_>>()
-            .map_err(|e| corrupt(path, e))?;
-        data.extend(values.into_iter().map(&to));
+        for value in reader.by_ref().take(row as usize) {
+            data.push(to(value.map_err(|e| corrupt(path, e))?));
+        }
     }
     if let Some(first) = shape.first_mut() {
-        *first = kept.len() as u64;
+        *first = count;
     }
     Ok(Rows {
         shape,
         data,
         of: rows,
     })
+}
+
+/// Checks that the whole of an array of `shape`, read as `U` values (f64 output of u8 input:
+/// 8 bytes a value), fits the memory limit; overflow counts as over it.
+fn check_output<U>(path: &Path, shape: &[u64]) -> Result<(), IoError> {
+    let values = shape
+        .iter()
+        .try_fold(1u64, |acc, &d| acc.checked_mul(d))
+        .unwrap_or(u64::MAX);
+    let item = std::mem::size_of::<U>() as u64;
+    crate::limits::check_items(
+        format!("shape {shape:?} (read as {item}-byte values)"),
+        values,
+        item,
+    )
+    .map_err(|e| IoError::too_large(path, e))
+}
+
+/// The first line of an error: npyz's header errors quote the header over several lines.
+fn first_line(error: &impl std::fmt::Display) -> String {
+    let text = error.to_string();
+    text.lines()
+        .next()
+        .unwrap_or_default()
+        .trim_end()
+        .to_string()
 }
 
 fn corrupt(path: &Path, e: std::io::Error) -> IoError {
@@ -251,34 +282,40 @@ pub fn read_npy_indices(path: &Path) -> Result<(Vec<u64>, Vec<u32>), IoError> {
         "an integer type",
     )?;
     let shape = file.shape().to_vec();
-    let corrupt = |e| corrupt(path, e);
     let npyz::DType::Plain(dtype) = file.dtype() else {
         unreachable!("open_npy accepts plain integer types only")
     };
-    let values: Vec<i128> = match (dtype.type_char(), dtype.size_field()) {
-        (Int, 1) => widen(file.into_vec::<i8>().map_err(corrupt)?),
-        (Int, 2) => widen(file.into_vec::<i16>().map_err(corrupt)?),
-        (Int, 4) => widen(file.into_vec::<i32>().map_err(corrupt)?),
-        (Int, _) => widen(file.into_vec::<i64>().map_err(corrupt)?),
-        (_, 1) => widen(file.into_vec::<u8>().map_err(corrupt)?),
-        (_, 2) => widen(file.into_vec::<u16>().map_err(corrupt)?),
-        (_, 4) => widen(file.into_vec::<u32>().map_err(corrupt)?),
-        _ => widen(file.into_vec::<u64>().map_err(corrupt)?),
-    };
-    let indices = values
-        .iter()
-        .enumerate()
-        .map(|(at, &v)| {
-            u32::try_from(v).map_err(|_| {
-                IoError::format(path, format!("entry {at} is {v}, not a vertex index"))
-            })
-        })
-        .collect::<Result<_, _>>()?;
+    let indices = match (dtype.type_char(), dtype.size_field()) {
+        (Int, 1) => indices::<i8>(path, file),
+        (Int, 2) => indices::<i16>(path, file),
+        (Int, 4) => indices::<i32>(path, file),
+        (Int, _) => indices::<i64>(path, file),
+        (_, 1) => indices::<u8>(path, file),
+        (_, 2) => indices::<u16>(path, file),
+        (_, 4) => indices::<u32>(path, file),
+        _ => indices::<u64>(path, file),
+    }?;
     Ok((shape, indices))
 }
 
-fn widen<T: Into<i128>>(values: Vec<T>) -> Vec<i128> {
-    values.into_iter().map(Into::into).collect()
+/// The values of an integer `file` of element type `T` as vertex indices, streamed (no
+/// intermediate array) into an output checked against the memory limit first.
+fn indices<T: npyz::Deserialize + Into<i128>>(
+    path: &Path,
+    file: NpyFile,
+) -> Result<Vec<u32>, IoError> {
+    check_output::<u32>(path, file.shape())?;
+    let values = file
+        .data::<T>()
+        .map_err(|e| IoError::format(path, e.to_string()))?;
+    let mut indices = Vec::with_capacity(values.len() as usize);
+    for (at, value) in values.enumerate() {
+        let v: i128 = value.map_err(|e| corrupt(path, e))?.into();
+        let index = u32::try_from(v)
+            .map_err(|_| IoError::format(path, format!("entry {at} is {v}, not a vertex index")))?;
+        indices.push(index);
+    }
+    Ok(indices)
 }
 
 /// An open `.npy` file, positioned at its data.
@@ -296,8 +333,9 @@ fn open_npy(
     let file = File::open(path).map_err(in_file)?;
     let length = file.metadata().map_err(in_file)?.len();
     let mut reader = BufReader::new(file);
-    let header = npyz::NpyHeader::from_reader(&mut reader)
-        .map_err(|e| IoError::format(path, format!("not a valid .npy file ({e})")))?;
+    let header = npyz::NpyHeader::from_reader(&mut reader).map_err(|e| {
+        IoError::format(path, format!("not a valid .npy file ({})", first_line(&e)))
+    })?;
     let data_offset = reader.stream_position().map_err(in_file)?;
     let file = npyz::NpyFile::with_header(header, reader);
     let dtype = file.dtype();
@@ -320,6 +358,12 @@ fn open_npy(
         ));
     }
     let shape = file.shape();
+    if let Some(axis) = shape.iter().position(|&d| d == 0) {
+        return Err(IoError::format(
+            path,
+            format!("dimension {axis} of shape {shape:?} is 0 (an empty array)"),
+        ));
+    }
     let item = type_str.size_field();
     let needed = shape.iter().try_fold(item, |acc, &d| acc.checked_mul(d));
     let present = length.saturating_sub(data_offset);

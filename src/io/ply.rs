@@ -69,7 +69,36 @@ pub enum PlyEncoding {
 /// Reads a PLY file (see the module docs for what is read and what is skipped).
 pub fn read_ply(path: &Path) -> Result<PlyMesh, IoError> {
     let bytes = super::read_file(path)?;
-    parse_ply(&bytes).map_err(|e| IoError::at_line(path, e))
+    parse_ply(&bytes).map_err(|e| match e {
+        PlyError::At(e) => IoError::at_line(path, e),
+        PlyError::Budget(e) => IoError::too_large(path, e),
+    })
+}
+
+/// A failure of [`parse_ply`]: at a line (0: the whole file), or a declared size over the
+/// memory limit.
+enum PlyError {
+    At(ParseError),
+    Budget(crate::limits::OverBudget),
+}
+
+impl From<ParseError> for PlyError {
+    fn from(e: ParseError) -> Self {
+        Self::At(e)
+    }
+}
+
+/// Checks what a vertex, face or strip element will take in memory, which a file of one-byte
+/// properties declares at up to 24 times its size: 3 coordinates (and 3 colour channels) of
+/// 8 bytes a vertex, 12 bytes a triangle.
+fn check_budget(element: &Element, layout: &VertexLayout) -> Result<(), PlyError> {
+    let per_record = match element.name.as_str() {
+        "vertex" => 24 + 24 * u64::from(layout.has_colors) + 8 * layout.extra_names.len() as u64,
+        "face" | "tristrips" => 12,
+        _ => return Ok(()),
+    };
+    let what = format!("element '{}' of {} records", element.name, element.count);
+    crate::limits::check_items(what, element.count, per_record).map_err(PlyError::Budget)
 }
 
 /// Writes a triangle mesh with optional per-vertex colours and named per-vertex properties;
@@ -568,7 +597,7 @@ fn index_list(element: &Element) -> Result<usize, String> {
 // ---------------------------------------------------------------------------------------------
 // Reading: the body
 
-fn parse_ply(bytes: &[u8]) -> Result<PlyMesh, ParseError> {
+fn parse_ply(bytes: &[u8]) -> Result<PlyMesh, PlyError> {
     let header = parse_header(bytes)?;
     let vertices = header
         .element("vertex")
@@ -576,12 +605,12 @@ fn parse_ply(bytes: &[u8]) -> Result<PlyMesh, ParseError> {
     let layout = VertexLayout::new(vertices).map_err(|m| (0, m))?;
     let [faces, strips] = ["face", "tristrips"].map(|name| header.element(name));
     if !faces.into_iter().chain(strips).any(|e| e.count > 0) {
-        return Err((
+        return Err(PlyError::At((
             0,
             "no faces: the file has no face or tristrips element, or empty ones (a point \
              cloud, not a mesh)"
                 .to_string(),
-        ));
+        )));
     }
     let list = |element: Option<&Element>| {
         element
@@ -597,8 +626,8 @@ fn parse_ply(bytes: &[u8]) -> Result<PlyMesh, ParseError> {
         vertex_count: vertices.count,
     };
     let body = &bytes[header.body_start..];
-    match header.format {
-        Format::Ascii => read_body(AsciiBody::new(body, header.body_line), &header, &plan),
+    Ok(match header.format {
+        Format::Ascii => read_body(AsciiBody::new(body, header.body_line), &header, &plan)?,
         Format::Binary { big_endian } => read_body(
             BinaryBody {
                 bytes: body,
@@ -607,8 +636,8 @@ fn parse_ply(bytes: &[u8]) -> Result<PlyMesh, ParseError> {
             },
             &header,
             &plan,
-        ),
-    }
+        )?,
+    })
 }
 
 /// What the header says about the vertex, face and strip records.
@@ -764,12 +793,13 @@ impl Body for BinaryBody<'_> {
     }
 }
 
-fn read_body<B: Body>(mut body: B, header: &Header, plan: &Plan) -> Result<PlyMesh, ParseError> {
+fn read_body<B: Body>(mut body: B, header: &Header, plan: &Plan) -> Result<PlyMesh, PlyError> {
     let mut mesh = PlyMesh::default();
     let mut strip_triangles = Vec::new();
     // An element without properties has no bytes, whatever its count.
     for element in header.elements.iter().filter(|e| !e.properties.is_empty()) {
         check_fits(&body, element)?;
+        check_budget(element, &plan.layout)?;
         match element.name.as_str() {
             "vertex" => read_vertices(&mut body, element, &plan.layout, &mut mesh)?,
             "face" => mesh.faces = read_faces(&mut body, element, plan)?,
@@ -907,7 +937,7 @@ fn read_strips(
     let mut triangles = Vec::new();
     let mut strip = Vec::new();
     read_index_lists(body, element, plan.strip_list, |body, count, item| {
-        let n = list_length(body, count)?;
+        let n = list_length(body, count, item)?;
         strip.clear();
         for _ in 0..n {
             let value = body.value(item)?;
@@ -963,7 +993,7 @@ fn read_corners(
     vertex_count: u64,
     corners: &mut Vec<u32>,
 ) -> Result<(), RecordError> {
-    let n = list_length(body, count)?;
+    let n = list_length(body, count, item)?;
     if n < 3 {
         return Err(body.invalid(format!("{n} vertex indices; a face needs at least 3")));
     }
@@ -991,20 +1021,28 @@ fn vertex_index(value: f64, vertex_count: u64) -> Result<u32, String> {
         })
 }
 
-fn list_length(body: &mut impl Body, ty: Scalar) -> Result<u64, RecordError> {
+/// The length of a list whose count is of type `ty`; one longer than the bytes left for its
+/// `item`s can hold is the end of the data (it would otherwise be skipped token by token or
+/// grow a polygon until the data ends).
+fn list_length(body: &mut impl Body, ty: Scalar, item: Scalar) -> Result<u64, RecordError> {
     let value = body.value(ty)?;
     if value < 0.0 {
         return Err(body.invalid(format!("negative list length {value}")));
     }
     // An integer type (checked in the header), so exact.
-    Ok(value as u64)
+    let n = value as u64;
+    // + 1: the last ASCII number of the file needs no separator.
+    if n.saturating_mul(body.min_bytes(item)) > body.remaining() + 1 {
+        return Err(RecordError::End);
+    }
+    Ok(n)
 }
 
 fn skip_property(body: &mut impl Body, kind: Kind) -> Result<(), RecordError> {
     match kind {
         Kind::Scalar(ty) => body.skip(ty, 1),
         Kind::List { count, item } => {
-            let n = list_length(body, count)?;
+            let n = list_length(body, count, item)?;
             body.skip(item, n)
         }
     }

@@ -1015,11 +1015,13 @@ fn split_frames<T: Clone>(data: &[T], n_frames: usize, row_length: usize) -> Vec
 
 /// Frame times from a `times.txt`, if there is one.
 pub fn read_times_file(path: &Path) -> Result<Option<Vec<f64>>, IoError> {
-    let text = match std::fs::read_to_string(path) {
-        Ok(text) => text,
+    match std::fs::metadata(path) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => return Err(IoError::file(path, e)),
-    };
+        _ => {}
+    }
+    // A regular file within the memory limit: a FIFO or device would never end.
+    let bytes = super::read_file(path)?;
+    let text = std::str::from_utf8(&bytes).map_err(|_| IoError::format(path, "not UTF-8 text"))?;
     let mut times = Vec::new();
     for (number, line) in text.lines().enumerate() {
         let content = line.split('#').next().unwrap_or_default();
@@ -1027,13 +1029,22 @@ pub fn read_times_file(path: &Path) -> Result<Option<Vec<f64>>, IoError> {
             .split(|c: char| c.is_whitespace() || c == ',')
             .filter(|t| !t.is_empty())
         {
-            let time = token.parse().map_err(|_| {
-                IoError::at_line(path, (number + 1, format!("'{token}' is not a number")))
-            })?;
+            let time = parse_time(token).map_err(|m| IoError::at_line(path, (number + 1, m)))?;
             times.push(time);
         }
     }
     Ok(Some(times))
+}
+
+/// One time of a times file: a finite number (NaN, infinities and overflowing values such as
+/// 1e400 would order the frames arbitrarily).
+fn parse_time(token: &str) -> Result<f64, String> {
+    let shown: String = token.chars().take(40).collect();
+    match token.parse::<f64>() {
+        Ok(time) if time.is_finite() => Ok(time),
+        Ok(_) => Err(format!("'{shown}' is not a finite time")),
+        Err(_) => Err(format!("'{shown}' is not a number")),
+    }
 }
 
 /// Compares strings with digit runs ordered by value: `f2 < f10`.

@@ -45,6 +45,7 @@ impl<'p> GltfFile<'p> {
             ))
         })?;
         check_position_indices(&raw).map_err(error)?;
+        check_animation_paths(&raw).map_err(error)?;
         let document = gltf::Gltf::from_slice(json)
             .map_err(|e| error(format!("not valid glTF 2.0: {e}")))?
             .document;
@@ -403,6 +404,27 @@ fn check_position_indices(raw: &Value) -> Result<(), String> {
                          which does not exist"
                     ));
                 }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `gltf` 1.4 accepts an unknown animation target path while validating and panics when it is
+/// read (`Checked::unwrap`): reject it first. Found by tests/fuzz_readers.rs.
+fn check_animation_paths(raw: &Value) -> Result<(), String> {
+    const PATHS: [&str; 4] = ["translation", "rotation", "scale", "weights"];
+    let animations = raw["animations"].as_array().into_iter().flatten();
+    for (a, animation) in animations.enumerate() {
+        let channels = animation["channels"].as_array().into_iter().flatten();
+        for (c, channel) in channels.enumerate() {
+            let path = &channel["target"]["path"];
+            if !path.as_str().is_some_and(|p| PATHS.contains(&p)) {
+                let shown: String = path.to_string().chars().take(40).collect();
+                return Err(format!(
+                    "animation {a}, channel {c}: target path {shown} is not translation, \
+                     rotation, scale or weights"
+                ));
             }
         }
     }

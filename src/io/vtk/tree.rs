@@ -88,7 +88,11 @@ pub(super) fn parse_document(text: &str) -> Result<Element<'_>, LineError> {
         let start = reader.buffer_position();
         let event = reader.read_event().map_err(|e| {
             let line = lines.line_at(reader.error_position());
-            (line, format!("not well-formed XML: {e}"))
+            // The parser quotes the file, which may hold line breaks: one line for messages.
+            (
+                line,
+                format!("not well-formed XML: {}", e.to_string().escape_debug()),
+            )
         })?;
         let line = lines.line_at(start);
         match event {

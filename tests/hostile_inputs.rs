@@ -1,0 +1,273 @@
+//! Hostile input files: headers that declare more than the file holds or the memory limit
+//! allows, zero-length dimensions, absurd counts. Every one must end in a typed error that
+//! names the file (and the place in it), before anything is allocated for the declared size.
+//!
+//! Every test sets the same low memory limit (64 MiB): the limit is process-wide and the tests
+//! of this binary run in parallel.
+
+use meshflow::io::IoError;
+use std::path::{Path, PathBuf};
+
+const LIMIT: u64 = 64 << 20;
+
+fn low_limit() -> tempfile::TempDir {
+    meshflow::limits::set_memory_limit(LIMIT);
+    tempfile::tempdir().unwrap()
+}
+
+/// Writes `bytes` to `name` in `dir`.
+fn file(dir: &tempfile::TempDir, name: &str, bytes: &[u8]) -> PathBuf {
+    let path = dir.path().join(name);
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+/// An `.npy` (version 1.0) with the given dtype and shape (Python tuple text) and `data`.
+fn npy(descr: &str, shape: &str, data: &[u8]) -> Vec<u8> {
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend((header.len() as u16).to_le_bytes());
+    bytes.extend(header.as_bytes());
+    bytes.extend(data);
+    bytes
+}
+
+/// The error's text, after checking that it names `path` and is one line.
+fn message<T: std::fmt::Debug>(result: Result<T, IoError>, path: &Path) -> String {
+    let error = result.expect_err("hostile input must fail");
+    let text = error.to_string();
+    assert_eq!(error.path(), path, "{text}");
+    assert!(text.contains(&path.display().to_string()), "{text}");
+    assert!(!text.contains('\n'), "one line: {text}");
+    text
+}
+
+#[test]
+fn npy_zero_dimension_with_terabyte_rows_is_refused() {
+    let dir = low_limit();
+    let path = file(
+        &dir,
+        "huge.npy",
+        &npy("<f8", "(1000000000000, 0, 4, 4)", &[]),
+    );
+    let text = message(meshflow::io::read_npy_float(&path), &path);
+    assert!(
+        text.contains("dimension 1 of shape [1000000000000, 0, 4, 4] is 0"),
+        "{text}"
+    );
+    let text = message(meshflow::io::read_npy_image(&path), &path);
+    assert!(text.contains("dimension 1"), "{text}");
+}
+
+#[test]
+fn npy_widening_over_the_limit_is_refused_before_allocating() {
+    let dir = low_limit();
+    // 10 MB of uint8 read as f64 is 80 MB, over 64 MiB.
+    let count = 10_000_000;
+    let path = file(
+        &dir,
+        "wide.npy",
+        &npy("|u1", &format!("({count},)"), &vec![7; count]),
+    );
+    let text = message(meshflow::io::read_npy_image(&path), &path);
+    assert!(
+        text.contains("shape [10000000] (read as 8-byte values) declares 80.0 MB")
+            && text.contains("--memory-limit"),
+        "{text}"
+    );
+    // As f32 it is 40 MB, under the limit.
+    let (shape, values) = meshflow::io::read_npy_f32(&path).unwrap();
+    assert_eq!(
+        (shape, values.len(), values[0]),
+        (vec![count as u64], count, 7.0)
+    );
+}
+
+#[test]
+fn npy_indices_over_the_limit_are_refused_before_allocating() {
+    let dir = low_limit();
+    // 20 MB of int8 indices are 80 MB of u32.
+    let count = 20_000_000;
+    let path = file(
+        &dir,
+        "faces.npy",
+        &npy("|i1", &format!("({count},)"), &vec![1; count]),
+    );
+    let text = message(meshflow::io::read_npy_indices(&path), &path);
+    assert!(text.contains("declares 80.0 MB"), "{text}");
+    let path = file(&dir, "empty.npy", &npy("<i8", "(0, 3)", &[]));
+    let text = message(meshflow::io::read_npy_indices(&path), &path);
+    assert!(text.contains("dimension 0 of shape [0, 3] is 0"), "{text}");
+    let path = file(
+        &dir,
+        "negative.npy",
+        &npy("<i2", "(3,)", &[1, 0, 255, 255, 2, 0]),
+    );
+    let text = message(meshflow::io::read_npy_indices(&path), &path);
+    assert!(text.contains("entry 1 is -1, not a vertex index"), "{text}");
+}
+
+const MTX_BANNER: &str = "%%MatrixMarket matrix coordinate real general\n";
+
+#[test]
+fn mtx_declared_entries_over_the_limit_are_refused() {
+    let dir = low_limit();
+    let text = format!("{MTX_BANNER}% comment\n3 3 1000000000000\n1 1 2.0\n");
+    let path = file(&dir, "huge.mtx", text.as_bytes());
+    let text = message(meshflow::io::read_matrix_market(&path), &path);
+    assert!(
+        text.contains("line 3: 1000000000000 entries declares 24.0 TB"),
+        "{text}"
+    );
+    let text = format!("{MTX_BANNER}1000000000000 1000000000000 1\n1 1 2.0\n");
+    let path = file(&dir, "wide.mtx", text.as_bytes());
+    let text = message(meshflow::io::read_matrix_market(&path), &path);
+    assert!(text.contains("--memory-limit"), "{text}");
+}
+
+#[test]
+fn mtx_without_size_line_ends_with_an_error() {
+    // sprs looped forever on this.
+    let dir = low_limit();
+    let path = file(&dir, "banner.mtx", MTX_BANNER.as_bytes());
+    let text = message(meshflow::io::read_matrix_market(&path), &path);
+    assert!(text.contains("no size line"), "{text}");
+}
+
+#[test]
+fn mtx_bad_entries_name_their_line() {
+    let dir = low_limit();
+    for (body, expected) in [
+        (
+            "2 2 2\n1 1 1.0\n3 1 1.0\n",
+            "line 4: entry (3, 1) lies outside the 2 × 2 matrix",
+        ),
+        ("2 2 1\n1 1 nan\n", "line 3: '1 1 nan' has no finite value"),
+        (
+            "2 2 2\n1 1 1.0\n",
+            "truncated file: 1 entries of the 2 declared",
+        ),
+        (
+            "2 2 1\n1 1 1.0\n2 2 1.0\n",
+            "line 4: more entries than the 1",
+        ),
+        ("2 -2 1\n", "line 2: '2 -2 1' does not start with 3"),
+    ] {
+        let path = file(&dir, "bad.mtx", format!("{MTX_BANNER}{body}").as_bytes());
+        let text = message(meshflow::io::read_matrix_market(&path), &path);
+        assert!(text.contains(expected), "{text}");
+    }
+}
+
+/// A binary little-endian PLY header declaring `vertices` vertices of uchar coordinates and
+/// one face with a uint-counted list.
+fn ply_header(vertices: usize) -> Vec<u8> {
+    format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {vertices}\nproperty uchar x\n\
+         property uchar y\nproperty uchar z\nelement face 1\n\
+         property list uint int vertex_indices\nend_header\n"
+    )
+    .into_bytes()
+}
+
+#[test]
+fn ply_vertices_over_the_limit_are_refused_before_allocating() {
+    let dir = low_limit();
+    // 9 MB of one-byte coordinates are 72 MB of f64 positions.
+    let vertices = 3_000_000;
+    let mut bytes = ply_header(vertices);
+    bytes.extend(vec![1u8; 3 * vertices]);
+    bytes.extend([3, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]);
+    let path = file(&dir, "wide.ply", &bytes);
+    let text = message(meshflow::io::ply::read_ply(&path), &path);
+    assert!(
+        text.contains("element 'vertex' of 3000000 records declares 72.0 MB"),
+        "{text}"
+    );
+}
+
+#[test]
+fn ply_list_longer_than_the_file_is_refused() {
+    let dir = low_limit();
+    let mut bytes = ply_header(3);
+    bytes.extend([0, 0, 0, 1, 0, 0, 0, 1, 0]);
+    bytes.extend(4_000_000_000u32.to_le_bytes());
+    bytes.extend([0; 12]);
+    let path = file(&dir, "list.ply", &bytes);
+    let text = message(meshflow::io::ply::read_ply(&path), &path);
+    assert!(
+        text.contains("truncated file: the data ends in face 0 (the header declares 1)"),
+        "{text}"
+    );
+    let ascii = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                 property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+                 end_header\n0 0 0\n1 0 0\n0 1 0\n200 0 1 2\n";
+    let path = file(&dir, "list_ascii.ply", ascii.as_bytes());
+    let text = message(meshflow::io::ply::read_ply(&path), &path);
+    assert!(text.contains("the data ends in face 0"), "{text}");
+}
+
+/// Found by tests/fuzz_readers.rs: npyz's parse error quotes the header over several lines.
+#[test]
+fn npy_bad_header_error_is_one_line() {
+    let dir = low_limit();
+    let mut bytes = npy("<f8", "(2, 3)", &[0; 48]);
+    bytes[10] = b'z';
+    let path = file(&dir, "bad.npy", &bytes);
+    let text = message(meshflow::io::read_npy_float(&path), &path);
+    assert!(
+        text.contains("not a valid .npy file (could not parse"),
+        "{text}"
+    );
+}
+
+/// Found by tests/fuzz_readers.rs: quick-xml quotes a closing tag with a line break in it.
+#[test]
+fn vtu_xml_error_with_a_line_break_is_one_line() {
+    let dir = low_limit();
+    let text = "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\">\n\
+                <UnstructuredGrid>\n</UnstructuredGrid?\n<x>\n</VTKFile>\n";
+    let path = file(&dir, "bad.vtu", text.as_bytes());
+    let text = message(meshflow::io::vtk::read_vtu(&path), &path);
+    assert!(text.contains("not well-formed XML"), "{text}");
+}
+
+#[test]
+fn times_file_non_finite_values_name_their_line() {
+    let dir = low_limit();
+    for (text, expected) in [
+        ("0\n0.5\nnan\n", "line 3: 'nan' is not a finite time"),
+        ("0, 1e400\n", "line 1: '1e400' is not a finite time"),
+        ("# t\n\ninf\n", "line 3: 'inf' is not a finite time"),
+    ] {
+        let path = file(&dir, "times.txt", text.as_bytes());
+        let text = message(meshflow::io::read_times_file(&path), &path);
+        assert!(text.contains(expected), "{text}");
+    }
+    let path = dir.path().join("missing.txt");
+    assert_eq!(meshflow::io::read_times_file(&path).unwrap(), None);
+}
+
+/// Found by tests/fuzz_readers.rs: `gltf` panicked reading an unknown animation target path.
+#[test]
+fn gltf_unknown_animation_path_is_an_error() {
+    let dir = low_limit();
+    let json = r#"{"asset":{"version":"2.0"},"nodes":[{"mesh":0}],
+"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],
+"buffers":[{"byteLength":44,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}],
+"bufferViews":[{"buffer":0,"byteLength":36}],
+"accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}],
+"animations":[{"samplers":[{"input":0,"output":0}],"channels":[{"sampler":0,"target":{"node":0,"path":"weighus"}}]}]}"#;
+    let path = file(&dir, "bad.gltf", json.as_bytes());
+    let options = meshflow::io::LoadOptions::default();
+    let result = meshflow::io::gltf_read::read_gltf_animation(&path, &options);
+    let text = message(result, &path);
+    assert!(
+        text.contains("animation 0, channel 0: target path \"weighus\" is not translation"),
+        "{text}"
+    );
+}
