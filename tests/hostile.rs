@@ -242,3 +242,39 @@ fn the_solve_refuses_a_system_over_the_memory_limit() {
     );
     assert!(!out.exists());
 }
+
+/// A FIFO where a file should be would block the reader forever (nobody writes to it): it is
+/// refused as not a regular file, for the arrays and the meshes alike.
+#[cfg(unix)]
+#[test]
+fn fifos_are_refused_not_waited_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    for name in ["positions.npy", "frame_0.obj"] {
+        let input = dir.path().join(name.replace('.', "_"));
+        std::fs::create_dir(&input).unwrap();
+        let fifo = input.join(name);
+        let c_path = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+        // SAFETY: a valid NUL-terminated path.
+        assert_eq!(unsafe { libc::mkfifo(c_path.as_ptr(), 0o644) }, 0);
+        if name.ends_with(".obj") {
+            std::fs::copy(
+                format!("{}/frame_1.obj", common::shipped("rotating_sphere")),
+                input.join("frame_1.obj"),
+            )
+            .unwrap();
+        }
+        let done = meshflow(&[
+            "solve",
+            input.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&done.stderr);
+        assert_eq!(done.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains(&format!("{name}: not a regular file")),
+            "{stderr}"
+        );
+    }
+}

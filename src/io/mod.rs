@@ -81,13 +81,29 @@ use std::path::{Path, PathBuf};
 /// The whole of a regular file, after checking its size against the memory limit
 /// ([`crate::limits`]): a device such as `/dev/zero` or a FIFO would never end.
 pub fn read_file(path: &Path) -> Result<Vec<u8>, IoError> {
+    use std::io::Read;
+    let (file, length) = open_regular(path)?;
+    crate::limits::check_declared("the file", length).map_err(|e| IoError::too_large(path, e))?;
+    let mut bytes = Vec::with_capacity(length as usize);
+    (file.take(length).read_to_end(&mut bytes)).map_err(|e| IoError::file(path, e))?;
+    Ok(bytes)
+}
+
+/// `path` opened for reading if it is a regular file, with its length: a FIFO would block the
+/// open itself, a device never end.
+pub fn open_regular(path: &Path) -> Result<(std::fs::File, u64), IoError> {
+    let not_regular = || IoError::format(path, "not a regular file");
     let metadata = std::fs::metadata(path).map_err(|e| IoError::file(path, e))?;
     if !metadata.is_file() {
-        return Err(IoError::format(path, "not a regular file"));
+        return Err(not_regular());
     }
-    crate::limits::check_declared("the file", metadata.len())
-        .map_err(|e| IoError::too_large(path, e))?;
-    std::fs::read(path).map_err(|e| IoError::file(path, e))
+    let file = std::fs::File::open(path).map_err(|e| IoError::file(path, e))?;
+    // Checked again on what was opened: the path may have changed in between.
+    let metadata = file.metadata().map_err(|e| IoError::file(path, e))?;
+    match metadata.is_file() {
+        true => Ok((file, metadata.len())),
+        false => Err(not_regular()),
+    }
 }
 
 /// A file could not be read, parsed or written.

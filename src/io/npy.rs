@@ -330,8 +330,7 @@ fn open_npy(
     expected: &str,
 ) -> Result<NpyFile, IoError> {
     let in_file = |e| IoError::file(path, e);
-    let file = File::open(path).map_err(in_file)?;
-    let length = file.metadata().map_err(in_file)?.len();
+    let (file, length) = super::open_regular(path)?;
     let mut reader = BufReader::new(file);
     let header = npyz::NpyHeader::from_reader(&mut reader).map_err(|e| {
         IoError::format(path, format!("not a valid .npy file ({})", first_line(&e)))
