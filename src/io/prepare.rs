@@ -42,11 +42,13 @@ pub(crate) fn prepare_mesh(
 ) -> Result<Prepared, Error> {
     let n_file = frames.first().map_or(0, |f| f.len());
     check_index_range(faces, n_file).map_err(|e| Error::from(e).in_file(file))?;
-    if !(options.weld_tolerance >= 0.0 && options.weld_tolerance.is_finite()) {
+    // Relative to the bounding-box diagonal: above 1 every vertex would coincide.
+    if !(0.0..=1.0).contains(&options.weld_tolerance) {
         return Err(IoError::format(
             file,
             format!(
-                "--weld-tolerance must be a finite number ≥ 0, got {}",
+                "--weld-tolerance must be a number from 0 to 1 (relative to frame 0's \
+                 bounding-box diagonal), got {:e}",
                 options.weld_tolerance
             ),
         )
