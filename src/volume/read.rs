@@ -152,16 +152,21 @@ fn declare_all(path: &Path, files: &[PathBuf]) -> Result<Vec<Declared>, Error> {
             .iter()
             .fold(1u64, |n, &d| n.saturating_mul(d as u64));
         // The f32 values of the frames so far, and one frame read at up to 8 bytes a value
-        // and split off its file's array.
-        let bytes = frames
+        // and split off its file's array; each frame's volume and file name besides.
+        let bytes = (frames
             .saturating_add(3)
-            .saturating_mul(per_frame.saturating_mul(4));
+            .saturating_mul(per_frame.saturating_mul(4)))
+        .saturating_add(frames.saturating_mul(FRAME_BYTES));
         let what = format!("{frames} volume frames of {z} × {y} × {x} voxels");
         limits::check_declared(what, bytes).map_err(|e| IoError::too_large(file, e))?;
         all.push(declared);
     }
     Ok(all)
 }
+
+/// What a frame takes besides its values: its [`Volume`], its file's name, their allocations.
+const FRAME_BYTES: u64 =
+    (std::mem::size_of::<Volume>() + std::mem::size_of::<PathBuf>() + 64) as u64;
 
 fn declare(file: &Path) -> Result<Declared, IoError> {
     if is_npy(file) {

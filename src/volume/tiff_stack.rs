@@ -93,13 +93,15 @@ fn check_entry_counts(file: &Path) -> Result<(), IoError> {
     let mut page = 0;
     while let Some(offset) = reader.next.filter(|&o| o != 0 && seen.insert(o)) {
         match reader.largest_entry(offset) {
-            Ok(bytes) if bytes > reader.length => return Err(IoError::format(
-                file,
-                format!(
+            Ok(bytes) if bytes > reader.length => {
+                return Err(IoError::format(
+                    file,
+                    format!(
                     "page {page}: a tag declares {bytes} bytes of values, more than the file's {}",
                     reader.length
                 ),
-            )),
+                ))
+            }
             Ok(_) => page += 1,
             Err(_) => return Ok(()),
         }
