@@ -36,7 +36,7 @@ use crate::flow::{FlowResult, MeshSequence};
 use crate::geometry::SurfacePoint;
 use crate::track::FrameSurface;
 use nalgebra::Vector3;
-use std::collections::HashMap;
+use rayon::prelude::*;
 
 /// Point positions per frame, `frames[k][n]`, NaN where point `n` is not tracked in frame `k`.
 #[derive(Clone, Debug, PartialEq)]
@@ -324,17 +324,43 @@ pub fn match_tracks(
     frames: &[Vec<Vector3<f64>>],
     max_distance: Option<f64>,
 ) -> Result<Tracks, AccuracyError> {
-    for (frame, points) in frames.iter().enumerate() {
-        if let Some(point) = points.iter().position(|x| !x.iter().all(|c| c.is_finite())) {
-            return Err(AccuracyError::BadTrackPoint { frame, point });
+    Tracks::matched(frames, max_distance, |_, _| Ok(()))
+}
+
+impl Tracks {
+    /// [`match_tracks`], with `check_size(frames, tracks)` called before the `frames × tracks`
+    /// positions are allocated (a caller's memory limit: the count of tracks is known only
+    /// once the points are matched).
+    pub fn matched<E: From<AccuracyError>>(
+        frames: &[Vec<Vector3<f64>>],
+        max_distance: Option<f64>,
+        check_size: impl FnOnce(usize, usize) -> Result<(), E>,
+    ) -> Result<Self, E> {
+        for (frame, points) in frames.iter().enumerate() {
+            if let Some(point) = points.iter().position(|x| !x.iter().all(|c| c.is_finite())) {
+                return Err(AccuracyError::BadTrackPoint { frame, point }.into());
+            }
         }
+        let bound = match max_distance {
+            Some(d) if d > 0.0 && d.is_finite() => d,
+            Some(d) => return Err(AccuracyError::MatchDistance(d).into()),
+            None => default_match_distance(frames)?,
+        };
+        let (track_of, n_tracks) = chain(frames, bound);
+        check_size(frames.len(), n_tracks)?;
+        let mut positions = vec![vec![Vector3::repeat(f64::NAN); n_tracks]; frames.len()];
+        for (k, tracks) in track_of.iter().enumerate() {
+            for (p, &t) in tracks.iter().enumerate() {
+                positions[k][t] = frames[k][p];
+            }
+        }
+        Ok(Self::new(positions)?)
     }
-    let bound = match max_distance {
-        Some(d) if d > 0.0 && d.is_finite() => d,
-        Some(d) => return Err(AccuracyError::MatchDistance(d)),
-        None => default_match_distance(frames)?,
-    };
-    // track_of[k][p]: the track of point p of frame k.
+}
+
+/// `track_of[k][p]`, the track of point `p` of frame `k`, and the number of tracks: a point
+/// continues the track of its mutual nearest neighbour in the frame before, else starts one.
+fn chain(frames: &[Vec<Vector3<f64>>], bound: f64) -> (Vec<Vec<usize>>, usize) {
     let mut track_of: Vec<Vec<usize>> = Vec::with_capacity(frames.len());
     let mut n_tracks = 0;
     for (k, points) in frames.iter().enumerate() {
@@ -350,28 +376,18 @@ pub fn match_tracks(
         }
         track_of.push(tracks);
     }
-    let mut positions = vec![vec![Vector3::repeat(f64::NAN); n_tracks]; frames.len()];
-    for (k, tracks) in track_of.iter().enumerate() {
-        for (p, &t) in tracks.iter().enumerate() {
-            positions[k][t] = frames[k][p];
-        }
-    }
-    Tracks::new(positions)
+    (track_of, n_tracks)
 }
 
 /// Half the median distance from a point of frame 0 to its nearest neighbour in frame 0.
 pub fn default_match_distance(frames: &[Vec<Vector3<f64>>]) -> Result<f64, AccuracyError> {
     let points = frames.first().map_or(&[][..], Vec::as_slice);
-    let nearest: Vec<f64> = points
-        .iter()
-        .enumerate()
-        .map(|(i, a)| {
-            points
-                .iter()
-                .enumerate()
-                .filter(|&(j, _)| j != i)
-                .map(|(_, b)| (a - b).norm())
-                .fold(f64::INFINITY, f64::min)
+    let tree = KdTree::new(points);
+    let nearest: Vec<f64> = (0..points.len())
+        .into_par_iter()
+        .map(|i| match tree.nearest(&points[i], f64::INFINITY, Some(i)) {
+            Some(j) => (points[i] - points[j]).norm(),
+            None => f64::INFINITY,
         })
         .collect();
     let spacing = median(&nearest);
@@ -382,56 +398,81 @@ pub fn default_match_distance(frames: &[Vec<Vector3<f64>>]) -> Result<f64, Accur
 }
 
 /// The pairs `(a, b)` of points of `from` and `to` that are each other's nearest neighbour
-/// within `bound`, through a grid of cells of size `bound` (only the 27 cells around a point
-/// can hold a neighbour that close).
+/// within `bound`.
 fn mutual_nearest(from: &[Vector3<f64>], to: &[Vector3<f64>], bound: f64) -> Vec<(usize, usize)> {
-    let to_grid = PointGrid::new(to, bound);
-    let from_grid = PointGrid::new(from, bound);
+    let to_tree = KdTree::new(to);
+    let from_tree = KdTree::new(from);
     (0..from.len())
+        .into_par_iter()
         .filter_map(|a| {
-            let b = to_grid.nearest(&from[a])?;
-            (from_grid.nearest(&to[b]) == Some(a)).then_some((a, b))
+            let b = to_tree.nearest(&from[a], bound, None)?;
+            (from_tree.nearest(&to[b], bound, None) == Some(a)).then_some((a, b))
         })
         .collect()
 }
 
-/// Points hashed into cubic cells of side `bound`.
-struct PointGrid<'a> {
+/// A k-d tree over points, stored as a permutation: the node of a range is its middle
+/// element, split on axis `depth mod 3`, the lower half before it. Nearest-neighbour queries
+/// take about `log n` steps whatever the matching distance (a grid of cells of that distance
+/// degenerates to all pairs when the distance is large, and the all-pairs default distance
+/// took 45 s at 100,000 points).
+struct KdTree<'a> {
     points: &'a [Vector3<f64>],
-    bound: f64,
-    cells: HashMap<[i64; 3], Vec<usize>>,
+    order: Vec<usize>,
 }
 
-impl<'a> PointGrid<'a> {
-    fn new(points: &'a [Vector3<f64>], bound: f64) -> Self {
-        let mut cells: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
-        for (i, p) in points.iter().enumerate() {
-            cells.entry(cell(p, bound)).or_default().push(i);
-        }
-        Self {
-            points,
-            bound,
-            cells,
-        }
+impl<'a> KdTree<'a> {
+    fn new(points: &'a [Vector3<f64>]) -> Self {
+        let mut order: Vec<usize> = (0..points.len()).collect();
+        Self::build(points, &mut order, 0);
+        Self { points, order }
     }
 
-    /// The nearest point within `bound` of `x` (the lower index on a tie).
-    fn nearest(&self, x: &Vector3<f64>) -> Option<usize> {
-        let [i, j, k] = cell(x, self.bound);
-        let neighbours = (-1..=1)
-            .flat_map(|a| (-1..=1).flat_map(move |b| (-1..=1).map(move |c| [i + a, j + b, k + c])));
-        neighbours
-            .filter_map(|key| self.cells.get(&key))
-            .flatten()
-            .map(|&p| ((self.points[p] - x).norm(), p))
-            .filter(|&(d, _)| d <= self.bound)
-            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
-            .map(|(_, p)| p)
+    fn build(points: &[Vector3<f64>], order: &mut [usize], depth: usize) {
+        if order.len() < 2 {
+            return;
+        }
+        let (axis, mid) = (depth % 3, order.len() / 2);
+        order.select_nth_unstable_by(mid, |&a, &b| points[a][axis].total_cmp(&points[b][axis]));
+        let (lower, upper) = order.split_at_mut(mid);
+        Self::build(points, lower, depth + 1);
+        Self::build(points, &mut upper[1..], depth + 1);
     }
-}
 
-fn cell(p: &Vector3<f64>, size: f64) -> [i64; 3] {
-    [p.x, p.y, p.z].map(|c| (c / size).floor() as i64)
+    /// The nearest point within `bound` of `x` other than `skip` (the lower index on a tie).
+    fn nearest(&self, x: &Vector3<f64>, bound: f64, skip: Option<usize>) -> Option<usize> {
+        let mut best = (bound, usize::MAX);
+        self.search(&self.order, 0, x, skip, &mut best);
+        (best.1 != usize::MAX).then_some(best.1)
+    }
+
+    fn search(
+        &self,
+        order: &[usize],
+        depth: usize,
+        x: &Vector3<f64>,
+        skip: Option<usize>,
+        best: &mut (f64, usize),
+    ) {
+        let Some(&p) = order.get(order.len() / 2) else {
+            return;
+        };
+        let distance = (self.points[p] - x).norm();
+        let closer = distance < best.0 || (distance == best.0 && p < best.1);
+        if closer && Some(p) != skip {
+            *best = (distance, p);
+        }
+        let mid = order.len() / 2;
+        let across = x[depth % 3] - self.points[p][depth % 3];
+        let (near, far) = match across < 0.0 {
+            true => (&order[..mid], &order[mid + 1..]),
+            false => (&order[mid + 1..], &order[..mid]),
+        };
+        self.search(near, depth + 1, x, skip, best);
+        if across.abs() <= best.0 {
+            self.search(far, depth + 1, x, skip, best);
+        }
+    }
 }
 
 /// The mean of the values that are not NaN; NaN if there are none.

@@ -190,9 +190,27 @@ pub enum SurfaceError {
     BadSetting { what: &'static str, value: f64 },
     #[error("the reference mesh: {0}")]
     Mesh(String),
-    #[error("frame {frame}: the spline system could not be factorized ({detail})")]
+    #[error("frame {frame}: the spline system could not be factorized ({detail}); are the coordinates badly scaled?")]
     Factorization { frame: usize, detail: String },
+    #[error("frame {frame}, point {point}: coordinate {value:e} is too large (beyond ±{MAX_COORDINATE:e}) to fit in double precision: rescale the points (e.g. to micrometres)")]
+    TooLarge {
+        frame: usize,
+        point: usize,
+        value: f64,
+    },
+    #[error("frame {frame}: the points span only {extent:e}, too small to fit in double precision: rescale them (e.g. to micrometres)")]
+    TooSmall { frame: usize, extent: f64 },
+    #[error("{0}")]
+    OverBudget(#[from] crate::limits::OverBudget),
 }
+
+/// The largest coordinate a fit takes: the spline's weight grows with the fourth power of the
+/// point spacing and the sphere fit with the fourth power of the coordinates, so beyond about
+/// 1e77 they overflow; 1e50 leaves room for the sums over many points.
+pub const MAX_COORDINATE: f64 = 1e50;
+
+/// The smallest extent of a frame's points a fit takes (the same powers underflow).
+pub const MIN_EXTENT: f64 = 1e-50;
 
 /// Fits a moving surface through `frames[k]` (module docs).
 pub fn fit_surface(
@@ -200,6 +218,7 @@ pub fn fit_surface(
     options: &FitOptions,
 ) -> Result<FittedSurface, SurfaceError> {
     check(frames, options)?;
+    check_memory(frames)?;
     let reference = ReferenceMesh::new(frames, options)?;
     let mesh = Mesh::new(reference.positions.len(), reference.faces.clone())
         .map_err(|e| SurfaceError::Mesh(e.to_string()))?;
@@ -239,9 +258,7 @@ fn check(frames: &[Vec<Vector3<f64>>], options: &FitOptions) -> Result<(), Surfa
         return Err(SurfaceError::NoFrames);
     }
     for (frame, points) in frames.iter().enumerate() {
-        if let Some(point) = points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-            return Err(SurfaceError::NonFinite { frame, point });
-        }
+        check_scale(frame, points)?;
         if points.len() < 3 {
             return Err(SurfaceError::TooFewPoints {
                 frame,
@@ -265,6 +282,46 @@ fn check(frames: &[Vec<Vector3<f64>>], options: &FitOptions) -> Result<(), Surfa
         positive("the margin", options.margin)?;
     }
     Ok(())
+}
+
+/// Every point finite and within [`MAX_COORDINATE`], and the points not all within
+/// [`MIN_EXTENT`] of each other unless they coincide (what [`SurfaceError::Coplanar`] reports).
+fn check_scale(frame: usize, points: &[Vector3<f64>]) -> Result<(), SurfaceError> {
+    let mut low = Vector3::repeat(f64::INFINITY);
+    let mut high = Vector3::repeat(f64::NEG_INFINITY);
+    for (point, p) in points.iter().enumerate() {
+        if !p.iter().all(|c| c.is_finite()) {
+            return Err(SurfaceError::NonFinite { frame, point });
+        }
+        if let Some(&value) = p.iter().find(|c| c.abs() > MAX_COORDINATE) {
+            return Err(SurfaceError::TooLarge {
+                frame,
+                point,
+                value,
+            });
+        }
+        low = low.inf(p);
+        high = high.sup(p);
+    }
+    let extent = (high - low).max();
+    match extent > 0.0 && extent < MIN_EXTENT {
+        true => Err(SurfaceError::TooSmall { frame, extent }),
+        false => Ok(()),
+    }
+}
+
+/// Bytes a point takes while its frame is fitted: its sample and the nine entries of `BᵀB`.
+const BYTES_PER_POINT: u64 = (std::mem::size_of::<HeightSample>()
+    + 9 * std::mem::size_of::<Triplet<usize, usize, f64>>()) as u64;
+
+/// The frames' fitting memory (as many frames at once as rayon has threads) against the
+/// memory limit, before any of it is allocated.
+fn check_memory(frames: &[Vec<Vector3<f64>>]) -> Result<(), SurfaceError> {
+    let at_once = rayon::current_num_threads().min(frames.len()).max(1);
+    let largest = frames.iter().map(Vec::len).max().unwrap_or(0);
+    let what = format!("fitting {at_once} frames of up to {largest} points at once");
+    let points = (largest as u64).saturating_mul(at_once as u64);
+    Ok(crate::limits::check_items(what, points, BYTES_PER_POINT)?)
 }
 
 /// `L M⁻¹ L` with the lumped mass (V × V, the 2-ring pattern), built column by column:

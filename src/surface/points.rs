@@ -32,39 +32,67 @@ fn is_points_file(path: &Path) -> bool {
     matches!(extension.as_deref(), Some("npy" | "csv"))
 }
 
-/// `(N, 3)`: one frame; `(K, N, 3)` (alone): K frames without their all-NaN rows.
+/// `(N, 3)`: one frame; `(K, N, 3)` (alone): K frames without their all-NaN rows. Any other
+/// row that is not finite, and an array without points, is an error naming the file and row.
 fn read_npy_points(file: &Path, alone: bool) -> Result<Vec<Vec<Vector3<f64>>>, IoError> {
     let array = read_npy_float(file)?;
-    let rows = |data: &[f64]| -> Vec<Vector3<f64>> {
-        data.chunks_exact(3)
-            .map(Vector3::from_column_slice)
-            .collect()
+    let bad = |why: String| IoError::format(file, format!("shape {:?}: {why}", array.shape));
+    let (frames, n) = match array.shape[..] {
+        [n, 3] => (1, n as usize),
+        [k, n, 3] if alone => (k as usize, n as usize),
+        _ => {
+            return Err(bad(
+                "points are (N, 3) per file, or one (frames, N, 3) file".into(),
+            ))
+        }
     };
-    match array.shape[..] {
-        [_, 3] => Ok(vec![rows(&array.data)]),
-        [_, n, 3] if alone => Ok(array
-            .data
-            .chunks_exact(3 * n as usize)
-            .map(|frame| {
-                rows(frame)
-                    .into_iter()
-                    .filter(|p| !p.iter().all(|c| c.is_nan()))
-                    .collect()
-            })
-            .collect()),
-        _ => Err(IoError::format(
-            file,
-            format!(
-                "shape {:?}: points are (N, 3) per file, or one (frames, N, 3) file",
-                array.shape
-            ),
-        )),
+    if frames == 0 || n == 0 {
+        return Err(bad("no points".into()));
     }
+    // Tracks (K, N, 3) mark untracked points by NaN rows.
+    let tracks = array.shape.len() == 3;
+    let mut all = Vec::with_capacity(frames);
+    for (k, frame) in array.data.chunks_exact(3 * n).enumerate() {
+        let mut points = Vec::with_capacity(n);
+        for (row, p) in frame
+            .chunks_exact(3)
+            .map(Vector3::from_column_slice)
+            .enumerate()
+        {
+            let untracked = tracks && p.iter().all(|c| c.is_nan());
+            match (untracked, p.iter().all(|c| c.is_finite())) {
+                (true, _) => {}
+                (false, true) => points.push(p),
+                (false, false) => {
+                    let frame = if tracks {
+                        format!("frame {k}, ")
+                    } else {
+                        String::new()
+                    };
+                    return Err(IoError::format(
+                        file,
+                        format!(
+                            "{frame}row {row} is ({}, {}, {}): points must be finite",
+                            p.x, p.y, p.z
+                        ),
+                    ));
+                }
+            }
+        }
+        all.push(points);
+    }
+    Ok(all)
 }
 
+/// A CSV frame: a header is allowed on the first line that holds anything, and only where none
+/// of its fields is a number (a bad first data line such as `1.0,2.0,abc` is an error, not a
+/// header); every point finite.
 fn read_csv(file: &Path) -> Result<Vec<Vector3<f64>>, IoError> {
-    let text = std::fs::read_to_string(file).map_err(|e| IoError::file(file, e))?;
+    let bytes = crate::io::read_file(file)?;
+    let text = String::from_utf8(bytes)
+        .map_err(|e| IoError::format(file, format!("not UTF-8 text ({e})")))?;
     let mut points = Vec::new();
+    let mut first = true;
     for (n, line) in text.lines().enumerate() {
         let line = line.split('#').next().unwrap_or("").trim();
         if line.is_empty() {
@@ -74,31 +102,28 @@ fn read_csv(file: &Path) -> Result<Vec<Vector3<f64>>, IoError> {
             .split(|c: char| c == ',' || c == ';' || c.is_whitespace())
             .filter(|f| !f.is_empty())
             .collect();
-        let numbers: Result<Vec<f64>, _> = fields.iter().map(|f| f.parse::<f64>()).collect();
-        match numbers {
-            Ok(v) if v.len() == 3 => points.push(Vector3::new(v[0], v[1], v[2])),
-            Ok(v) => {
-                return Err(IoError::at_line(
-                    file,
-                    (n + 1, format!("{} numbers, expected x, y, z", v.len())),
-                ))
-            }
-            // A header: the first line that holds text.
-            Err(_) if points.is_empty() && n == first_content_line(&text) => {}
-            Err(_) => {
-                return Err(IoError::at_line(
-                    file,
-                    (n + 1, format!("'{line}' is not three numbers x, y, z")),
-                ))
-            }
+        let is_header = first && fields.iter().all(|f| f.parse::<f64>().is_err());
+        first = false;
+        if !is_header {
+            let point = csv_point(&fields).map_err(|why| IoError::at_line(file, (n + 1, why)))?;
+            points.push(point);
         }
     }
     Ok(points)
 }
 
-/// The index of the first line that is not blank or a comment.
-fn first_content_line(text: &str) -> usize {
-    text.lines()
-        .position(|l| !l.split('#').next().unwrap_or("").trim().is_empty())
-        .unwrap_or(0)
+/// Three finite numbers x, y, z.
+fn csv_point(fields: &[&str]) -> Result<Vector3<f64>, String> {
+    if fields.len() != 3 {
+        return Err(format!("{} fields, expected x, y, z", fields.len()));
+    }
+    let mut point = Vector3::zeros();
+    for (c, field) in point.iter_mut().zip(fields) {
+        *c = match field.parse::<f64>() {
+            Ok(v) if v.is_finite() => v,
+            Ok(_) => return Err(format!("'{field}' is not a finite number")),
+            Err(_) => return Err(format!("'{field}' is not a number")),
+        };
+    }
+    Ok(point)
 }

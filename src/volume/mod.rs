@@ -25,13 +25,16 @@
 //! **Gaussian smoothing** ([`Volume::smoothed`]) with standard deviation `σ` in physical units
 //! is separable: along each axis a sampled, normalized Gaussian of `σ/d` voxels, truncated at
 //! `3σ/d`. The boundary is mirrored (`v[−1] = v[1]`), which keeps a constant volume constant
-//! and does not darken the rim as zero padding would.
+//! and does not darken the rim as zero padding would. A kernel longer than the mirrored axis
+//! is folded onto it, and a Gaussian at least as wide as that (σ ≥ 2(n − 1) voxels) averages
+//! the axis, so the cost never grows with σ beyond the volume's size.
 
 mod read;
 pub mod sample;
 mod smooth;
+mod tiff_stack;
 
-pub use read::{read_volumes, VolumeFrames, VolumeOptions, VoxelSizeSource};
+pub use read::{count_volume_frames, read_volumes, VolumeFrames, VolumeOptions, VoxelSizeSource};
 pub use sample::{sample_sequence, sample_shell, Reduce, SampleOptions, SampledSequence, Shell};
 
 use nalgebra::Vector3;
@@ -66,7 +69,7 @@ pub enum VolumeError {
         i: usize,
         value: f32,
     },
-    #[error("the voxel size must be three positive numbers (x, y, z), got ({}, {}, {})", .0[0], .0[1], .0[2])]
+    #[error("the voxel size must be three positive, normal numbers (x, y, z), got ({}, {}, {})", .0[0], .0[1], .0[2])]
     VoxelSize([f64; 3]),
     #[error("the origin must be finite, got ({}, {}, {})", .0[0], .0[1], .0[2])]
     Origin([f64; 3]),
@@ -81,6 +84,10 @@ pub enum VolumeError {
     },
     #[error("{0}")]
     Setting(String),
+    #[error(
+        "invalid voxel size in the metadata: {0}; give the voxel size with --voxel-size X,Y,Z"
+    )]
+    Metadata(String),
     #[error("{volumes} volume frames for {frames} surface frames")]
     FrameCount { volumes: usize, frames: usize },
     #[error("frame {frame}: {positions} positions but {normals} normals")]
@@ -200,8 +207,23 @@ impl Volume {
     }
 }
 
+/// Whether `d` can be a length of a voxel: positive, finite and normal (a subnormal size such
+/// as 1e-320 turns grid coordinates infinite).
+fn is_length(d: f64) -> bool {
+    d.is_normal() && d > 0.0
+}
+
+/// "WHERE is 1e300, which does not fit single precision …": a float64 value that `f32`
+/// volumes cannot hold.
+fn does_not_fit_f32(value: f64, place: &str) -> String {
+    format!(
+        "{place} is {value:e}, which does not fit single precision (f32, magnitudes up to {:e}): rescale the values",
+        f32::MAX
+    )
+}
+
 fn check_voxel_size(voxel_size: &Vector3<f64>) -> Result<(), VolumeError> {
-    match voxel_size.iter().all(|d| d.is_finite() && *d > 0.0) {
+    match voxel_size.iter().all(|&d| is_length(d)) {
         true => Ok(()),
         false => Err(VolumeError::VoxelSize((*voxel_size).into())),
     }

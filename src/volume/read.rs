@@ -2,21 +2,24 @@
 //! multi-page TIFF stacks (pages = z, one frame per file), and directories or globs of either
 //! (natural order, one frame per file). Values become `f32`.
 //!
-//! TIFF is read with the `tiff` crate (image-rs, pure Rust): grey u8, u16, u32, f32 and f64
-//! samples, one strip or tile layout as the file has it. The voxel size comes from, in this
-//! order: the caller (`--voxel-size`), ImageJ's metadata in the first file (`spacing=` in the
-//! ImageDescription for z, `XResolution`/`YResolution` in pixels per unit for x and y), or
-//! `1 × 1 × 1`, which [`VoxelSizeSource::Default`] reports so the caller can warn.
+//! TIFF is read with the `tiff` crate (image-rs, pure Rust): grey samples of 8 to 64 bits
+//! (integers or floats), one strip or tile layout as the file has it. The voxel size comes
+//! from, in this order: the caller (`--voxel-size`), ImageJ's metadata in the first file
+//! (`spacing=` in the ImageDescription for z, `XResolution`/`YResolution` in pixels per unit
+//! for x and y), or `1 × 1 × 1`, which [`VoxelSizeSource::Default`] reports so the caller can
+//! warn. Metadata that is there but not a positive number is an error unless the caller gives
+//! the voxel size ([`VoxelSizeSource::GivenOverInvalid`]).
+//!
+//! Files are hostile: before any values are read, every file's header or page directories are
+//! read alone ([`count_volume_frames`]), so that a frame count, a shape or a size that the
+//! memory limit ([`crate::limits`]) does not allow is an error before anything is allocated.
 
-use super::{Volume, VolumeError};
-use crate::io::{frame_files, read_npy_f32, IoError};
-use crate::Error;
+use super::{tiff_stack, Volume, VolumeError};
+use crate::io::{frame_files, read_npy_f32, read_npy_image_rows, IoError};
+use crate::{limits, Error};
 use nalgebra::Vector3;
+use std::io::{Read, Seek};
 use std::path::{Path, PathBuf};
-use tiff::decoder::ifd::Value;
-use tiff::decoder::{Decoder, DecodingResult};
-use tiff::tags::Tag;
-use tiff::ColorType;
 
 /// Where volumes are in space.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -32,6 +35,8 @@ pub struct VolumeOptions {
 pub enum VoxelSizeSource {
     /// Given by the caller.
     Given,
+    /// Given by the caller, in place of the first file's invalid metadata (what was wrong).
+    GivenOverInvalid(String),
     /// Read from a file's metadata: which file and what it said.
     File(String),
     /// Neither given nor found: `1 × 1 × 1`.
@@ -47,49 +52,59 @@ pub struct VolumeFrames {
     pub files: Vec<PathBuf>,
 }
 
+/// What a file's metadata says about the voxel size.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) enum Metadata {
+    None,
+    Found(Vector3<f64>),
+    /// There, but not a voxel size: which tag said what.
+    Invalid(String),
+}
+
 /// Reads the volumes that `path` names (module docs): a `.npy` (one frame `(Z, Y, X)` or
 /// `(K, Z, Y, X)`), a `.tif`/`.tiff` stack, or a directory or glob of such files. Every error
 /// names the file.
 pub fn read_volumes(path: &Path, options: &VolumeOptions) -> Result<VolumeFrames, Error> {
-    let files = frame_files(path, is_volume_file, "volumes (.npy, .tif, .tiff)")?;
-    let mut stacks = Vec::new();
-    for file in &files {
-        let in_file = |e: VolumeError| Error::from(e).in_file(file);
-        for stack in read_file(file)? {
-            stacks.push((file.clone(), stack));
+    if let Some(voxel_size) = options.voxel_size {
+        super::check_voxel_size(&voxel_size).map_err(|e| Error::from(e).in_file(path))?;
+    }
+    let files = volume_files(path)?;
+    let declared = declare_all(path, &files)?;
+    let mut volumes = Vec::with_capacity(declared.iter().map(|d| d.frames).sum());
+    let mut frame_files = Vec::with_capacity(volumes.capacity());
+    // From the first file's metadata (or the caller).
+    let mut chosen: Option<(Vector3<f64>, VoxelSizeSource)> = None;
+    for (file, declared) in files.iter().zip(&declared) {
+        let (stacks, metadata) = read_file(file, declared)?;
+        if chosen.is_none() {
+            chosen = Some(choose_voxel_size(options.voxel_size, metadata, file)?);
         }
-        if let Some(voxel_size) = options.voxel_size {
-            super::check_voxel_size(&voxel_size).map_err(in_file)?;
+        let voxel_size = chosen.as_ref().expect("chosen above").0;
+        for values in stacks {
+            let volume = Volume::new(declared.shape, values, voxel_size, options.origin)
+                .map_err(|e| Error::from(e).in_file(file))?;
+            volumes.push(volume);
+            frame_files.push(file.clone());
         }
     }
-    let (voxel_size, voxel_size_source) = match (options.voxel_size, &stacks[0].1.metadata) {
-        (Some(size), _) => (size, VoxelSizeSource::Given),
-        (None, Some((size, said))) => (*size, VoxelSizeSource::File(said.clone())),
-        (None, None) => (Vector3::repeat(1.0), VoxelSizeSource::Default),
-    };
-    let expected = stacks[0].1.shape;
-    let mut volumes = Vec::with_capacity(stacks.len());
-    let mut frame_files = Vec::with_capacity(stacks.len());
-    for (frame, (file, stack)) in stacks.into_iter().enumerate() {
-        if stack.shape != expected {
-            let error = VolumeError::FrameShape {
-                frame,
-                file: file.clone(),
-                expected,
-                got: stack.shape,
-            };
-            return Err(Error::from(error).in_file(path));
-        }
-        let volume = Volume::new(stack.shape, stack.values, voxel_size, options.origin)
-            .map_err(|e| Error::from(e).in_file(&file))?;
-        volumes.push(volume);
-        frame_files.push(file);
-    }
+    let (_, voxel_size_source) = chosen.expect("frame_files gives one file at least");
     Ok(VolumeFrames {
         volumes,
         voxel_size_source,
         files: frame_files,
     })
+}
+
+/// The number of frames that `path` holds (as [`read_volumes`] would read them), from the
+/// files' headers and page directories alone: checked before the volumes are read, and each
+/// file's declared size checked against the memory limit.
+pub fn count_volume_frames(path: &Path) -> Result<usize, Error> {
+    let files = volume_files(path)?;
+    Ok(declare_all(path, &files)?.iter().map(|d| d.frames).sum())
+}
+
+fn volume_files(path: &Path) -> Result<Vec<PathBuf>, IoError> {
+    frame_files(path, is_volume_file, "volumes (.npy, .tif, .tiff)")
 }
 
 fn is_volume_file(path: &Path) -> bool {
@@ -100,152 +115,217 @@ fn is_volume_file(path: &Path) -> bool {
     matches!(extension.as_deref(), Some("npy" | "tif" | "tiff"))
 }
 
-/// One frame's values as read, before it is placed in space.
-struct Stack {
+fn is_npy(file: &Path) -> bool {
+    file.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("npy"))
+}
+
+/// What a file declares in its header or page directories, before its values are read.
+#[derive(Clone, Copy, Debug)]
+struct Declared {
+    frames: usize,
+    /// `(n_z, n_y, n_x)` of each frame.
     shape: [usize; 3],
-    values: Vec<f32>,
-    /// The voxel size the file states, with a description for the user.
-    metadata: Option<(Vector3<f64>, String)>,
+    /// float64 values, rounded to `f32` when read.
+    float64: bool,
 }
 
-/// The frames of one file (several for a `(K, Z, Y, X)` NPY).
-fn read_file(file: &Path) -> Result<Vec<Stack>, Error> {
-    let is_npy = file
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
-    match is_npy {
-        true => Ok(read_npy_stacks(file)?),
-        false => Ok(vec![read_tiff(file)?]),
+/// What every file declares: at least one voxel a frame, one shape for all frames, and all of
+/// them together within the memory limit.
+fn declare_all(path: &Path, files: &[PathBuf]) -> Result<Vec<Declared>, Error> {
+    let mut all: Vec<Declared> = Vec::with_capacity(files.len());
+    let mut frames = 0u64;
+    for file in files {
+        let declared = declare(file)?;
+        if let Some(first) = all.first().filter(|first| first.shape != declared.shape) {
+            let error = VolumeError::FrameShape {
+                frame: frames as usize,
+                file: file.clone(),
+                expected: first.shape,
+                got: declared.shape,
+            };
+            return Err(Error::from(error).in_file(path));
+        }
+        frames += declared.frames as u64;
+        let [z, y, x] = declared.shape;
+        let per_frame = [z, y, x]
+            .iter()
+            .fold(1u64, |n, &d| n.saturating_mul(d as u64));
+        // The f32 values of the frames so far, and one frame read at up to 8 bytes a value
+        // and split off its file's array; each frame's volume and file name besides.
+        let bytes = (frames
+            .saturating_add(3)
+            .saturating_mul(per_frame.saturating_mul(4)))
+        .saturating_add(frames.saturating_mul(FRAME_BYTES));
+        let what = format!("{frames} volume frames of {z} × {y} × {x} voxels");
+        limits::check_declared(what, bytes).map_err(|e| IoError::too_large(file, e))?;
+        all.push(declared);
     }
+    Ok(all)
 }
 
-fn read_npy_stacks(file: &Path) -> Result<Vec<Stack>, IoError> {
-    let (shape, values) = read_npy_f32(file)?;
-    let dims: Vec<usize> = shape.iter().map(|&n| n as usize).collect();
-    let (frames, shape) = match dims[..] {
+/// What a frame takes besides its values: its [`Volume`], its file's name, their allocations.
+const FRAME_BYTES: u64 =
+    (std::mem::size_of::<Volume>() + std::mem::size_of::<PathBuf>() + 64) as u64;
+
+fn declare(file: &Path) -> Result<Declared, IoError> {
+    if is_npy(file) {
+        let (shape, float64) = npy_header(file)?;
+        let (frames, frame) = frames_of(file, &shape)?;
+        return Ok(Declared {
+            frames,
+            shape: frame,
+            float64,
+        });
+    }
+    let layout = tiff_stack::layout(file)?;
+    Ok(Declared {
+        frames: 1,
+        shape: [layout.pages, layout.height as usize, layout.width as usize],
+        float64: false,
+    })
+}
+
+/// `(frames, (Z, Y, X))` of an NPY shape: `(Z, Y, X)` or `(K, Z, Y, X)`, every axis non-zero.
+fn frames_of(file: &Path, shape: &[u64]) -> Result<(usize, [usize; 3]), IoError> {
+    let bad = |why: &str| IoError::format(file, format!("shape {shape:?}: {why}"));
+    let dims: Vec<usize> = shape
+        .iter()
+        .map(|&n| usize::try_from(n).map_err(|_| bad("too large")))
+        .collect::<Result<_, _>>()?;
+    let (frames, frame) = match dims[..] {
         [z, y, x] => (1, [z, y, x]),
         [k, z, y, x] => (k, [z, y, x]),
-        _ => {
-            return Err(IoError::format(
-                file,
-                format!("shape {shape:?}: a volume is (Z, Y, X), or (K, Z, Y, X) for K frames"),
-            ))
-        }
+        _ => return Err(bad("a volume is (Z, Y, X), or (K, Z, Y, X) for K frames")),
     };
-    let per_frame = shape.iter().product::<usize>();
-    Ok((0..frames)
-        .map(|k| Stack {
-            shape,
-            values: values[k * per_frame..][..per_frame].to_vec(),
-            metadata: None,
-        })
-        .collect())
+    match dims.contains(&0) {
+        true => Err(bad("no voxels (every axis of a volume needs at least one)")),
+        false => Ok((frames, frame)),
+    }
 }
 
-/// A multi-page grey TIFF: pages are z slices, all of one size.
-fn read_tiff(file: &Path) -> Result<Stack, IoError> {
-    let bad = |e: tiff::TiffError| IoError::format(file, format!("not a readable TIFF ({e})"));
-    let reader = std::fs::File::open(file).map_err(|e| IoError::file(file, e))?;
-    let mut decoder = Decoder::new(std::io::BufReader::new(reader)).map_err(bad)?;
-    let metadata = imagej_voxel_size(&mut decoder);
-    let (width, height) = decoder.dimensions().map_err(bad)?;
-    let mut values = Vec::new();
-    let mut pages = 0;
-    loop {
-        let size = decoder.dimensions().map_err(bad)?;
-        if size != (width, height) {
-            return Err(IoError::format(
-                file,
-                format!(
-                    "page {pages} is {} × {} pixels, page 0 is {width} × {height}: a stack's pages must be of one size",
-                    size.0, size.1
-                ),
-            ));
-        }
-        match decoder.colortype().map_err(bad)? {
-            ColorType::Gray(_) => {}
-            other => {
-                return Err(IoError::format(
-                    file,
-                    format!(
-                        "page {pages} is {other:?}: a volume must be grey (one sample per pixel)"
-                    ),
-                ))
-            }
-        }
-        values.extend(page_values(decoder.read_image().map_err(bad)?, file)?);
-        pages += 1;
-        if !decoder.more_images() {
-            break;
-        }
-        decoder.next_image().map_err(bad)?;
+/// The largest `.npy` header read: NumPy writes a few hundred bytes, and its own reader
+/// refuses more than 10 kB; the length field could declare 4 GB.
+const MAX_NPY_HEADER: u64 = 1 << 20;
+
+/// The shape of an `.npy` and whether it holds float64, from its header alone (its length
+/// checked before it is read).
+fn npy_header(file: &Path) -> Result<(Vec<u64>, bool), IoError> {
+    let bad = |why: String| IoError::format(file, format!("not a valid .npy file ({why})"));
+    let mut reader =
+        std::io::BufReader::new(std::fs::File::open(file).map_err(|e| IoError::file(file, e))?);
+    let mut start = [0u8; 12];
+    reader
+        .read_exact(&mut start)
+        .map_err(|e| bad(e.to_string()))?;
+    let length = match start[6] {
+        1 => u64::from(u16::from_le_bytes([start[8], start[9]])),
+        _ => u64::from(u32::from_le_bytes([
+            start[8], start[9], start[10], start[11],
+        ])),
+    };
+    if length > MAX_NPY_HEADER {
+        return Err(bad(format!("a header of {length} bytes")));
     }
-    let shape = [pages, height as usize, width as usize];
-    let description = metadata.map(|size| {
-        let said = format!(
-            "ImageJ metadata of {}: {} × {} × {}",
-            file.display(),
-            size.x,
-            size.y,
-            size.z
-        );
-        (size, said)
-    });
-    Ok(Stack {
-        shape,
-        values,
-        metadata: description,
+    reader.rewind().map_err(|e| IoError::file(file, e))?;
+    let header = npyz::NpyHeader::from_reader(reader).map_err(|e| bad(e.to_string()))?;
+    let npy = npyz::NpyFile::with_header(header, std::io::empty());
+    let float64 = matches!(npy.dtype(), npyz::DType::Plain(t)
+        if t.type_char() == npyz::TypeChar::Float && t.size_field() == 8);
+    Ok((npy.shape().to_vec(), float64))
+}
+
+/// The frames' values of one file and its voxel-size metadata.
+fn read_file(file: &Path, declared: &Declared) -> Result<(Vec<Vec<f32>>, Metadata), Error> {
+    if !is_npy(file) {
+        let (layout, values, metadata) = tiff_stack::read(file)?;
+        let shape = [layout.pages, layout.height as usize, layout.width as usize];
+        if shape != declared.shape {
+            return Err(IoError::format(file, "changed while it was read").into());
+        }
+        return Ok((vec![values], metadata));
+    }
+    let (shape, values) = read_npy_f32(file)?;
+    if frames_of(file, &shape)? != (declared.frames, declared.shape) {
+        return Err(IoError::format(file, "changed while it was read").into());
+    }
+    if declared.float64 {
+        check_narrowed(file, &shape, &values)?;
+    }
+    Ok((split_frames(values, declared.frames), Metadata::None))
+}
+
+/// `values` cut into `frames` equal frames, each taken off the end so that no more than one
+/// frame is held twice.
+fn split_frames(mut values: Vec<f32>, frames: usize) -> Vec<Vec<f32>> {
+    let per_frame = values.len() / frames;
+    let mut split: Vec<Vec<f32>> = (1..frames)
+        .rev()
+        .map(|k| values.split_off(k * per_frame))
+        .collect();
+    values.shrink_to_fit();
+    split.push(values);
+    split.reverse();
+    split
+}
+
+/// A float64 `.npy` whose finite value became infinite in `f32`: the value and its voxel,
+/// from the file's own row (read again, on this error only).
+fn check_narrowed(file: &Path, shape: &[u64], values: &[f32]) -> Result<(), IoError> {
+    let Some(at) = values.iter().position(|v| v.is_infinite()) else {
+        return Ok(());
+    };
+    let row_length: usize = shape[1..].iter().map(|&n| n as usize).product();
+    let row = at / row_length;
+    let (original, _) = read_npy_image_rows(file, &|r| r == row)?;
+    let value = original.data[at % row_length];
+    if !value.is_finite() {
+        return Ok(()); // a true infinity: Volume::new names it
+    }
+    let dims: Vec<usize> = shape.iter().map(|&n| n as usize).collect();
+    Err(IoError::format(
+        file,
+        super::does_not_fit_f32(value, &voxel_name(at, &dims)),
+    ))
+}
+
+/// "voxel (z 1, y 0, x 3)" or "frame 2, voxel (…)" of flat index `at` in an array of `dims`.
+fn voxel_name(at: usize, dims: &[usize]) -> String {
+    let [.., z, y, x] = dims[..] else {
+        return format!("value {at}");
+    };
+    let per_frame = z * y * x;
+    let (frame, at) = (at / per_frame, at % per_frame);
+    let voxel = format!("voxel (z {}, y {}, x {})", at / (y * x), at / x % y, at % x);
+    match dims.len() {
+        4 => format!("frame {frame}, {voxel}"),
+        _ => voxel,
+    }
+}
+
+/// The voxel size and where it came from: given, else the first file's valid metadata, else
+/// `1 × 1 × 1`; invalid metadata is an error naming the file unless a size is given.
+fn choose_voxel_size(
+    given: Option<Vector3<f64>>,
+    metadata: Metadata,
+    file: &Path,
+) -> Result<(Vector3<f64>, VoxelSizeSource), Error> {
+    Ok(match (given, metadata) {
+        (Some(size), Metadata::Invalid(why)) => (size, VoxelSizeSource::GivenOverInvalid(why)),
+        (Some(size), _) => (size, VoxelSizeSource::Given),
+        (None, Metadata::Found(size)) => {
+            let said = format!(
+                "ImageJ metadata of {}: {} × {} × {}",
+                file.display(),
+                size.x,
+                size.y,
+                size.z
+            );
+            (size, VoxelSizeSource::File(said))
+        }
+        (None, Metadata::Invalid(why)) => {
+            return Err(Error::from(VolumeError::Metadata(why)).in_file(file))
+        }
+        (None, Metadata::None) => (Vector3::repeat(1.0), VoxelSizeSource::Default),
     })
-}
-
-fn page_values(page: DecodingResult, file: &Path) -> Result<Vec<f32>, IoError> {
-    let widen = |values: Vec<f64>| values.into_iter().map(|v| v as f32).collect();
-    Ok(match page {
-        DecodingResult::U8(v) => v.into_iter().map(f32::from).collect(),
-        DecodingResult::U16(v) => v.into_iter().map(f32::from).collect(),
-        DecodingResult::U32(v) => widen(v.into_iter().map(f64::from).collect()),
-        DecodingResult::F32(v) => v,
-        DecodingResult::F64(v) => widen(v),
-        _ => {
-            return Err(IoError::format(
-                file,
-                "sample type not supported (u8, u16, u32, f32 or f64 grey)",
-            ))
-        }
-    })
-}
-
-/// `(d_x, d_y, d_z)` from ImageJ's metadata: `1 / XResolution`, `1 / YResolution` (pixels per
-/// unit) and `spacing=` of the ImageDescription; `None` unless all three are there.
-fn imagej_voxel_size<R: std::io::Read + std::io::Seek>(
-    decoder: &mut Decoder<R>,
-) -> Option<Vector3<f64>> {
-    let description = decoder.get_tag_ascii_string(Tag::ImageDescription).ok()?;
-    if !description.starts_with("ImageJ") {
-        return None;
-    }
-    let spacing: f64 = description
-        .lines()
-        .find_map(|line| line.strip_prefix("spacing="))?
-        .trim()
-        .parse()
-        .ok()?;
-    let x = 1.0 / rational(decoder, Tag::XResolution)?;
-    let y = 1.0 / rational(decoder, Tag::YResolution)?;
-    let size = Vector3::new(x, y, spacing);
-    size.iter()
-        .all(|d| d.is_finite() && *d > 0.0)
-        .then_some(size)
-}
-
-/// A RATIONAL tag as a number (`get_tag_f64` refuses rationals, the type TIFF resolutions
-/// have).
-fn rational<R: std::io::Read + std::io::Seek>(decoder: &mut Decoder<R>, tag: Tag) -> Option<f64> {
-    match decoder.get_tag(tag).ok()? {
-        Value::Rational(n, d) => Some(n as f64 / d as f64),
-        Value::SRational(n, d) => Some(n as f64 / d as f64),
-        Value::Float(v) => Some(v as f64),
-        Value::Double(v) => Some(v),
-        _ => None,
-    }
 }

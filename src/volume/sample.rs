@@ -16,6 +16,7 @@
 
 use super::{Volume, VolumeError};
 use crate::connection::vertex_normals;
+use crate::limits;
 use crate::mesh::Mesh;
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -85,6 +86,20 @@ impl Shell {
         }
     }
 
+    /// `layers × vertices × frames` samples, 8 bytes each, checked against the memory limit:
+    /// a bound on the time they take (and on the offsets' memory) that `--layers 1000000000`
+    /// would otherwise not have.
+    fn check_cost(&self, vertices: usize, frames: usize) -> Result<(), VolumeError> {
+        let what = format!(
+            "--layers {} × {vertices} vertices × {frames} frames of shell samples",
+            self.layers
+        );
+        let samples = (self.layers as u64)
+            .saturating_mul(vertices as u64)
+            .saturating_mul(frames as u64);
+        limits::check_items(what, samples, 8).map_err(|e| VolumeError::Setting(e.to_string()))
+    }
+
     /// `o_l` for every layer.
     fn offsets(&self) -> Vec<f64> {
         match self.layers {
@@ -119,23 +134,41 @@ pub fn sample_shell(
             normals: normals.len(),
         });
     }
+    shell.check_cost(positions.len(), 1)?;
     let offsets = shell.offsets();
     let values: Vec<Option<f64>> = positions
         .par_iter()
         .zip(normals)
-        .map(|(x, n)| {
-            let samples = offsets.iter().map(|o| volume.sample(&(x + *o * n)));
-            let samples: Option<Vec<f64>> = samples.collect();
-            samples.map(|s| match reduce {
-                Reduce::Max => s.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-                Reduce::Mean => s.iter().sum::<f64>() / s.len() as f64,
-                Reduce::Layer(l) => s[l],
-            })
-        })
+        .map(|(x, n)| reduce_shell(volume, x, n, &offsets, reduce))
         .collect();
     Ok(Sampled {
         outside: values.iter().filter(|v| v.is_none()).count(),
         values: values.into_iter().map(|v| v.unwrap_or(0.0)).collect(),
+    })
+}
+
+/// The samples of one vertex's shell reduced as they are taken; `None` where one leaves the
+/// volume.
+fn reduce_shell(
+    volume: &Volume,
+    x: &Vector3<f64>,
+    n: &Vector3<f64>,
+    offsets: &[f64],
+    reduce: Reduce,
+) -> Option<f64> {
+    let (mut max, mut sum, mut chosen) = (f64::NEG_INFINITY, 0.0, 0.0);
+    for (l, o) in offsets.iter().enumerate() {
+        let sample = volume.sample(&(x + *o * n))?;
+        max = max.max(sample);
+        sum += sample;
+        if reduce == Reduce::Layer(l) {
+            chosen = sample;
+        }
+    }
+    Some(match reduce {
+        Reduce::Max => max,
+        Reduce::Mean => sum / offsets.len() as f64,
+        Reduce::Layer(_) => chosen,
     })
 }
 
@@ -230,6 +263,7 @@ pub fn sample_sequence(
     }
     let shell = options.shell_for(first);
     shell.check(options.reduce)?;
+    shell.check_cost(mesh.n_vertices(), volumes.len())?;
     let mut values = Vec::with_capacity(volumes.len());
     let mut outside = Vec::with_capacity(volumes.len());
     for (frame, (volume, x)) in volumes.iter().zip(positions).enumerate() {

@@ -435,9 +435,10 @@ struct SampleArgs {
         allow_negative_numbers = true
     )]
     shell: Option<Vec<f64>>,
-    /// Samples across the shell, evenly spaced
-    #[arg(long, value_name = "N", default_value_t = meshflow::volume::sample::DEFAULT_LAYERS)]
-    layers: usize,
+    /// Samples across the --shell, evenly spaced; only with --shell (the default shell has 9)
+    /// [default: 9]
+    #[arg(long, value_name = "N", requires = "shell")]
+    layers: Option<usize>,
     /// max (maximum-intensity projection), mean, or layer:L (sample L, 0 the innermost)
     #[arg(long, default_value = "max")]
     reduce: meshflow::volume::Reduce,
@@ -466,7 +467,9 @@ impl SampleArgs {
             Some(&[inside, outside]) => Some(meshflow::volume::Shell {
                 inside,
                 outside,
-                layers: self.layers,
+                layers: self
+                    .layers
+                    .unwrap_or(meshflow::volume::sample::DEFAULT_LAYERS),
             }),
             Some(other) => {
                 return Err(usage(format!(

@@ -4,13 +4,19 @@
 //! (`meshflow::volume::sample`).
 
 use crate::progress::during;
-use meshflow::io::{load_geometry, write_npy, LoadOptions};
+use meshflow::io::{
+    count_frames, input_files, load_geometry, refuse_output_over_inputs, write_atomically,
+    write_npy, LoadOptions, OutputKind, RunManifest,
+};
 use meshflow::volume::{
-    read_volumes, sample_sequence, SampleOptions, SampledSequence, VolumeError, VolumeOptions,
-    VoxelSizeSource,
+    count_volume_frames, read_volumes, sample_sequence, SampleOptions, SampledSequence,
+    VolumeError, VolumeOptions, VoxelSizeSource,
 };
 use meshflow::Error;
 use std::path::{Path, PathBuf};
+
+/// The file `sample` writes into a sequence directory by default.
+const INTENSITY: &str = "intensity.npy";
 
 /// What `sample` needs from the command line.
 pub struct SampleRequest<'a> {
@@ -25,6 +31,8 @@ pub struct SampleRequest<'a> {
 
 pub fn run(request: SampleRequest) -> Result<(), Error> {
     let out = output_file(&request)?;
+    check_output(&request, &out)?;
+    check_frame_counts(&request)?;
     let geometry = during(format!("reading {}", request.sequence.display()), || {
         load_geometry(request.sequence, &request.load)
     })?;
@@ -32,14 +40,7 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
     let frames = during(format!("reading {}", request.volumes.display()), || {
         read_volumes(request.volumes, &request.volume)
     })?;
-    match &frames.voxel_size_source {
-        VoxelSizeSource::Default => eprintln!(
-            "meshflow: warning: {}: no voxel size given (--voxel-size X,Y,Z) or found in the files: taking 1 × 1 × 1",
-            request.volumes.display()
-        ),
-        VoxelSizeSource::File(said) => println!("voxel size from the {said}"),
-        VoxelSizeSource::Given => {}
-    }
+    report_voxel_size(request.volumes, &frames.voxel_size_source);
     let in_volumes = |e: VolumeError| Error::from(e).in_file(request.volumes);
     let sampled = during("sampling the volumes onto the surface", || {
         sample_sequence(
@@ -56,6 +57,9 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
         .collect();
     let shape = [sampled.values.len() as u64, map.n_file_vertices() as u64];
     write_npy(&out, &shape, &values)?;
+    if replaces_intensity(&request, &out) {
+        register_in_manifest(request.sequence)?;
+    }
     let outside: usize = sampled.outside.iter().sum();
     if outside > 0 {
         let total = sampled.values.len() * geometry.mesh.n_vertices();
@@ -71,13 +75,92 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
     Ok(())
 }
 
+fn report_voxel_size(volumes: &Path, source: &VoxelSizeSource) {
+    match source {
+        VoxelSizeSource::Default => eprintln!(
+            "meshflow: warning: {}: no voxel size given (--voxel-size X,Y,Z) or found in the files: taking 1 × 1 × 1",
+            volumes.display()
+        ),
+        VoxelSizeSource::GivenOverInvalid(why) => eprintln!(
+            "meshflow: warning: {}: the files' voxel size metadata is invalid ({why}): using --voxel-size",
+            volumes.display()
+        ),
+        VoxelSizeSource::File(said) => println!("voxel size from the {said}"),
+        VoxelSizeSource::Given => {}
+    }
+}
+
+/// Refuses an output over any input, before anything is read. The one file inside the
+/// sequence that `sample` may replace is `SEQUENCE/intensity.npy` (its default output, an
+/// earlier sample's): that output is checked against the sequence's other files instead of
+/// the directory, so a link from it to one of them is refused still.
+fn check_output(request: &SampleRequest, out: &Path) -> Result<(), Error> {
+    let named = [request.volumes, request.sequence];
+    let mut inputs: Vec<PathBuf> = input_files(&named);
+    match replaces_intensity(request, out) {
+        true => {
+            inputs.retain(|f| f.file_name().is_none_or(|name| name != INTENSITY));
+            inputs.push(request.volumes.to_path_buf());
+        }
+        false => inputs.extend(named.iter().map(|p| p.to_path_buf())),
+    }
+    let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    Ok(refuse_output_over_inputs(out, OutputKind::File, &inputs)?)
+}
+
+/// Whether `out` is `intensity.npy` directly in the sequence directory.
+fn replaces_intensity(request: &SampleRequest, out: &Path) -> bool {
+    let parent = match out.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent,
+        _ => Path::new("."),
+    };
+    let same_dir = match (parent.canonicalize(), request.sequence.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    same_dir && request.sequence.is_dir() && out.file_name().is_some_and(|n| n == INTENSITY)
+}
+
+/// The volumes' frames against the sequence's, from headers alone, before either is read.
+fn check_frame_counts(request: &SampleRequest) -> Result<(), Error> {
+    let frames = count_frames(request.sequence, &request.load)?;
+    let volumes = count_volume_frames(request.volumes)?;
+    match volumes == frames {
+        true => Ok(()),
+        false => {
+            Err(Error::from(VolumeError::FrameCount { volumes, frames }).in_file(request.volumes))
+        }
+    }
+}
+
+/// Lists `intensity.npy` in the sequence directory's run manifest (where it is a meshflow
+/// output, e.g. of `meshflow surface`), so that the next output written there (a new surface)
+/// replaces it instead of leaving an image of the old surface beside the new one.
+fn register_in_manifest(sequence: &Path) -> Result<(), Error> {
+    use std::io::Write;
+    let Some(mut manifest) = RunManifest::read(sequence) else {
+        return Ok(());
+    };
+    if !manifest.files.iter().any(|f| f == INTENSITY) {
+        manifest.files.push(INTENSITY.into());
+        manifest.files.sort();
+    }
+    manifest.commands.push(crate::command_line());
+    let path = sequence.join(meshflow::io::RUN_MANIFEST);
+    write_atomically(&path, |w| {
+        serde_json::to_writer_pretty(&mut *w, &manifest).map_err(std::io::Error::other)?;
+        writeln!(w)
+    })?;
+    Ok(())
+}
+
 /// `--out`, else `intensity.npy` in the sequence's directory.
 fn output_file(request: &SampleRequest) -> Result<PathBuf, Error> {
     if let Some(out) = request.out {
         return Ok(out.to_path_buf());
     }
     match request.sequence.is_dir() {
-        true => Ok(request.sequence.join("intensity.npy")),
+        true => Ok(request.sequence.join(INTENSITY)),
         false => Err(meshflow::io::IoError::format(
             request.sequence,
             "not a directory: give the output file with --out FILE.npy",

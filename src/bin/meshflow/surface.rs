@@ -3,11 +3,14 @@
 //! smoothing-spline height over a fitted sphere or a plane (`meshflow::surface`).
 
 use crate::progress::during;
-use meshflow::accuracy::{default_match_distance, match_tracks};
-use meshflow::io::{write_atomically, write_npy, write_npy_sequence, Overwrite, StagedDir};
+use meshflow::accuracy::{default_match_distance, Tracks};
+use meshflow::io::{
+    input_files, refuse_output_over_inputs, write_atomically, write_npy, write_npy_sequence,
+    IoError, OutputKind, Overwrite, StagedDir,
+};
 use meshflow::surface::{fit_surface, read_points, FitOptions, FittedSurface, Reference};
 use meshflow::Error;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// What `surface` needs from the command line.
 pub struct SurfaceRequest<'a> {
@@ -19,6 +22,9 @@ pub struct SurfaceRequest<'a> {
 }
 
 pub fn run(request: SurfaceRequest) -> Result<(), Error> {
+    if let Some(times) = &request.times {
+        check_times(times)?;
+    }
     let mut staged =
         StagedDir::create_apart_from(&[request.points], request.out, request.overwrite)?;
     staged.record_command(crate::command_line());
@@ -30,13 +36,42 @@ pub fn run(request: SurfaceRequest) -> Result<(), Error> {
         || fit_surface(&frames, &request.options),
     )
     .map_err(|e| Error::from(e).in_file(request.points))?;
-    let times = request
-        .times
-        .unwrap_or_else(|| (0..frames.len()).map(|k| k as f64).collect());
+    let times = match request.times {
+        Some(times) if times.len() != frames.len() => {
+            return Err(crate::usage(format!(
+                "--times gives {} times for the {} frames of {}",
+                times.len(),
+                frames.len(),
+                request.points.display()
+            )))
+        }
+        Some(times) => times,
+        None => (0..frames.len()).map(|k| k as f64).collect(),
+    };
     write_outputs(&staged, &fitted, &times).map_err(|e| staged.error_in_target(e))?;
     staged.commit()?;
     print_report(&fitted, request.points, request.out);
     Ok(())
+}
+
+/// `--times`: finite and increasing (a frame's time orders the slabs and sets their
+/// durations).
+fn check_times(times: &[f64]) -> Result<(), Error> {
+    if let Some(k) = times.iter().position(|t| !t.is_finite()) {
+        return Err(crate::usage(format!(
+            "--times: time {k} is {}; times must be finite numbers",
+            times[k]
+        )));
+    }
+    match times.windows(2).position(|pair| pair[1] <= pair[0]) {
+        Some(k) => Err(crate::usage(format!(
+            "--times: time {} ({}) does not come after time {k} ({}); times must increase",
+            k + 1,
+            times[k + 1],
+            times[k]
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// positions.npy, faces.npy, times.txt and surface.json.
@@ -96,16 +131,37 @@ fn print_report(fitted: &FittedSurface, points: &Path, out: &Path) {
     }
 }
 
-/// `meshflow match`: tracks from point clouds by mutual nearest neighbours.
+/// `meshflow match`: tracks from point clouds by mutual nearest neighbours. The output is
+/// checked against the inputs and `--max-distance` before anything is read, the
+/// `frames × tracks` array against the memory limit before it is allocated.
 pub fn write_tracks(points: &Path, out: &Path, max_distance: Option<f64>) -> Result<(), Error> {
+    let mut inputs = input_files(&[points]);
+    inputs.push(points.to_path_buf());
+    let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    refuse_output_over_inputs(out, OutputKind::File, &inputs)?;
+    if let Some(d) = max_distance.filter(|d| !(d.is_finite() && *d > 0.0)) {
+        return Err(crate::usage(format!(
+            "--max-distance must be a positive length, got {d}"
+        )));
+    }
     let frames = during(format!("reading {}", points.display()), || {
         read_points(points)
     })?;
+    let in_points = |e: meshflow::accuracy::AccuracyError| Error::from(e).in_file(points);
     let bound = match max_distance {
         Some(d) => d,
-        None => default_match_distance(&frames).map_err(|e| Error::from(e).in_file(points))?,
+        None => default_match_distance(&frames).map_err(in_points)?,
     };
-    let tracks = match_tracks(&frames, Some(bound)).map_err(|e| Error::from(e).in_file(points))?;
+    let check_size = |k: usize, tracks: usize| -> Result<(), Error> {
+        // The positions and the array written from them: 2 × 3 float64 an entry.
+        let what = format!("the tracks ({k} frames × {tracks} tracks)");
+        meshflow::limits::check_items(what, (k as u64).saturating_mul(tracks as u64), 48)
+            .map_err(|e| IoError::too_large(points, e).into())
+    };
+    let tracks = Tracks::matched(&frames, Some(bound), check_size).map_err(|e| match e {
+        Error::Accuracy(e) => in_points(e),
+        other => other,
+    })?;
     let (shape, values) = tracks.to_array();
     write_npy(out, &shape, &values)?;
     let pairs = tracks.pairs_per_slab();
