@@ -265,8 +265,7 @@ fn cases(base: &Path, binary: &Path) -> Vec<(String, Vec<String>)> {
             &volume,
             "--voxel-size",
             "0.15,0.15,0.3",
-            "--origin",
-            "-1.2,-1.2,-1.2",
+            "--origin=-1.2,-1.2,-1.2",
         ],
     );
     case(
