@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{listing, meshflow, meshflow_ok, shipped};
+use common::{listing, meshflow, meshflow_error, meshflow_ok, shipped};
 use meshflow::analysis::analyze_flow;
 use meshflow::io::{load_sequence, read_npy, LoadOptions};
 use nalgebra::Vector2;
@@ -211,34 +211,21 @@ fn an_edited_manifest_reads_nothing_else() {
     std::fs::write(&manifest, json.to_string()).unwrap();
     for command in ["analyze", "advect"] {
         let out = dir.path().join(command);
-        let done = meshflow(&[
-            command,
-            run.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        let stderr = String::from_utf8_lossy(&done.stderr);
-        assert_eq!(done.status.code(), Some(1), "{command}: {stderr}");
-        assert!(
-            stderr.contains("which the run did not read (was meshflow_run.json edited?)"),
-            "{command}: {stderr}"
-        );
+        let (run, out_text) = (run.to_str().unwrap(), out.to_str().unwrap());
+        let edited = "which the run did not read (was meshflow_run.json edited?)";
+        meshflow_error(&[command, run, "--out", out_text], edited);
         assert!(!out.exists());
     }
     json["inputs"] = serde_json::Value::Array(Vec::new());
     std::fs::write(&manifest, json.to_string()).unwrap();
     let out = dir.path().join("analysis");
-    let done = meshflow(&[
+    let args = [
         "analyze",
         run.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
-    ]);
-    let stderr = String::from_utf8_lossy(&done.stderr);
-    assert!(
-        stderr.contains("records no fingerprints of its inputs"),
-        "{stderr}"
-    );
+    ];
+    meshflow_error(&args, "records no fingerprints of its inputs");
 }
 
 /// `--out` naming the run itself is refused before anything is written: the run would be
@@ -250,29 +237,19 @@ fn the_run_is_never_its_own_output() {
     solve(&shipped("rotating_sphere"), &run);
     let before = listing(&run);
     for command in ["analyze", "advect"] {
-        let done = meshflow(&[
-            command,
-            run.to_str().unwrap(),
-            "--out",
-            run.to_str().unwrap(),
-        ]);
-        let stderr = String::from_utf8_lossy(&done.stderr);
-        assert_eq!(done.status.code(), Some(1), "{command}: {stderr}");
-        assert!(stderr.contains("is the input"), "{command}: {stderr}");
-        assert_eq!(listing(&run), before, "{command} left the run alone");
         let inside = run.join("sub");
-        let done = meshflow(&[
-            command,
-            run.to_str().unwrap(),
-            "--out",
-            inside.to_str().unwrap(),
-        ]);
-        let stderr = String::from_utf8_lossy(&done.stderr);
-        assert_eq!(done.status.code(), Some(1), "{command}: {stderr}");
-        assert!(
-            stderr.contains("lies inside the input directory"),
-            "{command}: {stderr}"
-        );
-        assert_eq!(listing(&run), before, "{command} left the run alone");
+        for (out, relation) in [
+            (&run, "is the input"),
+            (&inside, "lies inside the input directory"),
+        ] {
+            let args = [
+                command,
+                run.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ];
+            meshflow_error(&args, relation);
+            assert_eq!(listing(&run), before, "{command} left the run alone");
+        }
     }
 }

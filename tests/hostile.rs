@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{listing, meshflow};
+use common::{listing, meshflow, meshflow_error};
 use std::path::Path;
 
 /// Four vertices (f32) and two triangles (u16) of a unit square: the 60 bytes of the buffer.
@@ -155,41 +155,25 @@ fn obj_material_libraries_and_textures_stay_beside_the_file() {
     };
     let out = dir.path().join("out");
     let file = model.join("square.obj");
+    let solve = [
+        "solve",
+        model.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
     for (mtllib, why) in [
         ("/etc/passwd", "an absolute path"),
         ("../../../etc/passwd", "leads out of the file's directory"),
     ] {
         std::fs::write(&file, obj(mtllib)).unwrap();
-        let done = meshflow(&[
-            "solve",
-            model.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        let stderr = String::from_utf8_lossy(&done.stderr);
-        assert_eq!(done.status.code(), Some(1), "{stderr}");
-        let named = format!("square.obj: mtllib {mtllib:?}: {why}");
-        assert!(stderr.contains(&named), "{stderr}");
+        meshflow_error(&solve, &format!("square.obj: mtllib {mtllib:?}: {why}"));
     }
     std::fs::write(dir.path().join("secret.png"), b"not read").unwrap();
-    std::fs::write(
-        model.join("skin.mtl"),
-        "newmtl skin\nmap_Kd ../secret.png\n",
-    )
-    .unwrap();
+    let library = "newmtl skin\nmap_Kd ../secret.png\n";
+    std::fs::write(model.join("skin.mtl"), library).unwrap();
     std::fs::write(&file, obj("skin.mtl")).unwrap();
-    let done = meshflow(&[
-        "solve",
-        model.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    let stderr = String::from_utf8_lossy(&done.stderr);
-    assert_eq!(done.status.code(), Some(1), "{stderr}");
-    assert!(
-        stderr.contains("skin.mtl: material 'skin': map_Kd \"../secret.png\": leads out"),
-        "{stderr}"
-    );
+    let refused = "skin.mtl: material 'skin': map_Kd \"../secret.png\": leads out";
+    meshflow_error(&solve, refused);
     assert!(!out.exists());
 }
 
@@ -222,23 +206,12 @@ fn the_solve_refuses_a_system_over_the_memory_limit() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     let input = common::shipped("rotating_sphere");
-    let done = meshflow(&[
-        "solve",
-        &input,
-        "--out",
-        out.to_str().unwrap(),
-        "--memory-limit",
-        "200K",
-    ]);
-    let stderr = String::from_utf8_lossy(&done.stderr);
-    assert_eq!(done.status.code(), Some(1), "{stderr}");
+    let solve = ["solve", &input, "--out", out.to_str().unwrap()];
     // 5 slabs × 642 vertices × 2 unknowns × 140 bytes.
-    assert!(
-        stderr.contains(
-            "the space-time system of 5 slabs × 642 vertices (6420 unknowns, 140 bytes each at \
-             least) declares 898.8 kB, over the memory limit of 204.8 kB (--memory-limit)"
-        ),
-        "{stderr}"
+    meshflow_error(
+        &[&solve[..], &["--memory-limit", "200K"]].concat(),
+        "the space-time system of 5 slabs × 642 vertices (6420 unknowns, 140 bytes each at \
+         least) declares 898.8 kB, over the memory limit of 204.8 kB (--memory-limit)",
     );
     assert!(!out.exists());
 }
@@ -264,17 +237,12 @@ fn fifos_are_refused_not_waited_for() {
             )
             .unwrap();
         }
-        let done = meshflow(&[
+        let solve = [
             "solve",
             input.to_str().unwrap(),
             "--out",
             out.to_str().unwrap(),
-        ]);
-        let stderr = String::from_utf8_lossy(&done.stderr);
-        assert_eq!(done.status.code(), Some(1), "{stderr}");
-        assert!(
-            stderr.contains(&format!("{name}: not a regular file")),
-            "{stderr}"
-        );
+        ];
+        meshflow_error(&solve, &format!("{name}: not a regular file"));
     }
 }

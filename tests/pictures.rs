@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{listing, meshflow, meshflow_ok, shipped};
+use common::{listing, meshflow, meshflow_error, meshflow_ok, shipped};
 use std::path::Path;
 
 const SLABS: usize = 5;
@@ -111,36 +111,18 @@ fn render_stays_apart_from_other_files() {
         "--out",
         dir.to_str().unwrap(),
     ]);
-    let inside = dir.join("pictures");
-    let run = meshflow(&[
-        "render",
-        dir.to_str().unwrap(),
-        "--out",
-        inside.to_str().unwrap(),
-    ]);
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert_eq!(run.status.code(), Some(1), "{stderr}");
-    assert!(
-        stderr.contains("lies inside the input directory"),
-        "{stderr}"
-    );
+    let (run, inside) = (dir.to_str().unwrap(), dir.join("pictures"));
+    let render_inside = ["render", run, "--out", inside.to_str().unwrap()];
+    meshflow_error(&render_inside, "lies inside the input directory");
     assert!(!inside.exists());
     let pvd = dir.join("flow.pvd");
     let text = std::fs::read_to_string(&pvd).unwrap();
     let outside = out.path().join("flow_0000.vtu");
     std::fs::copy(dir.join("flow_0000.vtu"), &outside).unwrap();
-    std::fs::write(
-        &pvd,
-        text.replace("\"flow_0000.vtu\"", "\"../flow_0000.vtu\""),
-    )
-    .unwrap();
-    let run = meshflow(&["render", dir.to_str().unwrap()]);
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert_eq!(run.status.code(), Some(1), "{stderr}");
-    assert!(
-        stderr.contains("flow.pvd: DataSet file \"../flow_0000.vtu\": leads out"),
-        "{stderr}"
-    );
+    let relisted = text.replace("\"flow_0000.vtu\"", "\"../flow_0000.vtu\"");
+    std::fs::write(&pvd, relisted).unwrap();
+    let refused = "flow.pvd: DataSet file \"../flow_0000.vtu\": leads out";
+    meshflow_error(&["render", run], refused);
 }
 
 #[test]

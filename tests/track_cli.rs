@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{meshflow, meshflow_ok, write_npy};
+use common::{meshflow, meshflow_error, meshflow_ok, write_npy};
 use meshflow::io::ply::{write_ply, PlyEncoding};
 use meshflow::io::{read_npy, write_obj};
 use meshflow::shapes::{icosphere, uv_sphere, Surface};
@@ -236,23 +236,12 @@ fn a_reference_larger_than_the_mesh_is_refused() {
     let frames = frames();
     let input = write_obj_frames(dir.path(), &frames);
     let out = dir.path().join("out");
-    let done = meshflow(&[
-        "track",
-        input.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--reference-vertices",
-        "100000000",
-        "--quiet",
-    ]);
-    let stderr = String::from_utf8_lossy(&done.stderr);
-    assert_eq!(done.status.code(), Some(1), "{stderr}");
+    let (input, out_text) = (input.to_str().unwrap(), out.to_str().unwrap());
+    let asked = ["--reference-vertices", "100000000", "--quiet"];
     let has = frames[0].positions.len();
-    assert!(
-        stderr.contains(&format!(
-            "--reference-vertices 100000000 asks for more than the {has} vertices"
-        )),
-        "{stderr}"
+    meshflow_error(
+        &[&["track", input, "--out", out_text][..], &asked].concat(),
+        &format!("--reference-vertices 100000000 asks for more than the {has} vertices"),
     );
     assert!(!out.exists());
 }

@@ -51,6 +51,20 @@ pub fn meshflow_ok(args: &[&str]) -> Output {
     run
 }
 
+/// Runs the binary and asserts that it failed with exit code 1 and one line on stderr that
+/// contains `expected`; returns that line.
+pub fn meshflow_error(args: &[&str], expected: &str) -> String {
+    let run = meshflow(args);
+    let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+    assert_eq!(run.status.code(), Some(1), "{args:?}: {stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
+    assert!(
+        stderr.contains(expected),
+        "{args:?}: expected {expected:?}, got {stderr}"
+    );
+    stderr
+}
+
 /// The names of the entries of `dir`, sorted.
 pub fn listing(dir: &Path) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(dir)
