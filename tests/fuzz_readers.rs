@@ -112,6 +112,18 @@ const TEXT_EXTREMES: [&str; 9] = [
 /// Extremes written over a 4-byte word of the data (little-endian).
 const WORD_EXTREMES: [u32; 5] = [0, u32::MAX, 1 << 31, 1 << 16, 0x7fff_ffff];
 
+/// The glTF members that size an allocation, and extremes written over their numbers.
+const SIZE_KEYS: [&str; 4] = [
+    "\"count\":",
+    "\"byteLength\":",
+    "\"byteStride\":",
+    "\"byteOffset\":",
+];
+const SIZE_EXTREMES: [&str; 3] = ["2147483648", "4294967295", "1000000000000"];
+
+/// Lengths of node chains appended to a glTF's nodes.
+const CHAIN_DEPTHS: [usize; 3] = [2, 1000, 30_000];
+
 /// One change to a file.
 #[derive(Clone, Debug)]
 enum Mutation {
@@ -122,6 +134,12 @@ enum Mutation {
     Number(prop::sample::Index, usize),
     /// The 4-byte word at `Index` replaced by an extreme.
     Word(prop::sample::Index, usize),
+    /// The number of the `Index`-th glTF size member ([`SIZE_KEYS`]) replaced by an extreme.
+    Size(prop::sample::Index, usize),
+    /// A chain of [`CHAIN_DEPTHS`] nodes appended to a glTF's nodes, its last the parent of
+    /// node 0 (a second parent, when it has one) or, when `true`, of the chain's first (a
+    /// cycle).
+    Chain(usize, bool),
 }
 
 fn mutation() -> impl Strategy<Value = Mutation> {
@@ -133,6 +151,8 @@ fn mutation() -> impl Strategy<Value = Mutation> {
             .prop_map(|(at, bytes)| Mutation::Insert(at, bytes)),
         4 => (any::<Index>(), 0..TEXT_EXTREMES.len()).prop_map(|(at, k)| Mutation::Number(at, k)),
         2 => (any::<Index>(), 0..WORD_EXTREMES.len()).prop_map(|(at, k)| Mutation::Word(at, k)),
+        3 => (any::<Index>(), 0..SIZE_EXTREMES.len()).prop_map(|(at, k)| Mutation::Size(at, k)),
+        1 => (0..CHAIN_DEPTHS.len(), any::<bool>()).prop_map(|(k, cycle)| Mutation::Chain(k, cycle)),
     ]
 }
 
@@ -179,7 +199,75 @@ fn apply(bytes: &mut Vec<u8>, mutation: &Mutation) {
             bytes[at..at + 4].copy_from_slice(&WORD_EXTREMES[*k].to_le_bytes());
         }
         Mutation::Word(..) => {}
+        Mutation::Size(at, k) => on_json(bytes, |json| set_size(json, at, SIZE_EXTREMES[*k])),
+        Mutation::Chain(k, cycle) => {
+            on_json(bytes, |json| add_chain(json, CHAIN_DEPTHS[*k], *cycle))
+        }
     }
+}
+
+/// Applies `change` to the JSON of a glTF: the whole file, or a GLB's JSON chunk (the GLB then
+/// rebuilt around it with its lengths).
+fn on_json(bytes: &mut Vec<u8>, change: impl FnOnce(&mut Vec<u8>)) {
+    let json_length = |b: &[u8]| u32::from_le_bytes(b[12..16].try_into().unwrap()) as usize;
+    if !bytes.starts_with(b"glTF") {
+        return change(bytes);
+    }
+    if bytes.len() < 20 || bytes.len() < 20 + json_length(bytes) {
+        return;
+    }
+    let end = 20 + json_length(bytes);
+    let mut json = bytes[20..end].to_vec();
+    change(&mut json);
+    json.resize(json.len().next_multiple_of(4), b' ');
+    let rest = bytes.split_off(end);
+    bytes.truncate(12);
+    bytes.extend((json.len() as u32).to_le_bytes());
+    bytes.extend(b"JSON");
+    bytes.extend(json);
+    bytes.extend(rest);
+    let total = (bytes.len() as u32).to_le_bytes();
+    bytes[8..12].copy_from_slice(&total);
+}
+
+/// Replaces the number after the `at`-th size member ([`SIZE_KEYS`]) by `extreme`.
+fn set_size(json: &mut Vec<u8>, at: &prop::sample::Index, extreme: &str) {
+    let members: Vec<usize> = (0..json.len())
+        .filter(|&i| {
+            SIZE_KEYS
+                .iter()
+                .any(|key| json[i..].starts_with(key.as_bytes()))
+        })
+        .collect();
+    if members.is_empty() {
+        return;
+    }
+    let member = members[at.index(members.len())];
+    let colon = member + json[member..].iter().position(|&b| b == b':').unwrap();
+    let start = colon + 1;
+    let digits = json[start..]
+        .iter()
+        .take_while(|b| b.is_ascii_digit())
+        .count();
+    json.splice(start..start + digits, extreme.bytes());
+}
+
+/// Appends a chain of `depth` nodes (see [`Mutation::Chain`]); JSON that no longer parses is
+/// left alone.
+fn add_chain(json: &mut Vec<u8>, depth: usize, cycle: bool) {
+    let Ok(mut value) = serde_json::from_slice::<serde_json::Value>(json) else {
+        return;
+    };
+    let Some(nodes) = value["nodes"].as_array_mut() else {
+        return;
+    };
+    let first = nodes.len();
+    let last_child = if cycle { first } else { 0 };
+    nodes.extend((1..=depth).map(|k| {
+        let child = if k == depth { last_child } else { first + k };
+        serde_json::json!({ "children": [child] })
+    }));
+    *json = serde_json::to_vec(&value).unwrap();
 }
 
 /// Reads a file, the outcome only.

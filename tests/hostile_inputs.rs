@@ -271,3 +271,207 @@ fn gltf_unknown_animation_path_is_an_error() {
         "{text}"
     );
 }
+
+/// A glTF of one triangle list: `vertices` float positions (a fan of points on a line, as
+/// data need not be a good mesh to be read) in `data.bin`, and `extra` JSON members.
+fn gltf_with(dir: &tempfile::TempDir, vertices: usize, mesh: &str, extra: &str) -> PathBuf {
+    let bytes: Vec<u8> = (0..3 * vertices)
+        .flat_map(|k| ((k % 7) as f32).to_le_bytes())
+        .collect();
+    file(dir, "data.bin", &bytes);
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"meshes":[{mesh}],
+"buffers":[{{"byteLength":{length},"uri":"data.bin"}}],
+"bufferViews":[{{"buffer":0,"byteLength":{length}}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":{vertices},"type":"VEC3","min":[0,0,0],"max":[6,6,6]}}]{extra}}}"#,
+        length = bytes.len()
+    );
+    file(dir, "a.gltf", json.as_bytes())
+}
+
+/// Found by review: primitives or morph targets that share one accessor multiply its size
+/// without more data (here 2000 targets of 30 000 vertices, 2.9 GB).
+#[test]
+fn gltf_morph_targets_times_vertices_over_the_limit_are_refused() {
+    let dir = low_limit();
+    let targets = vec![r#"{"POSITION":0}"#; 2000].join(",");
+    let mesh =
+        format!(r#"{{"primitives":[{{"attributes":{{"POSITION":0}},"targets":[{targets}]}}]}}"#);
+    let path = gltf_with(&dir, 30_000, &mesh, r#","nodes":[{"mesh":0}]"#);
+    let text = message(meshflow::io::gltf_read::read_gltf_geometry(&path), &path);
+    assert!(
+        text.contains("mesh 0 (1 primitives: vertices × morph targets, indices) declares 2.9 GB")
+            && text.contains("--memory-limit"),
+        "{text}"
+    );
+}
+
+/// Found by review: a buffer's data is decoded to 8-byte values, so an accessor within its
+/// buffer can still declare more than the limit.
+#[test]
+fn gltf_accessor_decoded_over_the_limit_is_refused() {
+    let dir = low_limit();
+    // 5 MB of u8 keyframe times: 80 MB of f64 while decoding.
+    let count = 5_000_000;
+    file(&dir, "times.bin", &vec![1; count]);
+    let extra = r#","nodes":[{"mesh":0}],
+"animations":[{"samplers":[{"input":1,"output":0}],"channels":[{"sampler":0,"target":{"node":0,"path":"translation"}}]}]"#;
+    let path = gltf_with(
+        &dir,
+        3,
+        r#"{"primitives":[{"attributes":{"POSITION":0}}]}"#,
+        extra,
+    );
+    let json = std::fs::read_to_string(&path).unwrap().replace(
+        r#""buffers":["#,
+        &format!(r#""buffers":[{{"byteLength":{count},"uri":"times.bin"}},"#),
+    );
+    // Buffer 0 is now times.bin: move the views and add the times' accessor.
+    let json = json
+        .replace(r#""buffer":0"#, r#""buffer":1"#)
+        .replace(
+            r#""bufferViews":["#,
+            &format!(r#""bufferViews":[{{"buffer":0,"byteLength":{count}}},"#),
+        )
+        .replace(r#""bufferView":0"#, r#""bufferView":1"#)
+        .replace(
+            r#""max":[6,6,6]}]"#,
+            &format!(
+                r#""max":[6,6,6]}},{{"bufferView":0,"componentType":5121,"count":{count},"type":"SCALAR"}}]"#
+            ),
+        );
+    std::fs::write(&path, json).unwrap();
+    let options = meshflow::io::LoadOptions::default();
+    let result = meshflow::io::gltf_read::read_gltf_animation(&path, &options);
+    let text = message(result, &path);
+    assert!(
+        text.contains(
+            "animation 0, sampler 0, input (accessor 1) with count 5000000 declares 80.0 MB"
+        ),
+        "{text}"
+    );
+}
+
+/// Found by review: every buffer naming the same file read it whole again.
+#[test]
+fn gltf_buffers_sharing_a_file_over_the_limit_are_refused() {
+    let dir = low_limit();
+    let path = gltf_with(
+        &dir,
+        300_000,
+        r#"{"primitives":[{"attributes":{"POSITION":0}}]}"#,
+        r#","nodes":[{"mesh":0}]"#,
+    );
+    let copies = vec![r#"{"byteLength":3600000,"uri":"data.bin"}"#; 100].join(",");
+    let json = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace(r#""buffers":["#, &format!(r#""buffers":[{copies},"#));
+    std::fs::write(&path, json).unwrap();
+    let text = message(meshflow::io::gltf_read::read_gltf_geometry(&path), &path);
+    assert!(
+        text.contains("the byteLength of its 101 buffers declares 363.6 MB"),
+        "{text}"
+    );
+}
+
+/// `nodes` JSON of a chain `0 → 1 → … → depth` (each the child of the one before), the mesh
+/// on the last node.
+fn chain(depth: usize) -> String {
+    let links = (1..=depth).map(|k| format!(r#"{{"children":[{k}]}}"#));
+    let nodes: Vec<String> = links.chain([r#"{"mesh":0}"#.to_string()]).collect();
+    format!(r#","nodes":[{}]"#, nodes.join(","))
+}
+
+/// Found by review: the mesh node's ancestry was checked for cycles in quadratic time, and a
+/// skin kept every joint's whole ancestry (joints × depth).
+#[test]
+fn gltf_deep_node_chain_reads_in_linear_time() {
+    let dir = low_limit();
+    let depth = 100_000;
+    let started = std::time::Instant::now();
+    let path = gltf_with(
+        &dir,
+        3,
+        r#"{"primitives":[{"attributes":{"POSITION":0}}]}"#,
+        &chain(depth),
+    );
+    let mesh = meshflow::io::gltf_read::read_gltf_geometry(&path).unwrap();
+    assert_eq!(mesh.positions.len(), 3);
+    assert!(
+        started.elapsed().as_secs_f64() < 5.0,
+        "{:?}",
+        started.elapsed()
+    );
+}
+
+/// Found by review: a cycle away from the mesh's ancestry, and a node with two parents, were
+/// taken without a word (glTF allows neither).
+#[test]
+fn gltf_node_cycles_and_second_parents_name_the_node() {
+    let dir = low_limit();
+    let mesh = r#"{"primitives":[{"attributes":{"POSITION":0}}]}"#;
+    for (nodes, expected) in [
+        (
+            r#","nodes":[{"mesh":0},{"children":[2]},{"children":[1]}]"#,
+            "the node hierarchy has a cycle through node 1",
+        ),
+        (
+            r#","nodes":[{"mesh":0,"children":[0]}]"#,
+            "the node hierarchy has a cycle through node 0",
+        ),
+        (
+            r#","nodes":[{"mesh":0},{"children":[0]},{"children":[0],"name":"b"}]"#,
+            "node 0 is a child of both node 1 and node 2 (\"b\")",
+        ),
+    ] {
+        let path = gltf_with(&dir, 3, mesh, nodes);
+        let text = message(meshflow::io::gltf_read::read_gltf_geometry(&path), &path);
+        assert!(text.contains(expected), "{text}");
+    }
+}
+
+/// Found by review: `--fps` times the animation's duration made any number of frames of the
+/// whole mesh.
+#[test]
+fn gltf_fps_frames_over_the_limit_name_fps() {
+    use meshflow::io::gltf_write::{write_glb_animation, AnimationFrame};
+    use nalgebra::Vector3;
+    let dir = low_limit();
+    let positions = [Vector3::zeros(), Vector3::x(), Vector3::y()];
+    let frames = [0.0, 1.0].map(|time| AnimationFrame {
+        time,
+        positions: &positions,
+        colors: &[[0.5; 3]; 3],
+    });
+    let path = dir.path().join("a.glb");
+    write_glb_animation(&path, &[[0, 1, 2]], &frames).unwrap();
+    let options = meshflow::io::LoadOptions {
+        fps: Some(1e6),
+        ..Default::default()
+    };
+    let result = meshflow::io::gltf_read::read_gltf_animation(&path, &options);
+    let text = message(result, &path);
+    assert!(
+        text.contains("--fps 1000000 gives 1000001 frames of 3 vertices, which declares 208.0 MB"),
+        "{text}"
+    );
+}
+
+/// Found by review: a short VTU declaring 10¹² points failed only when its data ran out;
+/// now its declared size is named before anything is decoded.
+#[test]
+fn vtu_declared_points_over_the_limit_are_refused() {
+    let dir = low_limit();
+    let text = "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\">\n<UnstructuredGrid>\n\
+                <Piece NumberOfPoints=\"1000000000000\" NumberOfCells=\"1\">\n<Points>\n\
+                <DataArray type=\"Float32\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0 \
+                1 0 0 0 1 0</DataArray>\n</Points>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n";
+    let path = file(&dir, "huge.vtu", text.as_bytes());
+    let text = message(meshflow::io::vtk::read_vtu(&path), &path);
+    assert!(
+        text.contains(
+            "line 4: NumberOfPoints=\"1000000000000\" with NumberOfCells=\"1\" declares 24.0 TB"
+        ) && text.contains("--memory-limit"),
+        "{text}"
+    );
+}

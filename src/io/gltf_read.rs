@@ -82,13 +82,13 @@ pub fn read_gltf_animation_frames(
 ) -> Result<(RawSequence, usize), IoError> {
     let file = GltfFile::open(path)?;
     let node = mesh_node(&file)?;
-    let nodes = Nodes::read(&file);
-    let surface = Surface::read(&file, &nodes, &node, true)?;
+    let nodes = Nodes::read(&file)?;
+    let surface = Surface::read(&file, &node, true)?;
     let (motion, warning) = Motion::read(
         &file,
         &nodes,
         &node,
-        &surface.placing(),
+        &surface.placing(&nodes),
         surface.target_count,
         options.animation.as_deref(),
     )?;
@@ -101,6 +101,7 @@ pub fn read_gltf_animation_frames(
         .filter(|&(k, _)| keep(k))
         .map(|(_, &t)| t)
         .collect();
+    surface.check_frames(&file, kept.len(), options.fps)?;
     let mut positions = Vec::with_capacity(kept.len());
     let mut images = Vec::with_capacity(kept.len());
     for &t in &kept {
@@ -136,8 +137,8 @@ pub fn read_gltf_geometry(path: &Path) -> Result<FrameMesh, IoError> {
 fn read_static(path: &Path, colors: bool) -> Result<FrameMesh, IoError> {
     let file = GltfFile::open(path)?;
     let node = mesh_node(&file)?;
-    let nodes = Nodes::read(&file);
-    let surface = Surface::read(&file, &nodes, &node, colors)?;
+    let nodes = Nodes::read(&file)?;
+    let surface = Surface::read(&file, &node, colors)?;
     let weights = default_weights(&file, &node, surface.target_count)?;
     Ok(FrameMesh {
         positions: surface.positions(&weights, &nodes.rest(), &file)?,
@@ -266,8 +267,8 @@ struct Surface {
 
 /// How the mesh is placed in the world.
 enum Placement {
-    /// By the world transform of the mesh node, given by its ancestry (node first).
-    Node(Vec<usize>),
+    /// By the world transform of the mesh node.
+    Node(usize),
     /// By the joints of the node's skin, with the influences of every vertex.
     Skin {
         skin: Skin,
@@ -277,19 +278,20 @@ enum Placement {
 
 impl Surface {
     /// The surface of `node`, with the primitives' colour sources when `colors`.
-    fn read(file: &GltfFile, nodes: &Nodes, node: &Node, colors: bool) -> Result<Self, IoError> {
+    fn read(file: &GltfFile, node: &Node, colors: bool) -> Result<Self, IoError> {
         let mesh = node
             .mesh()
             .ok_or_else(|| file.error(format!("{} has no mesh", node_label(node))))?;
         if mesh.primitives().len() == 0 {
             return Err(file.error(format!("mesh {} has no primitives", mesh.index())));
         }
+        check_mesh_size(file, &mesh)?;
         let placement = match node.skin() {
             Some(skin) => Placement::Skin {
-                skin: Skin::read(file, nodes, &skin)?,
+                skin: Skin::read(file, &skin)?,
                 influences: Vec::new(),
             },
-            None => Placement::Node(nodes.ancestry(file, node.index())?),
+            None => Placement::Node(node.index()),
         };
         let mut surface = Surface {
             faces: Vec::new(),
@@ -336,12 +338,37 @@ impl Surface {
         self.primitives.iter().map(|p| p.positions.base.len()).sum()
     }
 
-    /// The nodes whose transforms place the mesh.
-    fn placing(&self) -> Vec<usize> {
+    /// The nodes whose transforms place the mesh, sorted.
+    fn placing(&self, nodes: &Nodes) -> Vec<usize> {
         match &self.placement {
-            Placement::Node(chain) => chain.clone(),
-            Placement::Skin { skin, .. } => skin.placing(),
+            Placement::Node(node) => nodes.with_ancestors([*node]),
+            Placement::Skin { skin, .. } => skin.placing(nodes),
         }
+    }
+
+    /// Checks that `frames` frames of this surface (positions, and colours where it has
+    /// them) fit the memory limit before they are computed; `fps` (`--fps`) is named when it
+    /// set the frame count.
+    fn check_frames(
+        &self,
+        file: &GltfFile,
+        frames: usize,
+        fps: Option<f64>,
+    ) -> Result<(), IoError> {
+        let vertices = self.vertex_count() as u64;
+        let images = self.primitives.iter().all(|p| p.colors.is_some());
+        // Positions and colours, 24 bytes a vertex each, and a frame's vectors.
+        let frame_bytes = vertices * if images { 48 } else { 24 } + 64;
+        let cause = match fps {
+            Some(fps) => format!("--fps {fps} gives {frames} frames"),
+            None => format!("the animation has {frames} frames"),
+        };
+        crate::limits::check_items(
+            format!("{cause} of {vertices} vertices, which"),
+            frames as u64,
+            frame_bytes,
+        )
+        .map_err(|e| IoError::too_large(file.path, e))
     }
 
     /// World positions of all vertices at the given morph weights and node pose.
@@ -353,8 +380,8 @@ impl Surface {
     ) -> Result<Vec<Vector3<f64>>, IoError> {
         let morphed = self.primitives.iter().flat_map(|p| p.positions.at(weights));
         match &self.placement {
-            Placement::Node(chain) => {
-                let world = pose.world(file, chain)?;
+            Placement::Node(node) => {
+                let world = pose.worlds(file, &[*node])?[0];
                 let linear = world.fixed_view::<3, 3>(0, 0);
                 let translation = world.fixed_view::<3, 1>(0, 3);
                 Ok(morphed
@@ -380,6 +407,30 @@ impl Surface {
         }
         Ok(Some(VertexValues::Colors(colors)))
     }
+}
+
+/// Checks what the primitives of `mesh` declare against the memory limit before any is read:
+/// their POSITION counts times one plus their morph targets, at 48 bytes (a position and a
+/// colour), and their index counts at 4 bytes. Primitives may share accessors, so this bounds
+/// what the data present cannot.
+fn check_mesh_size(file: &GltfFile, mesh: &gltf::Mesh) -> Result<(), IoError> {
+    let mut bytes = 0u64;
+    for primitive in mesh.primitives() {
+        let vertices = primitive.get(&Semantic::Positions).map_or(0, |a| a.count());
+        let copies = 1 + primitive.morph_targets().len();
+        let indices = primitive.indices().map_or(0, |a| a.count());
+        let declared = (vertices as u64)
+            .saturating_mul(copies as u64)
+            .saturating_mul(48)
+            .saturating_add(4 * indices as u64);
+        bytes = bytes.saturating_add(declared);
+    }
+    let what = format!(
+        "mesh {} ({} primitives: vertices × morph targets, indices)",
+        mesh.index(),
+        mesh.primitives().len()
+    );
+    crate::limits::check_declared(what, bytes).map_err(|e| IoError::too_large(file.path, e))
 }
 
 fn primitive_label(mesh: &gltf::Mesh, primitive: &gltf::Primitive) -> String {

@@ -10,7 +10,7 @@
 //! dropped must be finite (dropped ones are ignored). Errors name the file, and the slab and
 //! file vertices at fault.
 
-use super::{read_npy_float, IoError, VertexMap};
+use super::{read_npy_float, read_npy_float_rows, IoError, VertexMap};
 use nalgebra::Vector3;
 use std::path::Path;
 
@@ -25,17 +25,21 @@ pub fn read_ground_truth(
     vertex_map: &VertexMap,
     n_slabs: usize,
 ) -> Result<Vec<Vec<Vector3<f64>>>, IoError> {
-    let array = read_npy_float(path)?;
     let n_file_vertices = vertex_map.n_file_vertices();
-    if array.shape != [n_slabs as u64, n_file_vertices as u64, 3] {
+    // The header alone first: a file of the wrong shape is refused before its data is read.
+    let (header, rows) = read_npy_float_rows(path, &|_| false)?;
+    let shape: Vec<u64> = std::iter::once(rows)
+        .chain(header.shape.iter().skip(1).copied())
+        .collect();
+    if shape != [n_slabs as u64, n_file_vertices as u64, 3] {
         return Err(IoError::format(
             path,
             format!(
-                "ground truth has shape {:?}, expected ({n_slabs}, {n_file_vertices}, 3) = (slabs, vertices in the input files, 3)",
-                array.shape
+                "ground truth has shape {shape:?}, expected ({n_slabs}, {n_file_vertices}, 3) = (slabs, vertices in the input files, 3)"
             ),
         ));
     }
+    let array = read_npy_float(path)?;
     let row = 3 * n_file_vertices;
     (0..n_slabs)
         .map(|s| {

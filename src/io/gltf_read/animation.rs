@@ -81,6 +81,7 @@ fn property_name(property: Property) -> &'static str {
 /// place it.
 struct Movers<'a> {
     mesh_node: usize,
+    /// Sorted.
     placing: &'a [usize],
 }
 
@@ -89,7 +90,7 @@ impl Movers<'_> {
         let node = channel.target().node().index();
         match channel.target().property() {
             Property::MorphTargetWeights => node == self.mesh_node,
-            _ => self.placing.contains(&node),
+            _ => self.placing.binary_search(&node).is_ok(),
         }
     }
 }

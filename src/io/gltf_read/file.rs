@@ -64,18 +64,31 @@ impl<'p> GltfFile<'p> {
         IoError::format(self.path, message)
     }
 
+    /// The buffers, each cut to its `byteLength`: many buffers may name the same file or the
+    /// GLB BIN chunk, so only the declared lengths, checked together against the memory limit
+    /// first, are held.
     fn load_buffers(&self, blob: Option<&[u8]>) -> Result<Vec<Vec<u8>>, IoError> {
+        let declared = self
+            .document
+            .buffers()
+            .fold(0u64, |sum, b| sum.saturating_add(b.length() as u64));
+        let count = self.document.buffers().len();
+        crate::limits::check_declared(format!("the byteLength of its {count} buffers"), declared)
+            .map_err(|e| IoError::too_large(self.path, e))?;
         self.document
             .buffers()
             .map(|buffer| {
                 let label = format!("buffer {}", buffer.index());
                 let data = match buffer.source() {
-                    gltf::buffer::Source::Bin => blob
-                        .ok_or_else(|| {
+                    gltf::buffer::Source::Bin => {
+                        let bin = blob.ok_or_else(|| {
                             self.error(format!("{label} has no uri and there is no GLB BIN chunk"))
-                        })?
-                        .to_vec(),
-                    gltf::buffer::Source::Uri(uri) => self.read_uri(uri, &label)?,
+                        })?;
+                        bin[..bin.len().min(buffer.length())].to_vec()
+                    }
+                    gltf::buffer::Source::Uri(uri) => {
+                        self.read_uri(uri, &label, buffer.length() as u64)?
+                    }
                 };
                 if data.len() < buffer.length() {
                     return Err(self.error(format!(
@@ -89,8 +102,9 @@ impl<'p> GltfFile<'p> {
             .collect()
     }
 
-    /// The bytes a URI refers to: a base64 `data:` URI or a path relative to the file.
-    fn read_uri(&self, uri: &str, label: &str) -> Result<Vec<u8>, IoError> {
+    /// The bytes a URI refers to, at most `most` of a referenced file: a base64 `data:` URI
+    /// or a path relative to the file.
+    fn read_uri(&self, uri: &str, label: &str, most: u64) -> Result<Vec<u8>, IoError> {
         if let Some(data) = uri.strip_prefix("data:") {
             let (_, encoded) = data.split_once(";base64,").ok_or_else(|| {
                 self.error(format!("{label}: only base64 data URIs are supported"))
@@ -107,7 +121,7 @@ impl<'p> GltfFile<'p> {
         let relative = percent_decode(uri)
             .ok_or_else(|| self.error(format!("{label}: invalid URI {uri:?}")))?;
         let referenced = resolve_linked(self.path, &format!("{label} uri"), uri, &relative)?;
-        crate::io::read_file(&referenced)
+        read_prefix(&referenced, most)
     }
 
     /// The elements of `accessor` (whose type must have one of `widths` components), first `N`
@@ -144,6 +158,14 @@ impl<'p> GltfFile<'p> {
                 accessor.count()
             )));
         }
+        // Decoding holds `width` f64 components per element, the result `N` more.
+        let element_bytes = 8 * (width + N) as u64;
+        crate::limits::check_items(
+            format!("{label} with count {}", accessor.count()),
+            accessor.count() as u64,
+            element_bytes,
+        )
+        .map_err(|e| IoError::too_large(self.path, e))?;
         let values = self
             .decode(accessor, width)
             .map_err(|message| self.error(format!("{label}: {message}")))?;
@@ -276,7 +298,9 @@ impl<'p> GltfFile<'p> {
                 self.view_bytes(&view)
                     .map_err(|message| self.error(format!("{label}: {message}")))?,
             ),
-            gltf::image::Source::Uri { uri, .. } => Cow::Owned(self.read_uri(uri, &label)?),
+            gltf::image::Source::Uri { uri, .. } => {
+                Cow::Owned(self.read_uri(uri, &label, crate::limits::memory_limit())?)
+            }
         };
         Texture::decode(&bytes).map_err(|message| self.error(format!("{label}: {message}")))
     }
@@ -365,6 +389,23 @@ fn elements(
             bytes.len()
         )),
     }
+}
+
+/// The first `most` bytes of the regular file `path` (a device such as `/dev/zero` never
+/// ends), each no more than the memory limit allows.
+fn read_prefix(path: &Path, most: u64) -> Result<Vec<u8>, IoError> {
+    use std::io::Read;
+    let metadata = std::fs::metadata(path).map_err(|e| IoError::file(path, e))?;
+    if !metadata.is_file() {
+        return Err(IoError::format(path, "not a regular file"));
+    }
+    let length = metadata.len().min(most);
+    crate::limits::check_declared("the file", length).map_err(|e| IoError::too_large(path, e))?;
+    let mut data = Vec::with_capacity(length as usize);
+    std::fs::File::open(path)
+        .and_then(|file| file.take(length).read_to_end(&mut data))
+        .map_err(|e| IoError::file(path, e))?;
+    Ok(data)
 }
 
 /// Decodes `%XX` escapes of a relative URI.

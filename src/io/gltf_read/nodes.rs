@@ -44,16 +44,13 @@ struct Trs {
 }
 
 impl Nodes {
-    pub fn read(file: &GltfFile) -> Self {
-        let count = file.document.nodes().len();
-        let mut parents = vec![None; count];
-        for parent in file.document.nodes() {
-            for child in parent.children() {
-                if let Some(slot) = parents.get_mut(child.index()) {
-                    *slot = Some(parent.index());
-                }
-            }
-        }
+    /// The nodes of `file`, after checking that they form a forest: every node the child of
+    /// at most one node, and no cycle. A hostile file may nest 100 000 nodes or loop, so every
+    /// walk up the hierarchy here is iterative and visits each node once.
+    pub fn read(file: &GltfFile) -> Result<Self, IoError> {
+        let labels: Vec<String> = file.document.nodes().map(|n| node_label(&n)).collect();
+        let parents = parents(file, &labels)?;
+        check_acyclic(file, &parents, &labels)?;
         let rest = file
             .document
             .nodes()
@@ -72,12 +69,11 @@ impl Nodes {
                 }),
             })
             .collect();
-        let labels = file.document.nodes().map(|n| node_label(&n)).collect();
-        Self {
+        Ok(Self {
             parents,
             rest,
             labels,
-        }
+        })
     }
 
     pub fn label(&self, node: usize) -> &str {
@@ -89,18 +85,21 @@ impl Nodes {
         matches!(self.rest[node], Local::Matrix(_))
     }
 
-    /// `node` and its ancestors, node first.
-    pub fn ancestry(&self, file: &GltfFile, node: usize) -> Result<Vec<usize>, IoError> {
-        let mut chain = vec![node];
-        while let Some(parent) = self.parents[chain[chain.len() - 1]] {
-            if chain.contains(&parent) {
-                return Err(file.error(format!(
-                    "the node hierarchy has a cycle through node {parent}"
-                )));
+    /// The given nodes and all their ancestors, sorted, each once.
+    pub fn with_ancestors(&self, nodes: impl IntoIterator<Item = usize>) -> Vec<usize> {
+        let mut seen = vec![false; self.parents.len()];
+        let mut found = Vec::new();
+        for node in nodes {
+            let mut next = Some(node);
+            // Stops at the first node already seen: its ancestors are in too.
+            while let Some(k) = next.filter(|&k| !seen[k]) {
+                seen[k] = true;
+                found.push(k);
+                next = self.parents[k];
             }
-            chain.push(parent);
         }
-        Ok(chain)
+        found.sort_unstable();
+        found
     }
 
     /// The nodes as the file places them.
@@ -150,18 +149,44 @@ pub(super) struct Pose<'n> {
 }
 
 impl Pose<'_> {
-    /// The world transform `L_root ⋯ L_node` of a node given with its ancestry (node first).
-    pub fn world(&self, file: &GltfFile, chain: &[usize]) -> Result<Matrix4<f64>, IoError> {
-        let mut world = Matrix4::identity();
-        for &node in chain {
-            world = self.local(file, node)? * world;
+    /// The world transforms `L_root ⋯ L_node` of `nodes`: each ancestor's is computed once
+    /// (a skin's joints share long chains).
+    pub fn worlds(&self, file: &GltfFile, nodes: &[usize]) -> Result<Vec<Matrix4<f64>>, IoError> {
+        let mut known: HashMap<usize, Matrix4<f64>> = HashMap::new();
+        nodes
+            .iter()
+            .map(|&node| {
+                let world = self.world_with(file, node, &mut known)?;
+                if !world.iter().all(|x| x.is_finite()) {
+                    return Err(file.error(format!(
+                        "the world transform of {} is not finite{}",
+                        self.nodes.label(node),
+                        self.when()
+                    )));
+                }
+                Ok(world)
+            })
+            .collect()
+    }
+
+    /// The world transform of `node`, from the nearest ancestor in `known` down; those on the
+    /// way are added to it.
+    fn world_with(
+        &self,
+        file: &GltfFile,
+        node: usize,
+        known: &mut HashMap<usize, Matrix4<f64>>,
+    ) -> Result<Matrix4<f64>, IoError> {
+        let mut path = Vec::new();
+        let mut next = Some(node);
+        while let Some(k) = next.filter(|k| !known.contains_key(k)) {
+            path.push(k);
+            next = self.nodes.parents[k];
         }
-        if !world.iter().all(|x| x.is_finite()) {
-            return Err(file.error(format!(
-                "the world transform of {} is not finite{}",
-                self.nodes.label(chain[0]),
-                self.when()
-            )));
+        let mut world = next.map_or_else(Matrix4::identity, |k| known[&k]);
+        for &k in path.iter().rev() {
+            world *= self.local(file, k)?;
+            known.insert(k, world);
         }
         Ok(world)
     }
@@ -194,4 +219,66 @@ impl Pose<'_> {
             None => String::new(),
         }
     }
+}
+
+/// The parent of every node; an error names a node listed as the child of two nodes (glTF
+/// allows one).
+fn parents(file: &GltfFile, labels: &[String]) -> Result<Vec<Option<usize>>, IoError> {
+    let mut parents: Vec<Option<usize>> = vec![None; labels.len()];
+    for parent in file.document.nodes() {
+        for child in parent.children() {
+            let Some(slot) = parents.get_mut(child.index()) else {
+                continue;
+            };
+            match *slot {
+                Some(other) if other != parent.index() => {
+                    return Err(file.error(format!(
+                        "{} is a child of both {} and {}; a node has at most one parent",
+                        labels[child.index()],
+                        labels[other],
+                        labels[parent.index()]
+                    )))
+                }
+                _ => *slot = Some(parent.index()),
+            }
+        }
+    }
+    Ok(parents)
+}
+
+/// Refuses a cycle in the hierarchy, naming a node on it: each node is visited once, walking
+/// up from every node until a node already cleared.
+fn check_acyclic(
+    file: &GltfFile,
+    parents: &[Option<usize>],
+    labels: &[String],
+) -> Result<(), IoError> {
+    #[derive(Clone, Copy, PartialEq)]
+    enum Visit {
+        New,
+        OnPath,
+        Cleared,
+    }
+    let mut visits = vec![Visit::New; parents.len()];
+    let mut path = Vec::new();
+    for start in 0..parents.len() {
+        let mut next = Some(start);
+        while let Some(k) = next {
+            match visits[k] {
+                Visit::Cleared => break,
+                Visit::OnPath => {
+                    return Err(file.error(format!(
+                        "the node hierarchy has a cycle through {}",
+                        labels[k]
+                    )))
+                }
+                Visit::New => {}
+            }
+            visits[k] = Visit::OnPath;
+            path.push(k);
+            next = parents[k];
+        }
+        path.drain(..).for_each(|k| visits[k] = Visit::Cleared);
+    }
+    Ok(())
 }

@@ -24,63 +24,56 @@ use nalgebra::{Matrix3x4, Matrix4, Vector3, Vector4};
 /// The joints moving one vertex, with their weights (summing to 1).
 pub(super) type Influences = Vec<(usize, f64)>;
 
-/// A skin: per joint, its node's ancestry (joint first) and inverse bind matrix.
+/// A skin: its joints' nodes and inverse bind matrices.
 pub(super) struct Skin {
-    joints: Vec<(Vec<usize>, Matrix4<f64>)>,
+    nodes: Vec<usize>,
+    inverse_binds: Vec<Matrix4<f64>>,
 }
 
 impl Skin {
-    pub fn read(file: &GltfFile, nodes: &Nodes, skin: &gltf::Skin) -> Result<Self, IoError> {
+    pub fn read(file: &GltfFile, skin: &gltf::Skin) -> Result<Self, IoError> {
         let name = skin.name().map(|n| format!(" ({n:?})")).unwrap_or_default();
         let label = format!("skin {}{name}", skin.index());
-        let chains = skin
-            .joints()
-            .map(|joint| nodes.ancestry(file, joint.index()))
-            .collect::<Result<Vec<_>, _>>()?;
-        if chains.is_empty() {
+        let joints: Vec<usize> = skin.joints().map(|joint| joint.index()).collect();
+        if joints.is_empty() {
             return Err(file.error(format!("{label} has no joints")));
         }
         let inverse_binds = match skin.inverse_bind_matrices() {
-            None => vec![Matrix4::identity(); chains.len()],
+            None => vec![Matrix4::identity(); joints.len()],
             Some(accessor) => file
                 .read_elements::<16>(
                     &accessor,
                     &format!("{label}, inverseBindMatrices"),
                     &[16],
-                    Some(chains.len()),
+                    Some(joints.len()),
                 )?
                 .iter()
                 .map(|m| Matrix4::from_column_slice(m))
                 .collect(),
         };
         Ok(Self {
-            joints: chains.into_iter().zip(inverse_binds).collect(),
+            nodes: joints,
+            inverse_binds,
         })
     }
 
     pub fn joint_count(&self) -> usize {
-        self.joints.len()
+        self.nodes.len()
     }
 
-    /// The nodes whose transforms move the skin: the joints and their ancestors.
-    pub fn placing(&self) -> Vec<usize> {
-        let mut nodes: Vec<usize> = self
-            .joints
-            .iter()
-            .flat_map(|(chain, _)| chain)
-            .copied()
-            .collect();
-        nodes.sort_unstable();
-        nodes.dedup();
-        nodes
+    /// The nodes whose transforms move the skin: the joints and their ancestors, sorted.
+    pub fn placing(&self, nodes: &Nodes) -> Vec<usize> {
+        nodes.with_ancestors(self.nodes.iter().copied())
     }
 
     /// The skinning matrices `J_j · B_j` of all joints at `pose`.
     pub fn matrices(&self, file: &GltfFile, pose: &Pose) -> Result<Vec<Matrix4<f64>>, IoError> {
-        self.joints
+        let worlds = pose.worlds(file, &self.nodes)?;
+        Ok(worlds
             .iter()
-            .map(|(chain, inverse_bind)| Ok(pose.world(file, chain)? * inverse_bind))
-            .collect()
+            .zip(&self.inverse_binds)
+            .map(|(world, inverse_bind)| world * inverse_bind)
+            .collect())
     }
 }
 

@@ -137,6 +137,7 @@ fn parse_vtu(bytes: &[u8]) -> Result<VtuMesh, LineError> {
     let piece = single_piece(grid)?;
     let n_points = count_attribute(piece, "NumberOfPoints")?;
     let n_cells = count_attribute(piece, "NumberOfCells")?;
+    check_declared_size(piece, n_points, n_cells)?;
     Ok(VtuMesh {
         points: read_points(piece, n_points, encoding)?,
         triangles: read_triangles(piece, n_points, n_cells, encoding)?,
@@ -156,6 +157,29 @@ fn single_piece<'e, 'a>(grid: &'e Element<'a>) -> Result<&'e Element<'a>, LineEr
             more + 1
         ))),
     }
+}
+
+/// Bytes a cell takes while read: its type, offset and three corners as u64, and the
+/// triangle's three u32.
+const CELL_BYTES: u64 = 5 * 8 + 3 * 4;
+
+/// Checks what the piece declares against the memory limit before anything is decoded: the
+/// points (24 bytes each) with every point array's components (8 bytes each), and the cells.
+/// The data present bounds each array too, but a short file may declare 10¹² points.
+fn check_declared_size(piece: &Element, n_points: usize, n_cells: usize) -> Result<(), LineError> {
+    let arrays = piece.child("PointData").into_iter().flat_map(|data| {
+        data.children_named("DataArray")
+            .map(|array| array.attribute("NumberOfComponents"))
+    });
+    let components = arrays.fold(3u64, |sum, k| {
+        let k = k.and_then(|k| k.trim().parse().ok()).unwrap_or(1u64);
+        sum.saturating_add(k)
+    });
+    let bytes = (n_points as u64)
+        .saturating_mul(components.saturating_mul(8))
+        .saturating_add((n_cells as u64).saturating_mul(CELL_BYTES));
+    let what = format!("NumberOfPoints=\"{n_points}\" with NumberOfCells=\"{n_cells}\"");
+    crate::limits::check_declared(what, bytes).map_err(|e| piece.error(e.to_string()))
 }
 
 /// A non-negative integer attribute of `element`.
