@@ -11,6 +11,9 @@
 //! cargo build --release && cargo run --release --example hostile_battery
 //! ```
 
+#[path = "../tests/hostile_support/mod.rs"]
+mod hostile_support;
+
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -461,20 +464,7 @@ fn write(dir: &Path, name: &str, bytes: Vec<u8>) -> PathBuf {
 
 /// A version-1 NPY header for `descr` and `shape`, without data.
 fn npy_header(descr: &str, shape: &[u64]) -> Vec<u8> {
-    let dims: Vec<String> = shape.iter().map(u64::to_string).collect();
-    let tuple = match dims.len() {
-        1 => format!("({},)", dims[0]),
-        _ => format!("({})", dims.join(", ")),
-    };
-    let mut dict = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {tuple}, }}");
-    while (10 + dict.len() + 1) % 64 != 0 {
-        dict.push(' ');
-    }
-    dict.push('\n');
-    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
-    bytes.extend((dict.len() as u16).to_le_bytes());
-    bytes.extend(dict.as_bytes());
-    bytes
+    hostile_support::npy(descr, &hostile_support::shape_tuple(shape), &[])
 }
 
 /// `.gltf` files of one triangle whose buffer URI names something outside their directory.
@@ -554,43 +544,12 @@ fn deflate(data: &[u8]) -> Vec<u8> {
 /// deflate strip the same few kilobytes that inflate to the whole page.
 fn tiff_bomb(pages: usize, side: u32) -> Vec<u8> {
     let strip = deflate(&vec![0u8; (side as usize) * (side as usize)]);
-    let mut bytes = b"II*\0".to_vec();
-    let first_ifd = 8 + strip.len() as u32 + (strip.len() as u32 & 1);
-    bytes.extend(first_ifd.to_le_bytes());
-    bytes.extend(&strip);
-    if strip.len() % 2 == 1 {
-        bytes.push(0);
-    }
-    let entries: [(u16, u16, u32); 9] = [
-        (256, 4, side),
-        (257, 4, side),
-        (258, 3, 8),
-        (259, 3, 8),
-        (262, 3, 1),
-        (273, 4, 8),
-        (277, 3, 1),
-        (278, 4, side),
-        (279, 4, strip.len() as u32),
-    ];
-    for page in 0..pages {
-        let start = bytes.len() as u32;
-        bytes.extend((entries.len() as u16).to_le_bytes());
-        for (tag, kind, value) in entries {
-            bytes.extend(tag.to_le_bytes());
-            bytes.extend(kind.to_le_bytes());
-            bytes.extend(1u32.to_le_bytes());
-            match kind {
-                3 => bytes.extend([(value as u16).to_le_bytes(), [0, 0]].concat()),
-                _ => bytes.extend(value.to_le_bytes()),
-            }
-        }
-        let next = match page + 1 < pages {
-            true => start + 2 + 12 * entries.len() as u32 + 4,
-            false => 0,
-        };
-        bytes.extend(next.to_le_bytes());
-    }
-    bytes
+    let page = hostile_support::Page {
+        compression: 8,
+        strip_bytes: strip.len() as u32,
+        ..hostile_support::Page::bytes(side, side)
+    };
+    hostile_support::tiff_bytes(&vec![page; pages], &strip)
 }
 
 /// A GLB whose JSON declares a buffer of `bytes` bytes in a BIN chunk that is not there.

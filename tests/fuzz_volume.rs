@@ -4,7 +4,7 @@
 //! reader must return `Ok` or `Err`, never panic, and stay within the memory limit: a counting
 //! global allocator measures each case's peak on its thread.
 //!
-//! `MESHFLOW_FUZZ_CASES` sets the cases per reader (default 1000).
+//! `MESHFLOW_FUZZ_CASES` sets the cases per reader (default 3,000).
 
 mod hostile_support;
 
@@ -76,7 +76,7 @@ fn cases() -> u32 {
     std::env::var("MESHFLOW_FUZZ_CASES")
         .ok()
         .and_then(|n| n.parse().ok())
-        .unwrap_or(1000)
+        .unwrap_or(3000)
 }
 
 /// One change to a file.

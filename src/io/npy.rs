@@ -210,6 +210,49 @@ fn check_output<U>(path: &Path, shape: &[u64]) -> Result<(), IoError> {
     .map_err(|e| IoError::too_large(path, e))
 }
 
+/// The longest header read: NumPy itself refuses headers over 10,000 bytes by default.
+const MAX_HEADER_BYTES: u64 = 1 << 20;
+
+/// Refuses a header whose declared length (a `u32` from format version 2 on) exceeds the file
+/// or [`MAX_HEADER_BYTES`]: npyz allocates the declared length before reading it. Leaves
+/// `reader` at the start.
+fn check_header_length(
+    path: &Path,
+    reader: &mut BufReader<File>,
+    length: u64,
+) -> Result<(), IoError> {
+    use std::io::{Read, SeekFrom};
+    let mut prefix = [0u8; 12];
+    let read = reader
+        .read(&mut prefix)
+        .map_err(|e| IoError::file(path, e))?;
+    reader
+        .seek(SeekFrom::Start(0))
+        .map_err(|e| IoError::file(path, e))?;
+    let (declared, start) = match (read, prefix[6]) {
+        (10.., 1) => (u64::from(u16::from_le_bytes([prefix[8], prefix[9]])), 10),
+        (12.., 2 | 3) => (
+            u64::from(u32::from_le_bytes([
+                prefix[8], prefix[9], prefix[10], prefix[11],
+            ])),
+            12,
+        ),
+        _ => return Ok(()), // npyz names what is wrong
+    };
+    let available = length.saturating_sub(start);
+    if declared > available.min(MAX_HEADER_BYTES) {
+        return Err(IoError::format(
+            path,
+            format!(
+                "not a valid .npy file (its header declares {declared} bytes; the file holds \
+                 {available} after the prefix, and headers longer than {MAX_HEADER_BYTES} bytes \
+                 are refused)"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// The first line of an error: npyz's header errors quote the header over several lines.
 fn first_line(error: &impl std::fmt::Display) -> String {
     let text = error.to_string();
@@ -332,6 +375,7 @@ fn open_npy(
     let in_file = |e| IoError::file(path, e);
     let (file, length) = super::open_regular(path)?;
     let mut reader = BufReader::new(file);
+    check_header_length(path, &mut reader, length)?;
     let header = npyz::NpyHeader::from_reader(&mut reader).map_err(|e| {
         IoError::format(path, format!("not a valid .npy file ({})", first_line(&e)))
     })?;

@@ -80,15 +80,10 @@ pub fn small_tiff(pages: usize, width: u32, height: u32) -> Vec<u8> {
     tiff_bytes(&vec![Page::bytes(width, height); pages], &strip)
 }
 
-/// A version 1.0 `.npy` of little-endian float64 `values` with `shape` (the data not checked
-/// against the shape: the header may lie).
-pub fn npy_bytes(shape: &[u64], values: &[f64]) -> Vec<u8> {
-    let dims: Vec<String> = shape.iter().map(u64::to_string).collect();
-    let shape = match dims.len() {
-        1 => format!("({},)", dims[0]),
-        _ => format!("({})", dims.join(", ")),
-    };
-    let mut header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': {shape}, }}");
+/// A version 1.0 `.npy` with dtype `descr`, `shape` as Python writes the tuple (`(3,)`,
+/// `(2, 4)`) and `data` after the header (not checked against the shape: the header may lie).
+pub fn npy(descr: &str, shape: &str, data: &[u8]) -> Vec<u8> {
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
     while (10 + header.len() + 1) % 64 != 0 {
         header.push(' ');
     }
@@ -96,8 +91,21 @@ pub fn npy_bytes(shape: &[u64], values: &[f64]) -> Vec<u8> {
     let mut out = b"\x93NUMPY\x01\x00".to_vec();
     out.extend((header.len() as u16).to_le_bytes());
     out.extend(header.as_bytes());
-    for v in values {
-        out.extend(v.to_le_bytes());
-    }
+    out.extend(data);
     out
+}
+
+/// `shape` as Python writes the tuple.
+pub fn shape_tuple(shape: &[u64]) -> String {
+    let dims: Vec<String> = shape.iter().map(u64::to_string).collect();
+    match dims.len() {
+        1 => format!("({},)", dims[0]),
+        _ => format!("({})", dims.join(", ")),
+    }
+}
+
+/// A version 1.0 `.npy` of little-endian float64 `values` with `shape` ([`npy`]).
+pub fn npy_bytes(shape: &[u64], values: &[f64]) -> Vec<u8> {
+    let data: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+    npy("<f8", &shape_tuple(shape), &data)
 }

@@ -19,6 +19,11 @@ use serde_json::Value;
 use std::borrow::Cow;
 use std::path::Path;
 
+/// Bytes of memory per byte of JSON text while it is held parsed twice (as a
+/// `serde_json::Value` and as the `gltf` crate's document): measured 78 on a 1.4 MB chain of
+/// 60,000 nodes (113 MB resident).
+const PARSED_JSON_BYTES_PER_BYTE: u64 = 96;
+
 /// A loaded glTF file.
 pub(super) struct GltfFile<'p> {
     pub path: &'p Path,
@@ -39,6 +44,9 @@ impl<'p> GltfFile<'p> {
         } else {
             (&bytes[..], None)
         };
+        let parsed = format!("the glTF JSON of {} bytes, parsed twice", json.len());
+        crate::limits::check_items(parsed, json.len() as u64, PARSED_JSON_BYTES_PER_BYTE)
+            .map_err(|e| IoError::too_large(path, e))?;
         let raw: Value = serde_json::from_slice(json).map_err(|e| {
             error(format!(
                 "not a glTF file: neither binary glTF nor JSON ({e})"

@@ -5,6 +5,9 @@
 //! Every test sets the same low memory limit (64 MiB): the limit is process-wide and the tests
 //! of this binary run in parallel.
 
+mod hostile_support;
+
+use hostile_support::npy;
 use meshflow::io::IoError;
 use std::path::{Path, PathBuf};
 
@@ -20,20 +23,6 @@ fn file(dir: &tempfile::TempDir, name: &str, bytes: &[u8]) -> PathBuf {
     let path = dir.path().join(name);
     std::fs::write(&path, bytes).unwrap();
     path
-}
-
-/// An `.npy` (version 1.0) with the given dtype and shape (Python tuple text) and `data`.
-fn npy(descr: &str, shape: &str, data: &[u8]) -> Vec<u8> {
-    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
-    bytes.extend((header.len() as u16).to_le_bytes());
-    bytes.extend(header.as_bytes());
-    bytes.extend(data);
-    bytes
 }
 
 /// The error's text, after checking that it names `path` and is one line.
@@ -61,6 +50,22 @@ fn npy_zero_dimension_with_terabyte_rows_is_refused() {
     );
     let text = message(meshflow::io::read_npy_image(&path), &path);
     assert!(text.contains("dimension 1"), "{text}");
+}
+
+/// Found by `fuzz_readers`: a version-2 header's length is a `u32`, and npyz allocated it before
+/// reading (one flipped byte asked for 660 MB).
+#[test]
+fn npy_header_lengths_beyond_the_file_are_refused() {
+    let dir = low_limit();
+    let mut bytes = npy("<f8", "(2,)", &[0; 16]);
+    bytes[6] = 2;
+    let header = u16::from_le_bytes([bytes[8], bytes[9]]);
+    let declared = u32::from(header) | 0x2700_0000;
+    bytes.splice(8..10, declared.to_le_bytes());
+    let path = file(&dir, "long_header.npy", &bytes);
+    let text = message(meshflow::io::read_npy_float(&path), &path);
+    let expected = format!("not a valid .npy file (its header declares {declared} bytes");
+    assert!(text.contains(&expected), "{text}");
 }
 
 #[test]
@@ -382,25 +387,20 @@ fn chain(depth: usize) -> String {
     format!(r#","nodes":[{}]"#, nodes.join(","))
 }
 
-/// Found by review: the mesh node's ancestry was checked for cycles in quadratic time, and a
-/// skin kept every joint's whole ancestry (joints × depth).
+/// Found by `fuzz_readers`: a glb with a 60,000-node chain took 120 MB while its JSON (1.4 MB)
+/// was held parsed twice. The parsed size is checked before parsing (a deep chain that fits is
+/// read in `untrusted_files::deep_node_chains_are_read_without_recursion`).
 #[test]
-fn gltf_deep_node_chain_reads_in_linear_time() {
+fn gltf_json_parsed_over_the_limit_is_refused() {
     let dir = low_limit();
-    let depth = 100_000;
-    let started = std::time::Instant::now();
-    let path = gltf_with(
-        &dir,
-        3,
-        r#"{"primitives":[{"attributes":{"POSITION":0}}]}"#,
-        &chain(depth),
-    );
-    let mesh = meshflow::io::gltf_read::read_gltf_geometry(&path).unwrap();
-    assert_eq!(mesh.positions.len(), 3);
+    let mesh = r#"{"primitives":[{"attributes":{"POSITION":0}}]}"#;
+    let path = gltf_with(&dir, 3, mesh, &chain(60_000));
+    let text = message(meshflow::io::gltf_read::read_gltf_geometry(&path), &path);
+    let length = std::fs::metadata(&path).unwrap().len();
+    let expected = format!("the glTF JSON of {length} bytes, parsed twice declares");
     assert!(
-        started.elapsed().as_secs_f64() < 5.0,
-        "{:?}",
-        started.elapsed()
+        text.contains(&expected) && text.contains("--memory-limit"),
+        "{text}"
     );
 }
 

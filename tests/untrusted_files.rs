@@ -246,3 +246,21 @@ fn fifos_are_refused_not_waited_for() {
         meshflow_error(&solve, &format!("{name}: not a regular file"));
     }
 }
+
+/// A chain of 100,000 nested nodes (each the only child of the next) is read without
+/// recursion: no stack overflow, and the mesh is found at its bottom.
+#[test]
+fn deep_node_chains_are_read_without_recursion() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("square.bin"), square_buffer()).unwrap();
+    let mut json: serde_json::Value = serde_json::from_str(&square_gltf("square.bin")).unwrap();
+    let depth = 100_000;
+    let mut nodes = vec![serde_json::json!({"mesh": 0})];
+    nodes.extend((0..depth).map(|k| serde_json::json!({"children": [k]})));
+    json["nodes"] = serde_json::Value::Array(nodes);
+    json["scenes"] = serde_json::json!([{"nodes": [depth]}]);
+    let gltf = dir.path().join("chain.gltf");
+    std::fs::write(&gltf, json.to_string()).unwrap();
+    let (code, stderr) = operators(&gltf, &dir.path().join("out"), &[]);
+    assert_eq!(code, Some(0), "{stderr}");
+}
