@@ -278,7 +278,7 @@ def test_sample_volume_defaults_dtypes_and_errors(ball):
         sample([volume, broken], np.stack([x, x]))
     with pytest.raises(ValueError, match="2 volume frames for 1 surface frames"):
         sample([volume, volume])
-    with pytest.raises(ValueError, match="voxel size must be three positive numbers"):
+    with pytest.raises(ValueError, match="voxel size must be three positive, normal numbers"):
         sample(voxel_size=(1.0, -1.5, 3.0))
     with pytest.raises(ValueError, match="voxel_size must be three numbers"):
         sample(voxel_size=(1.0, 1.5))
