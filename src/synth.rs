@@ -428,6 +428,30 @@ pub fn turning_flow(omega: f64, positions: &[Vector3<f64>]) -> Vec<Vector3<f64>>
     positions.iter().map(|x| axis.cross(x)).collect()
 }
 
+/// A motion boundary that is also an image edge: on the unit icosphere at rest, the cap
+/// `z > z_edge` turns about the z-axis at `omega` radians per unit time and the rest of the
+/// sphere stands still; the image is [`texture`] on both, the cap brighter by `0.3` (a step at
+/// the boundary circle). Frames at `t_k = k dt`; the true flow is `ω ẑ × x` on the cap and
+/// zero elsewhere, and brightness constancy holds exactly in each region (turning about z
+/// keeps a point's height, so its region).
+pub fn turning_cap_sphere(
+    level: u32,
+    n_frames: usize,
+    dt: f64,
+    omega: f64,
+    z_edge: f64,
+) -> Result<GroundTruth, FlowError> {
+    let on_cap = move |p: &Vector3<f64>| p.z > z_edge;
+    textured_sphere(
+        |p| vec![texture(p) + if on_cap(p) { 0.3 } else { 0.0 }],
+        level,
+        n_frames,
+        dt,
+        |p| if on_cap(p) { omega } else { 0.0 },
+        0.0,
+    )
+}
+
 /// The unit icosphere at rest with [`texture`] shearing about the z-axis: the circle of
 /// latitude at height `z` turns at `ω (1 − z²)` (fastest at the equator, still at the poles),
 /// frames at `t_k = k dt`. Not a rigid motion of the image: the true flow `ω (1 − z²) ẑ × x`
