@@ -25,6 +25,14 @@ pub fn cotan_stiffness(triangle: &Triangle) -> Matrix3<f64> {
     s
 }
 
+/// Anisotropic P1 stiffness `K^D_ab = A ∇φ_aᵀ D ∇φ_b` for a symmetric 2×2 tensor `D` in the
+/// face frame: `uᵀ K^D u = ∫_T ∇uᵀ D ∇u` for the P1 interpolant. `D = Id` is
+/// [`cotan_stiffness`] (`A ∇φ_a·∇φ_b = −½ cot θ_opposite`); rows sum to zero for every `D`.
+pub fn anisotropic_stiffness(triangle: &Triangle, tensor: &Matrix2<f64>) -> Matrix3<f64> {
+    let g = triangle.hat_gradients();
+    Matrix3::from_fn(|a, b| triangle.area * g[a].dot(&(tensor * g[b])))
+}
+
 /// Consistent P1 mass `A/12 · [[2,1,1],[1,2,1],[1,1,2]]`: `uᵀ m v = ∫_T u v` exactly.
 pub fn consistent_mass(triangle: &Triangle) -> Matrix3<f64> {
     (Matrix3::repeat(1.0) + Matrix3::identity()) * (triangle.area / 12.0)
