@@ -33,7 +33,9 @@
 //! solvers take the element from [`Regularizer::element`].
 
 use super::FlowError;
-use crate::fem::element::{cotan_stiffness, from_blocks, strain_element, vector_element};
+use crate::fem::element::{
+    anisotropic_stiffness, cotan_stiffness, from_blocks, strain_element, vector_element,
+};
 use crate::geometry::Triangle;
 use nalgebra::{Matrix2, Matrix3, Matrix3x2, Matrix6};
 
@@ -53,15 +55,22 @@ pub enum Regularizer {
 impl Regularizer {
     /// The 6×6 element matrix of one face (vertex-frame DOFs of its corners, `rotations` the
     /// vertex → face rotations, `frames` the corners' R³ frames, which only
-    /// [`Regularizer::Embedded`] uses and [`super::Slab`] provides for embedded sequences),
-    /// before the weight `γ Δt`.
+    /// [`Regularizer::Embedded`] uses and [`super::Slab`] provides for embedded sequences,
+    /// `tensor` the face's anisotropic tensor `D`, [`super::anisotropy`], `None` for `Id`;
+    /// only the covariant kind takes one, as [`super::FlowParams::validate`] checks), before
+    /// the weight `γ Δt`.
     pub fn element(
         &self,
         triangle: &Triangle,
         rotations: &[Matrix2<f64>; 3],
         frames: Option<[&Matrix3x2<f64>; 3]>,
+        tensor: Option<&Matrix2<f64>>,
     ) -> Matrix6<f64> {
-        let covariant = || vector_element(&cotan_stiffness(triangle), rotations);
+        let stiffness = || match tensor {
+            Some(d) => anisotropic_stiffness(triangle, d),
+            None => cotan_stiffness(triangle),
+        };
+        let covariant = || vector_element(&stiffness(), rotations);
         match *self {
             Regularizer::Covariant => covariant(),
             Regularizer::Embedded => {
