@@ -236,3 +236,26 @@ fn the_cli_refuses_a_bad_lambda_and_the_embedded_regularizer() {
     ];
     meshflow_error(&args, "covariant");
 }
+
+/// Robust smoothness reads the tensors: with a huge `ε` the Charbonnier penalty is the
+/// quadratic one, so the robust spatial energy is the anisotropic solve's (the isotropic
+/// density would give another).
+#[test]
+fn robust_smoothness_weighs_the_anisotropic_density() {
+    let sequence = sphere();
+    let solve = |params: &FlowParams| {
+        let problem = FlowProblem::new(&sequence, params).unwrap();
+        problem.solve(&|_| {}).unwrap().energy_terms.spatial
+    };
+    let quadratic = solve(&anisotropic(0.3));
+    let robust = solve(&FlowParams {
+        robust_smoothness: Some(1e6),
+        ..anisotropic(0.3)
+    });
+    let isotropic = solve(&FlowParams::default());
+    assert!(
+        (robust - quadratic).abs() < 1e-6 * quadratic,
+        "{robust} {quadratic}"
+    );
+    assert!((isotropic - quadratic).abs() > 1e-2 * quadratic);
+}
