@@ -5,7 +5,9 @@
 mod common;
 
 use common::{meshflow_error, meshflow_ok, relative_value_difference, rigid_motion, shipped};
-use meshflow::fem::element::{anisotropic_stiffness, cotan_stiffness};
+use meshflow::fem::element::{
+    anisotropic_stiffness, anisotropic_strain_element, cotan_stiffness, strain_element,
+};
 use meshflow::flow::{Anisotropy, FlowParams, FlowProblem, MeshSequence, Regularizer, Slab};
 use meshflow::geometry::Triangle;
 use meshflow::synth::rotating_sphere;
@@ -92,6 +94,43 @@ fn across_an_edge_costs_less_along_it_more() {
     }
 }
 
+/// The strain element of the affine face-frame field `v(x) = B x + c` (identity rotations) is
+/// `A tr(S D S)`, `S = Sym B`, zero on rotations; `D = Id` gives the isotropic strain element
+/// bit for bit.
+#[test]
+fn the_anisotropic_strain_element_is_exact_on_affine_fields() {
+    let triangle = Triangle::from_lengths([1.3, 0.9, 1.1]).unwrap();
+    let rotations = [Matrix2::identity(); 3];
+    let p = triangle.layout();
+    let d = Anisotropy::new(0.7)
+        .tensor(&(Vector2::new(1.0, -2.0) * Vector2::new(1.0, -2.0).transpose()));
+    let element = anisotropic_strain_element(&triangle, &rotations, &d);
+    let energy = |b: Matrix2<f64>| {
+        let c = Vector2::new(0.3, -0.2);
+        let x = Vector6::from_fn(|k, _| (b * p[k / 2] + c)[k % 2]);
+        x.dot(&(element * x))
+    };
+    let b = Matrix2::new(0.3, -1.1, 0.4, 0.7);
+    let s: Matrix2<f64> = 0.5 * (b + b.transpose());
+    let exact = triangle.area * (s * d * s).trace();
+    assert!(
+        (energy(b) - exact).abs() < 1e-13 * exact,
+        "{} {exact}",
+        energy(b)
+    );
+    assert!(energy(Matrix2::new(0.0, -1.0, 1.0, 0.0)).abs() < 1e-14);
+    let twisted: [Matrix2<f64>; 3] =
+        std::array::from_fn(|a| nalgebra::Rotation2::new(0.4 + a as f64).into_inner());
+    // The isotropic strain element's formula, A/2 R_aᵀ [(g_a·g_b) I + g_b g_aᵀ] R_b, to the bit.
+    let g = triangle.hat_gradients();
+    let isotropic = strain_element(&triangle, &twisted);
+    for (a, b) in (0..3).flat_map(|a| (0..3).map(move |b| (a, b))) {
+        let face = Matrix2::identity() * g[a].dot(&g[b]) + g[b] * g[a].transpose();
+        let block = twisted[a].transpose() * face * twisted[b] * (0.5 * triangle.area);
+        assert_eq!(isotropic.fixed_view::<2, 2>(2 * a, 2 * b), block);
+    }
+}
+
 /// The rotating-texture sphere, 3 frames.
 fn sphere() -> MeshSequence {
     rotating_sphere(2, 3, 1.0, 0.1).unwrap().sequence
@@ -123,14 +162,24 @@ fn tensors(sequence: &MeshSequence, params: &FlowParams) -> Vec<Vec<Matrix2<f64>
 #[test]
 fn a_huge_lambda_gives_the_quadratic_system() {
     let sequence = sphere();
-    let quadratic = matrix(&sequence, &FlowParams::default());
-    // |∇I| is of order 1 on the unit sphere.
-    let limit = matrix(&sequence, &anisotropic(1e12));
-    let difference = relative_value_difference(&quadratic, &limit);
-    assert!(difference < 1e-12, "{difference:e}");
-    // and a moderate λ changes it.
-    let moderate = matrix(&sequence, &anisotropic(0.3));
-    assert!(relative_value_difference(&quadratic, &moderate) > 1e-3);
+    let strain = Regularizer::Strain { dirichlet: 0.0 };
+    let mixed = Regularizer::Strain { dirichlet: 0.4 };
+    for regularizer in [Regularizer::Covariant, strain, mixed] {
+        let with = |anisotropy: Option<f64>| FlowParams {
+            regularizer,
+            anisotropy: anisotropy.map(Anisotropy::new),
+            beta: meshflow::flow::Weight::Relative(0.01),
+            ..FlowParams::default()
+        };
+        let quadratic = matrix(&sequence, &with(None));
+        // |∇I| is of order 1 on the unit sphere.
+        let limit = matrix(&sequence, &with(Some(1e12)));
+        let difference = relative_value_difference(&quadratic, &limit);
+        assert!(difference < 1e-12, "{regularizer:?}: {difference:e}");
+        // and a moderate λ changes it.
+        let moderate = matrix(&sequence, &with(Some(0.3)));
+        assert!(relative_value_difference(&quadratic, &moderate) > 1e-3);
+    }
 }
 
 /// The same sequence with every frame moved rigidly and its grey values times `scale`.
@@ -182,19 +231,14 @@ fn scaling_grey_values_and_lambda_together_keeps_the_tensors() {
 }
 
 #[test]
-fn only_the_covariant_regularizer_takes_a_tensor() {
+fn the_embedded_regularizer_and_bad_lambdas_are_refused() {
     let sequence = sphere();
-    for regularizer in [
-        Regularizer::Embedded,
-        Regularizer::Strain { dirichlet: 0.0 },
-    ] {
-        let params = FlowParams {
-            regularizer,
-            ..anisotropic(1.0)
-        };
-        let error = FlowProblem::new(&sequence, &params).err().unwrap();
-        assert!(error.to_string().contains("covariant"), "{error}");
-    }
+    let params = FlowParams {
+        regularizer: Regularizer::Embedded,
+        ..anisotropic(1.0)
+    };
+    let error = FlowProblem::new(&sequence, &params).err().unwrap();
+    assert!(error.to_string().contains("not the embedded"), "{error}");
     for lambda in [0.0, -1.0, f64::NAN, f64::INFINITY] {
         let error = FlowProblem::new(&sequence, &anisotropic(lambda))
             .err()
@@ -213,6 +257,14 @@ fn the_cli_solves_with_anisotropic_and_records_lambda() {
         serde_json::from_str(&std::fs::read_to_string(out.path().join("summary.json")).unwrap())
             .unwrap();
     assert_eq!(summary["params"]["anisotropy"]["lambda"], 0.1, "{summary}");
+    let strain = ["--regularizer", "strain", "--anisotropic", "0.3", "--force"];
+    meshflow_ok(
+        &[
+            &["solve", input.as_str(), "--out", out_dir][..],
+            &strain[..],
+        ]
+        .concat(),
+    );
 }
 
 #[test]
@@ -234,7 +286,7 @@ fn the_cli_refuses_a_bad_lambda_and_the_embedded_regularizer() {
         "--regularizer",
         "embedded",
     ];
-    meshflow_error(&args, "covariant");
+    meshflow_error(&args, "not the embedded regularizer");
 }
 
 /// Robust smoothness reads the tensors: with a huge `ε` the Charbonnier penalty is the

@@ -39,7 +39,12 @@
 //! where it is weighted), it needs the images, which the regularizer's element never sees, and
 //! it is data of the slab like the robust weights: [`super::Slab::diffusion_tensors`], set
 //! once per slab, read by every place that takes the regularizer's element from the slab
-//! (assembly, energy, robust reweighting, windows). Only the covariant kind takes it so far.
+//! (assembly, energy, robust reweighting, windows).
+//!
+//! **Strain.** The strain regularizer weighs its density the same way,
+//! `tr(Sym∇u D Sym∇uᵀ) = |Sym∇u D^½|²` ([`crate::fem::element::anisotropic_strain_element`]),
+//! still zero exactly on Killing fields; with `--dirichlet-mix δ` the covariant share is
+//! `δ tr(∇u D ∇uᵀ)`. The embedded regularizer (an R³ field's gradient) takes no tensor.
 
 use super::params::check;
 use super::pyramid::heat_smoothed;
@@ -70,7 +75,8 @@ impl Anisotropy {
         }
     }
 
-    /// `λ > 0` finite, `σ ≥ 0` finite, and a regularizer that takes a tensor (the covariant).
+    /// `λ > 0` finite, `σ ≥ 0` finite, and a regularizer that takes a tensor (covariant or
+    /// strain).
     pub fn validate(&self, regularizer: Regularizer) -> Result<(), FlowError> {
         let lambda = self.lambda;
         check(
@@ -88,13 +94,10 @@ impl Anisotropy {
             )?;
         }
         match regularizer {
-            Regularizer::Covariant => Ok(()),
-            Regularizer::Strain { .. } => Err(FlowError::AnisotropyUnsupported {
-                regularizer: "strain",
-            }),
             Regularizer::Embedded => Err(FlowError::AnisotropyUnsupported {
                 regularizer: "embedded",
             }),
+            Regularizer::Covariant | Regularizer::Strain { .. } => Ok(()),
         }
     }
 

@@ -156,7 +156,7 @@ pub struct FlowParams {
     /// ([`super::regularizer`]).
     pub regularizer: Regularizer,
     /// `Some`: the image-driven anisotropic regularizer `tr(∇u D ∇uᵀ)` in place of `|∇u|²`
-    /// ([`super::anisotropy`]; covariant regularizer only). `None`: the isotropic one.
+    /// ([`super::anisotropy`]; covariant and strain regularizers). `None`: the isotropic one.
     pub anisotropy: Option<Anisotropy>,
     /// `Some(ε)`: robust (Charbonnier) spatial smoothness `2ε(√(r(u) + ε²) − ε)` in place of
     /// the quadratic `r(u)` of the regularizer, by reweighted solves ([`super::robust`]);

@@ -248,8 +248,8 @@ struct SolveArgs {
     dirichlet_mix: Option<f64>,
     /// Image-driven anisotropic smoothness (Nagel–Enkelmann): smooth the flow along image
     /// edges, less across them; LAMBDA (grey value per length, > 0) is the edge contrast at
-    /// which smoothing across falls to 2/3 (large: the isotropic |∇u|²). Covariant
-    /// regularizer only; the image is presmoothed over one mean edge length
+    /// which smoothing across falls to 2/3 (large: the isotropic |∇u|²). Covariant and
+    /// strain regularizers; the image is presmoothed over one mean edge length
     #[arg(long, value_name = "LAMBDA", allow_negative_numbers = true)]
     anisotropic: Option<f64>,
     /// Robust (Charbonnier) smoothness for flows with discontinuities (cells moving on a
