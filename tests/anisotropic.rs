@@ -311,3 +311,71 @@ fn robust_smoothness_weighs_the_anisotropic_density() {
     );
     assert!((isotropic - quadratic).abs() > 1e-2 * quadratic);
 }
+
+/// A moving linear image `I = g·x − t` on a flat grid (a still one leaves its isophote
+/// direction free), tensors without presmoothing (`σ = 0`), `β > 0`.
+fn grid_tensors(
+    channels: Vec<(f64, Vector2<f64>)>,
+    lambda: f64,
+) -> (MeshSequence, Vec<Matrix2<f64>>) {
+    let surface = meshflow::shapes::grid(4, 3, 2.0, 1.0);
+    let frames = 2;
+    let images = (0..frames)
+        .map(|k| {
+            (channels.iter())
+                .map(|(_, g)| {
+                    let at = |p: &nalgebra::Vector3<f64>| g.dot(&p.xy()) - 0.1 * k as f64;
+                    surface.positions.iter().map(at).collect()
+                })
+                .collect()
+        })
+        .collect();
+    let sequence = MeshSequence::with_images(
+        surface.mesh().unwrap(),
+        vec![surface.positions.clone(); frames],
+        meshflow::flow::Images::from_channels(images),
+        None,
+    )
+    .unwrap();
+    let params = FlowParams {
+        anisotropy: Some(Anisotropy {
+            lambda,
+            sigma: Some(0.0),
+        }),
+        channel_weights: Some(channels.iter().map(|(w, _)| *w).collect()),
+        ..FlowParams::paper(1.0, 0.1, 1.0)
+    };
+    let tensors = tensors(&sequence, &params).remove(0);
+    (sequence, tensors)
+}
+
+/// Every face of a slab with a linear image (one channel of weight `w`): the face-frame
+/// gradient `G` is an eigenvector of `D` with `2λ²/(w|g|² + 2λ²)`, `tr D = 2`.
+#[test]
+fn the_slab_tensors_of_a_linear_image_have_its_edge_eigenvalues() {
+    let (g, w, lambda) = (Vector2::new(1.5, -0.5), 2.0, 0.8);
+    let (sequence, tensors) = grid_tensors(vec![(w, g)], lambda);
+    let geometry = sequence.slab_geometry(0).unwrap();
+    let across = 2.0 * lambda * lambda / (w * g.norm_squared() + 2.0 * lambda * lambda);
+    for (f, (face, d)) in sequence.mesh().faces().iter().zip(&tensors).enumerate() {
+        let values = face.map(|v| g.dot(&sequence.positions(0).unwrap()[v as usize].xy()));
+        let gradient = meshflow::fem::element::face_gradient(geometry.triangle(f), values);
+        assert!((gradient.norm() - g.norm()).abs() < 1e-12);
+        assert!(
+            (d * gradient - across * gradient).norm() < 1e-12 * g.norm(),
+            "{d}"
+        );
+        assert!((d.trace() - 2.0).abs() < 1e-14);
+    }
+}
+
+/// Two channels with crossing edges of the same weighted contrast (`w |g|²`) sum to an
+/// isotropic structure: `D = Id` on every face.
+#[test]
+fn crossing_edges_of_two_channels_give_the_identity() {
+    let channels = vec![(1.0, Vector2::new(2.0, 0.0)), (4.0, Vector2::new(0.0, 1.0))];
+    let (_, tensors) = grid_tensors(channels, 0.5);
+    for d in tensors {
+        assert!((d - Matrix2::identity()).amax() < 1e-12, "{d}");
+    }
+}
