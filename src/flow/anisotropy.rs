@@ -17,7 +17,8 @@
 //! `γ` keeps its meaning, and `λ → ∞` (or `g = 0`) gives `D = Id`, the paper's term. `λ` is in
 //! the image's units per length (grey value per length): scaling the grey values by `c` and
 //! `λ` by `c` leaves `D` unchanged. `D` is positive definite for `λ > 0`, so the kernel of the
-//! regularizer (covariantly constant fields) and with it the uniqueness check (`flow::uniqueness`) are unchanged.
+//! regularizer (covariantly constant fields) and with it the uniqueness check
+//! (`flow::uniqueness`) are unchanged.
 //!
 //! For P1 fields `∇u|_T = Σ_a v_a ∇φ_aᵀ` (`v_a = R_a u_a`, face frame), so
 //! `∫_T tr(∇u D ∇uᵀ) = Σ_ab (v_a·v_b) A ∇φ_aᵀ D ∇φ_b`: the covariant element
