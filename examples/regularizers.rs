@@ -8,7 +8,8 @@
 //! 2. **cells**: a cell crawling past still ones on a flat background
 //!    ([`moving_cell_sphere`]), quadratic against robust (Charbonnier) smoothness: the mean
 //!    angular error over the sphere (zero flow off the moving cell) and the drag, the mean speed
-//!    at the still cells relative to the moving one's;
+//!    at the still cells relative to the moving one's; and the image-driven anisotropic
+//!    regularizer (`--anisotropic 0.5`), which smooths less across the cells' rims;
 //! 3. **colour**: an isoluminant texture ([`isoluminant`]: the hue turns, the luma is constant)
 //!    read as luma, as the mean of its channels, and as RGB.
 //!
@@ -16,7 +17,9 @@
 //! 2562-vertex icosphere, 6 frames, every section; SECTION is 1, 2 or 3).
 
 use meshflow::accuracy::compare_result;
-use meshflow::flow::{compute_flow, FlowParams, MeshSequence, Regularizer, Warping, Weight};
+use meshflow::flow::{
+    compute_flow, Anisotropy, FlowParams, MeshSequence, Regularizer, Warping, Weight,
+};
 use meshflow::io::{select_channels, Channels, VertexValues};
 use meshflow::synth::{isoluminant, moving_cell_sphere, rotating_sphere};
 use meshflow::synth::{rotating_sphere_in_channels, shearing_sphere, GroundTruth, STILL_CELLS};
@@ -84,22 +87,37 @@ fn regularizers(level: u32, frames: usize) -> Result<(), meshflow::Error> {
 
 /// Section 2: quadratic against robust smoothness on a cell crawling past still ones.
 fn cells(level: u32, frames: usize) -> Result<(), meshflow::Error> {
+    // (name, regularizer, robust, anisotropic λ)
     let models = [
-        ("covariant", Regularizer::Covariant, false),
-        ("covariant, robust", Regularizer::Covariant, true),
-        ("strain", STRAIN, false),
-        ("strain, robust", STRAIN, true),
+        ("covariant", Regularizer::Covariant, false, None),
+        ("covariant, robust", Regularizer::Covariant, true, None),
+        (
+            "covariant, anisotropic 0.5",
+            Regularizer::Covariant,
+            false,
+            Some(0.5),
+        ),
+        (
+            "cov., robust, anisotropic 0.5",
+            Regularizer::Covariant,
+            true,
+            Some(0.5),
+        ),
+        ("strain", STRAIN, false, None),
+        ("strain, robust", STRAIN, true, None),
+        ("strain, anisotropic 0.5", STRAIN, false, Some(0.5)),
     ];
     println!("\n2. cells: mean angular error over the sphere, drag of the still cells");
     print!("{:>10}", "rad/frame");
-    models.iter().for_each(|(name, _, _)| print!(" {name:>30}"));
+    models.iter().for_each(|(name, ..)| print!(" {name:>30}"));
     println!();
     for rotation in [0.05, 0.3] {
         let scene = moving_cell_sphere(level, frames, 1.0, rotation)?;
         print!("{rotation:>10}");
-        for (_, regularizer, robust) in models {
+        for (_, regularizer, robust, lambda) in models {
             let params = FlowParams {
                 regularizer,
+                anisotropy: lambda.map(Anisotropy::new),
                 // ε well below the jump of |∇u| at the cell's rim (about ω / radius).
                 robust_smoothness: robust.then_some(0.2 * rotation),
                 beta: Weight::Value(1e-4),

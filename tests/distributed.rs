@@ -214,6 +214,27 @@ fn ranks_reweight_robust_smoothness_as_one_process_does() {
     check_flow_over_ranks(&format!("{name}, robust, warping"), &sequence, &params);
 }
 
+/// The anisotropic regularizer over ranks, with robust smoothness and warping: each rank
+/// computes its own (warped) slabs' tensors, and the reweighting reads them.
+#[test]
+fn ranks_solve_anisotropic_robust_warped_as_one_process_does() {
+    let (name, sequence, params) = common::window_cases().remove(0);
+    let params = FlowParams {
+        anisotropy: Some(meshflow::flow::Anisotropy::new(0.3)),
+        robust_smoothness: Some(0.05),
+        warping: Warping {
+            levels: 2,
+            warps: 1,
+        },
+        ..params
+    };
+    check_flow_over_ranks(
+        &format!("{name}, anisotropic, robust, warping"),
+        &sequence,
+        &params,
+    );
+}
+
 /// `flow_over_ranks` on 1 to 4 thread ranks against `FlowProblem::solve` with the multigrid in
 /// time at tolerance 1e-12: the flow, its vectors and warped residual, the energy terms and the
 /// weights to 1e-10 relative, the same iterations and reweightings.

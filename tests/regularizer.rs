@@ -39,6 +39,7 @@ fn energy(
                 geometry.triangle(f),
                 connection.face_rotations(f),
                 Some(corner),
+                None,
             );
             let x = Vector6::from_fn(|k, _| u[face[k / 2] as usize][k % 2]);
             x.dot(&(e * x))

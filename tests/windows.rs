@@ -124,6 +124,18 @@ fn windows_assemble_the_slabs_of_the_whole_problem() {
     }
 }
 
+/// The anisotropic regularizer's tensors come from each slab's own images: a window's are the
+/// whole problem's.
+#[test]
+fn windows_assemble_the_anisotropic_slabs_of_the_whole_problem() {
+    let (name, sequence, params) = common::window_cases().remove(0);
+    let params = FlowParams {
+        anisotropy: Some(meshflow::flow::Anisotropy::new(0.3)),
+        ..params
+    };
+    check_windows(&format!("{name}, anisotropic"), &sequence, &params);
+}
+
 /// A window's frames reach one slab beyond each end, clipped at the sequence's ends.
 #[test]
 fn window_frames_reach_one_slab_beyond_each_end() {

@@ -148,6 +148,7 @@ def compute_flow(
     gamma: Optional[float] = None,
     regularizer: str = "covariant",
     dirichlet_mix: Optional[float] = None,
+    anisotropic: Optional[float] = None,
     robust_smoothness: Optional[float] = None,
     channels: str = "auto",
     channel_weights: Optional[SequenceOf[float]] = None,
@@ -189,6 +190,10 @@ def compute_flow(
         Kirisits–Lang–Scherzer's ``|∇^{R³}u|² = |∇u|² + |II(u,·)|²``.
     dirichlet_mix : float, optional
         With ``regularizer="strain"``: add ``dirichlet_mix·|∇u|²`` (default 0).
+    anisotropic : float, optional
+        ``λ`` (grey value per length, > 0): image-driven anisotropic smoothness
+        ``tr(∇u D ∇uᵀ)`` (Nagel–Enkelmann), smoothing along image edges and less across them
+        (``2λ²/(|∇I|² + 2λ²)``); covariant and strain regularizers. Default: isotropic.
     robust_smoothness : float, optional
         ``ε``: the Charbonnier penalty ``2ε(√(r + ε²) − ε)`` of the regularizer's density
         ``r`` (linear growth beyond ``|∇u| = ε``, for flows with jumps), by reweighted solves.
@@ -245,6 +250,7 @@ def compute_flow(
         "gamma": _optional_float("gamma", gamma),
         "regularizer": str(regularizer),
         "dirichlet_mix": _optional_float("dirichlet_mix", dirichlet_mix),
+        "anisotropic": _optional_float("anisotropic", anisotropic),
         "robust_smoothness": _optional_float("robust_smoothness", robust_smoothness),
         "channel_weights": _channel_weights(channel_weights),
         "boundary": str(boundary),

@@ -306,6 +306,7 @@ struct ParamArgs {
     gamma: Option<f64>,
     regularizer: String,
     dirichlet_mix: Option<f64>,
+    anisotropic: Option<f64>,
     robust_smoothness: Option<f64>,
     channel_weights: Option<Vec<f64>>,
     boundary: String,
@@ -348,6 +349,7 @@ impl ParamArgs {
                 self.dirichlet_mix,
             )
             .map_err(|e| to_py_err(e.into()))?,
+            anisotropy: self.anisotropic.map(meshflow::flow::Anisotropy::new),
             robust_smoothness: self.robust_smoothness,
             channel_weights: self.channel_weights.clone(),
             boundary: parse::<Boundary>(&self.boundary, "boundary")?,

@@ -25,6 +25,14 @@ pub fn cotan_stiffness(triangle: &Triangle) -> Matrix3<f64> {
     s
 }
 
+/// Anisotropic P1 stiffness `K^D_ab = A ∇φ_aᵀ D ∇φ_b` for a symmetric 2×2 tensor `D` in the
+/// face frame: `uᵀ K^D u = ∫_T ∇uᵀ D ∇u` for the P1 interpolant. `D = Id` is
+/// [`cotan_stiffness`] (`A ∇φ_a·∇φ_b = −½ cot θ_opposite`); rows sum to zero for every `D`.
+pub fn anisotropic_stiffness(triangle: &Triangle, tensor: &Matrix2<f64>) -> Matrix3<f64> {
+    let g = triangle.hat_gradients();
+    Matrix3::from_fn(|a, b| triangle.area * g[a].dot(&(tensor * g[b])))
+}
+
 /// Consistent P1 mass `A/12 · [[2,1,1],[1,2,1],[1,1,2]]`: `uᵀ m v = ∫_T u v` exactly.
 pub fn consistent_mass(triangle: &Triangle) -> Matrix3<f64> {
     (Matrix3::repeat(1.0) + Matrix3::identity()) * (triangle.area / 12.0)
@@ -138,10 +146,28 @@ pub fn face_gradient(triangle: &Triangle, values: [f64; 3]) -> Vector2<f64> {
 /// `|Sym ∇u|² = ½ |∇u|² + ½ tr(∇u ∇u) = ½ Σ_ab [(v_a·v_b)(g_a·g_b) + (v_a·g_b)(v_b·g_a)]`:
 /// block `(a, b) = A/2 · R_aᵀ [(g_a·g_b) I + g_b g_aᵀ] R_b`. Positive semi-definite; zero on
 /// infinitesimal rigid motions of the face (`v_a = ω J x_a + c`), the discrete Killing fields.
+/// It is [`anisotropic_strain_element`] with `D = Id`, to the last bit.
 pub fn strain_element(triangle: &Triangle, rotations: &[Matrix2<f64>; 3]) -> Matrix6<f64> {
+    anisotropic_strain_element(triangle, rotations, &Matrix2::identity())
+}
+
+/// Anisotropic strain element `∫_T tr(Sym∇u D Sym∇uᵀ)` for a symmetric tensor `D` in the face
+/// frame. With `S_a = ½ (v_a g_aᵀ + g_a v_aᵀ)` the four products of `tr(S_a D S_b)` give
+/// block `(a, b) = A/4 · R_aᵀ [(g_aᵀ D g_b) I + g_b g_aᵀ D + (g_a·g_b) D + D g_b g_aᵀ] R_b`;
+/// `D = Id` gives [`strain_element`]. Positive semi-definite for `D` positive semi-definite
+/// (`tr(S D S) = |S D^½|²`), zero on the face's Killing fields for every `D`.
+pub fn anisotropic_strain_element(
+    triangle: &Triangle,
+    rotations: &[Matrix2<f64>; 3],
+    tensor: &Matrix2<f64>,
+) -> Matrix6<f64> {
     let g = triangle.hat_gradients();
+    let d = tensor;
     from_blocks(|a, b| {
-        let face = Matrix2::identity() * g[a].dot(&g[b]) + g[b] * g[a].transpose();
-        rotations[a].transpose() * face * rotations[b] * (0.5 * triangle.area)
+        let outer = g[b] * g[a].transpose();
+        // Summed in this order, `D = Id` doubles `(g_a·g_b) I + g_b g_aᵀ` exactly.
+        let face = (Matrix2::identity() * g[a].dot(&(d * g[b])) + outer * d)
+            + (d * g[a].dot(&g[b]) + d * outer);
+        rotations[a].transpose() * face * rotations[b] * (0.25 * triangle.area)
     })
 }

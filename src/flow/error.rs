@@ -64,6 +64,8 @@ pub enum FlowError {
         value: f64,
         requirement: &'static str,
     },
+    #[error("the anisotropic regularizer (--anisotropic) weights the covariant |∇u|² or the strain |Sym ∇u|², not the {regularizer} regularizer (use --regularizer covariant or strain)")]
+    AnisotropyUnsupported { regularizer: &'static str },
     #[error("{what} does not run over several ranks yet: run it in one process (or, for the solver, use auto, pcg-slab-gauss-seidel or pcg-time-multigrid)")]
     NotDistributed { what: &'static str },
     #[error("{ranks} ranks for {slabs} slabs: each rank needs at least one slab (run with at most {slabs} ranks)")]

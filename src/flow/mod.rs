@@ -34,6 +34,7 @@
 //! ```
 
 pub mod advect;
+pub mod anisotropy;
 mod energy;
 mod error;
 mod outer;
@@ -51,6 +52,7 @@ pub mod warp;
 pub mod window;
 
 pub use advect::{advect, closest_seeds, vertex_seeds, Trajectories, SUBSTEPS};
+pub use anisotropy::Anisotropy;
 pub use energy::EnergyTerms;
 pub use error::FlowError;
 pub use params::{Boundary, FlowParams, SolverChoice, TimeCoupling, Weight, Weights};
@@ -237,7 +239,7 @@ impl<'a> FlowProblem<'a> {
         rebuildable: bool,
     ) -> Result<Self, FlowError> {
         params.validate()?;
-        slab::embed_where_needed(&mut slabs, sequence, params)?;
+        slab::complete_slabs(&mut slabs, sequence, params)?;
         let start = Instant::now();
         let scales = DataScales::measure(sequence.mesh(), &slabs);
         let weights = params.weights(&scales)?;
@@ -288,9 +290,8 @@ impl<'a> FlowProblem<'a> {
                 let weights = self.params.channel_weights_for(self.sequence.n_channels());
                 let mut slab = Slab::new(self.sequence, s, &weights.expect("checked in new"))
                     .expect("the slabs were built once already");
-                if self.params.regularizer.needs_embedding() {
-                    slab.embed(self.sequence, s).expect("embedded once already");
-                }
+                slab.complete(self.sequence, s, &self.params)
+                    .expect("completed once already");
                 Cow::Owned(slab)
             }
         }

@@ -37,7 +37,7 @@
 //! (the plain root mean square is diluted by empty background and gave best spreads 2.5 times
 //! apart).
 
-use super::{DataScales, FlowError, Regularizer};
+use super::{Anisotropy, DataScales, FlowError, Regularizer};
 
 /// Boundary condition in space (time always has natural conditions).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -155,6 +155,9 @@ pub struct FlowParams {
     /// What `γ` weighs: the paper's covariant `|∇u|²` or the strain `|Sym ∇u|²`
     /// ([`super::regularizer`]).
     pub regularizer: Regularizer,
+    /// `Some`: the image-driven anisotropic regularizer `tr(∇u D ∇uᵀ)` in place of `|∇u|²`
+    /// ([`super::anisotropy`]; covariant and strain regularizers). `None`: the isotropic one.
+    pub anisotropy: Option<Anisotropy>,
     /// `Some(ε)`: robust (Charbonnier) spatial smoothness `2ε(√(r(u) + ε²) − ε)` in place of
     /// the quadratic `r(u)` of the regularizer, by reweighted solves ([`super::robust`]);
     /// `ε` in the units of `|∇u|` (1/time). `None`: the quadratic model.
@@ -251,6 +254,7 @@ impl Default for FlowParams {
             beta: Weight::Value(0.0),
             gamma: Weight::Relative(DEFAULT_SPREAD),
             regularizer: Regularizer::Covariant,
+            anisotropy: None,
             robust_smoothness: None,
             channel_weights: None,
             boundary: Boundary::Neumann,
@@ -344,6 +348,9 @@ impl FlowParams {
                 dirichlet >= 0.0 && dirichlet.is_finite(),
                 "finite and ≥ 0",
             )?;
+        }
+        if let Some(anisotropy) = &self.anisotropy {
+            anisotropy.validate(self.regularizer)?;
         }
         check(
             "tolerance",
@@ -465,7 +472,7 @@ fn number(weight: Weight) -> f64 {
     }
 }
 
-fn check(
+pub(super) fn check(
     name: &'static str,
     value: f64,
     ok: bool,

@@ -92,14 +92,9 @@ fn heat_levels(
     frame: usize,
 ) -> Result<Vec<Vec<Vec<f64>>>, FlowError> {
     let step = times[1];
-    let (mass, operator) = heat_operator(mesh, geometry, step);
-    let factor =
-        CholeskyFactor::<f64>::new(symbolic, operator.as_ref(), Par::Seq).map_err(|detail| {
-            FlowError::Factorization {
-                what: format!("the heat step of frame {frame}"),
-                detail,
-            }
-        })?;
+    let heat = HeatStep::new(mesh, geometry, symbolic, step, || {
+        format!("the heat step of frame {frame}")
+    })?;
     let mut levels = vec![channels.to_vec()];
     let mut current = channels.to_vec();
     let mut steps_done = 0;
@@ -107,14 +102,67 @@ fn heat_levels(
         let steps = (t / step).round() as usize;
         for channel in &mut current {
             for _ in steps_done..steps {
-                *channel = mass_times(&mass, channel);
-                factor.solve_in_place(channel, Par::Seq);
+                heat.apply(channel);
             }
         }
         steps_done = steps;
         levels.push(current.clone());
     }
     Ok(levels)
+}
+
+/// `values` (one per vertex) smoothed to heat time `time` by `steps` implicit steps of
+/// `time / steps` on `geometry` (its own ordering): about a Gaussian of width `√(2 time)`.
+pub(super) fn heat_smoothed(
+    mesh: &crate::mesh::Mesh,
+    geometry: &IntrinsicGeometry,
+    values: &[&[f64]],
+    time: f64,
+    steps: usize,
+    what: impl Fn() -> String,
+) -> Result<Vec<Vec<f64>>, FlowError> {
+    let mut out: Vec<Vec<f64>> = values.iter().map(|v| v.to_vec()).collect();
+    if time <= 0.0 || steps == 0 {
+        return Ok(out);
+    }
+    let step = time / steps as f64;
+    let symbolic = analyze(heat_operator(mesh, geometry, step).1.symbolic(), 1);
+    let heat = HeatStep::new(mesh, geometry, &symbolic, step, what)?;
+    for channel in &mut out {
+        (0..steps).for_each(|_| heat.apply(channel));
+    }
+    Ok(out)
+}
+
+/// One implicit heat step `I ← (M + τL)⁻¹ M I`, factorized.
+struct HeatStep {
+    mass: SparseMatrix,
+    factor: CholeskyFactor<f64>,
+}
+
+impl HeatStep {
+    /// The step `τ = step` on `geometry`, factorized on `symbolic`; `what` names it in errors.
+    fn new(
+        mesh: &crate::mesh::Mesh,
+        geometry: &IntrinsicGeometry,
+        symbolic: &Arc<SymbolicCholesky<usize>>,
+        step: f64,
+        what: impl Fn() -> String,
+    ) -> Result<Self, FlowError> {
+        let (mass, operator) = heat_operator(mesh, geometry, step);
+        let factor = CholeskyFactor::<f64>::new(symbolic, operator.as_ref(), Par::Seq).map_err(
+            |detail| FlowError::Factorization {
+                what: what(),
+                detail,
+            },
+        )?;
+        Ok(Self { mass, factor })
+    }
+
+    fn apply(&self, values: &mut Vec<f64>) {
+        *values = mass_times(&self.mass, values);
+        self.factor.solve_in_place(values, Par::Seq);
+    }
 }
 
 /// `a + s b` for two matrices (any patterns).

@@ -29,11 +29,17 @@
 //! `flow::uniqueness` for what is detected before solving).
 //! The temporal term is the same for both.
 //!
+//! With [`super::FlowParams::anisotropy`] the covariant and strain densities are weighted by a
+//! per-face tensor `D` of the image ([`super::anisotropy`]): `tr(∇u D ∇uᵀ)` and
+//! `tr(Sym∇u D Sym∇uᵀ)`, the same forms for `D = Id`.
+//!
 //! A new regularizer is one more variant here with its element matrix; assembly, energy and
 //! solvers take the element from [`Regularizer::element`].
 
 use super::FlowError;
-use crate::fem::element::{cotan_stiffness, from_blocks, strain_element, vector_element};
+use crate::fem::element::{
+    anisotropic_stiffness, anisotropic_strain_element, cotan_stiffness, from_blocks, vector_element,
+};
 use crate::geometry::Triangle;
 use nalgebra::{Matrix2, Matrix3, Matrix3x2, Matrix6};
 
@@ -53,24 +59,34 @@ pub enum Regularizer {
 impl Regularizer {
     /// The 6×6 element matrix of one face (vertex-frame DOFs of its corners, `rotations` the
     /// vertex → face rotations, `frames` the corners' R³ frames, which only
-    /// [`Regularizer::Embedded`] uses and [`super::Slab`] provides for embedded sequences),
-    /// before the weight `γ Δt`.
+    /// [`Regularizer::Embedded`] uses and [`super::Slab`] provides for embedded sequences,
+    /// `tensor` the face's anisotropic tensor `D`, [`super::anisotropy`], `None` for `Id`:
+    /// `tr(∇u D ∇uᵀ)` and `tr(Sym∇u D Sym∇uᵀ)`; the embedded kind takes none, as
+    /// [`super::FlowParams::validate`] checks), before the weight `γ Δt`.
     pub fn element(
         &self,
         triangle: &Triangle,
         rotations: &[Matrix2<f64>; 3],
         frames: Option<[&Matrix3x2<f64>; 3]>,
+        tensor: Option<&Matrix2<f64>>,
     ) -> Matrix6<f64> {
-        let covariant = || vector_element(&cotan_stiffness(triangle), rotations);
+        let identity = Matrix2::identity();
+        let d = tensor.unwrap_or(&identity);
+        let covariant = || match tensor {
+            Some(d) => vector_element(&anisotropic_stiffness(triangle, d), rotations),
+            None => vector_element(&cotan_stiffness(triangle), rotations),
+        };
         match *self {
             Regularizer::Covariant => covariant(),
             Regularizer::Embedded => {
                 let frames = frames.expect("embedded regularizer checked for positions");
                 embedded_element(&cotan_stiffness(triangle), frames)
             }
-            Regularizer::Strain { dirichlet: 0.0 } => strain_element(triangle, rotations),
+            Regularizer::Strain { dirichlet: 0.0 } => {
+                anisotropic_strain_element(triangle, rotations, d)
+            }
             Regularizer::Strain { dirichlet } => {
-                strain_element(triangle, rotations) + covariant() * dirichlet
+                anisotropic_strain_element(triangle, rotations, d) + covariant() * dirichlet
             }
         }
     }

@@ -51,6 +51,8 @@ pub(super) fn reweighted(
         params: &params,
         gamma: start.weights.gamma,
     };
+    // The densities below read the slabs' anisotropic tensors, which the solves would add.
+    super::slab::complete_slabs(&mut slabs, solver.frames(), &params)?;
     let mut clock = RunClock::start(start.assembly_seconds);
     let mut result = solver.solve(&params, slabs.clone(), observer)?;
     clock.end_step("first solve".into(), &result);
@@ -115,12 +117,9 @@ impl Charbonnier<'_> {
             .iter()
             .enumerate()
             .map(|(f, face)| {
-                let triangle = slab.geometry.triangle(f);
-                let rotations = slab.connection.face_rotations(f);
-                let frames = slab.corner_frames(face);
-                let e = self.params.regularizer.element(triangle, rotations, frames);
+                let e = slab.regularizer_element(face, f, &self.params.regularizer);
                 let x = Vector6::from_fn(|k, _| u[face[k / 2] as usize][k % 2]);
-                x.dot(&(e * x)) / triangle.area
+                x.dot(&(e * x)) / slab.geometry.triangle(f).area
             })
             .collect()
     }

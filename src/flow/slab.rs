@@ -4,7 +4,7 @@
 use super::{FlowError, FlowParams, MeshSequence, Regularizer, TimeCoupling, Weights};
 use crate::connection::{polar_rotation_angles, rotation, vertex_frames_in_r3, Connection};
 use crate::fem::element::{self, DataElement};
-use crate::geometry::IntrinsicGeometry;
+use crate::geometry::{IntrinsicGeometry, Triangle};
 use nalgebra::{Matrix2, Matrix3, Matrix3x2, Matrix6, Vector2};
 use rayon::prelude::*;
 
@@ -55,6 +55,9 @@ pub struct Slab {
     /// The vertex frames `P_i` in R³ on frame `s` (embedded sequences; the embedded
     /// regularizer uses them), `None` for intrinsic ones.
     pub embedding_frames: Option<Vec<Matrix3x2<f64>>>,
+    /// Per face, the anisotropic regularizer's tensor `D` in the face frame
+    /// ([`crate::flow::anisotropy`]); `None`: the isotropic regularizer (`D = Id`).
+    pub diffusion_tensors: Option<Vec<Matrix2<f64>>>,
 }
 
 /// The element matrices of one face of one slab, before weighting by `Δt`, `β`, `γ`
@@ -97,28 +100,15 @@ impl Slab {
             linearization,
             smoothness_weights: None,
             embedding_frames: None,
-        })
-    }
-
-    /// Per channel, its weight `w_c` and the face-frame gradient `G_c` of `I_mid` on face `f`.
-    pub fn face_gradients<'s>(
-        &'s self,
-        face: &'s [u32; 3],
-        f: usize,
-    ) -> impl Iterator<Item = (f64, Vector2<f64>)> + 's {
-        let triangle = self.geometry.triangle(f);
-        self.channels.iter().map(move |channel| {
-            let values = face.map(|v| channel.mid[v as usize]);
-            (channel.weight, element::face_gradient(triangle, values))
+            diffusion_tensors: None,
         })
     }
 
     /// The data term's structure tensor on face `f`: `Σ_c w_c G_c G_cᵀ` (its trace is the
     /// squared gradient `|∇I|²` of a grey image).
     pub fn structure_tensor(&self, face: &[u32; 3], f: usize) -> Matrix2<f64> {
-        self.face_gradients(face, f)
-            .map(|(w, g)| g * g.transpose() * w)
-            .sum()
+        let channels = self.channels.iter().map(|c| (c.weight, c.mid.as_slice()));
+        structure_tensor(self.geometry.triangle(f), face, channels)
     }
 
     /// The data element of face `f`: `Σ_c w_c` times channel `c`'s [`element::data_element`],
@@ -158,15 +148,49 @@ impl Slab {
         FaceElements {
             data: self.data_element(face, f),
             mass: element::vector_element(&element::consistent_mass(triangle), rotations),
-            stiffness: regularizer.element(triangle, rotations, self.corner_frames(face))
+            stiffness: self.regularizer_element(face, f, regularizer)
                 * self.smoothness_weights.as_ref().map_or(1.0, |w| w[f]),
         }
+    }
+
+    /// `regularizer`'s element of face `f` on this slab (its frames and tensor, if set),
+    /// without the robust weight.
+    pub fn regularizer_element(
+        &self,
+        face: &[u32; 3],
+        f: usize,
+        regularizer: &Regularizer,
+    ) -> Matrix6<f64> {
+        regularizer.element(
+            self.geometry.triangle(f),
+            self.connection.face_rotations(f),
+            self.corner_frames(face),
+            self.diffusion_tensors.as_ref().map(|d| &d[f]),
+        )
     }
 
     /// The R³ frames of `face`'s corners, once `Slab::embed` has set them.
     pub fn corner_frames(&self, face: &[u32; 3]) -> Option<[&Matrix3x2<f64>; 3]> {
         let frames = self.embedding_frames.as_ref()?;
         Some(face.map(|v| &frames[v as usize]))
+    }
+
+    /// Adds what `params`' regularizer needs beyond images and geometry (once): the R³ frames
+    /// of the embedded regularizer, the face tensors of the anisotropic one. This is slab `s`
+    /// of `sequence`.
+    pub(crate) fn complete(
+        &mut self,
+        sequence: &MeshSequence,
+        s: usize,
+        params: &FlowParams,
+    ) -> Result<(), FlowError> {
+        if params.regularizer.needs_embedding() {
+            self.embed(sequence, s)?;
+        }
+        if let (Some(anisotropy), None) = (&params.anisotropy, &self.diffusion_tensors) {
+            self.diffusion_tensors = Some(anisotropy.face_tensors(sequence.mesh(), self)?);
+        }
+        Ok(())
     }
 
     /// Sets [`Slab::embedding_frames`] (if not yet set): `P_i` of every vertex on frame `s`,
@@ -182,6 +206,21 @@ impl Slab {
         self.embedding_frames = Some(frames);
         Ok(())
     }
+}
+
+/// `Σ_c w_c G_c G_cᵀ` on `triangle` (corners `face`) for the channels `(w_c, values_c)` (one
+/// value per vertex), `G_c` the face-frame gradient.
+pub fn structure_tensor<'v>(
+    triangle: &Triangle,
+    face: &[u32; 3],
+    channels: impl Iterator<Item = (f64, &'v [f64])>,
+) -> Matrix2<f64> {
+    channels
+        .map(|(w, values)| {
+            let g = element::face_gradient(triangle, face.map(|v| values[v as usize]));
+            g * g.transpose() * w
+        })
+        .sum()
 }
 
 /// All slabs of a sequence, built in parallel, with one weight per image channel.
@@ -224,18 +263,16 @@ pub fn time_links(slabs: &[Slab], weights: &Weights) -> Vec<TimeLink> {
     }
 }
 
-/// Adds each slab's embedding where the regularizer needs it (`Regularizer::Embedded`).
-pub fn embed_where_needed(
+/// Completes every slab for `params` ([`Slab::complete`]; slab `s` of `sequence`).
+pub fn complete_slabs(
     slabs: &mut [Slab],
     sequence: &MeshSequence,
     params: &FlowParams,
 ) -> Result<(), FlowError> {
-    if params.regularizer.needs_embedding() {
-        for (s, slab) in slabs.iter_mut().enumerate() {
-            slab.embed(sequence, s)?;
-        }
-    }
-    Ok(())
+    slabs
+        .par_iter_mut()
+        .enumerate()
+        .try_for_each(|(s, slab)| slab.complete(sequence, s, params))
 }
 
 impl TimeLink {

@@ -5,7 +5,9 @@
 //! so every kernel found here is one of the strain energy as well; rotations the image leaves
 //! free (a pattern symmetric about an axis) are a kernel of the pure strain energy only, which
 //! this check does not look for (the factorization or the solver then reports the singular
-//! system, and `β > 0` removes it).
+//! system, and `β > 0` removes it). The anisotropic tensors ([`super::anisotropy`]) change
+//! no kernel: `D` is positive definite, so `tr(∇u D ∇uᵀ) = |∇u D^½|²` vanishes exactly where
+//! `|∇u|²` does (and likewise for `Sym ∇u`).
 //!
 //! Every term of `E` is a non-negative quadratic, so `A u = 0` iff every term vanishes at `u`:
 //! `K_s u_s = 0` makes `u_s` covariantly constant on each slab (on every face the three

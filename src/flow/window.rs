@@ -23,7 +23,7 @@ use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, Ti
 use super::energy::energy_terms;
 use super::outer::{OuterStart, SlabSolver};
 use super::robust::reweighted;
-use super::slab::{build_slabs, embed_where_needed, time_links, Slab};
+use super::slab::{build_slabs, complete_slabs, time_links, Slab};
 use super::system::SystemWindow;
 use super::uniqueness::{check_unique_minimizer, CheckedSlabs};
 use super::warp::coarse_to_fine;
@@ -111,7 +111,7 @@ impl WindowSlabs {
                 got: slabs.len(),
             });
         }
-        embed_where_needed(&mut slabs, frames, params)?;
+        complete_slabs(&mut slabs, frames, params)?;
         Ok(WindowSlabs {
             slabs,
             offset,
@@ -225,9 +225,8 @@ impl WindowSlabs {
         let weights = params.channel_weights_for(frames.n_channels());
         let mut slab = Slab::new(frames, local, &weights.expect("checked when built"))
             .expect("the slabs were built once already");
-        if params.regularizer.needs_embedding() {
-            slab.embed(frames, local).expect("embedded once already");
-        }
+        slab.complete(frames, local, params)
+            .expect("completed once already");
         Cow::Owned(slab)
     }
 }

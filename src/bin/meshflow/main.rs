@@ -246,6 +246,12 @@ struct SolveArgs {
     /// With --regularizer strain: add D·|∇u|² (the covariant term, relative to γ) [default: 0]
     #[arg(long, value_name = "D", allow_negative_numbers = true)]
     dirichlet_mix: Option<f64>,
+    /// Image-driven anisotropic smoothness (Nagel–Enkelmann): smooth the flow along image
+    /// edges, less across them; LAMBDA (grey value per length, > 0) is the edge contrast at
+    /// which smoothing across falls to 2/3 (large: the isotropic |∇u|²). Covariant and
+    /// strain regularizers; the image is presmoothed over one mean edge length
+    #[arg(long, value_name = "LAMBDA", allow_negative_numbers = true)]
+    anisotropic: Option<f64>,
     /// Robust (Charbonnier) smoothness for flows with discontinuities (cells moving on a
     /// still background): the smoothness grows like 2·EPS·|∇u| beyond |∇u| = EPS instead of
     /// quadratically (EPS in 1/time units; reweighted solves until the energy settles)

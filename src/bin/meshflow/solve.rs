@@ -9,8 +9,8 @@ use meshflow::accuracy::{
 use meshflow::flow::distributed::TimeRanks;
 use meshflow::flow::window::{flow_of_own_slabs, flow_over_ranks, TimeWindow};
 use meshflow::flow::{
-    FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence, SolveEvent, SolveObserver,
-    Weight, Weights,
+    Anisotropy, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence, SolveEvent,
+    SolveObserver, Weight, Weights,
 };
 use meshflow::io::{
     load_frames, load_sequence, read_npy_float, write_flow_outputs, Scores, StagedDir, TrackReport,
@@ -36,6 +36,7 @@ fn flow_params(args: &SolveArgs) -> Result<FlowParams, Error> {
         beta: weight(args.beta, args.speed_penalty, defaults.beta),
         gamma: weight(args.gamma, args.spread, defaults.gamma),
         regularizer: args.regularizer()?,
+        anisotropy: args.anisotropic.map(Anisotropy::new),
         robust_smoothness: args.robust_smoothness,
         channel_weights: args.channel_weights.clone(),
         boundary: args.boundary,
