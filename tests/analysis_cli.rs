@@ -253,3 +253,27 @@ fn the_run_is_never_its_own_output() {
         }
     }
 }
+
+/// A file added beside the input since the solve is not the run's: `analyze` still reads the
+/// run (a frame removed or changed is named, see `broken_runs_fail_in_one_line_without_output`).
+#[test]
+fn a_new_file_beside_the_input_is_not_a_change() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("frames");
+    std::fs::create_dir(&input).unwrap();
+    for entry in std::fs::read_dir(shipped("rotating_sphere")).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, input.join(path.file_name().unwrap())).unwrap();
+    }
+    let run = dir.path().join("run");
+    solve(input.to_str().unwrap(), &run);
+    std::fs::write(input.join("notes.txt"), "taken on a Tuesday").unwrap();
+    let out = dir.path().join("analysis");
+    meshflow_ok(&[
+        "analyze",
+        run.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(out.join("summary.json").exists());
+}

@@ -192,8 +192,12 @@ impl RunManifest {
         }
     }
 
-    /// Checks that the files `paths` stand for ([`input_files`]) are the ones the run recorded
-    /// and still hold what they held then; errors about `run` name what changed.
+    /// Checks the inputs `paths` of a later command against what the run recorded: each must
+    /// be something the run read (a file it recorded, or a directory or glob holding one: an
+    /// edited manifest cannot name another input), and every recorded file under it must still
+    /// hold what it held then. Files added to an input directory since are not the run's and
+    /// are left to the reader (new frames change the sequence, which the flow's shape shows).
+    /// Errors about `run` name what changed.
     pub fn check_inputs(&self, run: &Path, paths: &[&Path]) -> Result<(), IoError> {
         let refuse = |message: String| IoError::format(run, format!("{message}; solve again"));
         if self.inputs.is_empty() {
@@ -202,47 +206,57 @@ impl RunManifest {
                  wrote it, or it was edited)"
             )));
         }
-        let now = input_files(paths);
-        let now: Vec<RecordedInput> = now
-            .iter()
-            .map(|p| RecordedInput::of(p))
-            .collect::<Result<_, _>>()?;
-        for file in &now {
-            let recorded = self.inputs.iter().find(|r| r.path == file.path);
-            match recorded {
-                None => {
-                    return Err(refuse(format!(
-                        "its manifest names {}, which the run did not read (was {RUN_MANIFEST} \
-                         edited?)",
-                        file.path.display()
-                    )))
-                }
-                Some(r) if r != file => {
+        for path in paths {
+            let recorded = self.recorded_under(path);
+            if recorded.is_empty() {
+                return Err(refuse(format!(
+                    "its manifest names {}, which the run did not read (was {RUN_MANIFEST} \
+                     edited?)",
+                    path.display()
+                )));
+            }
+            for then in recorded {
+                let now = match RecordedInput::of(&then.path) {
+                    Err(IoError::File { source, .. })
+                        if source.kind() == std::io::ErrorKind::NotFound =>
+                    {
+                        let gone =
+                            format!("its input {} is gone since the run", then.path.display());
+                        return Err(refuse(gone));
+                    }
+                    now => now?,
+                };
+                if &now != then {
                     return Err(refuse(format!(
                         "its input {} changed since the run ({} bytes, BLAKE3 {:.12}… then; \
                          {} bytes, {:.12}… now)",
-                        file.path.display(),
-                        r.bytes,
-                        r.blake3,
-                        file.bytes,
-                        file.blake3
-                    )))
+                        then.path.display(),
+                        then.bytes,
+                        then.blake3,
+                        now.bytes,
+                        now.blake3
+                    )));
                 }
-                Some(_) => {}
             }
         }
-        let roots: Vec<PathBuf> = paths.iter().filter_map(|p| p.canonicalize().ok()).collect();
-        let gone = self.inputs.iter().find(|r| {
-            roots.iter().any(|root| r.path.starts_with(root))
-                && !now.iter().any(|n| n.path == r.path)
-        });
-        match gone {
-            Some(r) => Err(refuse(format!(
-                "its input {} is gone since the run",
-                r.path.display()
-            ))),
-            None => Ok(()),
-        }
+        Ok(())
+    }
+
+    /// The recorded files that the input `path` stands for: the file itself, the files directly
+    /// in the directory, or the files a glob matches now.
+    fn recorded_under(&self, path: &Path) -> Vec<&RecordedInput> {
+        let resolved = path.canonicalize().ok();
+        let matched: Vec<PathBuf> = (input_files(&[path]).iter())
+            .filter_map(|file| file.canonicalize().ok())
+            .collect();
+        (self.inputs.iter())
+            .filter(|r| {
+                matched.contains(&r.path)
+                    || resolved.as_ref().is_some_and(|dir| {
+                        *dir == r.path || (dir.is_dir() && r.path.parent() == Some(dir))
+                    })
+            })
+            .collect()
     }
 
     /// The manifest of `dir`, if it has one that reads as a manifest.
