@@ -15,7 +15,7 @@
 //! 2562-vertex icosphere, 6 frames).
 
 use meshflow::accuracy::compare_result;
-use meshflow::flow::{compute_flow, Anisotropy, FlowParams, MeshSequence};
+use meshflow::flow::{compute_flow, Anisotropy, Contrast, FlowParams, MeshSequence};
 use meshflow::synth::{rotating_sphere, turning_cap_sphere, GroundTruth};
 use nalgebra::Vector3;
 
@@ -71,6 +71,13 @@ fn models(sequence: &MeshSequence) -> Vec<(String, FlowParams)> {
             },
         ),
     ];
+    models.push((
+        "anisotropic auto".to_string(),
+        FlowParams {
+            anisotropy: Some(Anisotropy::with(Contrast::Auto)),
+            ..FlowParams::default()
+        },
+    ));
     models.extend(MULTIPLES.iter().map(|&m| {
         let params = FlowParams {
             anisotropy: Some(Anisotropy::new(m * scale)),

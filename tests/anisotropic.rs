@@ -8,7 +8,10 @@ use common::{meshflow_error, meshflow_ok, relative_value_difference, rigid_motio
 use meshflow::fem::element::{
     anisotropic_stiffness, anisotropic_strain_element, cotan_stiffness, strain_element,
 };
-use meshflow::flow::{Anisotropy, FlowParams, FlowProblem, MeshSequence, Regularizer, Slab};
+use meshflow::flow::anisotropy::tensor;
+use meshflow::flow::{
+    Anisotropy, Contrast, FlowParams, FlowProblem, MeshSequence, Regularizer, Slab,
+};
 use meshflow::geometry::Triangle;
 use meshflow::synth::rotating_sphere;
 use nalgebra::{Matrix2, Vector2, Vector6};
@@ -32,8 +35,7 @@ fn the_identity_tensor_gives_the_cotan_stiffness() {
 #[test]
 fn the_tensor_has_trace_two_and_the_edge_eigenvalues() {
     let g = Vector2::new(0.6, -0.8) * 3.0; // |g| = 3
-    let anisotropy = Anisotropy::new(1.5);
-    let d = anisotropy.tensor(&(g * g.transpose()));
+    let d = tensor(&(g * g.transpose()), 1.5);
     let (g2, l2) = (9.0, 2.25);
     let across = 2.0 * l2 / (g2 + 2.0 * l2);
     let along = 2.0 * (g2 + l2) / (g2 + 2.0 * l2);
@@ -43,7 +45,7 @@ fn the_tensor_has_trace_two_and_the_edge_eigenvalues() {
     assert!((d * n - across * n).norm() < 1e-15, "{d}");
     assert!((d * t - along * t).norm() < 1e-15, "{d}");
     // No structure: the identity.
-    assert_eq!(anisotropy.tensor(&Matrix2::zeros()), Matrix2::identity());
+    assert_eq!(tensor(&Matrix2::zeros(), 1.5), Matrix2::identity());
 }
 
 /// `u_Tᵀ E u_T` for the affine face-frame field `u(x) = a (n·x)` on `triangle`, with the DOFs in
@@ -73,7 +75,7 @@ fn across_an_edge_costs_less_along_it_more() {
     };
     assert!((structure - g * g.transpose()).amax() < 1e-13);
     for lambda in [0.1, 1.0, 4.0] {
-        let d = Anisotropy::new(lambda).tensor(&structure);
+        let d = tensor(&structure, lambda);
         let (g2, l2) = (g.norm_squared(), lambda * lambda);
         let cases = [
             (g.normalize(), 2.0 * l2 / (g2 + 2.0 * l2)),
@@ -102,8 +104,10 @@ fn the_anisotropic_strain_element_is_exact_on_affine_fields() {
     let triangle = Triangle::from_lengths([1.3, 0.9, 1.1]).unwrap();
     let rotations = [Matrix2::identity(); 3];
     let p = triangle.layout();
-    let d = Anisotropy::new(0.7)
-        .tensor(&(Vector2::new(1.0, -2.0) * Vector2::new(1.0, -2.0).transpose()));
+    let d = tensor(
+        &(Vector2::new(1.0, -2.0) * Vector2::new(1.0, -2.0).transpose()),
+        0.7,
+    );
     let element = anisotropic_strain_element(&triangle, &rotations, &d);
     let energy = |b: Matrix2<f64>| {
         let c = Vector2::new(0.3, -0.2);
@@ -257,6 +261,22 @@ fn the_cli_solves_with_anisotropic_and_records_lambda() {
         serde_json::from_str(&std::fs::read_to_string(out.path().join("summary.json")).unwrap())
             .unwrap();
     assert_eq!(summary["params"]["anisotropy"]["lambda"], 0.1, "{summary}");
+    meshflow_ok(&[
+        "solve",
+        &input,
+        "--out",
+        out_dir,
+        "--anisotropic",
+        "auto",
+        "--force",
+    ]);
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        summary["params"]["anisotropy"]["lambda"], "auto",
+        "{summary}"
+    );
     let strain = ["--regularizer", "strain", "--anisotropic", "0.3", "--force"];
     meshflow_ok(
         &[
@@ -276,6 +296,14 @@ fn the_cli_refuses_a_bad_lambda_and_the_embedded_regularizer() {
         let args = ["solve", &input, "--out", out_dir, "--anisotropic", lambda];
         meshflow_error(&args, "anisotropy lambda");
     }
+    let args = ["solve", &input, "--out", out_dir, "--anisotropic", "sharp"];
+    let done = common::meshflow(&args);
+    assert_eq!(done.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&done.stderr);
+    assert!(
+        stderr.contains("'sharp' is neither auto nor a number"),
+        "{stderr}"
+    );
     let args = [
         "solve",
         &input,
@@ -316,7 +344,7 @@ fn robust_smoothness_weighs_the_anisotropic_density() {
 /// direction free), tensors without presmoothing (`σ = 0`), `β > 0`.
 fn grid_tensors(
     channels: Vec<(f64, Vector2<f64>)>,
-    lambda: f64,
+    lambda: Contrast,
 ) -> (MeshSequence, Vec<Matrix2<f64>>) {
     let surface = meshflow::shapes::grid(4, 3, 2.0, 1.0);
     let frames = 2;
@@ -354,7 +382,7 @@ fn grid_tensors(
 #[test]
 fn the_slab_tensors_of_a_linear_image_have_its_edge_eigenvalues() {
     let (g, w, lambda) = (Vector2::new(1.5, -0.5), 2.0, 0.8);
-    let (sequence, tensors) = grid_tensors(vec![(w, g)], lambda);
+    let (sequence, tensors) = grid_tensors(vec![(w, g)], Contrast::Value(lambda));
     let geometry = sequence.slab_geometry(0).unwrap();
     let across = 2.0 * lambda * lambda / (w * g.norm_squared() + 2.0 * lambda * lambda);
     for (f, (face, d)) in sequence.mesh().faces().iter().zip(&tensors).enumerate() {
@@ -369,12 +397,27 @@ fn the_slab_tensors_of_a_linear_image_have_its_edge_eigenvalues() {
     }
 }
 
+/// `auto` takes the median contrast of the slab's faces: a linear image has one contrast
+/// `√w |g|` everywhere, so `D` has the eigenvalues `2/3` across the edge (`2λ²/(λ² + 2λ²)`)
+/// and `4/3` along it (trace 2, determinant 8/9); grey values scaled by 40 leave `D` as it is.
+#[test]
+fn auto_takes_the_median_contrast_and_ignores_grey_scaling() {
+    let (g, w) = (Vector2::new(1.5, -0.5), 2.0);
+    let (_, tensors) = grid_tensors(vec![(w, g)], Contrast::Auto);
+    let (_, scaled) = grid_tensors(vec![(w, 40.0 * g)], Contrast::Auto);
+    for (d, s) in tensors.iter().zip(&scaled) {
+        assert!((d.trace() - 2.0).abs() < 1e-12, "{d}");
+        assert!((d.determinant() - 8.0 / 9.0).abs() < 1e-12, "{d}");
+        assert!((d - s).amax() < 1e-12, "{d} {s}");
+    }
+}
+
 /// Two channels with crossing edges of the same weighted contrast (`w |g|²`) sum to an
 /// isotropic structure: `D = Id` on every face.
 #[test]
 fn crossing_edges_of_two_channels_give_the_identity() {
     let channels = vec![(1.0, Vector2::new(2.0, 0.0)), (4.0, Vector2::new(0.0, 1.0))];
-    let (_, tensors) = grid_tensors(channels, 0.5);
+    let (_, tensors) = grid_tensors(channels, Contrast::Value(0.5));
     for d in tensors {
         assert!((d - Matrix2::identity()).amax() < 1e-12, "{d}");
     }

@@ -148,7 +148,7 @@ def compute_flow(
     gamma: Optional[float] = None,
     regularizer: str = "covariant",
     dirichlet_mix: Optional[float] = None,
-    anisotropic: Optional[float] = None,
+    anisotropic: Union[float, str, None] = None,
     robust_smoothness: Optional[float] = None,
     channels: str = "auto",
     channel_weights: Optional[SequenceOf[float]] = None,
@@ -190,10 +190,11 @@ def compute_flow(
         Kirisits–Lang–Scherzer's ``|∇^{R³}u|² = |∇u|² + |II(u,·)|²``.
     dirichlet_mix : float, optional
         With ``regularizer="strain"``: add ``dirichlet_mix·|∇u|²`` (default 0).
-    anisotropic : float, optional
+    anisotropic : float or "auto", optional
         ``λ`` (grey value per length, > 0): image-driven anisotropic smoothness
         ``tr(∇u D ∇uᵀ)`` (Nagel–Enkelmann), smoothing along image edges and less across them
-        (``2λ²/(|∇I|² + 2λ²)``); covariant and strain regularizers. Default: isotropic.
+        (``2λ²/(|∇I|² + 2λ²)``); ``"auto"``: per slab, the median contrast of its faces.
+        Covariant and strain regularizers. Default: isotropic.
     robust_smoothness : float, optional
         ``ε``: the Charbonnier penalty ``2ε(√(r + ε²) − ε)`` of the regularizer's density
         ``r`` (linear growth beyond ``|∇u| = ε``, for flows with jumps), by reweighted solves.
@@ -250,7 +251,7 @@ def compute_flow(
         "gamma": _optional_float("gamma", gamma),
         "regularizer": str(regularizer),
         "dirichlet_mix": _optional_float("dirichlet_mix", dirichlet_mix),
-        "anisotropic": _optional_float("anisotropic", anisotropic),
+        "anisotropic": _contrast(anisotropic),
         "robust_smoothness": _optional_float("robust_smoothness", robust_smoothness),
         "channel_weights": _channel_weights(channel_weights),
         "boundary": str(boundary),
@@ -270,6 +271,16 @@ def compute_flow(
         _mesh_args(weld, weld_tolerance, repair, channels),
         progress,
     )
+
+
+def _contrast(anisotropic: Any) -> Optional[str]:
+    """``anisotropic`` for the library: ``"auto"`` or a number, as text."""
+    if anisotropic is None or anisotropic == "auto":
+        return anisotropic
+    try:
+        return repr(float(anisotropic))
+    except (TypeError, ValueError):
+        raise ValueError(f"anisotropic must be a number or 'auto', got {anisotropic!r}") from None
 
 
 def _channel_weights(weights: Any) -> Optional[List[float]]:

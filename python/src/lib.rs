@@ -306,7 +306,7 @@ struct ParamArgs {
     gamma: Option<f64>,
     regularizer: String,
     dirichlet_mix: Option<f64>,
-    anisotropic: Option<f64>,
+    anisotropic: Option<String>,
     robust_smoothness: Option<f64>,
     channel_weights: Option<Vec<f64>>,
     boundary: String,
@@ -349,7 +349,9 @@ impl ParamArgs {
                 self.dirichlet_mix,
             )
             .map_err(|e| to_py_err(e.into()))?,
-            anisotropy: self.anisotropic.map(meshflow::flow::Anisotropy::new),
+            anisotropy: (self.anisotropic.as_deref())
+                .map(|text| parse(text, "anisotropic").map(meshflow::flow::Anisotropy::with))
+                .transpose()?,
             robust_smoothness: self.robust_smoothness,
             channel_weights: self.channel_weights.clone(),
             boundary: parse::<Boundary>(&self.boundary, "boundary")?,

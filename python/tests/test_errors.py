@@ -70,6 +70,7 @@ def test_non_manifold_input_is_refused_and_repaired_on_request():
     (dict(robust_smoothness=0.0), "robust_smoothness"),
     (dict(anisotropic=0.0), "anisotropy lambda"),
     (dict(anisotropic=1.0, regularizer="embedded"), "not the embedded regularizer"),
+    (dict(anisotropic="sharp"), "anisotropic must be a number or 'auto', got 'sharp'"),
     (dict(levels=0), "level"),
     (dict(alpha="fast"), "alpha must be a number"),
     (dict(progress=3), "progress must be callable"),

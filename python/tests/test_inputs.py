@@ -73,3 +73,13 @@ def test_a_mesh_from_trimesh_style_arrays(sample):
     # trimesh.Trimesh.faces is int64 (F, 3) and vertices float64 (V, 3), C order.
     ops = meshflow.operators(np.ascontiguousarray(sample.positions[0]), sample.faces.astype(np.int64))
     assert ops["stiffness"].shape == (2 * 642, 2 * 642)
+
+
+def test_anisotropic_auto_and_a_value(sample, reference):
+    auto = meshflow.compute_flow(sample.positions, sample.faces, sample.intensity,
+                                 gamma=1e-3, anisotropic="auto")
+    huge = meshflow.compute_flow(sample.positions, sample.faces, sample.intensity,
+                                 gamma=1e-3, anisotropic=1e12)
+    # A huge λ is the isotropic term; auto smooths less across the texture's edges.
+    assert np.allclose(huge.vectors, reference.vectors, rtol=0, atol=1e-9)
+    assert np.abs(auto.vectors - reference.vectors).max() > 1e-6

@@ -57,12 +57,45 @@ use nalgebra::Matrix2;
 /// Implicit heat steps of the presmoothing.
 pub const HEAT_STEPS: usize = 4;
 
+/// `λ` as a value, or `auto`: per slab, the median over faces of the presmoothed image's
+/// contrast `√tr J` (`|g|` for one channel), so that half the faces count as edges. Scaling
+/// the grey values by `c` scales it by `c` and leaves `D` unchanged, like a given `λ` scaled
+/// with them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Contrast {
+    Value(f64),
+    Auto,
+}
+
+impl serde::Serialize for Contrast {
+    /// The number, or `"auto"`.
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Contrast::Value(lambda) => serializer.serialize_f64(*lambda),
+            Contrast::Auto => serializer.serialize_str("auto"),
+        }
+    }
+}
+
+impl std::str::FromStr for Contrast {
+    type Err = String;
+
+    /// `auto` or a number (checked by [`Anisotropy::validate`]).
+    fn from_str(text: &str) -> Result<Self, String> {
+        match text {
+            "auto" => Ok(Contrast::Auto),
+            number => (number.parse().map(Contrast::Value))
+                .map_err(|_| format!("'{number}' is neither auto nor a number")),
+        }
+    }
+}
+
 /// `λ` and the presmoothing width `σ` of the anisotropic regularizer (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Anisotropy {
     /// The contrast (grey value per length) at which smoothing across an edge is reduced to
     /// two thirds of its isotropic value (`2λ²/(|g|² + 2λ²)` at `|g| = λ`); `> 0`.
-    pub lambda: f64,
+    pub lambda: Contrast,
     /// The presmoothing width (a length); `None`: the slab's mean edge length, `0`: none.
     pub sigma: Option<f64>,
 }
@@ -70,6 +103,11 @@ pub struct Anisotropy {
 impl Anisotropy {
     /// `λ` with the default presmoothing.
     pub fn new(lambda: f64) -> Self {
+        Self::with(Contrast::Value(lambda))
+    }
+
+    /// `λ` given or `auto`, with the default presmoothing.
+    pub fn with(lambda: Contrast) -> Self {
         Self {
             lambda,
             sigma: None,
@@ -79,13 +117,14 @@ impl Anisotropy {
     /// `λ > 0` finite, `σ ≥ 0` finite, and a regularizer that takes a tensor (covariant or
     /// strain).
     pub fn validate(&self, regularizer: Regularizer) -> Result<(), FlowError> {
-        let lambda = self.lambda;
-        check(
-            "anisotropy lambda",
-            lambda,
-            lambda > 0.0 && lambda.is_finite(),
-            "a positive contrast (grey value per length)",
-        )?;
+        if let Contrast::Value(lambda) = self.lambda {
+            check(
+                "anisotropy lambda",
+                lambda,
+                lambda > 0.0 && lambda.is_finite(),
+                "a positive contrast (grey value per length), or auto",
+            )?;
+        }
         if let Some(sigma) = self.sigma {
             check(
                 "anisotropy sigma",
@@ -100,12 +139,6 @@ impl Anisotropy {
             }),
             Regularizer::Covariant | Regularizer::Strain { .. } => Ok(()),
         }
-    }
-
-    /// `D` of the structure `J = Σ_c w_c g_c g_cᵀ`: `2 (tr(J) Id − J + λ² Id) / (tr J + 2λ²)`.
-    pub fn tensor(&self, structure: &Matrix2<f64>) -> Matrix2<f64> {
-        let (trace, l2) = (structure.trace(), self.lambda * self.lambda);
-        (Matrix2::identity() * (trace + l2) - structure) * (2.0 / (trace + 2.0 * l2))
     }
 
     /// The tensor of every face of `slab` (on `mesh`), from its presmoothed channels.
@@ -124,11 +157,37 @@ impl Anisotropy {
             what,
         )?;
         let weights = slab.channels.iter().map(|c| c.weight);
-        Ok((mesh.faces().iter().enumerate())
+        let structures: Vec<Matrix2<f64>> = (mesh.faces().iter().enumerate())
             .map(|(f, face)| {
                 let channels = weights.clone().zip(smoothed.iter().map(Vec::as_slice));
-                self.tensor(&structure_tensor(slab.geometry.triangle(f), face, channels))
+                structure_tensor(slab.geometry.triangle(f), face, channels)
             })
-            .collect())
+            .collect();
+        let lambda = match self.lambda {
+            Contrast::Value(lambda) => lambda,
+            Contrast::Auto => median_contrast(&structures),
+        };
+        Ok(structures.iter().map(|j| tensor(j, lambda)).collect())
     }
+}
+
+/// `D` of the structure `J = Σ_c w_c g_c g_cᵀ` at contrast `λ`:
+/// `2 (tr(J) Id − J + λ² Id) / (tr J + 2λ²)`.
+pub fn tensor(structure: &Matrix2<f64>, lambda: f64) -> Matrix2<f64> {
+    let (trace, l2) = (structure.trace(), lambda * lambda);
+    (Matrix2::identity() * (trace + l2) - structure) * (2.0 / (trace + 2.0 * l2))
+}
+
+/// The median of `√tr J` over the faces with contrast (1 where the image is flat: then
+/// `J = 0` and `D = Id` whatever `λ`).
+fn median_contrast(structures: &[Matrix2<f64>]) -> f64 {
+    let mut contrasts: Vec<f64> = (structures.iter())
+        .map(|j| j.trace().max(0.0).sqrt())
+        .filter(|&c| c > 0.0)
+        .collect();
+    if contrasts.is_empty() {
+        return 1.0;
+    }
+    let middle = contrasts.len() / 2;
+    *contrasts.select_nth_unstable_by(middle, f64::total_cmp).1
 }

@@ -52,7 +52,7 @@ pub mod warp;
 pub mod window;
 
 pub use advect::{advect, closest_seeds, vertex_seeds, Trajectories, SUBSTEPS};
-pub use anisotropy::Anisotropy;
+pub use anisotropy::{Anisotropy, Contrast};
 pub use energy::EnergyTerms;
 pub use error::FlowError;
 pub use params::{Boundary, FlowParams, SolverChoice, TimeCoupling, Weight, Weights};

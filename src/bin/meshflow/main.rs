@@ -248,10 +248,11 @@ struct SolveArgs {
     dirichlet_mix: Option<f64>,
     /// Image-driven anisotropic smoothness (Nagel–Enkelmann): smooth the flow along image
     /// edges, less across them; LAMBDA (grey value per length, > 0) is the edge contrast at
-    /// which smoothing across falls to 2/3 (large: the isotropic |∇u|²). Covariant and
-    /// strain regularizers; the image is presmoothed over one mean edge length
-    #[arg(long, value_name = "LAMBDA", allow_negative_numbers = true)]
-    anisotropic: Option<f64>,
+    /// which smoothing across falls to 2/3 (large: the isotropic |∇u|²), auto the median
+    /// contrast of each slab's faces. Covariant and strain regularizers; the image is
+    /// presmoothed over one mean edge length
+    #[arg(long, value_name = "LAMBDA|auto", allow_negative_numbers = true)]
+    anisotropic: Option<meshflow::flow::Contrast>,
     /// Robust (Charbonnier) smoothness for flows with discontinuities (cells moving on a
     /// still background): the smoothness grows like 2·EPS·|∇u| beyond |∇u| = EPS instead of
     /// quadratically (EPS in 1/time units; reweighted solves until the energy settles)

@@ -36,7 +36,7 @@ fn flow_params(args: &SolveArgs) -> Result<FlowParams, Error> {
         beta: weight(args.beta, args.speed_penalty, defaults.beta),
         gamma: weight(args.gamma, args.spread, defaults.gamma),
         regularizer: args.regularizer()?,
-        anisotropy: args.anisotropic.map(Anisotropy::new),
+        anisotropy: args.anisotropic.map(Anisotropy::with),
         robust_smoothness: args.robust_smoothness,
         channel_weights: args.channel_weights.clone(),
         boundary: args.boundary,
