@@ -7,7 +7,8 @@ use rayon::prelude::*;
 impl Volume {
     /// The volume convolved with a Gaussian of standard deviation `sigma` (physical units):
     /// `σ/d` voxels along each axis, truncated at 3σ and normalized, mirrored at the boundary
-    /// ([`AxisFilter`] for Gaussians as wide as the volume). `sigma = 0` returns a copy. The
+    /// (folded onto the mirrored axis, or its mean, for Gaussians as wide as the volume).
+    /// `sigma = 0` returns a copy. The
     /// working copies (two of the values) are checked against the memory limit first.
     pub fn smoothed(&self, sigma: f64) -> Result<Volume, VolumeError> {
         if !(sigma.is_finite() && sigma >= 0.0) {
