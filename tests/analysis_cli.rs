@@ -133,17 +133,22 @@ fn analyze_writes_the_analysis_of_a_run() {
     assert!(String::from_utf8_lossy(&refused.stderr).contains("takes npy and vtu"));
 }
 
+/// The shipped sample's files copied into the new directory `into`.
+fn copy_of_the_sample(into: &Path) -> std::path::PathBuf {
+    std::fs::create_dir(into).unwrap();
+    for entry in std::fs::read_dir(shipped("rotating_sphere")).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, into.join(path.file_name().unwrap())).unwrap();
+    }
+    into.to_path_buf()
+}
+
 /// A run without a manifest (an older version's, or not a run), and a run whose input lost a
 /// frame: one line naming what is wrong, and no output.
 #[test]
 fn broken_runs_fail_in_one_line_without_output() {
     let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("frames");
-    std::fs::create_dir(&input).unwrap();
-    for entry in std::fs::read_dir(shipped("rotating_sphere")).unwrap() {
-        let path = entry.unwrap().path();
-        std::fs::copy(&path, input.join(path.file_name().unwrap())).unwrap();
-    }
+    let input = copy_of_the_sample(&dir.path().join("frames"));
     let run = dir.path().join("run");
     solve(input.to_str().unwrap(), &run);
     let out = dir.path().join("analysis");
@@ -198,12 +203,7 @@ fn an_edited_manifest_reads_nothing_else() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
     solve(&shipped("rotating_sphere"), &run);
-    let elsewhere = dir.path().join("elsewhere");
-    std::fs::create_dir(&elsewhere).unwrap();
-    for entry in std::fs::read_dir(shipped("rotating_sphere")).unwrap() {
-        let path = entry.unwrap().path();
-        std::fs::copy(&path, elsewhere.join(path.file_name().unwrap())).unwrap();
-    }
+    let elsewhere = copy_of_the_sample(&dir.path().join("elsewhere"));
     let manifest = run.join("meshflow_run.json");
     let text = std::fs::read_to_string(&manifest).unwrap();
     let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
@@ -259,12 +259,7 @@ fn the_run_is_never_its_own_output() {
 #[test]
 fn a_new_file_beside_the_input_is_not_a_change() {
     let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("frames");
-    std::fs::create_dir(&input).unwrap();
-    for entry in std::fs::read_dir(shipped("rotating_sphere")).unwrap() {
-        let path = entry.unwrap().path();
-        std::fs::copy(&path, input.join(path.file_name().unwrap())).unwrap();
-    }
+    let input = copy_of_the_sample(&dir.path().join("frames"));
     let run = dir.path().join("run");
     solve(input.to_str().unwrap(), &run);
     std::fs::write(input.join("notes.txt"), "taken on a Tuesday").unwrap();
