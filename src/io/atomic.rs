@@ -129,8 +129,8 @@ impl RecordedInput {
         let in_file = |e| IoError::file(path, e);
         let resolved = path.canonicalize().map_err(in_file)?;
         let mut hasher = blake3::Hasher::new();
-        let bytes = std::io::copy(&mut File::open(&resolved).map_err(in_file)?, &mut hasher)
-            .map_err(in_file)?;
+        let (mut file, _) = super::open_regular(&resolved)?;
+        let bytes = std::io::copy(&mut file, &mut hasher).map_err(in_file)?;
         Ok(Self {
             path: resolved,
             bytes,
@@ -259,12 +259,9 @@ impl RunManifest {
             .collect()
     }
 
-    /// The manifest of `dir`, if it has one that reads as a manifest.
+    /// The manifest of `dir`, if it has one that reads as a manifest ([`Self::read_run`]).
     pub fn read(dir: &Path) -> Option<Self> {
-        let text = std::fs::read(dir.join(RUN_MANIFEST)).ok()?;
-        serde_json::from_slice::<Self>(&text)
-            .ok()
-            .filter(|m| m.format == MANIFEST_FORMAT)
+        Self::read_run(dir).ok()
     }
 }
 
@@ -398,7 +395,7 @@ impl StagedDir {
         target: &Path,
         overwrite: Overwrite,
     ) -> Result<Self, IoError> {
-        check_apart(inputs, target)?;
+        refuse_output_over_inputs(target, OutputKind::Directory, inputs)?;
         Self::create(target, overwrite)
     }
 
@@ -730,26 +727,4 @@ fn relabel(mut error: IoError, from: &Path, to: &Path) -> IoError {
         *path = to.join(relative);
     }
     error
-}
-
-/// Refuses `target` when it is one of `inputs`, holds one or lies inside an input directory
-/// ([`refuse_output_over_inputs`]); a glob input counts as the directory it lists.
-fn check_apart(inputs: &[&Path], target: &Path) -> Result<(), IoError> {
-    let locations: Vec<PathBuf> = inputs.iter().map(|input| glob_location(input)).collect();
-    let locations: Vec<&Path> = locations.iter().map(PathBuf::as_path).collect();
-    refuse_output_over_inputs(target, OutputKind::Directory, &locations)
-}
-
-/// `input`, or for a glob that names no file the directory its pattern lists.
-fn glob_location(input: &Path) -> PathBuf {
-    if input.exists() {
-        return input.to_path_buf();
-    }
-    let location: PathBuf = (input.components())
-        .take_while(|c| !c.as_os_str().to_string_lossy().contains(['*', '?', '[']))
-        .collect();
-    match location.as_os_str().is_empty() {
-        true => PathBuf::from("."),
-        false => location,
-    }
 }

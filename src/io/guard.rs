@@ -4,7 +4,8 @@
 //! reads anything ([`refuse_output_over_inputs`]): the output may not be one of its inputs
 //! (also through a link or a hard link), may not be a directory that holds an input, and may
 //! not lie inside an input directory. Paths are compared after links are resolved; an output
-//! that does not exist yet is resolved through its nearest existing ancestor.
+//! that does not exist yet is resolved through its nearest existing ancestor, and a glob input
+//! (`'frames/*.obj'`) counts as the directory it lists.
 
 use super::IoError;
 use std::path::{Component, Path, PathBuf};
@@ -19,7 +20,8 @@ pub enum OutputKind {
 }
 
 /// Refuses `out` (a `kind` output) when it is one of `inputs`, holds one, or lies inside an
-/// input directory. Inputs that do not exist are skipped: their reader reports them.
+/// input directory (a glob's directory). Inputs that do not exist are skipped: their reader
+/// reports them.
 pub fn refuse_output_over_inputs(
     out: &Path,
     kind: OutputKind,
@@ -27,7 +29,8 @@ pub fn refuse_output_over_inputs(
 ) -> Result<(), IoError> {
     let resolved_out = resolve(out);
     for &input in inputs {
-        let Ok(resolved_input) = input.canonicalize() else {
+        let location = glob_location(input);
+        let Ok(resolved_input) = location.canonicalize() else {
             continue;
         };
         let refuse = |what: String| IoError::OverInput {
@@ -40,13 +43,13 @@ pub fn refuse_output_over_inputs(
                 ),
             },
         };
-        if resolved_out == resolved_input || same_file(out, input) {
+        if resolved_out == resolved_input || same_file(out, &location) {
             return Err(refuse(format!("is the input {}", input.display())));
         }
         if resolved_input.starts_with(&resolved_out) && kind == OutputKind::Directory {
             return Err(refuse(format!("holds the input {}", input.display())));
         }
-        if input.is_dir() && resolved_out.starts_with(&resolved_input) {
+        if location.is_dir() && resolved_out.starts_with(&resolved_input) {
             return Err(refuse(format!(
                 "lies inside the input directory {}",
                 input.display()
@@ -54,6 +57,20 @@ pub fn refuse_output_over_inputs(
         }
     }
     Ok(())
+}
+
+/// `input`, or for a glob that names no file the directory its pattern lists.
+fn glob_location(input: &Path) -> PathBuf {
+    if input.exists() {
+        return input.to_path_buf();
+    }
+    let location: PathBuf = (input.components())
+        .take_while(|c| !c.as_os_str().to_string_lossy().contains(['*', '?', '[']))
+        .collect();
+    match location.as_os_str().is_empty() {
+        true => PathBuf::from("."),
+        false => location,
+    }
 }
 
 /// `path` with links resolved, also where its last components do not exist yet (resolved
@@ -130,6 +147,11 @@ mod tests {
             OutputKind::File
         ));
         assert!(!refused(&dir.path().join("out"), OutputKind::Directory));
+        // A glob counts as the directory it lists: a new file there would match it next time.
+        let glob = input_dir.join("*.npy");
+        let by_glob = |out: &Path| refuse_output_over_inputs(out, OutputKind::File, &[&glob]);
+        assert!(by_glob(&input_dir.join("tracks.npy")).is_err());
+        assert!(by_glob(&dir.path().join("tracks.npy")).is_ok());
         assert!(!refused(&dir.path().join("tracks.npy"), OutputKind::File));
         #[cfg(unix)]
         {

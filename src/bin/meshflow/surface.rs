@@ -5,12 +5,12 @@
 use crate::progress::during;
 use meshflow::accuracy::{default_match_distance, Tracks};
 use meshflow::io::{
-    input_files, refuse_output_over_inputs, write_atomically, write_npy, write_npy_sequence,
-    IoError, OutputKind, Overwrite, StagedDir,
+    refuse_output_over_inputs, write_atomically, write_npy, write_npy_sequence, IoError,
+    OutputKind, Overwrite, StagedDir,
 };
 use meshflow::surface::{fit_surface, read_points, FitOptions, FittedSurface, Reference};
 use meshflow::Error;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// What `surface` needs from the command line.
 pub struct SurfaceRequest<'a> {
@@ -135,10 +135,7 @@ fn print_report(fitted: &FittedSurface, points: &Path, out: &Path) {
 /// checked against the inputs and `--max-distance` before anything is read, the
 /// `frames × tracks` array against the memory limit before it is allocated.
 pub fn write_tracks(points: &Path, out: &Path, max_distance: Option<f64>) -> Result<(), Error> {
-    let mut inputs = input_files(&[points]);
-    inputs.push(points.to_path_buf());
-    let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-    refuse_output_over_inputs(out, OutputKind::File, &inputs)?;
+    refuse_output_over_inputs(out, OutputKind::File, &[points])?;
     if let Some(d) = max_distance.filter(|d| !(d.is_finite() && *d > 0.0)) {
         return Err(crate::usage(format!(
             "--max-distance must be a positive length, got {d}"
