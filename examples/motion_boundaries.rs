@@ -15,7 +15,7 @@
 //! 2562-vertex icosphere, 6 frames).
 
 use meshflow::accuracy::compare_result;
-use meshflow::flow::{compute_flow, Anisotropy, Contrast, FlowParams, MeshSequence};
+use meshflow::flow::{compute_flow, Anisotropy, Contrast, FlowDriven, FlowParams, MeshSequence};
 use meshflow::synth::{rotating_sphere, turning_cap_sphere, GroundTruth};
 use nalgebra::Vector3;
 
@@ -23,6 +23,8 @@ use nalgebra::Vector3;
 const Z_EDGE: f64 = 0.3;
 const OMEGA: f64 = 0.05;
 const MULTIPLES: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
+/// Robust scales `ε` (1/time) of the flow-driven models.
+const EPSILONS: [f64; 3] = [0.01, 0.03, 0.1];
 
 fn main() -> Result<(), meshflow::Error> {
     let args: Vec<usize> = std::env::args()
@@ -78,6 +80,32 @@ fn models(sequence: &MeshSequence) -> Vec<(String, FlowParams)> {
             ..FlowParams::default()
         },
     ));
+    for epsilon in EPSILONS {
+        let robust = |driven, anisotropy| FlowParams {
+            robust_smoothness: Some(epsilon),
+            flow_driven: driven,
+            anisotropy,
+            ..FlowParams::default()
+        };
+        let auto = Some(Anisotropy::with(Contrast::Auto));
+        models.extend([
+            (
+                format!("flow-driven aniso. {epsilon}"),
+                robust(FlowDriven::Anisotropic, None),
+            ),
+            (
+                format!("auto + robust {epsilon}"),
+                robust(FlowDriven::Isotropic, auto),
+            ),
+            (
+                format!("auto + flow-aniso. {epsilon}"),
+                robust(FlowDriven::Anisotropic, auto),
+            ),
+        ]);
+    }
+    if std::env::var_os("MOTION_BOUNDARIES_NO_SWEEP").is_some() {
+        return models;
+    }
     models.extend(MULTIPLES.iter().map(|&m| {
         let params = FlowParams {
             anisotropy: Some(Anisotropy::new(m * scale)),

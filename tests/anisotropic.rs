@@ -261,15 +261,26 @@ fn the_cli_solves_with_anisotropic_and_records_lambda() {
         serde_json::from_str(&std::fs::read_to_string(out.path().join("summary.json")).unwrap())
             .unwrap();
     assert_eq!(summary["params"]["anisotropy"]["lambda"], 0.1, "{summary}");
-    meshflow_ok(&[
+    assert_eq!(
+        summary["anisotropic_contrasts"],
+        serde_json::json!(vec![0.1; 5])
+    );
+    let run = meshflow_ok(&[
         "solve",
         &input,
         "--out",
         out_dir,
         "--anisotropic",
         "auto",
+        "--anisotropic-sigma",
+        "0",
         "--force",
     ]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        stdout.contains("λ = ") && stdout.contains("(auto)"),
+        "{stdout}"
+    );
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.path().join("summary.json")).unwrap())
             .unwrap();
@@ -277,6 +288,10 @@ fn the_cli_solves_with_anisotropic_and_records_lambda() {
         summary["params"]["anisotropy"]["lambda"], "auto",
         "{summary}"
     );
+    assert_eq!(summary["params"]["anisotropy"]["sigma"], 0.0, "{summary}");
+    // The median contrast of the unsmoothed texture: of order 1 on the unit sphere.
+    let lambda = summary["anisotropic_contrasts"][0].as_f64().unwrap();
+    assert!((0.05..5.0).contains(&lambda), "{summary}");
     let strain = ["--regularizer", "strain", "--anisotropic", "0.3", "--force"];
     meshflow_ok(
         &[

@@ -214,8 +214,9 @@ fn ranks_reweight_robust_smoothness_as_one_process_does() {
     check_flow_over_ranks(&format!("{name}, robust, warping"), &sequence, &params);
 }
 
-/// The anisotropic regularizer over ranks, with robust smoothness and warping: each rank
-/// computes its own (warped) slabs' tensors, and the reweighting reads them.
+/// The anisotropic regularizer over ranks, with robust smoothness and warping, and image- and
+/// flow-driven: each rank computes its own (warped) slabs' tensors, and the reweighting reads
+/// them.
 #[test]
 fn ranks_solve_anisotropic_robust_warped_as_one_process_does() {
     let (name, sequence, params) = common::window_cases().remove(0);
@@ -230,6 +231,17 @@ fn ranks_solve_anisotropic_robust_warped_as_one_process_does() {
     };
     check_flow_over_ranks(
         &format!("{name}, anisotropic, robust, warping"),
+        &sequence,
+        &params,
+    );
+    // Image- and flow-driven: each rank lags its own slabs' tensors.
+    let params = FlowParams {
+        flow_driven: meshflow::flow::FlowDriven::Anisotropic,
+        warping: Warping::NONE,
+        ..params
+    };
+    check_flow_over_ranks(
+        &format!("{name}, image- and flow-driven"),
         &sequence,
         &params,
     );

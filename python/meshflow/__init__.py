@@ -149,7 +149,9 @@ def compute_flow(
     regularizer: str = "covariant",
     dirichlet_mix: Optional[float] = None,
     anisotropic: Union[float, str, None] = None,
+    anisotropic_sigma: Optional[float] = None,
     robust_smoothness: Optional[float] = None,
+    flow_driven: str = "isotropic",
     channels: str = "auto",
     channel_weights: Optional[SequenceOf[float]] = None,
     boundary: str = "neumann",
@@ -195,9 +197,16 @@ def compute_flow(
         ``tr(∇u D ∇uᵀ)`` (Nagel–Enkelmann), smoothing along image edges and less across them
         (``2λ²/(|∇I|² + 2λ²)``); ``"auto"``: per slab, the median contrast of its faces.
         Covariant and strain regularizers. Default: isotropic.
+    anisotropic_sigma : float, optional
+        With ``anisotropic``: the width (a length, ≥ 0) over which the image is smoothed on the
+        surface before its edges steer the smoothing. Default: the mean edge length.
     robust_smoothness : float, optional
         ``ε``: the Charbonnier penalty ``2ε(√(r + ε²) − ε)`` of the regularizer's density
         ``r`` (linear growth beyond ``|∇u| = ε``, for flows with jumps), by reweighted solves.
+    flow_driven : {"isotropic", "anisotropic"}
+        With ``robust_smoothness``: the penalty of ``|∇u|`` (one weight per face) or of each
+        principal direction of ``∇u`` (``tr Ψ(∇uᵀ∇u)``, Weickert–Schnörr's flow-driven
+        anisotropic; with ``anisotropic``, image- and flow-driven).
     channels : {"auto", "rgb", "luma", "grey"}
         Which channels of a (K, V, C) ``intensity`` to use: all (``auto``), the three colour
         channels (``rgb``), their Rec. 709 luma, or their mean (``grey``).
@@ -252,7 +261,9 @@ def compute_flow(
         "regularizer": str(regularizer),
         "dirichlet_mix": _optional_float("dirichlet_mix", dirichlet_mix),
         "anisotropic": _contrast(anisotropic),
+        "anisotropic_sigma": _optional_float("anisotropic_sigma", anisotropic_sigma),
         "robust_smoothness": _optional_float("robust_smoothness", robust_smoothness),
+        "flow_driven": str(flow_driven),
         "channel_weights": _channel_weights(channel_weights),
         "boundary": str(boundary),
         "time_coupling": str(time_coupling),

@@ -307,7 +307,9 @@ struct ParamArgs {
     regularizer: String,
     dirichlet_mix: Option<f64>,
     anisotropic: Option<String>,
+    anisotropic_sigma: Option<f64>,
     robust_smoothness: Option<f64>,
+    flow_driven: String,
     channel_weights: Option<Vec<f64>>,
     boundary: String,
     time_coupling: String,
@@ -349,10 +351,9 @@ impl ParamArgs {
                 self.dirichlet_mix,
             )
             .map_err(|e| to_py_err(e.into()))?,
-            anisotropy: (self.anisotropic.as_deref())
-                .map(|text| parse(text, "anisotropic").map(meshflow::flow::Anisotropy::with))
-                .transpose()?,
+            anisotropy: self.anisotropy()?,
             robust_smoothness: self.robust_smoothness,
+            flow_driven: parse(&self.flow_driven, "flow_driven")?,
             channel_weights: self.channel_weights.clone(),
             boundary: parse::<Boundary>(&self.boundary, "boundary")?,
             time_coupling: parse::<TimeCoupling>(&self.time_coupling, "time_coupling")?,
@@ -363,6 +364,20 @@ impl ParamArgs {
         };
         params.validate().map_err(|e| to_py_err(Error::from(e)))?;
         Ok(params)
+    }
+
+    /// `anisotropic` (a number or "auto") with `anisotropic_sigma`.
+    fn anisotropy(&self) -> PyResult<Option<meshflow::flow::Anisotropy>> {
+        let Some(text) = self.anisotropic.as_deref() else {
+            return match self.anisotropic_sigma {
+                Some(_) => Err(value_error("anisotropic_sigma needs anisotropic")),
+                None => Ok(None),
+            };
+        };
+        Ok(Some(meshflow::flow::Anisotropy {
+            sigma: self.anisotropic_sigma,
+            ..meshflow::flow::Anisotropy::with(parse(text, "anisotropic")?)
+        }))
     }
 }
 
@@ -491,6 +506,13 @@ impl Flow {
     #[getter]
     fn reweightings(&self) -> usize {
         self.result.reweightings
+    }
+
+    /// Per slab, the contrast `λ` of the image-driven anisotropic smoothness as used (`"auto"`
+    /// resolved); empty without it.
+    #[getter]
+    fn anisotropic_contrasts(&self) -> Vec<f64> {
+        self.result.anisotropic_contrasts.clone()
     }
 
     /// Solver iterations (0 for a direct solve).

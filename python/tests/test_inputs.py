@@ -83,3 +83,12 @@ def test_anisotropic_auto_and_a_value(sample, reference):
     # A huge λ is the isotropic term; auto smooths less across the texture's edges.
     assert np.allclose(huge.vectors, reference.vectors, rtol=0, atol=1e-9)
     assert np.abs(auto.vectors - reference.vectors).max() > 1e-6
+    assert len(auto.anisotropic_contrasts) == sample.positions.shape[0] - 1
+    assert huge.anisotropic_contrasts == [1e12] * (sample.positions.shape[0] - 1)
+
+
+def test_flow_driven_anisotropic_with_a_huge_scale_is_the_quadratic_flow(sample, reference):
+    flow = meshflow.compute_flow(sample.positions, sample.faces, sample.intensity, gamma=1e-3,
+                                 robust_smoothness=1e9, flow_driven="anisotropic")
+    assert flow.reweightings >= 1
+    assert np.allclose(flow.vectors, reference.vectors, rtol=0, atol=1e-8)

@@ -141,8 +141,13 @@ impl Anisotropy {
         }
     }
 
-    /// The tensor of every face of `slab` (on `mesh`), from its presmoothed channels.
-    pub fn face_tensors(&self, mesh: &Mesh, slab: &Slab) -> Result<Vec<Matrix2<f64>>, FlowError> {
+    /// The tensor of every face of `slab` (on `mesh`), from its presmoothed channels, and the
+    /// contrast `λ` it used (`auto` resolved).
+    pub fn face_tensors(
+        &self,
+        mesh: &Mesh,
+        slab: &Slab,
+    ) -> Result<(Vec<Matrix2<f64>>, f64), FlowError> {
         let sigma = self
             .sigma
             .unwrap_or_else(|| slab.geometry.mean_edge_length());
@@ -167,7 +172,10 @@ impl Anisotropy {
             Contrast::Value(lambda) => lambda,
             Contrast::Auto => median_contrast(&structures),
         };
-        Ok(structures.iter().map(|j| tensor(j, lambda)).collect())
+        Ok((
+            structures.iter().map(|j| tensor(j, lambda)).collect(),
+            lambda,
+        ))
     }
 }
 

@@ -64,8 +64,10 @@ pub enum FlowError {
         value: f64,
         requirement: &'static str,
     },
-    #[error("the anisotropic regularizer (--anisotropic) weights the covariant |∇u|² or the strain |Sym ∇u|², not the {regularizer} regularizer (use --regularizer covariant or strain)")]
+    #[error("the anisotropic regularizers (--anisotropic, --flow-driven anisotropic) weight the covariant |∇u|² or the strain |Sym ∇u|², not the {regularizer} regularizer (use --regularizer covariant or strain)")]
     AnisotropyUnsupported { regularizer: &'static str },
+    #[error("the flow-driven anisotropic penalty (--flow-driven anisotropic) is a robust one: give its scale with --robust-smoothness EPS")]
+    FlowDrivenNeedsRobust,
     #[error("{what} does not run over several ranks yet: run it in one process (or, for the solver, use auto, pcg-slab-gauss-seidel or pcg-time-multigrid)")]
     NotDistributed { what: &'static str },
     #[error("{ranks} ranks for {slabs} slabs: each rank needs at least one slab (run with at most {slabs} ranks)")]

@@ -59,6 +59,7 @@ pub use params::{Boundary, FlowParams, SolverChoice, TimeCoupling, Weight, Weigh
 pub use params::{Warping, DEFAULT_SPREAD, DEFAULT_TIME_SCALE};
 pub use pyramid::{heat_times, scale_pyramid, COARSEST_HEAT_TIME};
 pub use regularizer::Regularizer;
+pub use robust::FlowDriven;
 pub use scales::{DataScales, ScaleSums};
 pub(crate) use sequence::{channel_mean, check_finite_intensities};
 pub use sequence::{Images, MeshSequence};
@@ -141,6 +142,9 @@ pub struct FlowResult {
     /// values; `λ_max/λ_min` estimates the condition number behind the iteration count).
     /// `None` for direct solves.
     pub preconditioned_spectrum: Option<[f64; 2]>,
+    /// Per slab, the contrast `λ` of the image-driven anisotropic tensors (`auto` resolved);
+    /// empty without them, and over ranks.
+    pub anisotropic_contrasts: Vec<f64>,
     pub timings: Timings,
 }
 
@@ -172,6 +176,7 @@ impl FlowResult {
             intrinsic,
             vectors,
             warped_residual: None,
+            anisotropic_contrasts: Vec::new(),
             reweightings: 0,
         }
     }
@@ -199,6 +204,8 @@ pub struct FlowProblem<'a> {
     /// Kept while they take at most [`KEEP_SLABS_BYTES`]; rebuilt from the sequence when
     /// needed otherwise, so that long sequences hold only the system and its factors.
     slabs: Option<Vec<Slab>>,
+    /// [`FlowResult::anisotropic_contrasts`].
+    contrasts: Vec<f64>,
     system: SpaceTimeSystem,
     assembly_seconds: f64,
 }
@@ -256,6 +263,7 @@ impl<'a> FlowProblem<'a> {
         let system = SpaceTimeSystem::assemble(mesh, &slabs, &links, params, &weights);
         let slab_bytes = slabs.len() * (200 * mesh.n_faces() + 8 * mesh.n_halfedges());
         Ok(Self {
+            contrasts: slabs.iter().filter_map(|slab| slab.contrast).collect(),
             sequence,
             params: params.clone(),
             weights,
@@ -329,6 +337,13 @@ impl<'a> FlowProblem<'a> {
     /// Minimizes the energy (coarse to fine when [`FlowParams::warping`] asks for it);
     /// `observer` receives progress reports.
     pub fn solve(&self, observer: &dyn SolveObserver) -> Result<FlowResult, FlowError> {
+        let mut result = self.minimize(observer)?;
+        result.anisotropic_contrasts = self.contrasts.clone();
+        Ok(result)
+    }
+
+    /// [`Self::solve`] but for the contrasts.
+    fn minimize(&self, observer: &dyn SolveObserver) -> Result<FlowResult, FlowError> {
         let outer = OuterStart {
             params: &self.params,
             weights: self.weights,

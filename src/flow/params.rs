@@ -37,7 +37,7 @@
 //! (the plain root mean square is diluted by empty background and gave best spreads 2.5 times
 //! apart).
 
-use super::{Anisotropy, DataScales, FlowError, Regularizer};
+use super::{Anisotropy, DataScales, FlowDriven, FlowError, Regularizer};
 
 /// Boundary condition in space (time always has natural conditions).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -162,6 +162,10 @@ pub struct FlowParams {
     /// the quadratic `r(u)` of the regularizer, by reweighted solves ([`super::robust`]);
     /// `ε` in the units of `|∇u|` (1/time). `None`: the quadratic model.
     pub robust_smoothness: Option<f64>,
+    /// How the robust penalty sees the flow's gradient: `ψ` of its size (isotropic, the
+    /// default) or of each principal direction (anisotropic; [`super::robust`]). Only with
+    /// `robust_smoothness`.
+    pub flow_driven: FlowDriven,
     /// The weight `w_c` of each image channel in the data term `Σ_c w_c (∂_t I_c + dI_c(u))²`,
     /// one per channel of the sequence; `None`: 1 for every channel.
     pub channel_weights: Option<Vec<f64>>,
@@ -256,6 +260,7 @@ impl Default for FlowParams {
             regularizer: Regularizer::Covariant,
             anisotropy: None,
             robust_smoothness: None,
+            flow_driven: FlowDriven::Isotropic,
             channel_weights: None,
             boundary: Boundary::Neumann,
             time_coupling: TimeCoupling::Lumped,
@@ -325,6 +330,9 @@ impl FlowParams {
                 "a positive number (the |∇u| where the penalty turns from quadratic to linear)",
             )?;
         }
+        if self.flow_driven == FlowDriven::Anisotropic {
+            self.check_flow_driven_anisotropic()?;
+        }
         if let Some(weights) = &self.channel_weights {
             if let Some(&w) = weights.iter().find(|w| !(w.is_finite() && **w >= 0.0)) {
                 check(
@@ -382,6 +390,20 @@ impl FlowParams {
             self.warping.warps <= Warping::MAX_WARPS,
             "at most 20 per level (each warp is a whole solve)",
         )
+    }
+
+    /// The flow-driven anisotropic penalty needs the robust scale `ε` and a regularizer that
+    /// takes a tensor.
+    fn check_flow_driven_anisotropic(&self) -> Result<(), FlowError> {
+        if self.robust_smoothness.is_none() {
+            return Err(FlowError::FlowDrivenNeedsRobust);
+        }
+        match self.regularizer {
+            Regularizer::Embedded => Err(FlowError::AnisotropyUnsupported {
+                regularizer: "embedded",
+            }),
+            Regularizer::Covariant | Regularizer::Strain { .. } => Ok(()),
+        }
     }
 
     /// The weight of each of `n_channels` image channels: [`Self::channel_weights`], or 1 each.

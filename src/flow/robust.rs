@@ -18,21 +18,72 @@
 //!
 //! With coarse-to-fine warping, every warp reweights from its own linear solve (the prototype
 //! found the per-level γ schedule necessary for stability at large motions).
+//!
+//! # Flow-driven anisotropic: one penalty per direction
+//!
+//! `ψ(r)` above is *flow-driven isotropic* (Weickert & Schnörr, IJCV 45(3), 2001): one weight
+//! per face, so a jump of the flow across a boundary also stops the smoothing along it.
+//! [`FlowDriven::Anisotropic`] penalizes each principal direction of the flow's gradient on
+//! its own. With `J_T` the 2×2 structure of the regularizer's gradient on face `T` in the face
+//! frame (`J = ∇uᵀ∇u` covariant, `Sym∇uᵀ Sym∇u + δ ∇uᵀ∇u` strain; the regularizer's density
+//! under a tensor `D` is `tr(D J)`) and `D_I` the image-driven tensor ([`super::anisotropy`],
+//! `Id` without it), the density is
+//!
+//! ```text
+//! tr Ψ(A_T),     A_T = D_I^½ J_T D_I^½,     Ψ(A) = V diag(ψ(μ_1), ψ(μ_2)) Vᵀ
+//! ```
+//!
+//! (`μ_k`, `V` the eigenvalues and eigenvectors of `A`). `ψ(tr A)` is the isotropic one, and the
+//! two agree where the flow varies in one direction only (`μ_2 = 0`, `ψ(0) = 0`). `tr Ψ` is
+//! concave on symmetric matrices since `ψ` is concave, so its tangent at `A(u_k)` majorizes it:
+//! each reweighted solve is the anisotropic quadratic model with the lagged tensor
+//! `D_T = D_I^½ Ψ'(A_T(u_k)) D_I^½` (positive definite: `0 < ψ' ≤ 1`), and the energy never
+//! increases. `ε → ∞` gives `D_T = D_I`, the image-driven (or quadratic) model; `D_I = Id` the
+//! purely flow-driven one; both together the *image- and flow-driven* regularizer, smoothing
+//! along image edges and letting the flow jump across them where it does.
 
 use super::outer::{OuterStart, RunClock, SlabSolver};
+use super::Regularizer;
 use super::{FlowError, FlowParams, FlowResult, SolveObserver};
 use crate::mesh::Mesh;
-use nalgebra::{Vector2, Vector6};
+use nalgebra::{Matrix2, SymmetricEigen, Vector2, Vector6};
 
 /// The relative change of the robust energy below which reweighting stops.
 pub const ENERGY_CHANGE: f64 = 1e-4;
 /// Reweighted solves at most.
 pub const MAX_REWEIGHTINGS: usize = 30;
 
+/// How the robust penalty sees the gradient of the flow (module docs): `ψ` of its size
+/// (isotropic, one weight per face) or of each principal direction (anisotropic, a tensor per
+/// face).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FlowDriven {
+    /// `ψ(tr A)`.
+    #[default]
+    Isotropic,
+    /// `tr Ψ(A)`.
+    Anisotropic,
+}
+
+impl std::str::FromStr for FlowDriven {
+    type Err = String;
+
+    /// `isotropic` or `anisotropic`.
+    fn from_str(text: &str) -> Result<Self, String> {
+        match text {
+            "isotropic" => Ok(FlowDriven::Isotropic),
+            "anisotropic" => Ok(FlowDriven::Anisotropic),
+            other => Err(format!("'{other}' is not one of: isotropic, anisotropic")),
+        }
+    }
+}
+
 /// Minimizes the energy of `start.params` on `slabs` (all of `solver`'s frames' slabs) with the
-/// Charbonnier smoothness of scale `epsilon` (module docs); the result is the last reweighted
-/// solve's, with `reweightings` set and the robust energy (`energy_terms.spatial` the
-/// Charbonnier term). Over ranks, each rank reweights its own slabs.
+/// Charbonnier smoothness of scale `epsilon` (module docs), isotropic or anisotropic as
+/// `start.params.flow_driven` says; the result is the last reweighted solve's, with
+/// `reweightings` set and the robust energy (`energy_terms.spatial` the Charbonnier term). Over
+/// ranks, each rank reweights its own slabs.
 pub(super) fn reweighted(
     solver: &dyn SlabSolver,
     start: &OuterStart,
@@ -42,35 +93,39 @@ pub(super) fn reweighted(
 ) -> Result<FlowResult, FlowError> {
     let mesh = solver.frames().mesh();
     let own = solver.own();
+    // The quadratic model of each solve; its tensors are set here.
     let params = FlowParams {
         robust_smoothness: None,
+        flow_driven: FlowDriven::Isotropic,
         ..start.fixed_params()
-    };
-    let penalty = Charbonnier {
-        epsilon,
-        params: &params,
-        gamma: start.weights.gamma,
     };
     // The densities below read the slabs' anisotropic tensors, which the solves would add.
     super::slab::complete_slabs(&mut slabs, solver.frames(), &params)?;
+    let penalty = Charbonnier {
+        epsilon,
+        regularizer: params.regularizer,
+        driven: start.params.flow_driven,
+        gamma: start.weights.gamma,
+        image_roots: (slabs[own.clone()].iter())
+            .map(|slab| (slab.diffusion_tensors.as_ref()).map(|d| d.iter().map(root).collect()))
+            .collect(),
+    };
     let mut clock = RunClock::start(start.assembly_seconds);
     let mut result = solver.solve(&params, slabs.clone(), observer)?;
     clock.end_step("first solve".into(), &result);
-    // `densities[s][T] = r_T` of the current flow on the own slabs: its energy, and the next
+    // The penalty's arguments of the current flow on the own slabs: its energy, and the next
     // solve's weights.
-    let mut densities = penalty.densities(mesh, &slabs[own.clone()], &result);
-    let mut energy = penalty.robust_energy(solver, &slabs[own.clone()], &densities, &mut result);
+    let mut arguments = penalty.arguments(mesh, &slabs[own.clone()], &result);
+    let mut energy = penalty.robust_energy(solver, &slabs[own.clone()], &arguments, &mut result);
     let mut reweightings = 0;
     while reweightings < MAX_REWEIGHTINGS {
-        for (slab, r) in slabs[own.clone()].iter_mut().zip(&densities) {
-            slab.smoothness_weights = Some(r.iter().map(|&r| penalty.weight(r)).collect());
-        }
+        penalty.reweight(&mut slabs[own.clone()], &arguments);
         clock.begin_step();
         result = solver.solve(&params, slabs.clone(), observer)?;
         reweightings += 1;
         clock.end_step(format!("reweighting {reweightings}"), &result);
-        densities = penalty.densities(mesh, &slabs[own.clone()], &result);
-        let next = penalty.robust_energy(solver, &slabs[own.clone()], &densities, &mut result);
+        arguments = penalty.arguments(mesh, &slabs[own.clone()], &result);
+        let next = penalty.robust_energy(solver, &slabs[own.clone()], &arguments, &mut result);
         let change = (energy - next).abs() / next.abs().max(f64::MIN_POSITIVE);
         energy = next;
         if change <= ENERGY_CHANGE {
@@ -83,14 +138,24 @@ pub(super) fn reweighted(
     Ok(result)
 }
 
-/// `ψ(r) = 2ε(√(r + ε²) − ε)` with the regularizer and weight of `params`.
-struct Charbonnier<'a> {
-    epsilon: f64,
-    params: &'a FlowParams,
-    gamma: f64,
+/// The penalty's argument per own slab and face (module docs): the density `r_T`
+/// (isotropic) or the 2×2 `A_T` (anisotropic).
+enum Arguments {
+    Densities(Vec<Vec<f64>>),
+    Structures(Vec<Vec<Matrix2<f64>>>),
 }
 
-impl Charbonnier<'_> {
+/// `ψ(r) = 2ε(√(r + ε²) − ε)` of the regularizer, weighted by `γ`, applied as `driven` says;
+/// `image_roots` are `D_I^½` per own slab and face (`None`: no image-driven tensor).
+struct Charbonnier {
+    epsilon: f64,
+    regularizer: Regularizer,
+    driven: FlowDriven,
+    gamma: f64,
+    image_roots: Vec<Option<Vec<Matrix2<f64>>>>,
+}
+
+impl Charbonnier {
     /// In the form `2ε r / (√(r + ε²) + ε)`, free of cancellation for `r ≪ ε²`.
     fn psi(&self, r: f64) -> f64 {
         let e = self.epsilon;
@@ -102,49 +167,106 @@ impl Charbonnier<'_> {
         self.epsilon / (r + self.epsilon * self.epsilon).sqrt()
     }
 
-    /// `r_T(u) = u_Tᵀ E_T u_T / A_T` per slab and face of `result`'s flow.
-    fn densities(&self, mesh: &Mesh, slabs: &[super::Slab], result: &FlowResult) -> Vec<Vec<f64>> {
-        slabs
-            .iter()
-            .zip(&result.intrinsic)
-            .map(|(slab, u)| self.slab_densities(mesh, slab, u))
-            .collect()
+    /// The arguments of `result`'s flow on the own `slabs`.
+    fn arguments(&self, mesh: &Mesh, slabs: &[super::Slab], result: &FlowResult) -> Arguments {
+        let flows = slabs.iter().zip(&result.intrinsic);
+        match self.driven {
+            FlowDriven::Isotropic => Arguments::Densities(
+                flows
+                    .map(|(slab, u)| self.slab_densities(mesh, slab, u))
+                    .collect(),
+            ),
+            FlowDriven::Anisotropic => Arguments::Structures(
+                (flows.zip(&self.image_roots))
+                    .map(|((slab, u), roots)| self.slab_structures(mesh, slab, u, roots.as_deref()))
+                    .collect(),
+            ),
+        }
     }
 
-    /// `r_T(u)` per face of one slab (unweighted element).
+    /// `r_T(u) = u_Tᵀ E_T u_T / A_T` per face of one slab (unweighted element).
     fn slab_densities(&self, mesh: &Mesh, slab: &super::Slab, u: &[Vector2<f64>]) -> Vec<f64> {
         mesh.faces()
             .iter()
             .enumerate()
             .map(|(f, face)| {
-                let e = slab.regularizer_element(face, f, &self.params.regularizer);
-                let x = Vector6::from_fn(|k, _| u[face[k / 2] as usize][k % 2]);
+                let e = slab.regularizer_element(face, f, &self.regularizer);
+                let x = corner_values(face, u);
                 x.dot(&(e * x)) / slab.geometry.triangle(f).area
             })
             .collect()
     }
 
-    /// Puts the robust energy of `result` (its `densities` on the own `slabs`, summed over
+    /// `A_T = D_I^½ J_T D_I^½` per face of one slab.
+    fn slab_structures(
+        &self,
+        mesh: &Mesh,
+        slab: &super::Slab,
+        u: &[Vector2<f64>],
+        roots: Option<&[Matrix2<f64>]>,
+    ) -> Vec<Matrix2<f64>> {
+        (mesh.faces().iter().enumerate())
+            .map(|(f, face)| {
+                let j = gradient_structure(&self.regularizer, slab, f, face, u);
+                match roots {
+                    Some(r) => r[f] * j * r[f],
+                    None => j,
+                }
+            })
+            .collect()
+    }
+
+    /// The lagged weights of the next solve: `ψ'(r_T)` per face, or the tensors
+    /// `D_I^½ Ψ'(A_T) D_I^½`.
+    fn reweight(&self, slabs: &mut [super::Slab], arguments: &Arguments) {
+        match arguments {
+            Arguments::Densities(densities) => {
+                for (slab, r) in slabs.iter_mut().zip(densities) {
+                    slab.smoothness_weights = Some(r.iter().map(|&r| self.weight(r)).collect());
+                }
+            }
+            Arguments::Structures(structures) => {
+                for ((slab, a), roots) in slabs.iter_mut().zip(structures).zip(&self.image_roots) {
+                    let lagged = a.iter().enumerate().map(|(f, a)| {
+                        let w = matrix_function(a, |mu| self.weight(mu));
+                        roots.as_ref().map_or(w, |r| r[f] * w * r[f])
+                    });
+                    slab.diffusion_tensors = Some(lagged.collect());
+                }
+            }
+        }
+    }
+
+    /// `Σ_T A_T ψ(r_T)` or `Σ_T A_T tr Ψ(A_T)` of one slab.
+    fn slab_energy(&self, slab: &super::Slab, arguments: &Arguments, s: usize) -> f64 {
+        let areas = slab.geometry.triangles().iter().map(|t| t.area);
+        match arguments {
+            Arguments::Densities(densities) => (areas.zip(&densities[s]))
+                .map(|(a, &r)| a * self.psi(r))
+                .sum(),
+            Arguments::Structures(structures) => (areas.zip(&structures[s]))
+                .map(|(a, m)| {
+                    a * symmetric_eigenvalues(m)
+                        .iter()
+                        .map(|&mu| self.psi(mu))
+                        .sum::<f64>()
+                })
+                .sum(),
+        }
+    }
+
+    /// Puts the robust energy of `result` (its `arguments` on the own `slabs`, summed over
     /// processes) into it and returns it: the data, speed and temporal terms (which the weights
     /// do not touch) stay, the spatial term becomes the Charbonnier one.
     fn robust_energy(
         &self,
         solver: &dyn SlabSolver,
         slabs: &[super::Slab],
-        densities: &[Vec<f64>],
+        arguments: &Arguments,
         result: &mut FlowResult,
     ) -> f64 {
-        let spatial: f64 = slabs
-            .iter()
-            .zip(densities)
-            .map(|(slab, densities)| {
-                let areas = slab.geometry.triangles().iter().map(|t| t.area);
-                slab.dt
-                    * areas
-                        .zip(densities)
-                        .map(|(a, &r)| a * self.psi(r))
-                        .sum::<f64>()
-            })
+        let spatial: f64 = (slabs.iter().enumerate())
+            .map(|(s, slab)| slab.dt * self.slab_energy(slab, arguments, s))
             .sum();
         let mut spatial = [spatial];
         solver.sum(&mut spatial);
@@ -152,4 +274,56 @@ impl Charbonnier<'_> {
         result.energy = result.energy_terms.total();
         result.energy
     }
+}
+
+/// The corners' DOFs of `face` in `u`.
+fn corner_values(face: &[u32; 3], u: &[Vector2<f64>]) -> Vector6<f64> {
+    Vector6::from_fn(|k, _| u[face[k / 2] as usize][k % 2])
+}
+
+/// The 2×2 structure `J_T` of `regularizer`'s gradient of `u` on face `f` of `slab`, in the
+/// face frame: the symmetric `J` with `tr(D J) = u_Tᵀ E_T(D) u_T / A_T` for every tensor `D`
+/// (the element is linear in `D`, so `J_11`, `J_22` and `2 J_12` are its densities under
+/// `e_1 e_1ᵀ`, `e_2 e_2ᵀ` and `e_1 e_2ᵀ + e_2 e_1ᵀ`). `∇uᵀ∇u` for the covariant regularizer.
+pub fn gradient_structure(
+    regularizer: &Regularizer,
+    slab: &super::Slab,
+    f: usize,
+    face: &[u32; 3],
+    u: &[Vector2<f64>],
+) -> Matrix2<f64> {
+    let triangle = slab.geometry.triangle(f);
+    let rotations = slab.connection.face_rotations(f);
+    let x = corner_values(face, u);
+    let density = |d: Matrix2<f64>| {
+        let e = regularizer.element(triangle, rotations, None, Some(&d));
+        x.dot(&(e * x)) / triangle.area
+    };
+    let off = 0.5 * density(Matrix2::new(0.0, 1.0, 1.0, 0.0));
+    Matrix2::new(
+        density(Matrix2::new(1.0, 0.0, 0.0, 0.0)),
+        off,
+        off,
+        density(Matrix2::new(0.0, 0.0, 0.0, 1.0)),
+    )
+}
+
+/// The eigenvalues of a symmetric 2×2 matrix, clamped at 0 (the structures are positive
+/// semi-definite up to rounding).
+fn symmetric_eigenvalues(m: &Matrix2<f64>) -> [f64; 2] {
+    let values = SymmetricEigen::new(*m).eigenvalues;
+    [values[0].max(0.0), values[1].max(0.0)]
+}
+
+/// `V diag(f(μ_k)) Vᵀ` of a symmetric positive semi-definite 2×2 matrix (eigenvalues clamped
+/// at 0).
+pub fn matrix_function(m: &Matrix2<f64>, f: impl Fn(f64) -> f64) -> Matrix2<f64> {
+    let eigen = SymmetricEigen::new(*m);
+    let values = eigen.eigenvalues.map(|mu| f(mu.max(0.0)));
+    eigen.eigenvectors * Matrix2::from_diagonal(&values) * eigen.eigenvectors.transpose()
+}
+
+/// `D^½` of a symmetric positive definite tensor.
+fn root(d: &Matrix2<f64>) -> Matrix2<f64> {
+    matrix_function(d, f64::sqrt)
 }

@@ -58,6 +58,8 @@ pub struct Slab {
     /// Per face, the anisotropic regularizer's tensor `D` in the face frame
     /// ([`crate::flow::anisotropy`]); `None`: the isotropic regularizer (`D = Id`).
     pub diffusion_tensors: Option<Vec<Matrix2<f64>>>,
+    /// The contrast `λ` the image-driven tensors were built with (`auto` resolved).
+    pub contrast: Option<f64>,
 }
 
 /// The element matrices of one face of one slab, before weighting by `Δt`, `β`, `γ`
@@ -101,6 +103,7 @@ impl Slab {
             smoothness_weights: None,
             embedding_frames: None,
             diffusion_tensors: None,
+            contrast: None,
         })
     }
 
@@ -188,7 +191,9 @@ impl Slab {
             self.embed(sequence, s)?;
         }
         if let (Some(anisotropy), None) = (&params.anisotropy, &self.diffusion_tensors) {
-            self.diffusion_tensors = Some(anisotropy.face_tensors(sequence.mesh(), self)?);
+            let (tensors, contrast) = anisotropy.face_tensors(sequence.mesh(), self)?;
+            self.diffusion_tensors = Some(tensors);
+            self.contrast = Some(contrast);
         }
         Ok(())
     }

@@ -570,6 +570,9 @@ pub(super) fn summary_of(
         "scales": result.scales,
         "seconds": result.timings,
     });
+    if !result.anisotropic_contrasts.is_empty() {
+        summary["anisotropic_contrasts"] = serde_json::json!(result.anisotropic_contrasts);
+    }
     if let Some(ground_truth) = scores.flow {
         summary["ground_truth"] = ground_truth_json(ground_truth);
     }

@@ -250,14 +250,28 @@ struct SolveArgs {
     /// edges, less across them; LAMBDA (grey value per length, > 0) is the edge contrast at
     /// which smoothing across falls to 2/3 (large: the isotropic |∇u|²), auto the median
     /// contrast of each slab's faces. Covariant and strain regularizers; the image is
-    /// presmoothed over one mean edge length
+    /// presmoothed over --anisotropic-sigma
     #[arg(long, value_name = "LAMBDA|auto", allow_negative_numbers = true)]
     anisotropic: Option<meshflow::flow::Contrast>,
+    /// With --anisotropic: the width (a length, ≥ 0; 0: none) over which the image is smoothed
+    /// on the surface before its edges steer the smoothing [default: the mean edge length]
+    #[arg(
+        long,
+        value_name = "SIGMA",
+        allow_negative_numbers = true,
+        requires = "anisotropic"
+    )]
+    anisotropic_sigma: Option<f64>,
     /// Robust (Charbonnier) smoothness for flows with discontinuities (cells moving on a
     /// still background): the smoothness grows like 2·EPS·|∇u| beyond |∇u| = EPS instead of
     /// quadratically (EPS in 1/time units; reweighted solves until the energy settles)
     #[arg(long, value_name = "EPS", allow_negative_numbers = true)]
     robust_smoothness: Option<f64>,
+    /// With --robust-smoothness: isotropic (the penalty of |∇u|, one weight per face) or
+    /// anisotropic (of each principal direction of ∇u: the flow may jump across a boundary
+    /// and stay smooth along it; with --anisotropic, along the image's edges)
+    #[arg(long, default_value = "isotropic", value_name = "KIND")]
+    flow_driven: meshflow::flow::FlowDriven,
     /// neumann or dirichlet (u = 0 on the boundary)
     #[arg(long, default_value = "neumann")]
     boundary: Boundary,

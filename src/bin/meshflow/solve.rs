@@ -9,8 +9,8 @@ use meshflow::accuracy::{
 use meshflow::flow::distributed::TimeRanks;
 use meshflow::flow::window::{flow_of_own_slabs, flow_over_ranks, TimeWindow};
 use meshflow::flow::{
-    Anisotropy, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence, SolveEvent,
-    SolveObserver, Weight, Weights,
+    Anisotropy, Contrast, FlowDriven, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence,
+    SolveEvent, SolveObserver, Weight, Weights,
 };
 use meshflow::io::{
     load_frames, load_sequence, read_npy_float, write_flow_outputs, Scores, StagedDir, TrackReport,
@@ -36,8 +36,12 @@ fn flow_params(args: &SolveArgs) -> Result<FlowParams, Error> {
         beta: weight(args.beta, args.speed_penalty, defaults.beta),
         gamma: weight(args.gamma, args.spread, defaults.gamma),
         regularizer: args.regularizer()?,
-        anisotropy: args.anisotropic.map(Anisotropy::with),
+        anisotropy: (args.anisotropic).map(|lambda| Anisotropy {
+            sigma: args.anisotropic_sigma,
+            ..Anisotropy::with(lambda)
+        }),
         robust_smoothness: args.robust_smoothness,
+        flow_driven: args.flow_driven,
         channel_weights: args.channel_weights.clone(),
         boundary: args.boundary,
         time_coupling: args.time_coupling,
@@ -234,12 +238,42 @@ fn print_result(
     if !result.timings.steps.is_empty() {
         println!("{}", describe_steps(result));
     }
+    if let Some(line) = describe_anisotropy(params, result) {
+        println!("{line}");
+    }
     if result.reweightings > 0 {
         println!(
-            "robust smoothness: {} reweighted solves until the energy settled",
+            "robust smoothness ({}): {} reweighted solves until the energy settled",
+            match params.flow_driven {
+                FlowDriven::Isotropic => "flow-driven isotropic",
+                FlowDriven::Anisotropic => "flow-driven anisotropic",
+            },
             result.reweightings
         );
     }
+}
+
+/// The image-driven tensors' contrast `λ` as used: given, or `auto`'s range over the slabs.
+fn describe_anisotropy(params: &FlowParams, result: &FlowResult) -> Option<String> {
+    let anisotropy = params.anisotropy.as_ref()?;
+    let contrasts = &result.anisotropic_contrasts;
+    let (low, high) = (contrasts.iter().copied())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), c| {
+            (l.min(c), h.max(c))
+        });
+    let lambda = match (anisotropy.lambda, contrasts.is_empty()) {
+        (Contrast::Value(lambda), _) => format!("λ = {lambda:.4}"),
+        (Contrast::Auto, true) => "λ = auto".to_string(),
+        (Contrast::Auto, false) if low == high => format!("λ = {low:.4} (auto)"),
+        (Contrast::Auto, false) => format!("λ = {low:.4}–{high:.4} over the slabs (auto)"),
+    };
+    let sigma = match anisotropy.sigma {
+        Some(sigma) => format!("σ = {sigma}"),
+        None => "σ = the mean edge length".to_string(),
+    };
+    Some(format!(
+        "image-driven anisotropic smoothness: {lambda}, presmoothing {sigma}"
+    ))
 }
 
 /// Whether the ranks of a solve over ranks can write its outputs slab by slab, each sending its
