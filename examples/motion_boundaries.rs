@@ -1,118 +1,146 @@
-//! Image-driven anisotropic smoothness (`--anisotropic λ`, [`meshflow::flow::anisotropy`])
-//! against the quadratic defaults and robust smoothness, on the scenes of issue 37:
+//! Anisotropic and robust smoothness (`--anisotropic`, `--robust-smoothness`, `--flow-driven`;
+//! [`meshflow::flow::anisotropy`], [`meshflow::flow::robust`]) against the quadratic defaults,
+//! on the scenes of issue 37:
 //!
 //! 1. **boundary**: a cap of the sphere turns while the rest stands still, and the cap is
 //!    brighter ([`turning_cap_sphere`]): the motion boundary is an image edge. Endpoint error
 //!    within 4 mean edge lengths of the boundary, relative to the cap's speed there, and the
-//!    relative endpoint error over the whole sphere;
+//!    relative endpoint error over the whole sphere; at the cap's edge `z = 0.3` (default) and
+//!    at the equator (`-- LEVEL FRAMES 0`);
 //! 2. **smooth**: a rich texture turning rigidly ([`rotating_sphere`]): relative endpoint error;
 //! 3. **sample**: the shipped `meshes/rotating_sphere` against its `ground_truth.npy`: median
 //!    speed ratio and mean angular error.
 //!
-//! λ is swept as multiples of the image's median edge gradient `|ΔI| / |Δx|` (frame 0).
+//! The models: Weickert & Schnörr's taxonomy as meshflow has it (homogeneous = the defaults,
+//! image-driven anisotropic, flow-driven isotropic and anisotropic, image- and flow-driven),
+//! each with its `auto` scales, then (with `SWEEP=1`) `λ` and `ε` swept. It draws the boundary
+//! scene's flow under the defaults and under `--anisotropic auto --robust-smoothness auto`
+//! (arrows on the image, and the endpoint error over the cap's speed) into
+//! `out/motion_boundaries/`.
 //!
-//! `cargo run --release --example motion_boundaries [-- LEVEL FRAMES]` (default: the
-//! 2562-vertex icosphere, 6 frames).
+//! `cargo run --release --example motion_boundaries [-- LEVEL FRAMES Z_EDGE]` (default: the
+//! 2562-vertex icosphere, 6 frames, 0.3).
 
 use meshflow::accuracy::compare_result;
-use meshflow::flow::{compute_flow, Anisotropy, Contrast, FlowDriven, FlowParams, MeshSequence};
+use meshflow::flow::{
+    compute_flow, Anisotropy, FlowDriven, FlowParams, FlowResult, MeshSequence, Scale,
+};
+use meshflow::render::{arrow_picture, scalar_picture, write_png};
+use meshflow::render::{Camera, PictureStyle, Surface, View};
 use meshflow::synth::{rotating_sphere, turning_cap_sphere, GroundTruth};
 use nalgebra::Vector3;
+use std::path::Path;
 
-/// Where the cap's edge is, and how fast it turns (radians per frame).
-const Z_EDGE: f64 = 0.3;
+/// How fast the cap turns (radians per frame).
 const OMEGA: f64 = 0.05;
-const MULTIPLES: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
-/// Robust scales `ε` (1/time) of the flow-driven models.
+const MULTIPLES: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
+/// Robust scales `ε` (1/time) of the sweep.
 const EPSILONS: [f64; 3] = [0.01, 0.03, 0.1];
 
-fn main() -> Result<(), meshflow::Error> {
-    let args: Vec<usize> = std::env::args()
-        .skip(1)
-        .map(|a| a.parse().expect("a number"))
-        .collect();
-    let level = args.first().copied().unwrap_or(4) as u32;
-    let frames = args.get(1).copied().unwrap_or(6);
-    let boundary = turning_cap_sphere(level, frames, 1.0, OMEGA, Z_EDGE)?;
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let number = |k: usize, default: f64| -> Result<f64, String> {
+        args.get(k).map_or(Ok(default), |a| {
+            a.parse().map_err(|_| format!("'{a}' is not a number"))
+        })
+    };
+    let (level, frames, z_edge) = (
+        number(0, 4.0)? as u32,
+        number(1, 6.0)? as usize,
+        number(2, 0.3)?,
+    );
+    let boundary = turning_cap_sphere(level, frames, 1.0, OMEGA, z_edge)?;
     let smooth = rotating_sphere(level, frames, 1.0, OMEGA)?;
     let sample = shipped_sample()?;
     println!(
-        "level-{level} icosphere, {frames} frames, ω = {OMEGA} rad/frame, cap edge z = {Z_EDGE}"
+        "level-{level} icosphere, {frames} frames, ω = {OMEGA} rad/frame, cap edge z = {z_edge}"
     );
     println!(
-        "{:<26} {:>16} {:>16} {:>16} {:>14} {:>12}",
-        "model", "boundary: near", "boundary: all", "smooth: all", "sample: speed", "sample: AE"
+        "{:<34} {:>15} {:>14} {:>12} {:>14} {:>11} {:>8}",
+        "model",
+        "boundary: near",
+        "boundary: all",
+        "smooth: all",
+        "sample: speed",
+        "sample: AE",
+        "solves"
     );
-    let models = models(&boundary.sequence);
-    for (name, params) in &models {
-        let (near, all) = boundary_errors(&boundary, params)?;
-        let smooth_error = compare_flow(&smooth, params)?.relative_endpoint;
-        let on_sample = compare_flow(&sample, params)?;
+    let band = Band::new(&boundary, z_edge);
+    for (name, params) in models(&boundary.sequence) {
+        let result = compute_flow(&boundary.sequence, &params)?;
+        let (near, all) = band.errors(&boundary, &result)?;
+        let smooth_error = compare_flow(&smooth, &params)?.relative_endpoint;
+        let on_sample = compare_flow(&sample, &params)?;
         println!(
-            "{name:<26} {:>15.1}% {:>15.1}% {:>15.1}% {:>14.3} {:>11.2}°",
+            "{name:<34} {:>14.1}% {:>13.1}% {:>11.1}% {:>14.3} {:>10.2}° {:>8}",
             100.0 * near,
             100.0 * all,
             100.0 * smooth_error,
             on_sample.median_speed_ratio,
-            on_sample.mean_angular_degrees
+            on_sample.mean_angular_degrees,
+            1 + result.reweightings,
         );
     }
+    draw(&boundary, &band, Path::new("out/motion_boundaries"))?;
     Ok(())
 }
 
-/// The defaults, robust smoothness, and the defaults with `--anisotropic λ` over the sweep.
+/// The taxonomy with `auto` scales, then the sweeps (with `SWEEP` set).
 fn models(sequence: &MeshSequence) -> Vec<(String, FlowParams)> {
-    let scale = median_edge_gradient(sequence);
+    let with = |anisotropy: Option<Scale>, robust: Option<Scale>, driven| FlowParams {
+        anisotropy: anisotropy.map(Anisotropy::with),
+        robust_smoothness: robust,
+        flow_driven: driven,
+        ..FlowParams::default()
+    };
+    let (auto, iso, aniso) = (
+        Some(Scale::Auto),
+        FlowDriven::Isotropic,
+        FlowDriven::Anisotropic,
+    );
     let mut models = vec![
-        ("defaults".to_string(), FlowParams::default()),
+        ("defaults (homogeneous)".to_string(), FlowParams::default()),
         (
-            "robust 0.01".to_string(),
-            FlowParams {
-                robust_smoothness: Some(0.01),
-                ..FlowParams::default()
-            },
+            "image-driven: --anisotropic auto".into(),
+            with(auto, None, iso),
+        ),
+        (
+            "flow-driven iso.: --robust auto".into(),
+            with(None, auto, iso),
+        ),
+        (
+            "flow-driven aniso.: + --flow-d. a.".into(),
+            with(None, auto, aniso),
+        ),
+        (
+            "image+flow iso.: --aniso. + --robust".into(),
+            with(auto, auto, iso),
+        ),
+        ("image+flow aniso.".into(), with(auto, auto, aniso)),
+        (
+            "robust 0.01 (the issue's)".into(),
+            with(None, Some(Scale::Value(0.01)), iso),
         ),
     ];
-    models.push((
-        "anisotropic auto".to_string(),
-        FlowParams {
-            anisotropy: Some(Anisotropy::with(Contrast::Auto)),
-            ..FlowParams::default()
-        },
-    ));
-    for epsilon in EPSILONS {
-        let robust = |driven, anisotropy| FlowParams {
-            robust_smoothness: Some(epsilon),
-            flow_driven: driven,
-            anisotropy,
-            ..FlowParams::default()
-        };
-        let auto = Some(Anisotropy::with(Contrast::Auto));
-        models.extend([
-            (
-                format!("flow-driven aniso. {epsilon}"),
-                robust(FlowDriven::Anisotropic, None),
-            ),
-            (
-                format!("auto + robust {epsilon}"),
-                robust(FlowDriven::Isotropic, auto),
-            ),
-            (
-                format!("auto + flow-aniso. {epsilon}"),
-                robust(FlowDriven::Anisotropic, auto),
-            ),
-        ]);
-    }
-    if std::env::var_os("MOTION_BOUNDARIES_NO_SWEEP").is_some() {
+    if std::env::var_os("SWEEP").is_none() {
         return models;
     }
-    models.extend(MULTIPLES.iter().map(|&m| {
-        let params = FlowParams {
-            anisotropy: Some(Anisotropy::new(m * scale)),
-            ..FlowParams::default()
-        };
-        (format!("anisotropic λ = {m} × {scale:.3}"), params)
-    }));
+    let scale = median_edge_gradient(sequence);
+    for m in MULTIPLES {
+        let lambda = Some(Scale::Value(m * scale));
+        models.push((format!("λ = {m} × {scale:.3}"), with(lambda, None, iso)));
+    }
+    for epsilon in EPSILONS {
+        let epsilon = Some(Scale::Value(epsilon));
+        models.push((
+            format!("auto + robust {epsilon:?}"),
+            with(auto, epsilon, iso),
+        ));
+        models.push((
+            format!("auto + flow-aniso. {epsilon:?}"),
+            with(auto, epsilon, aniso),
+        ));
+    }
     models
 }
 
@@ -139,25 +167,101 @@ fn compare_flow(
     Ok(compare_result(&scene.sequence, &result, &scene.flow)?)
 }
 
-/// The mean endpoint error within 4 mean edge lengths of the cap's edge relative to the cap's
-/// speed there, and the relative endpoint error over the sphere.
-fn boundary_errors(
-    scene: &GroundTruth,
-    params: &FlowParams,
-) -> Result<(f64, f64), meshflow::Error> {
-    let result = compute_flow(&scene.sequence, params)?;
-    let errors = compare_result(&scene.sequence, &result, &scene.flow)?;
-    let positions = scene.sequence.positions(0).expect("embedded");
-    let band = 4.0 * mean_edge_length(&scene.sequence);
-    let near: Vec<usize> = (0..positions.len())
-        .filter(|&i| (positions[i].z.asin() - Z_EDGE.asin()).abs() <= band)
-        .collect();
-    let speed = OMEGA * (1.0 - Z_EDGE * Z_EDGE).sqrt();
-    let total: f64 = (errors.endpoint.iter())
-        .flat_map(|slab| near.iter().map(|&i| slab[i]))
-        .sum();
-    let mean = total / (near.len() * errors.endpoint.len()) as f64;
-    Ok((mean / speed, errors.relative_endpoint))
+/// The vertices within 4 mean edge lengths of the cap's edge, and the cap's speed there.
+struct Band {
+    near: Vec<usize>,
+    z_edge: f64,
+    speed: f64,
+}
+
+impl Band {
+    fn new(scene: &GroundTruth, z_edge: f64) -> Self {
+        let positions = scene.sequence.positions(0).expect("embedded");
+        let band = 4.0 * mean_edge_length(&scene.sequence);
+        let near = (0..positions.len())
+            .filter(|&i| (positions[i].z.asin() - z_edge.asin()).abs() <= band)
+            .collect();
+        Self {
+            near,
+            z_edge,
+            speed: OMEGA * (1.0 - z_edge * z_edge).sqrt(),
+        }
+    }
+
+    /// The mean endpoint error in the band relative to the speed, and the relative endpoint
+    /// error over the sphere.
+    fn errors(
+        &self,
+        scene: &GroundTruth,
+        result: &FlowResult,
+    ) -> Result<(f64, f64), meshflow::Error> {
+        let errors = compare_result(&scene.sequence, result, &scene.flow)?;
+        let total: f64 = (errors.endpoint.iter())
+            .flat_map(|slab| self.near.iter().map(|&i| slab[i]))
+            .sum();
+        let mean = total / (self.near.len() * errors.endpoint.len()) as f64;
+        Ok((mean / self.speed, errors.relative_endpoint))
+    }
+}
+
+/// Arrows of slab 0's flow on the image, and its endpoint error over the cap's speed, under the
+/// defaults and under the recommendation, seen from above the cap's edge.
+fn draw(scene: &GroundTruth, band: &Band, out: &Path) -> Result<(), Box<dyn std::error::Error>> {
+    std::fs::create_dir_all(out)?;
+    let sequence = &scene.sequence;
+    let positions = sequence.positions(0).expect("embedded");
+    let surface = Surface {
+        positions,
+        faces: sequence.mesh().faces(),
+    };
+    let camera = Camera::framing(
+        positions,
+        View::new(-60.0, 20.0 + band.z_edge.asin().to_degrees()),
+        640,
+        560,
+    );
+    let recommended = FlowParams {
+        anisotropy: Some(Anisotropy::with(Scale::Auto)),
+        robust_smoothness: Some(Scale::Auto),
+        ..FlowParams::default()
+    };
+    for (name, params) in [
+        ("defaults", FlowParams::default()),
+        ("anisotropic", recommended),
+    ] {
+        let result = compute_flow(sequence, &params)?;
+        let vectors = &result.vectors.as_ref().expect("embedded")[0];
+        let errors = compare_result(sequence, &result, &scene.flow)?;
+        let relative: Vec<f64> = errors.endpoint[0].iter().map(|e| e / band.speed).collect();
+        let style = |label: String| PictureStyle {
+            label: Some(label),
+            arrow_spacing: 18.0,
+            ..PictureStyle::default()
+        };
+        let arrows = arrow_picture(
+            &camera,
+            surface,
+            sequence.intensities(0),
+            (0.0, 1.1),
+            vectors,
+            band.speed,
+            &style(format!("{name}: flow")),
+        )?;
+        write_png(&out.join(format!("{name}_arrows.png")), &arrows)?;
+        let error = scalar_picture(
+            &camera,
+            surface,
+            &relative,
+            (0.0, 1.0),
+            &style(format!("{name}: endpoint error / speed")),
+        )?;
+        write_png(&out.join(format!("{name}_error.png")), &error)?;
+    }
+    println!(
+        "pictures: {}/{{defaults,anisotropic}}_{{arrows,error}}.png",
+        out.display()
+    );
+    Ok(())
 }
 
 fn mean_edge_length(sequence: &MeshSequence) -> f64 {

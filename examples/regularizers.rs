@@ -18,7 +18,7 @@
 
 use meshflow::accuracy::compare_result;
 use meshflow::flow::{
-    compute_flow, Anisotropy, FlowParams, MeshSequence, Regularizer, Warping, Weight,
+    compute_flow, Anisotropy, FlowParams, MeshSequence, Regularizer, Scale, Warping, Weight,
 };
 use meshflow::io::{select_channels, Channels, VertexValues};
 use meshflow::synth::{isoluminant, moving_cell_sphere, rotating_sphere};
@@ -119,7 +119,7 @@ fn cells(level: u32, frames: usize) -> Result<(), meshflow::Error> {
                 regularizer,
                 anisotropy: lambda.map(Anisotropy::new),
                 // ε well below the jump of |∇u| at the cell's rim (about ω / radius).
-                robust_smoothness: robust.then_some(0.2 * rotation),
+                robust_smoothness: robust.then_some(Scale::Value(0.2 * rotation)),
                 beta: Weight::Value(1e-4),
                 ..large_motion()
             };

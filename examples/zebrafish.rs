@@ -28,7 +28,7 @@
 use meshflow::accuracy::{match_tracks, score_result, TrackPoint, TrackScores};
 use meshflow::connection::vertex_normals;
 use meshflow::flow::{compute_flow, FlowParams, FlowResult, MeshSequence, Regularizer, Warping};
-use meshflow::flow::{Anisotropy, Contrast, Weight};
+use meshflow::flow::{Anisotropy, Scale, Weight};
 use meshflow::render::{flow_picture, grey_picture, tracks_picture, write_png};
 use meshflow::render::{Camera, PictureStyle, Surface, View};
 use meshflow::surface::{fit_surface, read_points, FitOptions, Resolution};
@@ -256,10 +256,11 @@ fn run_case(
 /// The settings compared: the defaults, the strain regularizer, coarse-to-fine warping, the
 /// recommendation (strain, frame by frame), the recommendation with warping, and the
 /// image-driven anisotropic regularizer (`λ` auto, `meshflow::flow::anisotropy`) on the
-/// recommendation, alone and with robust smoothness. Over three frames the defaults coupled in
-/// time and frame by frame stand for the first ones: a coupled solve of 3 × 94k vertices takes
-/// about 50 s (365 PCG iterations), and warping would repeat it per level and warp. Over two
-/// frames the anisotropic regularizer on the defaults (covariant) joins them.
+/// recommendation, alone and with robust smoothness (`ε` auto: image- and flow-driven). Over
+/// three frames the defaults coupled in time and frame by frame stand for the first ones: a
+/// coupled solve of 3 × 94k vertices takes about 50 s (365 PCG iterations), and warping would
+/// repeat it per level and warp. Over two frames the anisotropic regularizer on the defaults
+/// (covariant), alone and image- and flow-driven, joins them.
 fn settings(n_frames: usize) -> Vec<(&'static str, FlowParams)> {
     let recommended = FlowParams {
         regularizer: Regularizer::Strain { dirichlet: 0.0 },
@@ -271,11 +272,11 @@ fn settings(n_frames: usize) -> Vec<(&'static str, FlowParams)> {
         ..recommended.clone()
     };
     let anisotropic = FlowParams {
-        anisotropy: Some(Anisotropy::with(Contrast::Auto)),
+        anisotropy: Some(Anisotropy::with(Scale::Auto)),
         ..recommended.clone()
     };
     let anisotropic_robust = FlowParams {
-        robust_smoothness: Some(0.01),
+        robust_smoothness: Some(Scale::Auto),
         ..anisotropic.clone()
     };
     let first = if n_frames > 2 {
@@ -302,7 +303,15 @@ fn settings(n_frames: usize) -> Vec<(&'static str, FlowParams)> {
             (
                 "--anisotropic auto",
                 FlowParams {
-                    anisotropy: Some(Anisotropy::with(Contrast::Auto)),
+                    anisotropy: Some(Anisotropy::with(Scale::Auto)),
+                    ..FlowParams::default()
+                },
+            ),
+            (
+                "--anisotropic auto --robust-smoothness auto",
+                FlowParams {
+                    anisotropy: Some(Anisotropy::with(Scale::Auto)),
+                    robust_smoothness: Some(Scale::Auto),
                     ..FlowParams::default()
                 },
             ),
@@ -321,7 +330,7 @@ fn settings(n_frames: usize) -> Vec<(&'static str, FlowParams)> {
             ),
             ("recommended + --anisotropic auto", anisotropic),
             (
-                "recommended + --anisotropic auto --robust-smoothness 0.01",
+                "recommended + --anisotropic auto --robust-smoothness auto",
                 anisotropic_robust,
             ),
         ])

@@ -4,14 +4,12 @@
 
 mod common;
 
-use common::{meshflow_error, meshflow_ok, relative_value_difference, rigid_motion, shipped};
+use common::{meshflow_error, relative_value_difference, rigid_motion, shipped, solve_and_summary};
 use meshflow::fem::element::{
     anisotropic_stiffness, anisotropic_strain_element, cotan_stiffness, strain_element,
 };
 use meshflow::flow::anisotropy::tensor;
-use meshflow::flow::{
-    Anisotropy, Contrast, FlowParams, FlowProblem, MeshSequence, Regularizer, Slab,
-};
+use meshflow::flow::{Anisotropy, FlowParams, FlowProblem, MeshSequence, Regularizer, Scale, Slab};
 use meshflow::geometry::Triangle;
 use meshflow::synth::rotating_sphere;
 use nalgebra::{Matrix2, Vector2, Vector6};
@@ -255,51 +253,29 @@ fn the_embedded_regularizer_and_bad_lambdas_are_refused() {
 fn the_cli_solves_with_anisotropic_and_records_lambda() {
     let out = tempfile::tempdir().unwrap();
     let input = shipped("rotating_sphere");
-    let out_dir = out.path().to_str().unwrap();
-    meshflow_ok(&["solve", &input, "--out", out_dir, "--anisotropic", "0.1"]);
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.path().join("summary.json")).unwrap())
-            .unwrap();
+    let (_, summary) = solve_and_summary(&input, out.path(), &["--anisotropic", "0.1"]);
     assert_eq!(summary["params"]["anisotropy"]["lambda"], 0.1, "{summary}");
     assert_eq!(
         summary["anisotropic_contrasts"],
         serde_json::json!(vec![0.1; 5])
     );
-    let run = meshflow_ok(&[
-        "solve",
-        &input,
-        "--out",
-        out_dir,
-        "--anisotropic",
-        "auto",
-        "--anisotropic-sigma",
-        "0",
-        "--force",
-    ]);
-    let stdout = String::from_utf8_lossy(&run.stdout);
+    let auto = ["--anisotropic", "auto", "--anisotropic-sigma", "0"];
+    let (stdout, summary) = solve_and_summary(&input, out.path(), &auto);
     assert!(
         stdout.contains("λ = ") && stdout.contains("(auto)"),
         "{stdout}"
     );
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.path().join("summary.json")).unwrap())
-            .unwrap();
     assert_eq!(
         summary["params"]["anisotropy"]["lambda"], "auto",
         "{summary}"
     );
     assert_eq!(summary["params"]["anisotropy"]["sigma"], 0.0, "{summary}");
-    // The median contrast of the unsmoothed texture: of order 1 on the unit sphere.
+    // 1.5 times the energy median of the unsmoothed texture's contrast: of order 1 on the
+    // unit sphere.
     let lambda = summary["anisotropic_contrasts"][0].as_f64().unwrap();
     assert!((0.05..5.0).contains(&lambda), "{summary}");
-    let strain = ["--regularizer", "strain", "--anisotropic", "0.3", "--force"];
-    meshflow_ok(
-        &[
-            &["solve", input.as_str(), "--out", out_dir][..],
-            &strain[..],
-        ]
-        .concat(),
-    );
+    let strain = ["--regularizer", "strain", "--anisotropic", "0.3"];
+    solve_and_summary(&input, out.path(), &strain);
 }
 
 #[test]
@@ -344,7 +320,7 @@ fn robust_smoothness_weighs_the_anisotropic_density() {
     };
     let quadratic = solve(&anisotropic(0.3));
     let robust = solve(&FlowParams {
-        robust_smoothness: Some(1e6),
+        robust_smoothness: Some(Scale::Value(1e6)),
         ..anisotropic(0.3)
     });
     let isotropic = solve(&FlowParams::default());
@@ -359,7 +335,7 @@ fn robust_smoothness_weighs_the_anisotropic_density() {
 /// direction free), tensors without presmoothing (`σ = 0`), `β > 0`.
 fn grid_tensors(
     channels: Vec<(f64, Vector2<f64>)>,
-    lambda: Contrast,
+    lambda: Scale,
 ) -> (MeshSequence, Vec<Matrix2<f64>>) {
     let surface = meshflow::shapes::grid(4, 3, 2.0, 1.0);
     let frames = 2;
@@ -397,7 +373,7 @@ fn grid_tensors(
 #[test]
 fn the_slab_tensors_of_a_linear_image_have_its_edge_eigenvalues() {
     let (g, w, lambda) = (Vector2::new(1.5, -0.5), 2.0, 0.8);
-    let (sequence, tensors) = grid_tensors(vec![(w, g)], Contrast::Value(lambda));
+    let (sequence, tensors) = grid_tensors(vec![(w, g)], Scale::Value(lambda));
     let geometry = sequence.slab_geometry(0).unwrap();
     let across = 2.0 * lambda * lambda / (w * g.norm_squared() + 2.0 * lambda * lambda);
     for (f, (face, d)) in sequence.mesh().faces().iter().zip(&tensors).enumerate() {
@@ -412,19 +388,51 @@ fn the_slab_tensors_of_a_linear_image_have_its_edge_eigenvalues() {
     }
 }
 
-/// `auto` takes the median contrast of the slab's faces: a linear image has one contrast
-/// `√w |g|` everywhere, so `D` has the eigenvalues `2/3` across the edge (`2λ²/(λ² + 2λ²)`)
-/// and `4/3` along it (trace 2, determinant 8/9); grey values scaled by 40 leave `D` as it is.
+/// `auto` takes 1.5 times the energy median of the contrast: a linear image has one contrast
+/// `m = √w |g|` everywhere, so `λ = 1.5m` and `D` has the eigenvalues `9/11` across the edge
+/// (`2λ²/(m² + 2λ²)`) and `13/11` along it (trace 2, determinant 117/121); grey values scaled
+/// by 40 leave `D` as it is.
 #[test]
-fn auto_takes_the_median_contrast_and_ignores_grey_scaling() {
+fn auto_takes_the_energy_median_contrast_and_ignores_grey_scaling() {
     let (g, w) = (Vector2::new(1.5, -0.5), 2.0);
-    let (_, tensors) = grid_tensors(vec![(w, g)], Contrast::Auto);
-    let (_, scaled) = grid_tensors(vec![(w, 40.0 * g)], Contrast::Auto);
+    let (_, tensors) = grid_tensors(vec![(w, g)], Scale::Auto);
+    let (_, scaled) = grid_tensors(vec![(w, 40.0 * g)], Scale::Auto);
     for (d, s) in tensors.iter().zip(&scaled) {
         assert!((d.trace() - 2.0).abs() < 1e-12, "{d}");
-        assert!((d.determinant() - 8.0 / 9.0).abs() < 1e-12, "{d}");
+        assert!((d.determinant() - 117.0 / 121.0).abs() < 1e-12, "{d}");
         assert!((d - s).amax() < 1e-12, "{d} {s}");
     }
+}
+
+/// The data scale under the tensor: a linear image of contrast `c = √w |g|` has `S = c`
+/// isotropically and `S² = 2λ²c² / (c² + 2λ²)` (the gradient energy the tensor smooths across)
+/// with the tensor, whatever the presmoothing; `λ → ∞` gives `c` back.
+#[test]
+fn the_data_scale_counts_the_gradient_energy_the_tensor_smooths_across() {
+    let (g, w, lambda) = (Vector2::new(1.5, -0.5), 2.0, 0.8);
+    let c2 = w * g.norm_squared();
+    let (sequence, _) = grid_tensors(vec![(w, g)], Scale::Value(lambda));
+    let scale = |anisotropy: Option<f64>| {
+        let params = FlowParams {
+            anisotropy: anisotropy.map(Anisotropy::new),
+            channel_weights: Some(vec![w]),
+            // The linear image leaves its isophote direction free.
+            beta: meshflow::flow::Weight::Relative(0.1),
+            ..FlowParams::default()
+        };
+        FlowProblem::new(&sequence, &params)
+            .unwrap()
+            .scales()
+            .gradient
+    };
+    let expected = (2.0 * lambda * lambda * c2 / (c2 + 2.0 * lambda * lambda)).sqrt();
+    assert!(
+        (scale(Some(lambda)) - expected).abs() < 1e-12,
+        "{}",
+        scale(Some(lambda))
+    );
+    assert!((scale(None) - c2.sqrt()).abs() < 1e-12);
+    assert!((scale(Some(1e9)) - c2.sqrt()).abs() < 1e-9);
 }
 
 /// Two channels with crossing edges of the same weighted contrast (`w |g|²`) sum to an
@@ -432,7 +440,7 @@ fn auto_takes_the_median_contrast_and_ignores_grey_scaling() {
 #[test]
 fn crossing_edges_of_two_channels_give_the_identity() {
     let channels = vec![(1.0, Vector2::new(2.0, 0.0)), (4.0, Vector2::new(0.0, 1.0))];
-    let (_, tensors) = grid_tensors(channels, Contrast::Value(0.5));
+    let (_, tensors) = grid_tensors(channels, Scale::Value(0.5));
     for d in tensors {
         assert!((d - Matrix2::identity()).amax() < 1e-12, "{d}");
     }

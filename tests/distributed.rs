@@ -6,8 +6,8 @@
 
 use meshflow::flow::distributed::{solve_window, TimeRanks};
 use meshflow::flow::window::{flow_over_ranks, TimeWindow, WindowSlabs};
-use meshflow::flow::Warping;
 use meshflow::flow::{FlowParams, FlowProblem, FlowResult, MeshSequence, ScaleSums, SolverChoice};
+use meshflow::flow::{Scale, Warping};
 use nalgebra::Vector3;
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::{Arc, Barrier, Mutex};
@@ -200,7 +200,7 @@ fn ranks_warp_coarse_to_fine_as_one_process_does() {
 fn ranks_reweight_robust_smoothness_as_one_process_does() {
     let (name, sequence, params) = common::window_cases().remove(0);
     let params = FlowParams {
-        robust_smoothness: Some(0.05),
+        robust_smoothness: Some(Scale::Value(0.05)),
         ..params
     };
     check_flow_over_ranks(&format!("{name}, robust"), &sequence, &params);
@@ -222,7 +222,7 @@ fn ranks_solve_anisotropic_robust_warped_as_one_process_does() {
     let (name, sequence, params) = common::window_cases().remove(0);
     let params = FlowParams {
         anisotropy: Some(meshflow::flow::Anisotropy::new(0.3)),
-        robust_smoothness: Some(0.05),
+        robust_smoothness: Some(Scale::Value(0.05)),
         warping: Warping {
             levels: 2,
             warps: 1,

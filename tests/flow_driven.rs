@@ -3,10 +3,10 @@
 
 mod common;
 
-use common::{meshflow_error, meshflow_ok, shipped};
+use common::{meshflow_error, shipped, solve_and_summary};
 use meshflow::flow::robust::{gradient_structure, matrix_function};
 use meshflow::flow::{
-    compute_flow, Anisotropy, FlowDriven, FlowParams, FlowProblem, MeshSequence, Regularizer,
+    compute_flow, Anisotropy, FlowDriven, FlowParams, FlowProblem, MeshSequence, Regularizer, Scale,
 };
 use meshflow::synth::rotating_sphere;
 use nalgebra::{Matrix2, Vector2, Vector6};
@@ -105,7 +105,7 @@ fn a_huge_epsilon_gives_the_quadratic_flow() {
                 ..FlowParams::default()
             };
             let robust = |epsilon| FlowParams {
-                robust_smoothness: Some(epsilon),
+                robust_smoothness: Some(Scale::Value(epsilon)),
                 flow_driven: FlowDriven::Anisotropic,
                 ..quadratic.clone()
             };
@@ -128,7 +128,7 @@ fn a_huge_epsilon_gives_the_quadratic_flow() {
 fn reweighting_lowers_the_robust_energy_and_stops() {
     let sequence = sphere();
     let params = FlowParams {
-        robust_smoothness: Some(0.02),
+        robust_smoothness: Some(Scale::Value(0.02)),
         flow_driven: FlowDriven::Anisotropic,
         ..FlowParams::default()
     };
@@ -148,24 +148,29 @@ fn reweighting_lowers_the_robust_energy_and_stops() {
 fn the_cli_solves_flow_driven_anisotropic_and_refuses_it_without_a_scale() {
     let out = tempfile::tempdir().unwrap();
     let input = shipped("rotating_sphere");
-    let out_dir = out.path().to_str().unwrap();
-    let run = meshflow_ok(&[
-        "solve",
-        &input,
-        "--out",
-        out_dir,
+    let robust = [
         "--robust-smoothness",
         "0.05",
         "--flow-driven",
         "anisotropic",
-    ]);
-    let stdout = String::from_utf8_lossy(&run.stdout);
+    ];
+    let (stdout, summary) = solve_and_summary(&input, out.path(), &robust);
     assert!(stdout.contains("flow-driven anisotropic"), "{stdout}");
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.path().join("summary.json")).unwrap())
-            .unwrap();
     assert_eq!(summary["params"]["flow_driven"], "anisotropic", "{summary}");
     assert!(summary["reweightings"].as_u64().unwrap() >= 1, "{summary}");
+    // `auto`: ε from the first solve, printed and recorded per slab.
+    let (stdout, summary) = solve_and_summary(&input, out.path(), &["--robust-smoothness", "auto"]);
+    assert!(
+        stdout.contains("ε = ") && stdout.contains("(auto)"),
+        "{stdout}"
+    );
+    assert_eq!(summary["params"]["robust_smoothness"], "auto", "{summary}");
+    let scales = summary["robust_scales"].as_array().unwrap();
+    assert_eq!(scales.len(), 5, "{summary}");
+    assert!(
+        scales.iter().all(|e| e.as_f64().unwrap() > 0.0),
+        "{summary}"
+    );
     let elsewhere = tempfile::tempdir().unwrap();
     let other = elsewhere.path().to_str().unwrap();
     let without = [

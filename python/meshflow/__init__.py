@@ -150,7 +150,7 @@ def compute_flow(
     dirichlet_mix: Optional[float] = None,
     anisotropic: Union[float, str, None] = None,
     anisotropic_sigma: Optional[float] = None,
-    robust_smoothness: Optional[float] = None,
+    robust_smoothness: Union[float, str, None] = None,
     flow_driven: str = "isotropic",
     channels: str = "auto",
     channel_weights: Optional[SequenceOf[float]] = None,
@@ -200,9 +200,10 @@ def compute_flow(
     anisotropic_sigma : float, optional
         With ``anisotropic``: the width (a length, ≥ 0) over which the image is smoothed on the
         surface before its edges steer the smoothing. Default: the mean edge length.
-    robust_smoothness : float, optional
+    robust_smoothness : float or "auto", optional
         ``ε``: the Charbonnier penalty ``2ε(√(r + ε²) − ε)`` of the regularizer's density
-        ``r`` (linear growth beyond ``|∇u| = ε``, for flows with jumps), by reweighted solves.
+        ``r`` (linear growth beyond ``|∇u| = ε``, for flows with jumps), by reweighted solves;
+        ``"auto"``: per slab, twice the median ``|∇u|`` of a first quadratic solve.
     flow_driven : {"isotropic", "anisotropic"}
         With ``robust_smoothness``: the penalty of ``|∇u|`` (one weight per face) or of each
         principal direction of ``∇u`` (``tr Ψ(∇uᵀ∇u)``, Weickert–Schnörr's flow-driven
@@ -260,9 +261,9 @@ def compute_flow(
         "gamma": _optional_float("gamma", gamma),
         "regularizer": str(regularizer),
         "dirichlet_mix": _optional_float("dirichlet_mix", dirichlet_mix),
-        "anisotropic": _contrast(anisotropic),
+        "anisotropic": _scale("anisotropic", anisotropic),
         "anisotropic_sigma": _optional_float("anisotropic_sigma", anisotropic_sigma),
-        "robust_smoothness": _optional_float("robust_smoothness", robust_smoothness),
+        "robust_smoothness": _scale("robust_smoothness", robust_smoothness),
         "flow_driven": str(flow_driven),
         "channel_weights": _channel_weights(channel_weights),
         "boundary": str(boundary),
@@ -284,14 +285,14 @@ def compute_flow(
     )
 
 
-def _contrast(anisotropic: Any) -> Optional[str]:
-    """``anisotropic`` for the library: ``"auto"`` or a number, as text."""
-    if anisotropic is None or anisotropic == "auto":
-        return anisotropic
+def _scale(name: str, value: Any) -> Optional[str]:
+    """A scale for the library: ``"auto"`` or a number, as text."""
+    if value is None or value == "auto":
+        return value
     try:
-        return repr(float(anisotropic))
+        return repr(float(value))
     except (TypeError, ValueError):
-        raise ValueError(f"anisotropic must be a number or 'auto', got {anisotropic!r}") from None
+        raise ValueError(f"{name} must be a number or 'auto', got {value!r}") from None
 
 
 def _channel_weights(weights: Any) -> Optional[List[float]]:

@@ -308,7 +308,7 @@ struct ParamArgs {
     dirichlet_mix: Option<f64>,
     anisotropic: Option<String>,
     anisotropic_sigma: Option<f64>,
-    robust_smoothness: Option<f64>,
+    robust_smoothness: Option<String>,
     flow_driven: String,
     channel_weights: Option<Vec<f64>>,
     boundary: String,
@@ -352,7 +352,9 @@ impl ParamArgs {
             )
             .map_err(|e| to_py_err(e.into()))?,
             anisotropy: self.anisotropy()?,
-            robust_smoothness: self.robust_smoothness,
+            robust_smoothness: (self.robust_smoothness.as_deref())
+                .map(|text| parse(text, "robust_smoothness"))
+                .transpose()?,
             flow_driven: parse(&self.flow_driven, "flow_driven")?,
             channel_weights: self.channel_weights.clone(),
             boundary: parse::<Boundary>(&self.boundary, "boundary")?,
@@ -513,6 +515,13 @@ impl Flow {
     #[getter]
     fn anisotropic_contrasts(&self) -> Vec<f64> {
         self.result.anisotropic_contrasts.clone()
+    }
+
+    /// Per slab, the scale `ε` of robust smoothness as used (`"auto"` resolved); empty without
+    /// it.
+    #[getter]
+    fn robust_scales(&self) -> Vec<f64> {
+        self.result.robust_scales.clone()
     }
 
     /// Solver iterations (0 for a direct solve).

@@ -68,6 +68,7 @@ def test_non_manifold_input_is_refused_and_repaired_on_request():
     (dict(regularizer="tv"), "regularizer: 'tv' is not one of: covariant, strain, embedded"),
     (dict(dirichlet_mix=0.5), "only with the strain regularizer"),
     (dict(robust_smoothness=0.0), "robust_smoothness"),
+    (dict(robust_smoothness="strong"), "robust_smoothness must be a number or 'auto'"),
     (dict(anisotropic=0.0), "anisotropy lambda"),
     (dict(anisotropic=1.0, regularizer="embedded"), "not the embedded regularizer"),
     (dict(anisotropic="sharp"), "anisotropic must be a number or 'auto', got 'sharp'"),

@@ -87,6 +87,14 @@ def test_anisotropic_auto_and_a_value(sample, reference):
     assert huge.anisotropic_contrasts == [1e12] * (sample.positions.shape[0] - 1)
 
 
+def test_robust_smoothness_auto_records_its_scale_per_slab(sample):
+    flow = meshflow.compute_flow(sample.positions, sample.faces, sample.intensity,
+                                 robust_smoothness="auto")
+    assert flow.reweightings >= 1
+    assert len(flow.robust_scales) == sample.positions.shape[0] - 1
+    assert all(e > 0 for e in flow.robust_scales)
+
+
 def test_flow_driven_anisotropic_with_a_huge_scale_is_the_quadratic_flow(sample, reference):
     flow = meshflow.compute_flow(sample.positions, sample.faces, sample.intensity, gamma=1e-3,
                                  robust_smoothness=1e9, flow_driven="anisotropic")

@@ -52,10 +52,10 @@ pub mod warp;
 pub mod window;
 
 pub use advect::{advect, closest_seeds, vertex_seeds, Trajectories, SUBSTEPS};
-pub use anisotropy::{Anisotropy, Contrast};
+pub use anisotropy::Anisotropy;
 pub use energy::EnergyTerms;
 pub use error::FlowError;
-pub use params::{Boundary, FlowParams, SolverChoice, TimeCoupling, Weight, Weights};
+pub use params::{Boundary, FlowParams, Scale, SolverChoice, TimeCoupling, Weight, Weights};
 pub use params::{Warping, DEFAULT_SPREAD, DEFAULT_TIME_SCALE};
 pub use pyramid::{heat_times, scale_pyramid, COARSEST_HEAT_TIME};
 pub use regularizer::Regularizer;
@@ -145,6 +145,9 @@ pub struct FlowResult {
     /// Per slab, the contrast `λ` of the image-driven anisotropic tensors (`auto` resolved);
     /// empty without them, and over ranks.
     pub anisotropic_contrasts: Vec<f64>,
+    /// Per slab, the scale `ε` of robust smoothness (`auto` resolved); empty without it, and
+    /// over ranks.
+    pub robust_scales: Vec<f64>,
     pub timings: Timings,
 }
 
@@ -177,6 +180,7 @@ impl FlowResult {
             vectors,
             warped_residual: None,
             anisotropic_contrasts: Vec::new(),
+            robust_scales: Vec::new(),
             reweightings: 0,
         }
     }

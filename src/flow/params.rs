@@ -140,6 +140,37 @@ impl serde::Serialize for Weights {
     }
 }
 
+/// A scale of the model given as a value, or `auto`: chosen from the data ([`Anisotropy`]'s
+/// contrast `λ`, [`FlowParams::robust_smoothness`]'s `ε`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scale {
+    Value(f64),
+    Auto,
+}
+
+impl serde::Serialize for Scale {
+    /// The number, or `"auto"`.
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Scale::Value(value) => serializer.serialize_f64(*value),
+            Scale::Auto => serializer.serialize_str("auto"),
+        }
+    }
+}
+
+impl std::str::FromStr for Scale {
+    type Err = String;
+
+    /// `auto` or a number (checked by [`FlowParams::validate`]).
+    fn from_str(text: &str) -> Result<Self, String> {
+        match text {
+            "auto" => Ok(Scale::Auto),
+            number => (number.parse().map(Scale::Value))
+                .map_err(|_| format!("'{number}' is neither auto nor a number")),
+        }
+    }
+}
+
 /// Parameters of the energy (`α`, `β`, `γ`, boundary, coupling) and of the solver.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct FlowParams {
@@ -160,8 +191,9 @@ pub struct FlowParams {
     pub anisotropy: Option<Anisotropy>,
     /// `Some(ε)`: robust (Charbonnier) spatial smoothness `2ε(√(r(u) + ε²) − ε)` in place of
     /// the quadratic `r(u)` of the regularizer, by reweighted solves ([`super::robust`]);
-    /// `ε` in the units of `|∇u|` (1/time). `None`: the quadratic model.
-    pub robust_smoothness: Option<f64>,
+    /// `ε` in the units of `|∇u|` (1/time), or `auto`: per slab, twice the median `|∇u|` of
+    /// the first (quadratic) solve. `None`: the quadratic model.
+    pub robust_smoothness: Option<Scale>,
     /// How the robust penalty sees the flow's gradient: `ψ` of its size (isotropic, the
     /// default) or of each principal direction (anisotropic; [`super::robust`]). Only with
     /// `robust_smoothness`.
@@ -322,12 +354,12 @@ impl FlowParams {
             gamma_ok,
             gamma_requirement,
         )?;
-        if let Some(epsilon) = self.robust_smoothness {
+        if let Some(Scale::Value(epsilon)) = self.robust_smoothness {
             check(
                 "robust_smoothness",
                 epsilon,
                 epsilon > 0.0 && epsilon.is_finite(),
-                "a positive number (the |∇u| where the penalty turns from quadratic to linear)",
+                "a positive number (the |∇u| where the penalty turns from quadratic to linear), or auto",
             )?;
         }
         if self.flow_driven == FlowDriven::Anisotropic {

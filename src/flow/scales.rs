@@ -13,6 +13,12 @@
 //! values are all equal, to `1e-12` of their magnitude, in every slab has `S = 0` (its P1
 //! gradient is round-off).
 //!
+//! With the image-driven anisotropic regularizer ([`super::anisotropy`]), `|∇I_T|²` is replaced
+//! by the gradient energy its tensor smooths across, `tr(J_T D_λ(J_T))` with `J_T` the structure
+//! below and `λ` the slab's contrast: a strong edge, which the tensor does not smooth across,
+//! counts like a feature of contrast `√2 λ` instead of setting the smoothing of the whole
+//! surface. `λ → ∞` gives `|∇I_T|²` back.
+//!
 //! With several channels `|∇I|²` is the trace of the data term's structure tensor
 //! `Σ_c w_c ∇I_c ∇I_cᵀ`, so `C` equal channels have `S² = C S²_grey`, the relative weights grow
 //! with the data term, and the flow is the grey image's.
@@ -20,7 +26,7 @@
 //!
 //! [`FlowParams`]: super::FlowParams
 
-use super::Slab;
+use super::{anisotropy, Slab};
 use crate::mesh::Mesh;
 
 /// Grey values closer than this, relative to their magnitude, count as equal.
@@ -70,7 +76,11 @@ impl ScaleSums {
                 .zip(slab.geometry.triangles())
                 .enumerate()
             {
-                let squared = slab.structure_tensor(face, f).trace();
+                let structure = slab.structure_tensor(face, f);
+                let squared = match slab.contrast {
+                    Some(lambda) => (structure * anisotropy::tensor(&structure, lambda)).trace(),
+                    None => structure.trace(),
+                };
                 second += slab.dt * triangle.area * squared;
                 fourth += slab.dt * triangle.area * squared * squared;
             }
@@ -143,4 +153,19 @@ fn is_constant(values: &[f64]) -> bool {
             (l.min(v), h.max(v))
         });
     high - low <= EQUAL_GREY * low.abs().max(high.abs())
+}
+
+/// The size `c` below which half of the energy `Σ_T A_T c_T²` lies, of `(c_T, A_T)` pairs
+/// (sizes of a gradient per face, and the faces' areas); `None` when the energy is 0. Unlike
+/// the median over faces it ignores a still or flat background, and unlike the mean it is not
+/// set by a few strong faces alone.
+pub(crate) fn energy_median(mut faces: Vec<(f64, f64)>) -> Option<f64> {
+    faces.retain(|&(c, a)| c > 0.0 && a > 0.0);
+    let total: f64 = faces.iter().map(|&(c, a)| a * c * c).sum();
+    faces.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let mut below = 0.0;
+    faces.into_iter().find_map(|(c, a)| {
+        below += a * c * c;
+        (below >= 0.5 * total).then_some(c)
+    })
 }

@@ -573,6 +573,9 @@ pub(super) fn summary_of(
     if !result.anisotropic_contrasts.is_empty() {
         summary["anisotropic_contrasts"] = serde_json::json!(result.anisotropic_contrasts);
     }
+    if !result.robust_scales.is_empty() {
+        summary["robust_scales"] = serde_json::json!(result.robust_scales);
+    }
     if let Some(ground_truth) = scores.flow {
         summary["ground_truth"] = ground_truth_json(ground_truth);
     }

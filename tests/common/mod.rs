@@ -53,6 +53,17 @@ pub fn meshflow_ok(args: &[&str]) -> Output {
 
 /// Runs the binary and asserts that it failed with exit code 1 and one line on stderr that
 /// contains `expected`; returns that line.
+/// Runs `meshflow solve INPUT --out OUT EXTRA… --force`, which must succeed: its stdout and
+/// OUT's summary.json.
+pub fn solve_and_summary(input: &str, out: &Path, extra: &[&str]) -> (String, serde_json::Value) {
+    let out_dir = out.to_str().unwrap();
+    let args = [&["solve", input, "--out", out_dir, "--force"][..], extra].concat();
+    let run = meshflow_ok(&args);
+    let summary = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    let summary = serde_json::from_str(&summary).unwrap();
+    (String::from_utf8_lossy(&run.stdout).into_owned(), summary)
+}
+
 pub fn meshflow_error(args: &[&str], expected: &str) -> String {
     let run = meshflow(args);
     let stderr = String::from_utf8_lossy(&run.stderr).into_owned();

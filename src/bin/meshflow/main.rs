@@ -252,7 +252,7 @@ struct SolveArgs {
     /// contrast of each slab's faces. Covariant and strain regularizers; the image is
     /// presmoothed over --anisotropic-sigma
     #[arg(long, value_name = "LAMBDA|auto", allow_negative_numbers = true)]
-    anisotropic: Option<meshflow::flow::Contrast>,
+    anisotropic: Option<meshflow::flow::Scale>,
     /// With --anisotropic: the width (a length, ≥ 0; 0: none) over which the image is smoothed
     /// on the surface before its edges steer the smoothing [default: the mean edge length]
     #[arg(
@@ -264,9 +264,10 @@ struct SolveArgs {
     anisotropic_sigma: Option<f64>,
     /// Robust (Charbonnier) smoothness for flows with discontinuities (cells moving on a
     /// still background): the smoothness grows like 2·EPS·|∇u| beyond |∇u| = EPS instead of
-    /// quadratically (EPS in 1/time units; reweighted solves until the energy settles)
-    #[arg(long, value_name = "EPS", allow_negative_numbers = true)]
-    robust_smoothness: Option<f64>,
+    /// quadratically (EPS in 1/time units, or auto: per slab twice the median |∇u| of a first
+    /// quadratic solve; reweighted solves until the energy settles)
+    #[arg(long, value_name = "EPS|auto", allow_negative_numbers = true)]
+    robust_smoothness: Option<meshflow::flow::Scale>,
     /// With --robust-smoothness: isotropic (the penalty of |∇u|, one weight per face) or
     /// anisotropic (of each principal direction of ∇u: the flow may jump across a boundary
     /// and stay smooth along it; with --anisotropic, along the image's edges)

@@ -9,7 +9,7 @@ use meshflow::accuracy::{
 use meshflow::flow::distributed::TimeRanks;
 use meshflow::flow::window::{flow_of_own_slabs, flow_over_ranks, TimeWindow};
 use meshflow::flow::{
-    Anisotropy, Contrast, FlowDriven, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence,
+    Anisotropy, FlowDriven, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence, Scale,
     SolveEvent, SolveObserver, Weight, Weights,
 };
 use meshflow::io::{
@@ -243,30 +243,37 @@ fn print_result(
     }
     if result.reweightings > 0 {
         println!(
-            "robust smoothness ({}): {} reweighted solves until the energy settled",
+            "robust smoothness ({}{}): {} reweighted solves until the energy settled",
             match params.flow_driven {
                 FlowDriven::Isotropic => "flow-driven isotropic",
                 FlowDriven::Anisotropic => "flow-driven anisotropic",
             },
+            describe_range("ε", params.robust_smoothness, &result.robust_scales)
+                .map_or(String::new(), |range| format!(", {range}")),
             result.reweightings
         );
     }
+}
+
+/// `name = value` as given, or `auto`'s range over the slabs as used (`values`).
+fn describe_range(name: &str, scale: Option<Scale>, values: &[f64]) -> Option<String> {
+    let (low, high) = (values.iter().copied())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), c| {
+            (l.min(c), h.max(c))
+        });
+    Some(match (scale?, values.is_empty()) {
+        (Scale::Value(value), _) => format!("{name} = {value:.4}"),
+        (Scale::Auto, true) => format!("{name} = auto"),
+        (Scale::Auto, false) if low == high => format!("{name} = {low:.4} (auto)"),
+        (Scale::Auto, false) => format!("{name} = {low:.4}–{high:.4} over the slabs (auto)"),
+    })
 }
 
 /// The image-driven tensors' contrast `λ` as used: given, or `auto`'s range over the slabs.
 fn describe_anisotropy(params: &FlowParams, result: &FlowResult) -> Option<String> {
     let anisotropy = params.anisotropy.as_ref()?;
     let contrasts = &result.anisotropic_contrasts;
-    let (low, high) = (contrasts.iter().copied())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), c| {
-            (l.min(c), h.max(c))
-        });
-    let lambda = match (anisotropy.lambda, contrasts.is_empty()) {
-        (Contrast::Value(lambda), _) => format!("λ = {lambda:.4}"),
-        (Contrast::Auto, true) => "λ = auto".to_string(),
-        (Contrast::Auto, false) if low == high => format!("λ = {low:.4} (auto)"),
-        (Contrast::Auto, false) => format!("λ = {low:.4}–{high:.4} over the slabs (auto)"),
-    };
+    let lambda = describe_range("λ", Some(anisotropy.lambda), contrasts)?;
     let sigma = match anisotropy.sigma {
         Some(sigma) => format!("σ = {sigma}"),
         None => "σ = the mean edge length".to_string(),
