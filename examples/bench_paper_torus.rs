@@ -3,9 +3,11 @@
 //! iterations, residual and peak memory, and the cost of analysing the flow
 //! (`meshflow::analysis`: divergence, curl, Hodge parts, strain rate) against the solve's.
 //!
-//! `cargo run --release --example bench_paper_torus [-- N1 N2 FRAMES [solver]]`
+//! `cargo run --release --example bench_paper_torus [-- N1 N2 FRAMES [solver]]
+//! [--anisotropic LAMBDA|auto]` (the image-driven anisotropic regularizer: its cost against the
+//! quadratic solve's).
 
-use meshflow::flow::{FlowParams, FlowProblem, SolveEvent};
+use meshflow::flow::{Anisotropy, FlowParams, FlowProblem, Scale, SolveEvent};
 use meshflow::synth::paper_torus;
 use std::time::Instant;
 
@@ -14,7 +16,19 @@ mod memory;
 use memory::peak_memory_bytes;
 
 fn main() -> Result<(), meshflow::Error> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let anisotropy = match args.iter().position(|a| a == "--anisotropic") {
+        Some(at) => {
+            let lambda = args.get(at + 1).map(|l| l.parse::<Scale>());
+            args.drain(at..(at + 2).min(args.len()));
+            Some(Anisotropy::with(
+                lambda
+                    .expect("a λ after --anisotropic")
+                    .expect("auto or a number"),
+            ))
+        }
+        None => None,
+    };
     let number = |i: usize, default: usize| {
         args.get(i)
             .map_or(default, |a| a.parse().expect("a whole number"))
@@ -26,6 +40,7 @@ fn main() -> Result<(), meshflow::Error> {
         .expect("a solver name");
     let params = FlowParams {
         solver,
+        anisotropy,
         ..FlowParams::paper(1.0, 0.0, 1.0)
     };
     println!(

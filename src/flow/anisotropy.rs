@@ -67,8 +67,7 @@ use super::params::{check, Scale};
 use super::pyramid::heat_smoothed;
 use super::scales::energy_median;
 use super::slab::structure_tensor;
-use super::{FlowError, Regularizer, Slab};
-use crate::mesh::Mesh;
+use super::{FlowError, MeshSequence, Regularizer, Slab};
 use nalgebra::Matrix2;
 
 /// Implicit heat steps of the presmoothing.
@@ -133,20 +132,21 @@ impl Anisotropy {
         }
     }
 
-    /// The tensor of every face of `slab` (on `mesh`), from its presmoothed channels, and the
+    /// The tensor of every face of `slab` (of `sequence`), from its presmoothed channels, and the
     /// contrast `λ` it used (`auto` resolved).
     pub fn face_tensors(
         &self,
-        mesh: &Mesh,
+        sequence: &MeshSequence,
         slab: &Slab,
     ) -> Result<(Vec<Matrix2<f64>>, f64), FlowError> {
+        let mesh = sequence.mesh();
         let sigma = self
             .sigma
             .unwrap_or_else(|| slab.geometry.mean_edge_length());
         let mids: Vec<&[f64]> = slab.channels.iter().map(|c| c.mid.as_slice()).collect();
         let what = || "the presmoothing of the anisotropic regularizer's image".to_string();
         let smoothed = heat_smoothed(
-            mesh,
+            sequence,
             &slab.geometry,
             &mids,
             0.5 * sigma * sigma,

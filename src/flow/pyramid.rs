@@ -47,10 +47,7 @@ pub fn scale_pyramid(sequence: &MeshSequence, levels: usize) -> Result<Vec<Image
     // Every frame's `M + τL` has the mesh's pattern: one ordering serves them all.
     let symbolic = match levels {
         0 | 1 => None,
-        _ => Some(analyze(
-            heat_operator(mesh, &geometry(0)?, 1.0).1.symbolic(),
-            1,
-        )),
+        _ => Some(heat_symbolic(sequence)?),
     };
     // per_frame[k][ℓ][c]
     let per_frame: Vec<Vec<Vec<Vec<f64>>>> = (0..sequence.n_frames())
@@ -68,6 +65,23 @@ pub fn scale_pyramid(sequence: &MeshSequence, levels: usize) -> Result<Vec<Image
     Ok((0..levels)
         .map(|l| Images::from_channels(per_frame.iter().map(|frame| frame[l].clone()).collect()))
         .collect())
+}
+
+/// The ordering and symbolic analysis of every frame's `M + τL` (the mesh's pattern: vertex
+/// adjacency and diagonal), computed once per sequence and shared by the scale pyramid and the
+/// anisotropic regularizer's presmoothing of every slab.
+pub(super) fn heat_symbolic(
+    sequence: &MeshSequence,
+) -> Result<Arc<SymbolicCholesky<usize>>, FlowError> {
+    let cache = sequence.heat_symbolic_cache();
+    if let Some(symbolic) = cache.get() {
+        return Ok(symbolic.clone());
+    }
+    let mesh = sequence.mesh();
+    let geometry = IntrinsicGeometry::new(mesh, sequence.edge_lengths(0).to_vec())
+        .map_err(|source| FlowError::Frame { frame: 0, source })?;
+    let symbolic = analyze(heat_operator(mesh, &geometry, 1.0).1.symbolic(), 1);
+    Ok(cache.get_or_init(|| symbolic).clone())
 }
 
 /// The consistent mass `M` and the heat step's operator `M + τL`.
@@ -112,9 +126,10 @@ fn heat_levels(
 }
 
 /// `values` (one per vertex) smoothed to heat time `time` by `steps` implicit steps of
-/// `time / steps` on `geometry` (its own ordering): about a Gaussian of width `√(2 time)`.
+/// `time / steps` on `geometry` (a geometry of `sequence`'s mesh; the sequence's shared
+/// ordering, [`heat_symbolic`]): about a Gaussian of width `√(2 time)`.
 pub(super) fn heat_smoothed(
-    mesh: &crate::mesh::Mesh,
+    sequence: &MeshSequence,
     geometry: &IntrinsicGeometry,
     values: &[&[f64]],
     time: f64,
@@ -126,8 +141,8 @@ pub(super) fn heat_smoothed(
         return Ok(out);
     }
     let step = time / steps as f64;
-    let symbolic = analyze(heat_operator(mesh, geometry, step).1.symbolic(), 1);
-    let heat = HeatStep::new(mesh, geometry, &symbolic, step, what)?;
+    let symbolic = heat_symbolic(sequence)?;
+    let heat = HeatStep::new(sequence.mesh(), geometry, &symbolic, step, what)?;
     for channel in &mut out {
         (0..steps).for_each(|_| heat.apply(channel));
     }

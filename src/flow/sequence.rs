@@ -4,7 +4,9 @@ use super::FlowError;
 use crate::connection::{vertex_frames_in_r3, Connection};
 use crate::geometry::{edge_lengths, IntrinsicGeometry};
 use crate::mesh::Mesh;
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use nalgebra::{Matrix3x2, Vector3};
+use std::sync::{Arc, OnceLock};
 
 /// The image on a sequence: `C ≥ 1` channels (grey, RGB, any stack of stains), one value per
 /// channel, vertex and frame. `frames[k][c][i]` is channel `c` at vertex `i` in frame `k`.
@@ -56,6 +58,9 @@ pub struct MeshSequence {
     /// shows), `None` for one channel.
     channel_means: Option<Vec<Vec<f64>>>,
     times: Vec<f64>,
+    /// The symbolic Cholesky analysis of every frame's scalar `M + τL` (the mesh's pattern),
+    /// once computed ([`super::pyramid::heat_symbolic`]).
+    heat_symbolic: OnceLock<Arc<SymbolicCholesky<usize>>>,
 }
 
 impl MeshSequence {
@@ -128,7 +133,13 @@ impl MeshSequence {
             images,
             channel_means,
             times,
+            heat_symbolic: OnceLock::new(),
         })
+    }
+
+    /// Where [`super::pyramid::heat_symbolic`] keeps its analysis.
+    pub(super) fn heat_symbolic_cache(&self) -> &OnceLock<Arc<SymbolicCholesky<usize>>> {
+        &self.heat_symbolic
     }
 
     pub fn mesh(&self) -> &Mesh {

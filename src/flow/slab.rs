@@ -191,7 +191,7 @@ impl Slab {
             self.embed(sequence, s)?;
         }
         if let (Some(anisotropy), None) = (&params.anisotropy, &self.diffusion_tensors) {
-            let (tensors, contrast) = anisotropy.face_tensors(sequence.mesh(), self)?;
+            let (tensors, contrast) = anisotropy.face_tensors(sequence, self)?;
             self.diffusion_tensors = Some(tensors);
             self.contrast = Some(contrast);
         }
@@ -274,6 +274,10 @@ pub fn complete_slabs(
     sequence: &MeshSequence,
     params: &FlowParams,
 ) -> Result<(), FlowError> {
+    if params.anisotropy.is_some() {
+        // Once, before the slabs share it.
+        super::pyramid::heat_symbolic(sequence)?;
+    }
     slabs
         .par_iter_mut()
         .enumerate()
