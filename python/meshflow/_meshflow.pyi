@@ -44,6 +44,12 @@ class Flow:
     def reweightings(self) -> int:
         """Reweighted solves of the robust smoothness (0 for the quadratic model)."""
     @property
+    def anisotropic_contrasts(self) -> List[float]:
+        """Per slab, ``λ`` of the anisotropic smoothness as used (empty without it)."""
+    @property
+    def robust_scales(self) -> List[float]:
+        """Per slab, ``ε`` of the robust smoothness as used (empty without it)."""
+    @property
     def solver(self) -> str: ...
     @property
     def solver_reason(self) -> str: ...
