@@ -256,7 +256,8 @@ fn run_case(
 /// The settings compared: the defaults, the strain regularizer, coarse-to-fine warping, the
 /// recommendation (strain, frame by frame), the recommendation with warping, and the
 /// image-driven anisotropic regularizer (`λ` auto, `meshflow::flow::anisotropy`) on the
-/// recommendation, alone and with robust smoothness (`ε` auto: image- and flow-driven). Over
+/// recommendation, alone, with warping and with robust smoothness (`ε` auto: image- and
+/// flow-driven). Over
 /// three frames the defaults coupled in time and frame by frame stand for the first ones: a
 /// coupled solve of 3 × 94k vertices takes about 50 s (365 PCG iterations), and warping would
 /// repeat it per level and warp. Over two frames the anisotropic regularizer on the defaults
@@ -328,7 +329,14 @@ fn settings(n_frames: usize) -> Vec<(&'static str, FlowParams)> {
                 "--large-motion --regularizer strain --time-scale 0",
                 with_warping,
             ),
-            ("recommended + --anisotropic auto", anisotropic),
+            ("recommended + --anisotropic auto", anisotropic.clone()),
+            (
+                "--large-motion + recommended + --anisotropic auto",
+                FlowParams {
+                    warping: Warping::LARGE_MOTION,
+                    ..anisotropic
+                },
+            ),
             (
                 "recommended + --anisotropic auto --robust-smoothness auto",
                 anisotropic_robust,

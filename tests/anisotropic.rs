@@ -445,3 +445,77 @@ fn crossing_edges_of_two_channels_give_the_identity() {
         assert!((d - Matrix2::identity()).amax() < 1e-12, "{d}");
     }
 }
+
+/// The discrete anisotropic energy of a smooth field converges to the continuous one on the
+/// unit sphere at second order: the image `I = z` (`g = ∇z`, `|g|² = 1 − z²`, P1 face
+/// gradients, no presmoothing) and the gradient field `u = ∇(z²) = 2z(ẑ − z x)`, whose
+/// covariant derivative `Hess(z²) = 2 g gᵀ − 2z² Id` has the eigenvalues `2 − 4z²` along `g`
+/// and `−2z²` across it, so `tr(∇u D ∇uᵀ) = ((2 − 4z²)² 2λ² + 4z⁴ 2(1 − z² + λ²)) / (1 − z² + 2λ²)`,
+/// integrated over the sphere as `2π ∫ dz`.
+#[test]
+fn the_anisotropic_energy_converges_at_second_order_on_the_sphere() {
+    use meshflow::connection::{vertex_frames_in_r3, Connection};
+    use meshflow::fem::element::face_gradient;
+    use meshflow::geometry::IntrinsicGeometry;
+    use meshflow::shapes::icosphere;
+    use nalgebra::Vector3;
+    let lambda: f64 = 0.4;
+    let l2 = lambda * lambda;
+    let density = |z: f64| {
+        let across = (2.0 - 4.0 * z * z).powi(2) * 2.0 * l2;
+        let along = 4.0 * z.powi(4) * 2.0 * (1.0 - z * z + l2);
+        (across + along) / (1.0 - z * z + 2.0 * l2)
+    };
+    // Composite Simpson on [−1, 1]; the integrand is a smooth rational function of z.
+    let n = 20_000;
+    let h = 2.0 / n as f64;
+    let simpson: f64 = (0..=n)
+        .map(|k| {
+            let weight = match k {
+                0 => 1.0,
+                k if k == n => 1.0,
+                k if k % 2 == 1 => 4.0,
+                _ => 2.0,
+            };
+            weight * density(-1.0 + k as f64 * h)
+        })
+        .sum::<f64>()
+        * h
+        / 3.0;
+    let exact = 2.0 * std::f64::consts::PI * simpson;
+    let field = |x: &Vector3<f64>| (Vector3::z() - x.z * x) * (2.0 * x.z);
+    let mut errors = Vec::new();
+    for level in 2..=5 {
+        let sphere = icosphere(level);
+        let mesh = sphere.mesh().unwrap();
+        let geometry = IntrinsicGeometry::from_positions(&mesh, &sphere.positions).unwrap();
+        let connection = Connection::new(&mesh, &geometry);
+        let frames = vertex_frames_in_r3(&mesh, &geometry, &connection, &sphere.positions).unwrap();
+        let u: Vec<_> = (sphere.positions.iter().zip(&frames))
+            .map(|(x, p)| p.transpose() * field(x))
+            .collect();
+        let energy: f64 = (mesh.faces().iter().enumerate())
+            .map(|(f, face)| {
+                let triangle = geometry.triangle(f);
+                let g = face_gradient(triangle, face.map(|v| sphere.positions[v as usize].z));
+                let d = tensor(&(g * g.transpose()), lambda);
+                let corner = face.map(|v| &frames[v as usize]);
+                let e = Regularizer::Covariant.element(
+                    triangle,
+                    connection.face_rotations(f),
+                    Some(corner),
+                    Some(&d),
+                );
+                let x = Vector6::from_fn(|k, _| u[face[k / 2] as usize][k % 2]);
+                x.dot(&(e * x))
+            })
+            .sum();
+        println!("level {level}: {energy:.6} against {exact:.6}");
+        errors.push((energy - exact).abs());
+    }
+    for pair in errors.windows(2) {
+        let order = (pair[0] / pair[1]).log2();
+        assert!(order > 1.8, "{errors:?}");
+    }
+    assert!(errors[3] < 2e-3 * exact, "{errors:?} of {exact}");
+}
