@@ -270,7 +270,7 @@ fn the_cli_solves_with_anisotropic_and_records_lambda() {
         "{summary}"
     );
     assert_eq!(summary["params"]["anisotropy"]["sigma"], 0.0, "{summary}");
-    // 1.5 times the energy median of the unsmoothed texture's contrast: of order 1 on the
+    // 1.5 times the contrast-weighted median of the unsmoothed texture: of order 1 on the
     // unit sphere.
     let lambda = summary["anisotropic_contrasts"][0].as_f64().unwrap();
     assert!((0.05..5.0).contains(&lambda), "{summary}");
@@ -388,12 +388,12 @@ fn the_slab_tensors_of_a_linear_image_have_its_edge_eigenvalues() {
     }
 }
 
-/// `auto` takes 1.5 times the energy median of the contrast: a linear image has one contrast
+/// `auto` takes 1.5 times the contrast-weighted median: a linear image has one contrast
 /// `m = √w |g|` everywhere, so `λ = 1.5m` and `D` has the eigenvalues `9/11` across the edge
 /// (`2λ²/(m² + 2λ²)`) and `13/11` along it (trace 2, determinant 117/121); grey values scaled
 /// by 40 leave `D` as it is.
 #[test]
-fn auto_takes_the_energy_median_contrast_and_ignores_grey_scaling() {
+fn auto_takes_the_weighted_median_contrast_and_ignores_grey_scaling() {
     let (g, w) = (Vector2::new(1.5, -0.5), 2.0);
     let (_, tensors) = grid_tensors(vec![(w, g)], Scale::Auto);
     let (_, scaled) = grid_tensors(vec![(w, 40.0 * g)], Scale::Auto);

@@ -154,18 +154,3 @@ fn is_constant(values: &[f64]) -> bool {
         });
     high - low <= EQUAL_GREY * low.abs().max(high.abs())
 }
-
-/// The size `c` below which half of the energy `Σ_T A_T c_T²` lies, of `(c_T, A_T)` pairs
-/// (sizes of a gradient per face, and the faces' areas); `None` when the energy is 0. Unlike
-/// the median over faces it ignores a still or flat background, and unlike the mean it is not
-/// set by a few strong faces alone.
-pub(crate) fn energy_median(mut faces: Vec<(f64, f64)>) -> Option<f64> {
-    faces.retain(|&(c, a)| c > 0.0 && a > 0.0);
-    let total: f64 = faces.iter().map(|&(c, a)| a * c * c).sum();
-    faces.sort_by(|x, y| x.0.total_cmp(&y.0));
-    let mut below = 0.0;
-    faces.into_iter().find_map(|(c, a)| {
-        below += a * c * c;
-        (below >= 0.5 * total).then_some(c)
-    })
-}
