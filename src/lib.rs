@@ -76,6 +76,7 @@ pub mod limits;
 pub mod mesh;
 pub mod render;
 pub mod shapes;
+pub mod statistics;
 pub mod surface;
 pub mod synth;
 pub mod track;

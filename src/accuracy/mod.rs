@@ -63,6 +63,7 @@ pub use tracks::{
 
 use crate::fem::vertex_areas;
 use crate::flow::{FlowError, FlowResult, MeshSequence};
+use crate::statistics::weighted_median;
 use nalgebra::{Vector3, Vector4};
 
 /// Where the truth counts as moving, for the direction error and the speed ratio: true speed at
@@ -426,22 +427,6 @@ fn relative(error: f64, size: f64) -> f64 {
     } else {
         f64::NAN
     }
-}
-
-/// The value at which the cumulative weight of the pairs `(w, e)` (NaN `e` left out), sorted by
-/// `e`, first reaches half the total; NaN if there are none.
-fn weighted_median(mut pairs: Vec<(f64, f64)>) -> f64 {
-    pairs.retain(|(_, e)| !e.is_nan());
-    pairs.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let half = 0.5 * pairs.iter().map(|(w, _)| w).sum::<f64>();
-    let mut cumulative = 0.0;
-    for (w, e) in &pairs {
-        cumulative += w;
-        if cumulative >= half {
-            return *e;
-        }
-    }
-    f64::NAN
 }
 
 fn maximum<'a>(values: impl IntoIterator<Item = &'a f64>) -> f64 {

@@ -31,9 +31,10 @@
 //! (zebrafish endoderm: 3.4 µm against 27.5 µm); the default bound is half the median
 //! nearest-neighbour distance of the first frame.
 
-use super::{direction_error_degrees, maximum, weighted_median, AccuracyError, MOVING_FRACTION};
+use super::{direction_error_degrees, maximum, AccuracyError, MOVING_FRACTION};
 use crate::flow::{FlowResult, MeshSequence};
 use crate::geometry::SurfacePoint;
+use crate::statistics::weighted_median;
 use crate::track::FrameSurface;
 use nalgebra::Vector3;
 use rayon::prelude::*;

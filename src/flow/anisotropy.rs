@@ -68,6 +68,7 @@ use super::params::{check, Scale};
 use super::pyramid::heat_smoothed;
 use super::slab::structure_tensor;
 use super::{FlowError, MeshSequence, Regularizer, Slab};
+use crate::statistics::weighted_median;
 use nalgebra::Matrix2;
 
 /// Implicit heat steps of the presmoothing.
@@ -185,17 +186,13 @@ pub fn tensor(structure: &Matrix2<f64>, lambda: f64) -> Matrix2<f64> {
 /// contrast, unlike in the median over faces; a few strong edges count in proportion to their
 /// contrast, not its square as in the gradient energy.
 fn contrast_median(structures: &[Matrix2<f64>], slab: &Slab) -> f64 {
-    let mut faces: Vec<(f64, f64)> = (structures.iter().zip(slab.geometry.triangles()))
-        .map(|(j, t)| (j.trace().max(0.0).sqrt(), t.area))
-        .filter(|&(c, a)| c > 0.0 && a > 0.0)
-        .collect();
-    let total: f64 = faces.iter().map(|&(c, a)| a * c).sum();
-    faces.sort_by(|x, y| x.0.total_cmp(&y.0));
-    let mut below = 0.0;
-    (faces.into_iter())
-        .find_map(|(c, a)| {
-            below += a * c;
-            (below >= 0.5 * total).then_some(c)
+    let faces = (structures.iter().zip(slab.geometry.triangles()))
+        .map(|(j, t)| {
+            let c = j.trace().max(0.0).sqrt();
+            (t.area * c, c)
         })
+        .collect();
+    Some(weighted_median(faces))
+        .filter(|&c| c > 0.0)
         .unwrap_or(1.0)
 }

@@ -46,6 +46,7 @@ use super::outer::{OuterStart, RunClock, SlabSolver};
 use super::{FlowError, FlowParams, FlowResult, SolveObserver};
 use super::{Regularizer, Scale};
 use crate::mesh::Mesh;
+use crate::statistics::median;
 use nalgebra::{Matrix2, SymmetricEigen, Vector2, Vector6};
 
 /// The relative change of the robust energy below which reweighting stops.
@@ -177,14 +178,12 @@ impl Arguments {
 pub const AUTO_SCALE: f64 = 2.0;
 
 /// [`AUTO_SCALE`] times the median of `sizes` (their mean if the median is 0, 1 if that is).
-fn gradient_scale(mut sizes: Vec<f64>) -> f64 {
+fn gradient_scale(sizes: Vec<f64>) -> f64 {
     let mean = sizes.iter().sum::<f64>() / sizes.len().max(1) as f64;
-    let middle = sizes.len() / 2;
-    let median = match sizes.is_empty() {
-        true => 0.0,
-        false => *sizes.select_nth_unstable_by(middle, f64::total_cmp).1,
-    };
-    let size = [median, mean].into_iter().find(|&s| s > 0.0).unwrap_or(1.0);
+    let size = [median(sizes), mean]
+        .into_iter()
+        .find(|&s| s > 0.0)
+        .unwrap_or(1.0);
     AUTO_SCALE * size
 }
 

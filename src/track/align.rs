@@ -232,10 +232,4 @@ fn median_distance(points: &[Vector3<f64>], target: &FrameSurface, motion: &Moti
     )
 }
 
-pub(super) fn median(mut values: Vec<f64>) -> f64 {
-    if values.is_empty() {
-        return 0.0;
-    }
-    let middle = values.len() / 2;
-    *values.select_nth_unstable_by(middle, f64::total_cmp).1
-}
+pub(super) use crate::statistics::median;
