@@ -7,13 +7,17 @@
 //!    within 4 mean edge lengths of the boundary, relative to the cap's speed there, and the
 //!    relative endpoint error over the whole sphere; at the cap's edge `z = 0.3` (default) and
 //!    at the equator (`-- LEVEL FRAMES 0`);
-//! 2. **smooth**: a rich texture turning rigidly ([`rotating_sphere`]): relative endpoint error;
-//! 3. **sample**: the shipped `meshes/rotating_sphere` against its `ground_truth.npy`: median
+//! 2. **stop**: the same cap at the cap's edge turns for the first half of the frames, then
+//!    stands still: a motion boundary in time. Endpoint error on the cap in the two slabs
+//!    around the stop, relative to the cap's mean speed;
+//! 3. **smooth**: a rich texture turning rigidly ([`rotating_sphere`]): relative endpoint error;
+//! 4. **sample**: the shipped `meshes/rotating_sphere` against its `ground_truth.npy`: median
 //!    speed ratio and mean angular error.
 //!
 //! The models: Weickert & Schnörr's taxonomy as meshflow has it (homogeneous = the defaults,
-//! image-driven anisotropic, flow-driven isotropic and anisotropic, image- and flow-driven),
-//! each with its `auto` scales, then (with `SWEEP=1`) `λ` and `ε` swept. It draws the boundary
+//! image-driven anisotropic, flow-driven isotropic and anisotropic, image- and flow-driven; the
+//! image-driven ones also with the space-time tensor's weight in time), each with its `auto`
+//! scales, then (with `SWEEP=1`) `λ` and `ε` swept. It draws the boundary
 //! scene's flow under the defaults and under `--anisotropic auto --robust-smoothness auto`
 //! (arrows on the image, and the endpoint error over the cap's speed) into
 //! `out/motion_boundaries/`.
@@ -23,7 +27,7 @@
 
 use meshflow::accuracy::compare_result;
 use meshflow::flow::{
-    compute_flow, Anisotropy, FlowDriven, FlowParams, FlowResult, MeshSequence, Scale,
+    compute_flow, Anisotropy, FlowDriven, FlowParams, FlowResult, Images, MeshSequence, Scale,
 };
 use meshflow::render::{arrow_picture, scalar_picture, write_png};
 use meshflow::render::{Camera, PictureStyle, Surface, View};
@@ -51,15 +55,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let boundary = turning_cap_sphere(level, frames, 1.0, OMEGA, z_edge)?;
     let smooth = rotating_sphere(level, frames, 1.0, OMEGA)?;
+    let stop = Stop::new(level, frames)?;
     let sample = shipped_sample()?;
     println!(
         "level-{level} icosphere, {frames} frames, ω = {OMEGA} rad/frame, cap edge z = {z_edge}"
     );
     println!(
-        "{:<34} {:>15} {:>14} {:>12} {:>14} {:>11} {:>8}",
+        "{:<34} {:>15} {:>14} {:>11} {:>12} {:>14} {:>11} {:>8}",
         "model",
         "boundary: near",
         "boundary: all",
+        "stop: cap",
         "smooth: all",
         "sample: speed",
         "sample: AE",
@@ -69,12 +75,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for (name, params) in models(&boundary.sequence) {
         let result = compute_flow(&boundary.sequence, &params)?;
         let (near, all) = band.errors(&boundary, &result)?;
+        let stop_error = stop.error(&params)?;
         let smooth_error = compare_flow(&smooth, &params)?.relative_endpoint;
         let on_sample = compare_flow(&sample, &params)?;
         println!(
-            "{name:<34} {:>14.1}% {:>13.1}% {:>11.1}% {:>14.3} {:>10.2}° {:>8}",
+            "{name:<34} {:>14.1}% {:>13.1}% {:>10.1}% {:>11.1}% {:>14.3} {:>10.2}° {:>8}",
             100.0 * near,
             100.0 * all,
+            100.0 * stop_error,
             100.0 * smooth_error,
             on_sample.median_speed_ratio,
             on_sample.mean_angular_degrees,
@@ -91,6 +99,14 @@ fn models(sequence: &MeshSequence) -> Vec<(String, FlowParams)> {
         anisotropy: anisotropy.map(Anisotropy::with),
         robust_smoothness: robust,
         flow_driven: driven,
+        ..FlowParams::default()
+    };
+    let in_time = |anisotropy: Scale, robust: Option<Scale>| FlowParams {
+        anisotropy: Some(Anisotropy {
+            in_time: true,
+            ..Anisotropy::with(anisotropy)
+        }),
+        robust_smoothness: robust,
         ..FlowParams::default()
     };
     let (auto, iso, aniso) = (
@@ -117,6 +133,14 @@ fn models(sequence: &MeshSequence) -> Vec<(String, FlowParams)> {
             with(auto, auto, iso),
         ),
         ("image+flow aniso.".into(), with(auto, auto, aniso)),
+        (
+            "image-driven, in time too".into(),
+            in_time(Scale::Auto, None),
+        ),
+        (
+            "image+flow iso., in time too".into(),
+            in_time(Scale::Auto, auto),
+        ),
         (
             "robust 0.01 (the issue's)".into(),
             with(None, Some(Scale::Value(0.01)), iso),
@@ -165,6 +189,65 @@ fn compare_flow(
 ) -> Result<meshflow::accuracy::FlowErrors, meshflow::Error> {
     let result = compute_flow(&scene.sequence, params)?;
     Ok(compare_result(&scene.sequence, &result, &scene.flow)?)
+}
+
+/// The cap of [`turning_cap_sphere`] (edge at `z = 0.3`) turning for the first half of the
+/// frames, then standing still.
+struct Stop {
+    scene: GroundTruth,
+    /// The first slab in which the cap stands still.
+    stop: usize,
+    cap: Vec<usize>,
+    speed: f64,
+}
+
+impl Stop {
+    fn new(level: u32, frames: usize) -> Result<Self, meshflow::Error> {
+        let moving = turning_cap_sphere(level, frames, 1.0, OMEGA, 0.3)?;
+        let stop = frames / 2;
+        let sequence = &moving.sequence;
+        let images = (0..frames).map(|k| sequence.channels(k.min(stop)).to_vec());
+        let positions = (0..frames).map(|k| sequence.positions(k).expect("embedded").to_vec());
+        let stopped = MeshSequence::with_images(
+            sequence.mesh().clone(),
+            positions.collect(),
+            Images::from_channels(images.collect()),
+            Some(sequence.times().to_vec()),
+        )?;
+        let still = vec![Vector3::zeros(); sequence.mesh().n_vertices()];
+        let flow = (0..frames - 1)
+            .map(|s| match s < stop {
+                true => moving.flow[s].clone(),
+                false => still.clone(),
+            })
+            .collect();
+        let on_cap = sequence.positions(0).expect("embedded").iter();
+        let cap: Vec<usize> = (on_cap.enumerate())
+            .filter_map(|(i, p)| (p.z > 0.3).then_some(i))
+            .collect();
+        let speed = cap.iter().map(|&i| moving.flow[0][i].norm()).sum::<f64>() / cap.len() as f64;
+        Ok(Self {
+            scene: GroundTruth {
+                sequence: stopped,
+                flow,
+            },
+            stop,
+            cap,
+            speed,
+        })
+    }
+
+    /// The mean endpoint error on the cap in slabs `stop − 1` and `stop`, over the cap's mean
+    /// speed.
+    fn error(&self, params: &FlowParams) -> Result<f64, meshflow::Error> {
+        let result = compute_flow(&self.scene.sequence, params)?;
+        let errors = compare_result(&self.scene.sequence, &result, &self.scene.flow)?;
+        let around = &errors.endpoint[self.stop - 1..=self.stop];
+        let total: f64 = (around.iter())
+            .flat_map(|slab| self.cap.iter().map(|&i| slab[i]))
+            .sum();
+        Ok(total / (2 * self.cap.len()) as f64 / self.speed)
+    }
 }
 
 /// The vertices within 4 mean edge lengths of the cap's edge, and the cap's speed there.

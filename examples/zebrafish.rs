@@ -258,9 +258,10 @@ fn run_case(
 /// image-driven anisotropic regularizer (`λ` auto, `meshflow::flow::anisotropy`) on the
 /// recommendation, alone, with warping and with robust smoothness (`ε` auto: image- and
 /// flow-driven). Over
-/// three frames the defaults coupled in time and frame by frame stand for the first ones: a
-/// coupled solve of 3 × 94k vertices takes about 50 s (365 PCG iterations), and warping would
-/// repeat it per level and warp. Over two frames the anisotropic regularizer on the defaults
+/// three frames the defaults coupled in time (also with the anisotropic regularizer, and with
+/// its weight in time) and frame by frame stand for the first ones: a coupled solve of
+/// 3 × 94k vertices takes about 50 s (365 PCG iterations), and warping would repeat it per
+/// level and warp. Over two frames the anisotropic regularizer on the defaults
 /// (covariant), alone and image- and flow-driven, joins them.
 fn settings(n_frames: usize) -> Vec<(&'static str, FlowParams)> {
     let recommended = FlowParams {
@@ -283,6 +284,23 @@ fn settings(n_frames: usize) -> Vec<(&'static str, FlowParams)> {
     let first = if n_frames > 2 {
         vec![
             ("defaults (coupled in time)", FlowParams::default()),
+            (
+                "--anisotropic auto (coupled in time)",
+                FlowParams {
+                    anisotropy: Some(Anisotropy::with(Scale::Auto)),
+                    ..FlowParams::default()
+                },
+            ),
+            (
+                "--anisotropic auto --anisotropic-in-time",
+                FlowParams {
+                    anisotropy: Some(Anisotropy {
+                        in_time: true,
+                        ..Anisotropy::with(Scale::Auto)
+                    }),
+                    ..FlowParams::default()
+                },
+            ),
             (
                 "--time-scale 0 (frame by frame)",
                 FlowParams {

@@ -178,9 +178,25 @@ fn a_huge_lambda_gives_the_quadratic_system() {
         let limit = matrix(&sequence, &with(Some(1e12)));
         let difference = relative_value_difference(&quadratic, &limit);
         assert!(difference < 1e-12, "{regularizer:?}: {difference:e}");
-        // and a moderate λ changes it.
+        // So with the weight in time too (`D_tt → 1`).
+        let in_time = |lambda| FlowParams {
+            anisotropy: Some(Anisotropy {
+                in_time: true,
+                ..Anisotropy::new(lambda)
+            }),
+            ..with(None)
+        };
+        let limit = matrix(&sequence, &in_time(1e12));
+        let difference = relative_value_difference(&quadratic, &limit);
+        assert!(
+            difference < 1e-12,
+            "{regularizer:?} in time: {difference:e}"
+        );
+        // and a moderate λ changes it, in time too.
         let moderate = matrix(&sequence, &with(Some(0.3)));
         assert!(relative_value_difference(&quadratic, &moderate) > 1e-3);
+        let moderate_in_time = matrix(&sequence, &in_time(0.3));
+        assert!(relative_value_difference(&moderate, &moderate_in_time) > 1e-4);
     }
 }
 
@@ -275,7 +291,12 @@ fn the_cli_solves_with_anisotropic_and_records_lambda() {
     let lambda = summary["anisotropic_contrasts"][0].as_f64().unwrap();
     assert!((0.05..5.0).contains(&lambda), "{summary}");
     let strain = ["--regularizer", "strain", "--anisotropic", "0.3"];
-    solve_and_summary(&input, out.path(), &strain);
+    let (_, summary) = solve_and_summary(&input, out.path(), &strain);
+    assert_eq!(summary["params"]["anisotropy"]["in_time"], false);
+    let in_time = ["--anisotropic", "0.3", "--anisotropic-in-time"];
+    let (stdout, summary) = solve_and_summary(&input, out.path(), &in_time);
+    assert!(stdout.contains("in time too"), "{stdout}");
+    assert_eq!(summary["params"]["anisotropy"]["in_time"], true);
 }
 
 #[test]
@@ -360,6 +381,7 @@ fn grid_tensors(
         anisotropy: Some(Anisotropy {
             lambda,
             sigma: Some(0.0),
+            in_time: false,
         }),
         channel_weights: Some(channels.iter().map(|(w, _)| *w).collect()),
         ..FlowParams::paper(1.0, 0.1, 1.0)
@@ -518,4 +540,56 @@ fn the_anisotropic_energy_converges_at_second_order_on_the_sphere() {
         assert!(order > 1.8, "{errors:?}");
     }
     assert!(errors[3] < 2e-3 * exact, "{errors:?} of {exact}");
+}
+
+/// A linear space-time image `I = g·x − b t` (one channel of weight `w`, no presmoothing) on a
+/// still grid: every face of every slab has the structure `tr J = w|g|²`, rate `w b²`, and the
+/// link of two slabs the space-time tensor's time entry
+/// `3(w|g|² + λ²) / (2(w|g|² + w b²/α²) + 3λ²)`; the grey values and `λ` scaled alike leave it.
+#[test]
+fn the_time_entry_of_a_linear_space_time_image() {
+    let (g, b, w, lambda, alpha) = (Vector2::new(1.5, -0.5), 0.7, 2.0, 0.8, 0.5);
+    let entries = |scale: f64| {
+        let surface = meshflow::shapes::grid(4, 3, 2.0, 1.0);
+        let image = |k: usize| -> Vec<f64> {
+            let at = |p: &nalgebra::Vector3<f64>| scale * (g.dot(&p.xy()) - b * k as f64);
+            surface.positions.iter().map(at).collect()
+        };
+        let sequence = MeshSequence::with_images(
+            surface.mesh().unwrap(),
+            vec![surface.positions.clone(); 3],
+            meshflow::flow::Images::from_channels((0..3).map(|k| vec![image(k)]).collect()),
+            None,
+        )
+        .unwrap();
+        let params = FlowParams {
+            anisotropy: Some(Anisotropy {
+                lambda: Scale::Value(scale * lambda),
+                sigma: Some(0.0),
+                in_time: true,
+            }),
+            channel_weights: Some(vec![w]),
+            ..FlowParams::paper(alpha, 0.1, 1.0)
+        };
+        let problem = FlowProblem::new(&sequence, &params).unwrap();
+        let slabs = problem.slabs();
+        for structure in slabs.iter().flat_map(|s| s.space_time.clone().unwrap()) {
+            let (contrast, rate) = (w * g.norm_squared(), w * b * b);
+            let s2 = scale * scale;
+            assert!((structure.contrast - s2 * contrast).abs() < 1e-12 * s2 * contrast);
+            assert!((structure.rate - s2 * rate).abs() < 1e-12 * s2 * rate);
+        }
+        meshflow::flow::anisotropy::time_entries(&slabs[0], &slabs[1], alpha).unwrap()
+    };
+    let (c, l2) = (w * g.norm_squared(), lambda * lambda);
+    let expected = 3.0 * (c + l2) / (2.0 * (c + w * b * b / (alpha * alpha)) + 3.0 * l2);
+    assert!(expected < 0.9, "the case weakens the coupling: {expected}");
+    for scale in [1.0, 40.0] {
+        for entry in entries(scale) {
+            assert!(
+                (entry - expected).abs() < 1e-12,
+                "{scale}: {entry} ≠ {expected}"
+            );
+        }
+    }
 }

@@ -234,8 +234,13 @@ fn ranks_solve_anisotropic_robust_warped_as_one_process_does() {
         &sequence,
         &params,
     );
-    // Image- and flow-driven: each rank lags its own slabs' tensors.
+    // Image- and flow-driven, with the tensor's weight in time: each rank lags its own
+    // slabs' tensors, and the links to a neighbour's slab read that slab's structure.
     let params = FlowParams {
+        anisotropy: Some(meshflow::flow::Anisotropy {
+            in_time: true,
+            ..meshflow::flow::Anisotropy::new(0.3)
+        }),
         flow_driven: meshflow::flow::FlowDriven::Anisotropic,
         warping: Warping::NONE,
         ..params

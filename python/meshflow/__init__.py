@@ -150,6 +150,7 @@ def compute_flow(
     dirichlet_mix: Optional[float] = None,
     anisotropic: Union[float, str, None] = None,
     anisotropic_sigma: Optional[float] = None,
+    anisotropic_in_time: bool = False,
     robust_smoothness: Union[float, str, None] = None,
     flow_driven: str = "isotropic",
     channels: str = "auto",
@@ -195,11 +196,17 @@ def compute_flow(
     anisotropic : float or "auto", optional
         ``λ`` (grey value per length, > 0): image-driven anisotropic smoothness
         ``tr(∇u D ∇uᵀ)`` (Nagel–Enkelmann), smoothing along image edges and less across them
-        (``2λ²/(|∇I|² + 2λ²)``); ``"auto"``: per slab, the median contrast of its faces.
+        (``2λ²/(|∇I|² + 2λ²)``); ``"auto"``: per slab, 1.5 × the contrast-weighted median
+        of its faces (half the total contrast lies below it).
         Covariant and strain regularizers. Default: isotropic.
     anisotropic_sigma : float, optional
         With ``anisotropic``: the width (a length, ≥ 0) over which the image is smoothed on the
         surface before its edges steer the smoothing. Default: the mean edge length.
+    anisotropic_in_time : bool
+        With ``anisotropic``: weigh the coupling in time by the space-time tensor's time
+        entry, so it weakens where the image changes fast in time (Weickert–Schnörr's
+        spatio-temporal tensor without its mixed entries). Measured: within 1 % of without on
+        every scene of ``examples/motion_boundaries``; default off.
     robust_smoothness : float or "auto", optional
         ``ε``: the Charbonnier penalty ``2ε(√(r + ε²) − ε)`` of the regularizer's density
         ``r`` (linear growth beyond ``|∇u| = ε``, for flows with jumps), by reweighted solves;
@@ -263,6 +270,7 @@ def compute_flow(
         "dirichlet_mix": _optional_float("dirichlet_mix", dirichlet_mix),
         "anisotropic": _scale("anisotropic", anisotropic),
         "anisotropic_sigma": _optional_float("anisotropic_sigma", anisotropic_sigma),
+        "anisotropic_in_time": bool(anisotropic_in_time),
         "robust_smoothness": _scale("robust_smoothness", robust_smoothness),
         "flow_driven": str(flow_driven),
         "channel_weights": _channel_weights(channel_weights),

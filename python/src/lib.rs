@@ -308,6 +308,7 @@ struct ParamArgs {
     dirichlet_mix: Option<f64>,
     anisotropic: Option<String>,
     anisotropic_sigma: Option<f64>,
+    anisotropic_in_time: bool,
     robust_smoothness: Option<String>,
     flow_driven: String,
     channel_weights: Option<Vec<f64>>,
@@ -368,16 +369,18 @@ impl ParamArgs {
         Ok(params)
     }
 
-    /// `anisotropic` (a number or "auto") with `anisotropic_sigma`.
+    /// `anisotropic` (a number or "auto") with `anisotropic_sigma` and `anisotropic_in_time`.
     fn anisotropy(&self) -> PyResult<Option<meshflow::flow::Anisotropy>> {
         let Some(text) = self.anisotropic.as_deref() else {
-            return match self.anisotropic_sigma {
-                Some(_) => Err(value_error("anisotropic_sigma needs anisotropic")),
-                None => Ok(None),
+            return match (self.anisotropic_sigma, self.anisotropic_in_time) {
+                (Some(_), _) => Err(value_error("anisotropic_sigma needs anisotropic")),
+                (_, true) => Err(value_error("anisotropic_in_time needs anisotropic")),
+                (None, false) => Ok(None),
             };
         };
         Ok(Some(meshflow::flow::Anisotropy {
             sigma: self.anisotropic_sigma,
+            in_time: self.anisotropic_in_time,
             ..meshflow::flow::Anisotropy::with(parse(text, "anisotropic")?)
         }))
     }

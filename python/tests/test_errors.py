@@ -73,6 +73,7 @@ def test_non_manifold_input_is_refused_and_repaired_on_request():
     (dict(anisotropic=1.0, regularizer="embedded"), "not the embedded regularizer"),
     (dict(anisotropic="sharp"), "anisotropic must be a number or 'auto', got 'sharp'"),
     (dict(anisotropic_sigma=1.0), "anisotropic_sigma needs anisotropic"),
+    (dict(anisotropic_in_time=True), "anisotropic_in_time needs anisotropic"),
     (dict(anisotropic=1.0, anisotropic_sigma=-1.0), "anisotropy sigma"),
     (dict(flow_driven="anisotropic"), "give its scale with robust_smoothness"),
     (dict(flow_driven="sideways", robust_smoothness=0.1),

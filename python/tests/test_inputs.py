@@ -87,6 +87,17 @@ def test_anisotropic_auto_and_a_value(sample, reference):
     assert huge.anisotropic_contrasts == [1e12] * (sample.positions.shape[0] - 1)
 
 
+def test_anisotropic_in_time_weighs_the_coupling_in_time(sample, reference):
+    def flow(**kw):
+        return meshflow.compute_flow(sample.positions, sample.faces, sample.intensity,
+                                     gamma=1e-3, anisotropic=kw.pop("lam"), **kw)
+    # A huge λ: D_tt = 1, the paper's coupling; a finite one changes it.
+    huge = flow(lam=1e12, anisotropic_in_time=True)
+    assert np.allclose(huge.vectors, reference.vectors, rtol=0, atol=1e-9)
+    plain, in_time = flow(lam=0.1), flow(lam=0.1, anisotropic_in_time=True)
+    assert np.abs(in_time.vectors - plain.vectors).max() > 1e-6
+
+
 def test_robust_smoothness_auto_records_its_scale_per_slab(sample):
     flow = meshflow.compute_flow(sample.positions, sample.faces, sample.intensity,
                                  robust_smoothness="auto")

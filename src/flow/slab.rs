@@ -1,6 +1,7 @@
 //! Slabs: the time interval between two frames, with its mean geometry and image rates
 //! (`docs/discretization.md` §3).
 
+use super::anisotropy::{time_entries, SpaceTimeStructure};
 use super::{FlowError, FlowParams, MeshSequence, Regularizer, TimeCoupling, Weights};
 use crate::connection::{polar_rotation_angles, rotation, vertex_frames_in_r3, Connection};
 use crate::fem::element::{self, DataElement};
@@ -60,6 +61,9 @@ pub struct Slab {
     pub diffusion_tensors: Option<Vec<Matrix2<f64>>>,
     /// The contrast `λ` the image-driven tensors were built with (`auto` resolved).
     pub contrast: Option<f64>,
+    /// Per face, the presmoothed image's space-time gradient, for the anisotropic coupling in
+    /// time ([`crate::flow::anisotropy`], "In time"); `None`: the paper's coupling.
+    pub space_time: Option<Vec<SpaceTimeStructure>>,
 }
 
 /// The element matrices of one face of one slab, before weighting by `Δt`, `β`, `γ`
@@ -104,6 +108,7 @@ impl Slab {
             embedding_frames: None,
             diffusion_tensors: None,
             contrast: None,
+            space_time: None,
         })
     }
 
@@ -191,9 +196,10 @@ impl Slab {
             self.embed(sequence, s)?;
         }
         if let (Some(anisotropy), None) = (&params.anisotropy, &self.diffusion_tensors) {
-            let (tensors, contrast) = anisotropy.face_tensors(sequence, self)?;
-            self.diffusion_tensors = Some(tensors);
-            self.contrast = Some(contrast);
+            let tensors = anisotropy.face_tensors(sequence, self)?;
+            self.diffusion_tensors = Some(tensors.tensors);
+            self.contrast = Some(tensors.contrast);
+            self.space_time = tensors.space_time;
         }
         Ok(())
     }
@@ -241,10 +247,13 @@ pub fn build_slabs(
 
 /// The temporal coupling between slab `s` ("before") and `s + 1` ("after")
 /// (`docs/discretization.md` §7): weight `c = γ / (α² h)`, `h = (Δt_s + Δt_{s+1}) / 2`, polar
-/// rotation `Q_T` and mid area `Ā_T = (A^s_T + A^{s+1}_T) / 2` per face.
+/// rotation `Q_T` and mid area `Ā_T = (A^s_T + A^{s+1}_T) / 2` per face; with the anisotropic
+/// coupling in time, also the space-time tensor's time entry `D_tt` per face.
 #[derive(Clone, Debug)]
 pub struct TimeLink {
     pub weight: f64,
+    /// Per face, `D_tt` ([`crate::flow::anisotropy::time_entries`]); `None`: 1.
+    pub face_weights: Option<Vec<f64>>,
     pub polar_angles: Vec<f64>,
     /// `Q_T` as matrices.
     pub polar_rotations: Vec<Matrix2<f64>>,
@@ -290,12 +299,14 @@ impl TimeLink {
         let polar_angles = polar_rotation_angles(&before.geometry, &after.geometry);
         Self {
             weight: weights.gamma / (weights.alpha * weights.alpha * h),
+            face_weights: time_entries(before, after, weights.alpha),
             polar_rotations: polar_angles.iter().map(|&q| rotation(q)).collect(),
             polar_angles,
         }
     }
 
-    /// The scalar weight matrix `c m̄` of face `f`: lumped `c Ā/3 I` or consistent `c Ā/12 (1 + I)`.
+    /// The scalar weight matrix `c D_tt m̄` of face `f`: lumped `c D_tt Ā/3 I` or consistent
+    /// `c D_tt Ā/12 (1 + I)`.
     pub fn scalar_element(
         &self,
         before: &Slab,
@@ -305,6 +316,7 @@ impl TimeLink {
     ) -> Matrix3<f64> {
         let mid_area = 0.5 * (before.geometry.triangle(f).area + after.geometry.triangle(f).area);
         self.weight
+            * self.face_weights.as_ref().map_or(1.0, |w| w[f])
             * match coupling {
                 TimeCoupling::Lumped => Matrix3::identity() * (mid_area / 3.0),
                 TimeCoupling::Consistent => {

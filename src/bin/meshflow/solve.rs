@@ -38,6 +38,7 @@ fn flow_params(args: &SolveArgs) -> Result<FlowParams, Error> {
         regularizer: args.regularizer()?,
         anisotropy: (args.anisotropic).map(|lambda| Anisotropy {
             sigma: args.anisotropic_sigma,
+            in_time: args.anisotropic_in_time,
             ..Anisotropy::with(lambda)
         }),
         robust_smoothness: args.robust_smoothness,
@@ -278,8 +279,12 @@ fn describe_anisotropy(params: &FlowParams, result: &FlowResult) -> Option<Strin
         Some(sigma) => format!("σ = {sigma}"),
         None => "σ = the mean edge length".to_string(),
     };
+    let in_time = match anisotropy.in_time {
+        true => ", in time too",
+        false => "",
+    };
     Some(format!(
-        "image-driven anisotropic smoothness: {lambda}, presmoothing {sigma}"
+        "image-driven anisotropic smoothness: {lambda}, presmoothing {sigma}{in_time}"
     ))
 }
 
