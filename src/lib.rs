@@ -77,6 +77,7 @@ pub mod mesh;
 pub mod render;
 pub mod shapes;
 pub mod statistics;
+pub mod subnormals;
 pub mod surface;
 pub mod synth;
 pub mod track;

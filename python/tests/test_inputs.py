@@ -111,3 +111,12 @@ def test_flow_driven_anisotropic_with_a_huge_scale_is_the_quadratic_flow(sample,
                                  robust_smoothness=1e9, flow_driven="anisotropic")
     assert flow.reweightings >= 1
     assert np.allclose(flow.vectors, reference.vectors, rtol=0, atol=1e-8)
+
+
+def test_the_callers_floating_point_mode_is_untouched(sample):
+    # The solver flushes subnormal numbers while it runs, and restores the caller's mode.
+    tiny = np.float32(np.finfo(np.float32).tiny)
+    assert tiny * np.float32(0.5) > 0
+    meshflow.compute_flow(sample.positions, sample.faces, sample.intensity, time_scale=0.01)
+    assert tiny * np.float32(0.5) > 0
+    assert np.nextafter(np.float64(0), np.float64(1)) > 0

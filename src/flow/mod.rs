@@ -138,6 +138,9 @@ pub struct FlowResult {
     pub time_levels: usize,
     /// Stored entries of the Cholesky factors the solver used.
     pub factor_entries: usize,
+    /// How many of them are subnormal numbers: 0 when the solver flushed them
+    /// ([`crate::subnormals`], the default).
+    pub subnormal_factor_entries: usize,
     /// `[λ_min, λ_max]` of the preconditioned operator as the (last) CG run saw it (Ritz
     /// values; `λ_max/λ_min` estimates the condition number behind the iteration count).
     /// `None` for direct solves.
@@ -173,7 +176,8 @@ impl FlowResult {
             method: solution.method,
             solver_reason: solution.reason,
             time_levels: solution.time_levels,
-            factor_entries: solution.factor_entries,
+            factor_entries: solution.factor_entries.stored,
+            subnormal_factor_entries: solution.factor_entries.subnormal,
             preconditioned_spectrum: solution.spectrum,
             timings,
             intrinsic,

@@ -557,6 +557,7 @@ pub(super) fn summary_of(
         "solver_reason": result.solver_reason,
         "time_levels": result.time_levels,
         "factor_entries": result.factor_entries,
+        "subnormal_factor_entries": result.subnormal_factor_entries,
         "preconditioned_spectrum": result.preconditioned_spectrum,
         "frames": facts.n_frames,
         "slabs": facts.n_frames - 1,

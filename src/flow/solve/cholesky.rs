@@ -126,6 +126,7 @@ pub struct SolveWork<T> {
 pub trait Precision: faer::traits::ComplexField + Copy {
     fn from_f64(x: f64) -> Self;
     fn to_f64(self) -> f64;
+    fn is_subnormal(self) -> bool;
 }
 
 impl Precision for f64 {
@@ -135,6 +136,9 @@ impl Precision for f64 {
     fn to_f64(self) -> f64 {
         self
     }
+    fn is_subnormal(self) -> bool {
+        f64::is_subnormal(self)
+    }
 }
 
 impl Precision for f32 {
@@ -143,6 +147,9 @@ impl Precision for f32 {
     }
     fn to_f64(self) -> f64 {
         self as f64
+    }
+    fn is_subnormal(self) -> bool {
+        f32::is_subnormal(self)
     }
 }
 
@@ -230,8 +237,36 @@ impl<T: Precision> CholeskyFactor<T> {
         x.iter_mut().zip(&rhs).for_each(|(x, r)| *x = r.to_f64());
     }
 
-    /// Stored entries of `L`.
-    pub fn stored_entries(&self) -> usize {
-        self.values.len()
+    /// Stored entries of `L`, and how many of them are subnormal numbers (none once the
+    /// factorization ran with them flushed, [`crate::subnormals`]).
+    pub fn entries(&self) -> FactorEntries {
+        FactorEntries {
+            stored: self.values.len(),
+            subnormal: self.values.iter().filter(|v| v.is_subnormal()).count(),
+        }
+    }
+}
+
+/// Entries of Cholesky factors: stored, and subnormal among them (a subnormal operand costs a
+/// microcode assist on some processors, [`crate::subnormals`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FactorEntries {
+    pub stored: usize,
+    pub subnormal: usize,
+}
+
+impl std::ops::Add for FactorEntries {
+    type Output = Self;
+    fn add(self, other: Self) -> Self {
+        Self {
+            stored: self.stored + other.stored,
+            subnormal: self.subnormal + other.subnormal,
+        }
+    }
+}
+
+impl std::iter::Sum for FactorEntries {
+    fn sum<I: Iterator<Item = Self>>(entries: I) -> Self {
+        entries.fold(Self::default(), |a, b| a + b)
     }
 }

@@ -29,7 +29,7 @@
 //! sends cannot deadlock. How the ranks talk is the caller's ([`TimeRanks`]): MPI on a cluster
 //! (`MpiRanks`, feature `mpi`), threads in the tests.
 
-use super::cholesky::{analyze, CholeskyFactor, Precision};
+use super::cholesky::{analyze, CholeskyFactor, FactorEntries, Precision};
 use super::multigrid::{prolong_add, restrict, v_cycle, CycleLevels};
 use super::pcg::{self, Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings};
@@ -336,7 +336,18 @@ impl<T: Precision> Preconditioner for WindowPreconditioner<'_, '_, T> {
 /// An error on one rank only (a slab that factorizes on no precision) is reported on every
 /// rank, the others naming no slab; the caller ends the job (`MPI_Abort`), as `meshflow solve`
 /// under `mpirun` does.
+///
+/// Subnormal numbers are flushed on each rank ([`crate::subnormals`]).
 pub fn solve_window(
+    window: &SystemWindow,
+    ranks: &dyn TimeRanks,
+    params: &FlowParams,
+    observer: &dyn SolveObserver,
+) -> Result<Solution, FlowError> {
+    crate::subnormals::flushed(|| solve_window_flushed(window, ranks, params, observer))
+}
+
+fn solve_window_flushed(
     window: &SystemWindow,
     ranks: &dyn TimeRanks,
     params: &FlowParams,
@@ -477,10 +488,8 @@ impl<'a> WindowJob<'a> {
         levels: &[Level<'_, T>],
         time_levels: usize,
     ) -> Result<Solution, FlowError> {
-        let mut entries = [levels
-            .iter()
-            .map(|l| l.sweeps.stored_entries() as f64)
-            .sum()];
+        let own: FactorEntries = levels.iter().map(|l| l.sweeps.entries()).sum();
+        let mut entries = [own.stored as f64, own.subnormal as f64];
         self.ranks.sum(&mut entries);
         let factor_seconds = levels.iter().map(|l| l.factor_seconds).sum();
         let mut solution = Solution::iterated(outcome, method, format!("{reason}; over ranks"));
@@ -489,7 +498,10 @@ impl<'a> WindowJob<'a> {
         let b = self.window.system.rhs();
         solution.relative_residual = super::relative_residual(&operator, b, &solution.u);
         solution.factor_seconds = factor_seconds;
-        solution.factor_entries = entries[0] as usize;
+        solution.factor_entries = FactorEntries {
+            stored: entries[0] as usize,
+            subnormal: entries[1] as usize,
+        };
         solution.time_levels = time_levels;
         Ok(solution)
     }

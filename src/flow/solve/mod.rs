@@ -29,6 +29,11 @@
 //!   coarse levels hold as many blocks again) and the coarse blocks need factors too.
 //! - **PCG with Jacobi**: no factors; only when not even one slab factor fits the budget.
 //!
+//! Every method runs with subnormal numbers flushed to zero ([`crate::subnormals`]): at
+//! mid-range `α` up to 4 % of the single-precision factors' entries are subnormal otherwise
+//! (`bench_solver`'s `subnormal` column with `SUBNORMALS=keep`), which made the factorization 5×
+//! slower on a processor that assists every subnormal operand in microcode.
+//!
 //! `auto` starts slab Gauss–Seidel and, from [`PROBE_ITERATIONS`] on, projects the iterations
 //! to the tolerance at the rate of the last few; once they exceed [`SWITCH_ITERATIONS`] (less
 //! the probe's) it factors the coarse levels and continues with multigrid from the current
@@ -192,7 +197,7 @@ mod precondition;
 
 use super::system::SpaceTimeSystem;
 use super::{FlowError, FlowParams, SolverChoice};
-use cholesky::{analyze, CholeskyFactor, Precision};
+use cholesky::{analyze, CholeskyFactor, FactorEntries, Precision};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
 use multigrid::{TimeHierarchy, TimeMultigrid};
@@ -281,8 +286,8 @@ pub struct Solution {
     /// `‖b − Au‖ / ‖b‖`, recomputed from the returned `u` (0 when `b = 0`).
     pub relative_residual: f64,
     pub factor_seconds: f64,
-    /// Stored entries of all Cholesky factors used.
-    pub factor_entries: usize,
+    /// Entries of all Cholesky factors used.
+    pub factor_entries: FactorEntries,
     /// Levels of multigrid in time (1: none).
     pub time_levels: usize,
     /// Why this method: the rule `auto` applied, with the figures it compared.
@@ -292,8 +297,17 @@ pub struct Solution {
     pub spectrum: Option<[f64; 2]>,
 }
 
-/// Solves the system with the method `params.solver` asks for (see the module docs).
+/// Solves the system with the method `params.solver` asks for (see the module docs), with
+/// subnormal numbers flushed ([`crate::subnormals`]).
 pub fn solve(
+    system: &SpaceTimeSystem,
+    params: &FlowParams,
+    observer: &dyn SolveObserver,
+) -> Result<Solution, FlowError> {
+    crate::subnormals::flushed(|| solve_flushed(system, params, observer))
+}
+
+fn solve_flushed(
     system: &SpaceTimeSystem,
     params: &FlowParams,
     observer: &dyn SolveObserver,
@@ -355,7 +369,7 @@ impl Solution {
             iterations: 1,
             relative_residual: f64::NAN,
             factor_seconds: 0.0,
-            factor_entries: 0,
+            factor_entries: FactorEntries::default(),
             time_levels: 1,
             reason,
             spectrum: None,
@@ -532,7 +546,7 @@ fn slab_pcg_with<T: Precision>(
     } = job;
     let fine = fine.remove(0);
     let mut factor_seconds = start.elapsed().as_secs_f64();
-    let mut factor_entries = fine.stored_entries();
+    let mut factor_entries = fine.entries();
     let (x, done, reason) = match preconditioning {
         Preconditioning::Multigrid => (None, 0, format!("asked for; {}", plan.describe())),
         _ => {
@@ -570,7 +584,7 @@ fn slab_pcg_with<T: Precision>(
     let mut sweeps = vec![fine];
     sweeps.extend(plan.factor::<T>(&coarse)?);
     factor_seconds += coarse_start.elapsed().as_secs_f64();
-    factor_entries = sweeps.iter().map(SlabSweeps::stored_entries).sum();
+    factor_entries = sweeps.iter().map(SlabSweeps::entries).sum();
     let levels = sweeps.len();
     let multigrid = TimeMultigrid::new(system, hierarchy, sweeps);
     let outcome = run_pcg(system, x, &multigrid, params, done, observer)?;
@@ -695,7 +709,7 @@ fn direct(
     factor.solve_in_place(&mut u, par);
     Ok(Solution {
         factor_seconds,
-        factor_entries: factor.stored_entries(),
+        factor_entries: factor.entries(),
         ..Solution::exact(u, SolverMethod::Direct, reason)
     })
 }
@@ -712,19 +726,19 @@ fn slabwise_direct(
     let symbolic = analyze(system.block(0).symbolic(), 2);
     let n = system.slab_dimension();
     let mut u = system.rhs().to_vec();
-    let entries: Vec<usize> = u
+    let entries: Vec<FactorEntries> = u
         .par_chunks_mut(n)
         .enumerate()
         .map(|(s, us)| {
             let factor = CholeskyFactor::<f64>::new(&symbolic, system.block(s), Par::Seq)
                 .map_err(factorization_error(format!("slab {s}")))?;
             factor.solve_in_place(us, Par::Seq);
-            Ok(factor.stored_entries())
+            Ok(factor.entries())
         })
         .collect::<Result<_, FlowError>>()?;
     Ok(Solution {
         factor_seconds: start.elapsed().as_secs_f64(),
-        factor_entries: entries.iter().sum(),
+        factor_entries: entries.into_iter().sum(),
         ..Solution::exact(u, SolverMethod::SlabwiseDirect, reason)
     })
 }

@@ -1,6 +1,6 @@
 //! Preconditioners for the block-tridiagonal space-time system.
 
-use super::cholesky::{CholeskyFactor, Precision};
+use super::cholesky::{CholeskyFactor, FactorEntries, Precision};
 use super::pcg::Preconditioner;
 use crate::flow::system::SpaceTimeSystem;
 use faer::Par;
@@ -87,12 +87,9 @@ impl<T: Precision> SlabSweeps<T> {
         &self.factors[slab / self.slabs_per_factor]
     }
 
-    /// Stored entries of all factors.
-    pub fn stored_entries(&self) -> usize {
-        self.factors
-            .iter()
-            .map(CholeskyFactor::stored_entries)
-            .sum()
+    /// Entries of all factors.
+    pub fn entries(&self) -> FactorEntries {
+        self.factors.iter().map(CholeskyFactor::entries).sum()
     }
 
     /// `z ← (D + L)⁻¹ z`: even slabs, then odd slabs with their even neighbours' values.
