@@ -270,13 +270,23 @@ impl<'a> FlowProblem<'a> {
         uniqueness::check_unique_minimizer(mesh, &checked, params, &weights, &one)?;
         let system = SpaceTimeSystem::assemble(mesh, &slabs, &links, params, &weights);
         let slab_bytes = slabs.len() * (200 * mesh.n_faces() + 8 * mesh.n_halfedges());
+        let contrasts = slabs.iter().filter_map(|slab| slab.contrast).collect();
+        let slabs = match slab_bytes <= KEEP_SLABS_BYTES || !rebuildable {
+            true => Some(slabs),
+            false => {
+                // Before the solver's factors take their place.
+                drop(slabs);
+                crate::limits::release_free_memory();
+                None
+            }
+        };
         Ok(Self {
-            contrasts: slabs.iter().filter_map(|slab| slab.contrast).collect(),
+            contrasts,
             sequence,
             params: params.clone(),
             weights,
             scales,
-            slabs: (slab_bytes <= KEEP_SLABS_BYTES || !rebuildable).then_some(slabs),
+            slabs,
             system,
             assembly_seconds: start.elapsed().as_secs_f64(),
         })

@@ -304,7 +304,10 @@ pub fn solve(
     params: &FlowParams,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
-    crate::subnormals::flushed(|| solve_flushed(system, params, observer))
+    let solution = crate::subnormals::flushed(|| solve_flushed(system, params, observer));
+    // The factors are gone; what comes next (energy terms, push-forward) rebuilds slabs.
+    crate::limits::release_free_memory();
+    solution
 }
 
 fn solve_flushed(
@@ -545,6 +548,8 @@ fn slab_pcg_with<T: Precision>(
         observer,
     } = job;
     let fine = fine.remove(0);
+    // The factorizations' workspaces, before CG's vectors.
+    crate::limits::release_free_memory();
     let mut factor_seconds = start.elapsed().as_secs_f64();
     let mut factor_entries = fine.entries();
     let (x, done, reason) = match preconditioning {
