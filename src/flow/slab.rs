@@ -356,6 +356,18 @@ impl TimeLink {
         -element::rotated_element(&scalar, r1, r0, &self.polar_rotations[f])
     }
 
+    /// The lumped cross element's diagonal 2×2 blocks of face `f` (its only nonzero ones):
+    /// `−c D_tt Ā/3 R¹_aᵀ Q R⁰_a` per corner `a`.
+    pub fn lumped_cross_blocks(&self, before: &Slab, after: &Slab, f: usize) -> [Matrix2<f64>; 3] {
+        let weight = self.scalar_element(before, after, f, TimeCoupling::Lumped)[(0, 0)];
+        let (r0, r1) = (
+            before.connection.face_rotations(f),
+            after.connection.face_rotations(f),
+        );
+        let q = &self.polar_rotations[f];
+        std::array::from_fn(|a| -(r1[a].transpose() * q * r0[a]) * weight)
+    }
+
     /// All three blocks of face `f`.
     pub fn face_elements(
         &self,
