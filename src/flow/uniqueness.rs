@@ -121,7 +121,7 @@ fn steady_data_matrix<'a>(
     let link_angle = |l: usize| -> Option<f64> {
         let link = checked.links.get(l)?;
         let (before, after) = (theta(l)?, theta(l + 1)?);
-        let kappa = |f: usize| link.polar_angles[f] + before[f] - after[f];
+        let kappa = |f: usize| link.polar_angle(f) + before[f] - after[f];
         let first = kappa(faces[0]);
         (faces.iter())
             .all(|&f| wrap_angle(kappa(f) - first).abs() <= ANGLE_TOLERANCE)
