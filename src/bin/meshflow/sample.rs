@@ -3,7 +3,9 @@
 //! maximum-intensity projection by default): `intensity.npy` for `meshflow solve`
 //! (`meshflow::volume::sample`).
 
+use crate::args::MeshArgs;
 use crate::progress::during;
+use crate::usage;
 use meshflow::io::{
     count_frames, input_files, load_geometry, refuse_output_over_inputs, write_atomically,
     write_npy, LoadOptions, OutputKind, RunManifest,
@@ -192,4 +194,102 @@ fn describe(
         shell.outside,
         out.display()
     )
+}
+
+#[derive(clap::Args)]
+pub(crate) struct SampleArgs {
+    /// Volumes, one per frame: a .npy (Z, Y, X) or (K, Z, Y, X), a .tif/.tiff stack (pages =
+    /// z), or a directory or quoted glob of them (natural order)
+    pub(crate) volumes: PathBuf,
+    /// The moving surface: any sequence `solve` reads (an image is not needed), e.g. the
+    /// output of `meshflow surface` or `meshflow track`
+    pub(crate) sequence: PathBuf,
+    /// Output .npy [default: SEQUENCE/intensity.npy]
+    #[arg(long, value_name = "FILE.npy")]
+    pub(crate) out: Option<PathBuf>,
+    /// Voxel size x,y,z in the surface's units [default: from ImageJ TIFF metadata, else
+    /// 1,1,1]
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub(crate) voxel_size: Option<Vec<f64>>,
+    /// Position of voxel (0, 0, 0), x,y,z
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub(crate) origin: Option<Vec<f64>>,
+    /// How far the shell reaches inside and outside along the normal, in the surface's units
+    /// [default: two of the largest voxel sides each way]
+    #[arg(
+        long,
+        value_name = "INSIDE,OUTSIDE",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub(crate) shell: Option<Vec<f64>>,
+    /// Samples across the --shell, evenly spaced; only with --shell (the default shell has 9)
+    /// [default: 9]
+    #[arg(long, value_name = "N", requires = "shell")]
+    pub(crate) layers: Option<usize>,
+    /// max (maximum-intensity projection), mean, or layer:L (sample L, 0 the innermost)
+    #[arg(long, default_value = "max")]
+    pub(crate) reduce: meshflow::volume::Reduce,
+    /// Gaussian smoothing of each volume first, σ in the surface's units (0: none)
+    /// [default: 2 of the smallest voxel sides]
+    #[arg(long, value_name = "SIGMA", allow_negative_numbers = true)]
+    pub(crate) smooth: Option<f64>,
+    #[command(flatten)]
+    pub(crate) building: MeshArgs,
+}
+
+impl SampleArgs {
+    pub(crate) fn request(&self) -> Result<SampleRequest<'_>, meshflow::Error> {
+        let triple = |values: &Option<Vec<f64>>, name: &str| -> Result<_, meshflow::Error> {
+            match values.as_deref() {
+                None => Ok(None),
+                Some(&[x, y, z]) => Ok(Some(nalgebra::Vector3::new(x, y, z))),
+                Some(other) => Err(usage(format!(
+                    "{name} takes three numbers x,y,z, got {}",
+                    other.len()
+                ))),
+            }
+        };
+        let shell = match self.shell.as_deref() {
+            None => None,
+            Some(&[inside, outside]) => Some(meshflow::volume::Shell {
+                inside,
+                outside,
+                layers: self
+                    .layers
+                    .unwrap_or(meshflow::volume::sample::DEFAULT_LAYERS),
+            }),
+            Some(other) => {
+                return Err(usage(format!(
+                    "--shell takes two distances INSIDE,OUTSIDE, got {} numbers",
+                    other.len()
+                )))
+            }
+        };
+        Ok(SampleRequest {
+            volumes: &self.volumes,
+            sequence: &self.sequence,
+            out: self.out.as_deref(),
+            volume: meshflow::volume::VolumeOptions {
+                voxel_size: triple(&self.voxel_size, "--voxel-size")?,
+                origin: triple(&self.origin, "--origin")?.unwrap_or_default(),
+            },
+            sampling: meshflow::volume::SampleOptions {
+                smoothing: self.smooth,
+                shell,
+                reduce: self.reduce,
+            },
+            load: self.building.options(),
+        })
+    }
 }

@@ -1,21 +1,22 @@
 //! `meshflow solve`: read a sequence, compute its flow, write the outputs (and pictures).
 
+use crate::args::{ForceArg, MeshArgs};
 use crate::pictures;
+use crate::pictures::PictureArgs;
 use crate::progress::{during, solver_progress};
-use crate::SolveArgs;
 use meshflow::accuracy::{
     check_embedded, compare_result, score_result, AccuracyError, FlowErrors, TrackSummary, Tracks,
 };
 use meshflow::flow::distributed::TimeRanks;
 use meshflow::flow::window::{flow_of_own_slabs, flow_over_ranks, TimeWindow};
 use meshflow::flow::{
-    Anisotropy, FlowDriven, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence, Scale,
-    SolveEvent, SolveObserver, Weight, Weights,
+    Anisotropy, Boundary, FlowDriven, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence,
+    Scale, SolveEvent, SolveObserver, SolverChoice, TimeCoupling, Weight, Weights,
 };
 use meshflow::io::{
     load_frames, load_sequence, read_npy_float, write_flow_outputs, Scores, StagedDir, TrackReport,
 };
-use meshflow::io::{read_ground_truth, GroundTruthReport, LoadedSequence};
+use meshflow::io::{read_ground_truth, GroundTruthReport, LoadOptions, LoadedSequence};
 use meshflow::io::{write_flow_over_ranks, OutputFormat};
 use meshflow::render::{result_views, View};
 use meshflow::Error;
@@ -555,4 +556,216 @@ fn describe_solver(result: &FlowResult) -> String {
             result.method, result.solver_reason
         ),
     }
+}
+
+#[derive(clap::Args)]
+pub(crate) struct SolveArgs {
+    /// Frames directory, glob (quoted), .gltf/.glb animation, or NPY directory
+    pub(crate) input: PathBuf,
+    /// Output directory (created if missing; an earlier meshflow output there is replaced as a
+    /// whole)
+    #[arg(long)]
+    pub(crate) out: PathBuf,
+    #[command(flatten)]
+    pub(crate) force: ForceArg,
+    /// Spatial smoothing scale in mean edge lengths, unit-free: sets γ = (SPREAD·h̄·S)² from
+    /// the mean edge length h̄ and the image's gradient scale S [default: 0.5]
+    #[arg(
+        long,
+        value_name = "EDGES",
+        allow_negative_numbers = true,
+        conflicts_with = "gamma"
+    )]
+    pub(crate) spread: Option<f64>,
+    /// Temporal smoothing scale in frames, unit-free: sets α = √γ / (S·FRAMES·Δt̄); 0 for
+    /// frame-by-frame flow [default: 1]
+    #[arg(
+        long,
+        value_name = "FRAMES",
+        allow_negative_numbers = true,
+        conflicts_with = "alpha"
+    )]
+    pub(crate) time_scale: Option<f64>,
+    /// Relative penalty on the speed, unit-free: sets β = B·S² [default: 0]
+    #[arg(
+        long,
+        value_name = "B",
+        allow_negative_numbers = true,
+        conflicts_with = "beta"
+    )]
+    pub(crate) speed_penalty: Option<f64>,
+    /// The paper's α as a number (a speed in the data's units; inf: frame-by-frame flow),
+    /// instead of --time-scale
+    #[arg(long, allow_negative_numbers = true)]
+    pub(crate) alpha: Option<f64>,
+    /// The paper's β as a number (weight of |u|², in the data's units), instead of
+    /// --speed-penalty
+    #[arg(long, allow_negative_numbers = true)]
+    pub(crate) beta: Option<f64>,
+    /// The paper's γ as a number (weight of |∇u|², in grey-value units squared), instead of
+    /// --spread
+    #[arg(long, allow_negative_numbers = true)]
+    pub(crate) gamma: Option<f64>,
+    /// What γ weighs: covariant (the paper's |∇u|²), strain (|Sym ∇u|², zero on rigid
+    /// motions of the surface: a texture turning with it is not pulled towards rest) or
+    /// embedded (|∇u|² of u as an R^3 field, Kirisits–Lang–Scherzer: adds |II(u,·)|²)
+    #[arg(long, default_value = "covariant")]
+    pub(crate) regularizer: meshflow::flow::Regularizer,
+    /// With --regularizer strain: add D·|∇u|² (the covariant term, relative to γ) [default: 0]
+    #[arg(long, value_name = "D", allow_negative_numbers = true)]
+    pub(crate) dirichlet_mix: Option<f64>,
+    /// Image-driven anisotropic smoothness (Nagel–Enkelmann): smooth the flow along image
+    /// edges, less across them; LAMBDA (grey value per length, > 0) is the edge contrast at
+    /// which smoothing across falls to 2/3 (large: the isotropic |∇u|²), auto 1.5 × each
+    /// slab's contrast-weighted median contrast. Covariant and strain regularizers; the image
+    /// is presmoothed over --anisotropic-sigma
+    #[arg(long, value_name = "LAMBDA|auto", allow_negative_numbers = true)]
+    pub(crate) anisotropic: Option<meshflow::flow::Scale>,
+    /// With --anisotropic: the width (a length, ≥ 0; 0: none) over which the image is smoothed
+    /// on the surface before its edges steer the smoothing [default: the mean edge length]
+    #[arg(
+        long,
+        value_name = "SIGMA",
+        allow_negative_numbers = true,
+        requires = "anisotropic"
+    )]
+    pub(crate) anisotropic_sigma: Option<f64>,
+    /// With --anisotropic: weigh the coupling in time by the space-time tensor's time entry,
+    /// weaker where the image changes fast in time (measured: within 1 % of without on
+    /// examples/motion_boundaries)
+    #[arg(long, requires = "anisotropic")]
+    pub(crate) anisotropic_in_time: bool,
+    /// Robust (Charbonnier) smoothness for flows with discontinuities (cells moving on a
+    /// still background): the smoothness grows like 2·EPS·|∇u| beyond |∇u| = EPS instead of
+    /// quadratically (EPS in 1/time units, or auto: per slab twice the median |∇u| of a first
+    /// quadratic solve; reweighted solves until the energy settles)
+    #[arg(long, value_name = "EPS|auto", allow_negative_numbers = true)]
+    pub(crate) robust_smoothness: Option<meshflow::flow::Scale>,
+    /// With --robust-smoothness: isotropic (the penalty of |∇u|, one weight per face) or
+    /// anisotropic (of each principal direction of ∇u: the flow may jump across a boundary
+    /// and stay smooth along it; with --anisotropic, along the image's edges)
+    #[arg(long, default_value = "isotropic", value_name = "KIND")]
+    pub(crate) flow_driven: meshflow::flow::FlowDriven,
+    /// neumann or dirichlet (u = 0 on the boundary)
+    #[arg(long, default_value = "neumann")]
+    pub(crate) boundary: Boundary,
+    /// lumped or consistent discretization of the time term
+    #[arg(long, default_value = "lumped")]
+    pub(crate) time_coupling: TimeCoupling,
+    /// auto, direct, pcg-slab-gauss-seidel, pcg-time-multigrid or pcg-jacobi
+    #[arg(long, default_value = "auto")]
+    pub(crate) solver: SolverChoice,
+    /// Coarse-to-fine warping for large motions: image scales, coarsest first (1: the paper's
+    /// single linear solve) [default: 1, or 4 with --large-motion]
+    #[arg(long, value_name = "N")]
+    pub(crate) levels: Option<usize>,
+    /// Warps (re-linearizations, each one solve of the whole sequence) per level [default: 0,
+    /// 1 with --levels above 1, 2 with --large-motion]
+    #[arg(long, value_name = "M")]
+    pub(crate) warps: Option<usize>,
+    /// Motions larger than the image's features (a texture turning by several triangle widths
+    /// per frame): coarse-to-fine symmetric warping with 4 levels and 2 warps each (8 solves)
+    #[arg(long)]
+    pub(crate) large_motion: bool,
+    /// Relative residual at which the iterative solver stops
+    #[arg(long, default_value_t = FlowParams::default().tolerance, allow_negative_numbers = true)]
+    pub(crate) tolerance: f64,
+    /// The image as a float32, float64, uint8 or uint16 .npy of shape (frames, file vertices), or (frames,
+    /// file vertices, channels), instead of the files' colours
+    #[arg(long)]
+    pub(crate) intensity: Option<PathBuf>,
+    /// Image channels: auto (every channel the input has: RGB for colours, one for grey
+    /// colours and values), rgb, luma (Rec. 709) or grey (mean of the channels)
+    #[arg(long, default_value = "auto")]
+    pub(crate) channels: meshflow::io::Channels,
+    /// Weight of each image channel in the data term, w1,w2,… (one per channel) [default: 1
+    /// each]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "W",
+        allow_negative_numbers = true
+    )]
+    pub(crate) channel_weights: Option<Vec<f64>>,
+    /// PLY vertex property holding the grey values (instead of the colours)
+    #[arg(long)]
+    pub(crate) intensity_attribute: Option<String>,
+    /// Frame times t0,t1,… (default: from the files or times.txt, else 0,1,2,…)
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    pub(crate) times: Option<Vec<f64>>,
+    /// Resample a glTF animation at N frames per unit of time (default: its keyframes)
+    #[arg(long, value_name = "N")]
+    pub(crate) fps: Option<f64>,
+    /// The glTF animation (clip) to read, by name or index (default: the first that moves the
+    /// mesh: its morph weights, skin joints or node transforms)
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub(crate) animation: Option<String>,
+    #[command(flatten)]
+    pub(crate) building: MeshArgs,
+    /// Known flow to measure the result against: .npy (slabs, vertices in the files, 3), float64
+    /// or float32, R^3 vectors on frame s. Adds angular_error/endpoint_error to the .vtu files,
+    /// angular_error.npy, endpoint_error.npy and "ground_truth" in summary.json
+    #[arg(long, value_name = "FILE.npy")]
+    pub(crate) ground_truth: Option<PathBuf>,
+    /// Points whose motion is known (tracked cells, beads, landmarks): .npy (frames, points, 3)
+    /// of positions, NaN where a point is not tracked (`meshflow match` makes one from point
+    /// clouds). Scores the flow's tangential displacement at them against the zero flow's:
+    /// "ground_truth_tracks" in summary.json
+    #[arg(long, value_name = "TRACKS.npy")]
+    pub(crate) ground_truth_tracks: Option<PathBuf>,
+    /// Output files: any of npy, vtu, glb (summary.json is always written). Under mpirun,
+    /// without glb (and --png, ground truth) the ranks stream their slabs to rank 0 and none
+    /// holds more than its time window
+    #[arg(long, value_delimiter = ',', default_value = "npy,vtu,glb")]
+    pub(crate) format: Vec<OutputFormat>,
+    /// Also draw the pictures of `meshflow render` (of every slab, or those of --slabs)
+    #[arg(long)]
+    pub(crate) png: bool,
+    #[command(flatten)]
+    pub(crate) pictures: PictureArgs,
+}
+
+impl SolveArgs {
+    /// How `solve` reads its input (`advect` reads it again the same way).
+    pub(crate) fn load_options(&self) -> LoadOptions {
+        LoadOptions {
+            intensity: self.intensity.clone(),
+            channels: self.channels,
+            intensity_attribute: self.intensity_attribute.clone(),
+            times: self.times.clone(),
+            fps: self.fps,
+            animation: self.animation.clone(),
+            ..self.building.options()
+        }
+    }
+
+    /// The files and directories the solve reads: its input, `--intensity`, `--ground-truth`
+    /// and `--ground-truth-tracks`.
+    pub(crate) fn input_files(&self) -> Vec<&std::path::Path> {
+        std::iter::once(self.input.as_path())
+            .chain(self.intensity.as_deref())
+            .chain(self.ground_truth.as_deref())
+            .chain(self.ground_truth_tracks.as_deref())
+            .collect()
+    }
+
+    /// `--regularizer` with `--dirichlet-mix`.
+    pub(crate) fn regularizer(
+        &self,
+    ) -> Result<meshflow::flow::Regularizer, meshflow::flow::FlowError> {
+        meshflow::flow::Regularizer::with_mix(self.regularizer, self.dirichlet_mix)
+    }
+
+    /// `--levels`, `--warps` and `--large-motion` as one setting.
+    pub(crate) fn warping(&self) -> meshflow::flow::Warping {
+        meshflow::flow::Warping::from_options(self.levels, self.warps, self.large_motion)
+    }
+}
+
+/// `meshflow solve`: in one process, or over the ranks `mpirun` started (the `mpi` feature).
+pub(crate) fn solve_command(args: &SolveArgs) -> Result<(), meshflow::Error> {
+    #[cfg(feature = "mpi")]
+    return ranks::solve(args);
+    #[cfg(not(feature = "mpi"))]
+    solve(args, None)
 }

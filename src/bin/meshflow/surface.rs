@@ -2,6 +2,7 @@
 //! fixed connectivity (an NPY sequence that `meshflow sample` and `meshflow solve` read), by a
 //! smoothing-spline height over a fitted sphere or a plane (`meshflow::surface`).
 
+use crate::args::ForceArg;
 use crate::progress::during;
 use meshflow::accuracy::{default_match_distance, Tracks};
 use meshflow::io::{
@@ -10,7 +11,7 @@ use meshflow::io::{
 };
 use meshflow::surface::{fit_surface, read_points, FitOptions, FittedSurface, Reference};
 use meshflow::Error;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// What `surface` needs from the command line.
 pub struct SurfaceRequest<'a> {
@@ -180,5 +181,73 @@ fn count_range(counts: impl Iterator<Item = usize> + Clone) -> String {
     match low == high {
         true => low.to_string(),
         false => format!("{low}–{high}"),
+    }
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub(crate) enum ShapeArg {
+    /// A height over a sphere fitted to frame 0's points
+    SphereLike,
+    /// z = h(x, y) over the plane
+    Graph,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct SurfaceArgs {
+    /// Points per frame: a directory or quoted glob of (N, 3) .npy or .csv files (natural
+    /// order), or one (frames, N, 3) .npy (NaN rows dropped)
+    pub(crate) points: PathBuf,
+    /// Output directory (an NPY sequence)
+    #[arg(long)]
+    pub(crate) out: PathBuf,
+    #[command(flatten)]
+    pub(crate) force: ForceArg,
+    /// The reference the height is measured from
+    #[arg(long, value_enum, default_value = "sphere-like")]
+    pub(crate) shape: ShapeArg,
+    /// With sphere-like: the whole sphere instead of the cap the points cover
+    #[arg(long)]
+    pub(crate) whole_sphere: bool,
+    /// Mean edge length of the mesh, in the points' units
+    #[arg(
+        long,
+        value_name = "LENGTH",
+        conflicts_with = "vertices",
+        allow_negative_numbers = true
+    )]
+    pub(crate) edge_length: Option<f64>,
+    /// About this many vertices [default: 16000]
+    #[arg(long, value_name = "N")]
+    pub(crate) vertices: Option<usize>,
+    /// Smoothing length in mean point spacings: height variations shorter than it are smoothed
+    /// away (0: as close to the points as the mesh allows)
+    #[arg(long, value_name = "SPACINGS", default_value_t = meshflow::surface::DEFAULT_SMOOTHING, allow_negative_numbers = true)]
+    pub(crate) smoothing: f64,
+    /// How far the mesh reaches beyond the outermost point, in mean point spacings
+    #[arg(long, value_name = "SPACINGS", default_value_t = meshflow::surface::DEFAULT_MARGIN, allow_negative_numbers = true)]
+    pub(crate) margin: f64,
+    /// Frame times t0,t1,… [default: 0,1,2,…]
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    pub(crate) times: Option<Vec<f64>>,
+}
+
+impl SurfaceArgs {
+    pub(crate) fn options(&self) -> meshflow::surface::FitOptions {
+        use meshflow::surface::{FitOptions, Resolution, Shape};
+        FitOptions {
+            shape: match self.shape {
+                ShapeArg::SphereLike => Shape::SphereLike {
+                    whole: self.whole_sphere,
+                },
+                ShapeArg::Graph => Shape::Graph,
+            },
+            resolution: match (self.edge_length, self.vertices) {
+                (Some(length), _) => Resolution::EdgeLength(length),
+                (None, Some(n)) => Resolution::Vertices(n),
+                (None, None) => FitOptions::default().resolution,
+            },
+            smoothing: self.smoothing,
+            margin: self.margin,
+        }
     }
 }

@@ -4,6 +4,7 @@
 //! The image goes along channel by channel: every tracked vertex lands on a triangle of each
 //! frame ([`Tracked::landings`]), where each channel of that frame is interpolated.
 
+use crate::args::{ForceArg, MeshArgs};
 use crate::progress::count_progress;
 use meshflow::io::{
     frame_files, load_mesh, load_sequence, read_intensity_array, read_mesh_with, read_npy_image,
@@ -390,4 +391,100 @@ fn describe(r: &FrameReport) -> String {
         );
     }
     line
+}
+
+#[derive(clap::Args)]
+pub(crate) struct TrackArgs {
+    /// Frames directory, glob (quoted), .gltf/.glb animation, or NPY directory; frames may
+    /// differ in vertices and triangles
+    pub(crate) input: PathBuf,
+    /// Output directory (an NPY sequence for `meshflow solve`)
+    #[arg(long)]
+    pub(crate) out: PathBuf,
+    #[command(flatten)]
+    pub(crate) force: ForceArg,
+    /// The mesh to move (on or near frame 0's surface; default: frame 0's own mesh)
+    #[arg(long, value_name = "MESH")]
+    pub(crate) reference: Option<PathBuf>,
+    /// Largest normal step per frame, in the data's length unit; a vertex farther from the next
+    /// surface is an error [default: 10 % of frame 0's bounding-box diagonal]
+    #[arg(long, value_name = "LENGTH", allow_negative_numbers = true)]
+    pub(crate) max_step: Option<f64>,
+    /// Go on past vertices beyond --max-step (they take the closest point) and flipped
+    /// triangles, counting them in the report, instead of stopping with an error
+    #[arg(long)]
+    pub(crate) keep_going: bool,
+    /// Frame times t0,t1,… (default: times.txt beside the frames or the glTF animation's,
+    /// else 0,1,2,…)
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    pub(crate) times: Option<Vec<f64>>,
+    /// Track a reference of about N vertices made from frame 0 (or from --reference) by
+    /// simplification: faster, and it folds less than a fine segmentation mesh
+    #[arg(long, value_name = "N")]
+    pub(crate) reference_vertices: Option<usize>,
+    /// After each normal step, relax the mesh on the new surface as rigidly as possible
+    /// against the previous frame (arap), or move vertices along their normals only (none,
+    /// the paper's normal motion)
+    #[arg(long, value_name = "KIND", default_value = "arap")]
+    pub(crate) relax: RelaxKind,
+    /// Relaxation steps per frame (with --relax arap)
+    #[arg(long, value_name = "N", default_value_t = meshflow::track::Relaxation::DEFAULT_ITERATIONS)]
+    pub(crate) relax_iterations: usize,
+    /// Take out the motion of the whole sample between frames before tracking: rigid,
+    /// similarity (also uniform scale) or none; the transforms are in track.json
+    #[arg(long, value_name = "KIND", default_value = "none")]
+    pub(crate) align: meshflow::track::Alignment,
+    /// Keep reference vertices beyond a frame's boundary (they take the closest point on it)
+    /// instead of trimming the reference to the part every frame covers
+    #[arg(long)]
+    pub(crate) keep_uncovered: bool,
+    /// The image as a float .npy of shape (frames, vertices) or (frames, vertices, channels)
+    /// when every frame has as many vertices, or a directory of one .npy per frame, (vertices,)
+    /// or (vertices, channels), in natural order; instead of the files' colours
+    #[arg(long, value_name = "FILE.npy|DIR")]
+    pub(crate) intensity: Option<PathBuf>,
+    /// PLY vertex property holding the grey values (instead of the colours)
+    #[arg(long)]
+    pub(crate) intensity_attribute: Option<String>,
+    /// Image channels: auto (every channel the input has), rgb, luma (Rec. 709) or grey (mean)
+    #[arg(long, default_value = "auto")]
+    pub(crate) channels: meshflow::io::Channels,
+    #[command(flatten)]
+    pub(crate) building: MeshArgs,
+}
+
+/// `--relax`.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub(crate) enum RelaxKind {
+    Arap,
+    None,
+}
+
+impl TrackArgs {
+    pub(crate) fn options(&self) -> meshflow::track::TrackOptions {
+        use meshflow::track::Relaxation;
+        meshflow::track::TrackOptions {
+            max_step: self.max_step,
+            keep_going: self.keep_going,
+            reference: None,
+            reference_vertices: self.reference_vertices,
+            relaxation: match self.relax {
+                RelaxKind::Arap => Relaxation::Arap {
+                    iterations: self.relax_iterations,
+                },
+                RelaxKind::None => Relaxation::None,
+            },
+            alignment: self.align,
+            keep_uncovered: self.keep_uncovered,
+        }
+    }
+
+    pub(crate) fn load_options(&self) -> LoadOptions {
+        LoadOptions {
+            intensity: self.intensity.clone(),
+            intensity_attribute: self.intensity_attribute.clone(),
+            channels: self.channels,
+            ..self.building.options()
+        }
+    }
 }
