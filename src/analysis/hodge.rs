@@ -52,7 +52,7 @@
 
 use crate::fem::element::cotan_stiffness;
 use crate::fem::SparseMatrix;
-use crate::flow::solve::cholesky::{amd_order, analyze_in_order, CholeskyFactor};
+use crate::fem::cholesky::{amd_order, analyze_in_order, CholeskyFactor};
 use crate::flow::FlowError;
 use crate::geometry::IntrinsicGeometry;
 use crate::mesh::{halfedge_sign, Mesh, TreeCotree};

@@ -47,7 +47,7 @@ mod reference;
 pub use points::read_points;
 
 use crate::fem::{cotan_laplacian, vertex_areas, SparseMatrix};
-use crate::flow::solve::cholesky::{analyze, CholeskyFactor};
+use crate::fem::cholesky::{analyze, CholeskyFactor};
 use crate::geometry::IntrinsicGeometry;
 use crate::mesh::Mesh;
 use crate::track::FrameSurface;

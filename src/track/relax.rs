@@ -41,7 +41,7 @@
 use super::surface::FrameSurface;
 use super::SurfaceSample;
 use crate::fem::VertexPattern;
-use crate::flow::solve::cholesky::{analyze, CholeskyFactor};
+use crate::fem::cholesky::{analyze, CholeskyFactor};
 use crate::mesh::Mesh;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;

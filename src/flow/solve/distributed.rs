@@ -29,7 +29,7 @@
 //! sends cannot deadlock. How the ranks talk is the caller's ([`TimeRanks`]): MPI on a cluster
 //! (`MpiRanks`, feature `mpi`), threads in the tests.
 
-use super::cholesky::{analyze, CholeskyFactor, FactorEntries, Precision};
+use crate::fem::cholesky::{analyze, CholeskyFactor, FactorEntries, Precision};
 use super::multigrid::{prolong_add, restrict, v_cycle, CycleLevels};
 use super::pcg::{self, Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings};

@@ -189,7 +189,6 @@
 //! Results agree with the direct solver to 1e-9 relative (`tests/solver.rs`), for lumped and
 //! consistent coupling, Neumann and Dirichlet boundaries, even and odd slab counts.
 
-pub(crate) mod cholesky;
 pub mod distributed;
 mod multigrid;
 mod pcg;
@@ -197,7 +196,7 @@ mod precondition;
 
 use super::system::SpaceTimeSystem;
 use super::{FlowError, FlowParams, SolverChoice};
-use cholesky::{analyze, CholeskyFactor, FactorEntries, Precision};
+use crate::fem::cholesky::{analyze, CholeskyFactor, FactorEntries, Precision};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
 use multigrid::{TimeHierarchy, TimeMultigrid};

@@ -16,7 +16,7 @@
 //! pairing of plane smoothers with semi-coarsening for anisotropic problems; Trottenberg,
 //! Oosterlee & Schüller, *Multigrid*, 2001, §5.2).
 
-use super::cholesky::Precision;
+use crate::fem::cholesky::Precision;
 use super::pcg::{Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings, Whole};
 use crate::flow::system::SpaceTimeSystem;

@@ -1,6 +1,6 @@
 //! Preconditioners for the block-tridiagonal space-time system.
 
-use super::cholesky::{CholeskyFactor, FactorEntries, Precision};
+use crate::fem::cholesky::{CholeskyFactor, FactorEntries, Precision};
 use super::pcg::Preconditioner;
 use crate::flow::system::SpaceTimeSystem;
 use faer::Par;
