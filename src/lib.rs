@@ -76,6 +76,7 @@ pub mod limits;
 pub mod mesh;
 pub mod render;
 pub mod shapes;
+pub mod spatial;
 pub mod statistics;
 pub mod subnormals;
 pub mod surface;
@@ -109,6 +110,8 @@ pub enum Error {
     Render(#[from] render::RenderError),
     #[error(transparent)]
     Track(#[from] track::TrackError),
+    #[error(transparent)]
+    Spatial(#[from] spatial::SpatialError),
     #[error(transparent)]
     Volume(#[from] volume::VolumeError),
     #[error(transparent)]

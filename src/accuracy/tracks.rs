@@ -34,8 +34,8 @@
 use super::{direction_error_degrees, maximum, AccuracyError, MOVING_FRACTION};
 use crate::flow::{FlowResult, MeshSequence};
 use crate::geometry::SurfacePoint;
+use crate::spatial::FrameSurface;
 use crate::statistics::weighted_median;
-use crate::track::FrameSurface;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 

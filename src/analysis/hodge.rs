@@ -50,9 +50,9 @@
 //! dissection: on the paper-size torus grid METIS's ordering cost 0.18 s more to compute and
 //! its factorizations were slower (0.078 s against 0.069 s per slab).
 
+use crate::fem::cholesky::{amd_order, analyze_in_order, CholeskyFactor};
 use crate::fem::element::cotan_stiffness;
 use crate::fem::SparseMatrix;
-use crate::fem::cholesky::{amd_order, analyze_in_order, CholeskyFactor};
 use crate::flow::FlowError;
 use crate::geometry::IntrinsicGeometry;
 use crate::mesh::{halfedge_sign, Mesh, TreeCotree};

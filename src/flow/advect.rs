@@ -17,7 +17,7 @@
 use super::{FlowError, MeshSequence};
 use crate::connection::Connection;
 use crate::geometry::{trace, IntrinsicGeometry, SurfacePoint};
-use crate::track::FrameSurface;
+use crate::spatial::FrameSurface;
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
 

@@ -13,8 +13,8 @@
 //! displacement `d` needs `t ≈ 0.15 d²`, Brox et al.'s rule of thumb carried to surfaces).
 //! Scales come from the surface's size, not from the data's units.
 
-use crate::fem::cholesky::{analyze, CholeskyFactor};
 use super::{FlowError, Images, MeshSequence};
+use crate::fem::cholesky::{analyze, CholeskyFactor};
 use crate::fem::{cotan_laplacian, scalar_mass, MassKind, SparseMatrix};
 use crate::geometry::IntrinsicGeometry;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;

@@ -46,11 +46,11 @@ mod reference;
 
 pub use points::read_points;
 
-use crate::fem::{cotan_laplacian, vertex_areas, SparseMatrix};
 use crate::fem::cholesky::{analyze, CholeskyFactor};
+use crate::fem::{cotan_laplacian, vertex_areas, SparseMatrix};
 use crate::geometry::IntrinsicGeometry;
 use crate::mesh::Mesh;
-use crate::track::FrameSurface;
+use crate::spatial::FrameSurface;
 use faer::sparse::{SparseColMat, Triplet};
 use faer::Par;
 use nalgebra::Vector3;

@@ -3,7 +3,7 @@
 
 use super::{FitOptions, HeightSample, Reference, Resolution, Shape, SurfaceError};
 use crate::shapes::{grid, icosphere};
-use crate::track::FrameSurface;
+use crate::spatial::FrameSurface;
 use nalgebra::{DMatrix, DVector, Vector3};
 use std::f64::consts::PI;
 

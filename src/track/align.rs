@@ -19,7 +19,7 @@
 //! in neither the mesh's motion nor the flow; the transforms are reported so that a user can
 //! put it back.
 
-use super::surface::FrameSurface;
+use crate::spatial::FrameSurface;
 use nalgebra::{Matrix3, Matrix4, Vector3};
 use rayon::prelude::*;
 

@@ -40,7 +40,6 @@
 mod align;
 mod reference;
 mod relax;
-mod surface;
 mod trim;
 
 use crate::connection::vertex_normals;
@@ -48,12 +47,12 @@ use crate::flow::{FlowError, MeshSequence};
 use crate::geometry::SurfacePoint;
 use crate::mesh::{ConnectivityError, Mesh};
 use crate::shapes::Surface;
+pub use crate::spatial::{barycentric, FrameSurface, SurfaceSample};
 pub use align::{Alignment, AlignmentReport, Motion};
 use nalgebra::Vector3;
 use rayon::prelude::*;
 pub use reference::simplified_reference;
 use relax::Relaxer;
-pub use surface::{barycentric, FrameSurface, SurfaceSample};
 
 /// One frame as read, with its own vertices and triangles.
 #[derive(Clone, Debug, Default)]
@@ -827,4 +826,13 @@ fn bounding_diagonal(points: &[Vector3<f64>]) -> f64 {
         .iter()
         .fold(Vector3::repeat(f64::NEG_INFINITY), |m, p| m.sup(p));
     (upper - lower).norm()
+}
+
+impl From<crate::spatial::SpatialError> for TrackError {
+    fn from(e: crate::spatial::SpatialError) -> Self {
+        TrackError::Surface {
+            frame: e.frame,
+            detail: e.detail,
+        }
+    }
 }

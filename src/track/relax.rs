@@ -38,11 +38,11 @@
 //! model's flow `u` is the material's velocity relative to the mesh's own motion, so the
 //! tissue's velocity is the mesh velocity plus `u` (`solve` writes it as `velocity.npy`).
 
-use super::surface::FrameSurface;
 use super::SurfaceSample;
-use crate::fem::VertexPattern;
 use crate::fem::cholesky::{analyze, CholeskyFactor};
+use crate::fem::VertexPattern;
 use crate::mesh::Mesh;
+use crate::spatial::FrameSurface;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
 use nalgebra::{Matrix2, Matrix3, Matrix3x2, SMatrix, Vector2, Vector3};

@@ -29,12 +29,12 @@
 //! sends cannot deadlock. How the ranks talk is the caller's ([`TimeRanks`]): MPI on a cluster
 //! (`MpiRanks`, feature `mpi`), threads in the tests.
 
-use crate::fem::cholesky::{analyze, CholeskyFactor, FactorEntries, Precision};
 use super::multigrid::{prolong_add, restrict, v_cycle, CycleLevels};
 use super::pcg::{self, Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings};
 use super::{factorization_error, Solution, SolveObserver, SolverMethod};
 use super::{gauss_seidel_verdict, PROBE_ITERATIONS, SWITCH_ITERATIONS};
+use crate::fem::cholesky::{analyze, CholeskyFactor, FactorEntries, Precision};
 use crate::flow::system::{dot, SystemWindow};
 use crate::flow::{FlowError, FlowParams, LinkMatrix, SolverChoice, SpaceTimeSystem};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;

@@ -16,9 +16,9 @@
 //! pairing of plane smoothers with semi-coarsening for anisotropic problems; Trottenberg,
 //! Oosterlee & Schüller, *Multigrid*, 2001, §5.2).
 
-use crate::fem::cholesky::Precision;
 use super::pcg::{Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings, Whole};
+use crate::fem::cholesky::Precision;
 use crate::flow::system::SpaceTimeSystem;
 use nalgebra::{Matrix2, Vector2};
 use rayon::prelude::*;

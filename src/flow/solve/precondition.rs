@@ -1,7 +1,7 @@
 //! Preconditioners for the block-tridiagonal space-time system.
 
-use crate::fem::cholesky::{CholeskyFactor, FactorEntries, Precision};
 use super::pcg::Preconditioner;
+use crate::fem::cholesky::{CholeskyFactor, FactorEntries, Precision};
 use crate::flow::system::SpaceTimeSystem;
 use faer::Par;
 use rayon::prelude::*;

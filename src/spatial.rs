@@ -2,15 +2,25 @@
 //! points, and grey values sampled where they land.
 //!
 //! parry3d-f64's `TriMesh` (a BVH over the triangles) answers both queries; it speaks glam, so
-//! points are converted at this boundary and nowhere else.
+//! points are converted at this boundary and nowhere else. The tracker
+//! ([`crate::track`]), the trajectories ([`crate::flow::advect()`]), the scores at tracked points
+//! ([`crate::accuracy`]) and the surface fit ([`crate::surface`]) all locate points on frames,
+//! so this sits below them.
 
-use super::TrackError;
 use crate::geometry::SurfacePoint;
 use nalgebra::Vector3;
 use parry3d_f64::math::Vector;
 use parry3d_f64::query::{PointQueryWithLocation, Ray, RayCast};
 use parry3d_f64::shape::TriMesh;
 use std::collections::HashSet;
+
+/// A frame's triangles that the spatial query structure refused.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("frame {frame}: {detail}")]
+pub struct SpatialError {
+    pub frame: usize,
+    pub detail: String,
+}
 
 /// A frame's triangles with a grey value per vertex.
 pub struct FrameSurface {
@@ -38,9 +48,9 @@ impl FrameSurface {
         positions: &[Vector3<f64>],
         faces: &[[u32; 3]],
         intensity: &[f64],
-    ) -> Result<Self, TrackError> {
+    ) -> Result<Self, SpatialError> {
         let vertices = positions.iter().map(to_glam).collect();
-        let bvh = TriMesh::new(vertices, faces.to_vec()).map_err(|e| TrackError::Surface {
+        let bvh = TriMesh::new(vertices, faces.to_vec()).map_err(|e| SpatialError {
             frame,
             detail: e.to_string(),
         })?;
