@@ -541,7 +541,7 @@ fn tissue_velocity_is_the_mesh_motion_plus_the_flow() {
     )
     .unwrap();
     let flow = vec![vec![Vector3::new(0.0, 0.1, 0.0); patch.positions.len()]; 2];
-    let velocity = meshflow::io::tissue_velocity(&sequence, &flow);
+    let velocity = meshflow::flow::tissue_velocity(&sequence, &flow);
     for (s, expected) in [
         (0, Vector3::new(0.2, 0.1, 0.0)),
         (1, Vector3::new(0.1, 0.1, 0.0)),

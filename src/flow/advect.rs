@@ -1,5 +1,6 @@
 //! Trajectories: points carried through the slabs by a computed flow (the paper's Appendix A
-//! remark on reparametrizing the surface by the flow).
+//! remark on reparametrizing the surface by the flow), and the material's velocity in R³, the
+//! mesh's own motion plus the flow ([`tissue_velocity`]; `velocity.npy`).
 //!
 //! A point is a face and barycentric coordinates, so it is a point of every frame. In slab `s`
 //! the flow at a point of face `T` is the P1 interpolation of the vertex vectors carried into
@@ -170,5 +171,31 @@ impl SlabFlow<'_> {
         }
         let end = trace(self.mesh, self.geometry, p, self.dt * self.velocity(&p));
         (end.point, end.reached_boundary)
+    }
+}
+
+/// The material's velocity in R³ per slab and vertex: the mesh's own motion
+/// `(x_{s+1} − x_s) / (t_{s+1} − t_s)` plus the flow `u`, which the model measures relative
+/// to the mesh (a mesh moved only along its normals has a normal motion, and the sum is then
+/// normal velocity plus flow; a tracked or animated mesh that also slides brings its sliding).
+pub fn tissue_velocity(
+    sequence: &MeshSequence,
+    flow: &[Vec<Vector3<f64>>],
+) -> Vec<Vec<Vector3<f64>>> {
+    (flow.iter().enumerate())
+        .map(|(s, u)| slab_velocity(sequence, s, u))
+        .collect()
+}
+
+/// [`tissue_velocity`] of slab `s` with the flow `u`.
+pub fn slab_velocity(sequence: &MeshSequence, s: usize, u: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+    match (sequence.positions(s), sequence.positions(s + 1)) {
+        (Some(x0), Some(x1)) => {
+            let dt = sequence.slab_duration(s);
+            (x0.iter().zip(x1).zip(u))
+                .map(|((a, b), u)| (b - a) / dt + u)
+                .collect()
+        }
+        _ => u.to_vec(),
     }
 }

@@ -51,7 +51,8 @@ mod uniqueness;
 pub mod warp;
 pub mod window;
 
-pub use advect::{advect, closest_seeds, vertex_seeds, Trajectories, SUBSTEPS};
+pub use advect::{advect, closest_seeds, slab_velocity, tissue_velocity, vertex_seeds};
+pub use advect::{Trajectories, SUBSTEPS};
 pub use anisotropy::Anisotropy;
 pub use energy::EnergyTerms;
 pub use error::FlowError;

@@ -199,7 +199,7 @@ impl<'a> SlabOutput<'a> {
         SlabOutput {
             intrinsic: Cow::Borrowed(&result.intrinsic[slab]),
             vectors: vectors.map(Cow::Borrowed),
-            velocity: vectors.map(|u| slab_velocity(sequence, frame, u)),
+            velocity: vectors.map(|u| crate::flow::slab_velocity(sequence, frame, u)),
             warped_residual: residual.map(|r| Cow::Borrowed(&r[slab][..])),
             errors: errors.map(|e| {
                 [
@@ -366,32 +366,6 @@ fn write_error_npy(dir: &Path, map: &VertexMap, errors: &FlowErrors) -> Result<(
         write_npy(&dir.join(name), &shape, &rows)?;
     }
     Ok(())
-}
-
-/// The material's velocity in R³ per slab and vertex: the mesh's own motion
-/// `(x_{s+1} − x_s) / (t_{s+1} − t_s)` plus the flow `u`, which the model measures relative
-/// to the mesh (a mesh moved only along its normals has a normal motion, and the sum is then
-/// normal velocity plus flow; a tracked or animated mesh that also slides brings its sliding).
-pub fn tissue_velocity(
-    sequence: &MeshSequence,
-    flow: &[Vec<Vector3<f64>>],
-) -> Vec<Vec<Vector3<f64>>> {
-    (flow.iter().enumerate())
-        .map(|(s, u)| slab_velocity(sequence, s, u))
-        .collect()
-}
-
-/// [`tissue_velocity`] of slab `s` with the flow `u`.
-fn slab_velocity(sequence: &MeshSequence, s: usize, u: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
-    match (sequence.positions(s), sequence.positions(s + 1)) {
-        (Some(x0), Some(x1)) => {
-            let dt = sequence.slab_duration(s);
-            (x0.iter().zip(x1).zip(u))
-                .map(|((a, b), u)| (b - a) / dt + u)
-                .collect()
-        }
-        _ => u.to_vec(),
-    }
 }
 
 /// A sequence's slabs for ParaView: `NAME_SSSS.vtu` with the positions of frame `s`, the mesh's

@@ -48,9 +48,8 @@ pub use atomic::{
 };
 pub use channels::{select_channels, Channels, VertexValues};
 pub use flow_output::{
-    summary_json, tissue_velocity, track_scores_json, write_flow_outputs, write_run_input,
-    write_slab_vtus, write_slab_vtus_with_cells, GroundTruthReport, OutputFormat, Scores,
-    TrackReport,
+    summary_json, track_scores_json, write_flow_outputs, write_run_input, write_slab_vtus,
+    write_slab_vtus_with_cells, GroundTruthReport, OutputFormat, Scores, TrackReport,
 };
 pub use flow_over_ranks::{send_own_slabs, write_flow_over_ranks, WrittenFlow};
 pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
