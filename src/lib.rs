@@ -70,6 +70,7 @@ pub mod chart;
 pub mod connection;
 pub mod fem;
 pub mod flow;
+pub mod format;
 pub mod geometry;
 pub mod io;
 pub mod limits;

@@ -1,6 +1,7 @@
-//! Write-then-rename output: single files and whole output directories.
+//! Write-then-rename output directories.
 //!
-//! A file is written beside its target and renamed onto it ([`write_atomically`]). An output
+//! A file is written beside its target and renamed onto it
+//! ([`crate::format::write_atomically`]). An output
 //! directory (the `--out` of a command) is built in a hidden staging directory beside its
 //! target and swapped in whole ([`StagedDir`]), so it holds exactly one run: never a mix of an
 //! earlier run's files and a new one's. Each output directory carries a manifest,
@@ -25,10 +26,10 @@
 
 use super::guard::{refuse_output_over_inputs, OutputKind};
 use super::IoError;
+use crate::format::write_atomically;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
@@ -52,40 +53,6 @@ pub fn remove_live_staging() {
     // The process ends next: keep the lock, so that no thread creates a staging directory
     // between this removal and the exit (creating one takes the lock, see `StagedDir`).
     std::mem::forget(live);
-}
-
-/// Writes `path` through `write`, atomically: a temporary file in the same directory is filled,
-/// flushed and synced, then renamed onto `path`. On any error the temporary file is removed and
-/// `path` is left as it was.
-pub fn write_atomically(
-    path: &Path,
-    write: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
-) -> Result<(), IoError> {
-    let temporary = temporary_beside(path)?;
-    let result = File::create(&temporary).and_then(|file| {
-        let mut writer = BufWriter::new(file);
-        write(&mut writer)?;
-        writer.flush()?;
-        writer.get_ref().sync_all()?;
-        drop(writer);
-        std::fs::rename(&temporary, path)
-    });
-    result.map_err(|source| {
-        let _ = std::fs::remove_file(&temporary);
-        IoError::file(path, source)
-    })
-}
-
-/// Where [`write_atomically`] fills `path` before renaming it: `.NAME.PID.partial` beside it.
-pub(super) fn temporary_beside(path: &Path) -> Result<PathBuf, IoError> {
-    let name = path
-        .file_name()
-        .ok_or_else(|| IoError::format(path, "not a file path"))?;
-    Ok(path.with_file_name(format!(
-        ".{}.{}.partial",
-        name.to_string_lossy(),
-        std::process::id()
-    )))
 }
 
 /// The manifest file that marks a directory as meshflow's output.

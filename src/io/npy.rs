@@ -1,7 +1,7 @@
 //! NumPy `.npy` arrays through npyz: float64 (or float32) data, integer index arrays.
 
-use super::atomic::temporary_beside;
 use super::{write_atomically, IoError};
+use crate::format::temporary_beside;
 use npyz::WriterBuilder;
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Seek};

@@ -30,7 +30,7 @@ use super::plot::{check_chart_size, check_series_lengths, series_colour, PlotLay
 use super::raster::{Canvas, DEFAULT_SUPERSAMPLE};
 use super::shading::Lighting;
 use super::RenderError;
-use crate::io::{write_atomically, IoError};
+use crate::format::{write_atomically, IoError};
 use image::codecs::png::PngEncoder;
 use image::RgbImage;
 use nalgebra::Vector3;
