@@ -319,6 +319,12 @@ impl TimeLink {
         self.polar[f].y.atan2(self.polar[f].x)
     }
 
+    /// `c D_tt Ā` of face `f`: its coupling weight times its mid area.
+    fn face_coupling(&self, before: &Slab, after: &Slab, f: usize) -> f64 {
+        let mid_area = 0.5 * (before.geometry.triangle(f).area + after.geometry.triangle(f).area);
+        self.weight * self.face_weights.as_ref().map_or(1.0, |w| w[f]) * mid_area
+    }
+
     /// The scalar weight matrix `c D_tt m̄` of face `f`: lumped `c D_tt Ā/3 I` or consistent
     /// `c D_tt Ā/12 (1 + I)`.
     pub fn scalar_element(
@@ -328,15 +334,13 @@ impl TimeLink {
         f: usize,
         coupling: TimeCoupling,
     ) -> Matrix3<f64> {
-        let mid_area = 0.5 * (before.geometry.triangle(f).area + after.geometry.triangle(f).area);
-        self.weight
-            * self.face_weights.as_ref().map_or(1.0, |w| w[f])
-            * match coupling {
-                TimeCoupling::Lumped => Matrix3::identity() * (mid_area / 3.0),
-                TimeCoupling::Consistent => {
-                    (Matrix3::repeat(1.0) + Matrix3::identity()) * (mid_area / 12.0)
-                }
+        let weight = self.face_coupling(before, after, f);
+        match coupling {
+            TimeCoupling::Lumped => Matrix3::identity() * (weight / 3.0),
+            TimeCoupling::Consistent => {
+                (Matrix3::repeat(1.0) + Matrix3::identity()) * (weight / 12.0)
             }
+        }
     }
 
     /// The part of face `f` on the diagonal block of `slab` (either end of the link).
@@ -373,7 +377,7 @@ impl TimeLink {
     /// The lumped cross element's diagonal 2×2 blocks of face `f` (its only nonzero ones):
     /// `−c D_tt Ā/3 R¹_aᵀ Q R⁰_a` per corner `a`.
     pub fn lumped_cross_blocks(&self, before: &Slab, after: &Slab, f: usize) -> [Matrix2<f64>; 3] {
-        let weight = self.scalar_element(before, after, f, TimeCoupling::Lumped)[(0, 0)];
+        let weight = self.face_coupling(before, after, f) / 3.0;
         let (r0, r1) = (
             before.connection.face_rotations(f),
             after.connection.face_rotations(f),
