@@ -765,7 +765,7 @@ impl SolveArgs {
 /// `meshflow solve`: in one process, or over the ranks `mpirun` started (the `mpi` feature).
 pub(crate) fn solve_command(args: &SolveArgs) -> Result<(), meshflow::Error> {
     #[cfg(feature = "mpi")]
-    return ranks::solve(args);
+    return crate::ranks::solve(args);
     #[cfg(not(feature = "mpi"))]
     solve(args, None)
 }
