@@ -1,15 +1,26 @@
 //! File formats, the lowest layer of meshflow's I/O: bytes in and out of files, below the
 //! loading of sequences and the writing of a run's outputs ([`crate::io`]).
 //!
-//! So far it holds what every format shares: the error type ([`IoError`], naming the file and
-//! the line or element at fault), reading a named file only if it is a regular file within the
-//! memory limit ([`read_file`], [`open_regular`]), and writing one atomically
-//! ([`write_atomically`]: a temporary file beside the target, renamed onto it). The codecs
-//! themselves (OBJ, PLY, NPY, glTF, VTK, …) still live in `io` and move here next (issue 39).
+//! It holds what every format shares: the error type ([`IoError`], naming the file and the line
+//! or element at fault), reading a named file only if it is a regular file within the memory
+//! limit ([`read_file`], [`open_regular`]), and writing one atomically ([`write_atomically`]: a
+//! temporary file beside the target, renamed onto it); and the codecs that need nothing else:
+//! NPY arrays (`npy`), OBJ geometry (`obj`) and MatrixMarket matrices (`mtx`). The others
+//! (PLY, MTL and textures, glTF, VTK) still live in `io` and move here next (issue 39).
 
 mod error;
 mod file;
+mod mtx;
+mod npy;
+mod obj;
 
 pub use error::IoError;
 pub(crate) use file::temporary_beside;
 pub use file::{open_regular, read_file, write_atomically};
+pub use mtx::{read_matrix_market, write_matrix_market};
+pub use npy::{
+    read_npy, read_npy_f32, read_npy_float, read_npy_float_rows, read_npy_image,
+    read_npy_image_rows, read_npy_indices, write_npy, write_npy_sequence, write_npy_vectors,
+    KeepRows, NpyArray, NpyRows,
+};
+pub use obj::{read_obj, write_obj, ObjMesh};

@@ -26,9 +26,6 @@ mod guard;
 mod input;
 mod linked;
 mod mtl;
-mod mtx;
-mod npy;
-mod obj;
 pub mod ply;
 mod prepare;
 mod sequence;
@@ -38,6 +35,13 @@ pub mod vtk;
 mod warning;
 mod weld;
 
+pub use crate::format::{read_matrix_market, write_matrix_market};
+pub use crate::format::{
+    read_npy, read_npy_f32, read_npy_float, read_npy_float_rows, read_npy_image,
+    read_npy_image_rows, read_npy_indices, write_npy, write_npy_sequence, write_npy_vectors,
+    KeepRows, NpyArray, NpyRows,
+};
+pub use crate::format::{read_obj, write_obj, ObjMesh};
 pub use analysis_output::{
     analysis_arrays, analysis_json, file_faces, write_analysis_outputs, AnalysisArray,
 };
@@ -57,13 +61,6 @@ pub use guard::{refuse_output_over_inputs, OutputKind};
 pub use input::{frame_files, FrameFormat, SequenceSource};
 pub use linked::resolve_linked;
 pub use mtl::{texture_colors, TextureCache};
-pub use mtx::{read_matrix_market, write_matrix_market};
-pub use npy::{
-    read_npy, read_npy_f32, read_npy_float, read_npy_float_rows, read_npy_image,
-    read_npy_image_rows, read_npy_indices, write_npy, write_npy_sequence, write_npy_vectors,
-    KeepRows, NpyArray, NpyRows,
-};
-pub use obj::{read_obj, write_obj, ObjMesh};
 pub use prepare::{load_mesh, mesh_from_arrays, read_mesh_geometry, LoadedMesh};
 pub use sequence::{
     count_frames, load_frames, load_geometry, load_sequence, natural_order, read_intensity_array,

@@ -9,7 +9,7 @@
 //! # Reading `.mtl` files
 //!
 //! Material libraries are parsed by `tobj` ([`tobj::load_mtl_buf`]); the OBJ geometry is not
-//! (see [`super::obj`]: tobj renumbers vertices by first use). Only the statements meshflow
+//! (see [`crate::format::read_obj`]: tobj renumbers vertices by first use). Only the statements meshflow
 //! reads, `newmtl` and `map_Kd`, are handed to it (the others become blank lines, so line
 //! numbers stay): tobj 4.0 panics on a colour with fewer than three numbers (`Kd 0.8`) and
 //! rejects forms the MTL specification allows (`Kd spectral paint.rfl`, `d -halo 0.5`), none

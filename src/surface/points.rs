@@ -1,7 +1,8 @@
 //! Point clouds per frame from files: `(N, 3)` NPY or CSV files (one frame each, a directory
 //! or glob in natural order), or one `(K, N, 3)` NPY of tracks (rows that are NaN dropped).
 
-use crate::io::{frame_files, read_npy_float, IoError};
+use crate::format::{read_npy_float, IoError};
+use crate::io::frame_files;
 use crate::Error;
 use nalgebra::Vector3;
 use std::path::Path;
@@ -88,7 +89,7 @@ fn read_npy_points(file: &Path, alone: bool) -> Result<Vec<Vec<Vector3<f64>>>, I
 /// of its fields is a number (a bad first data line such as `1.0,2.0,abc` is an error, not a
 /// header); every point finite.
 fn read_csv(file: &Path) -> Result<Vec<Vector3<f64>>, IoError> {
-    let bytes = crate::io::read_file(file)?;
+    let bytes = crate::format::read_file(file)?;
     let text = String::from_utf8(bytes)
         .map_err(|e| IoError::format(file, format!("not UTF-8 text ({e})")))?;
     let mut points = Vec::new();

@@ -8,7 +8,7 @@
 //! the page.
 
 use super::read::Metadata;
-use crate::io::IoError;
+use crate::format::IoError;
 use crate::limits;
 use nalgebra::Vector3;
 use std::fs::File;
