@@ -4,19 +4,28 @@
 //! It holds what every format shares: the error type ([`IoError`], naming the file and the line
 //! or element at fault), reading a named file only if it is a regular file within the memory
 //! limit ([`read_file`], [`open_regular`]), and writing one atomically ([`write_atomically`]: a
-//! temporary file beside the target, renamed onto it); and the codecs that need nothing else:
-//! NPY arrays (`npy`), OBJ geometry (`obj`) and MatrixMarket matrices (`mtx`). The others
-//! (PLY, MTL and textures, glTF, VTK) still live in `io` and move here next (issue 39).
+//! temporary file beside the target, renamed onto it); the rule for files named inside other
+//! files ([`resolve_linked`]); and the codecs: NPY arrays (`npy`), OBJ geometry (`obj`), MTL
+//! materials and their textures (`mtl`, `texture`), PLY ([`ply`]), VTK XML ([`vtk`]) and
+//! MatrixMarket matrices (`mtx`). glTF still lives in `io` (its reader takes the loader's
+//! options and returns its warnings) and moves here next (issue 39).
 
 mod error;
 mod file;
+mod linked;
+mod mtl;
 mod mtx;
 mod npy;
 mod obj;
+pub mod ply;
+mod texture;
+pub mod vtk;
 
 pub use error::IoError;
 pub(crate) use file::temporary_beside;
 pub use file::{open_regular, read_file, write_atomically};
+pub use linked::resolve_linked;
+pub use mtl::{texture_colors, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};
 pub use npy::{
     read_npy, read_npy_f32, read_npy_float, read_npy_float_rows, read_npy_image,
@@ -24,3 +33,4 @@ pub use npy::{
     KeepRows, NpyArray, NpyRows,
 };
 pub use obj::{read_obj, write_obj, ObjMesh};
+pub use texture::Texture;

@@ -24,11 +24,11 @@
 //! that `meshflow advect OUT` finds its input in the run itself.
 
 use super::gltf_write::{write_glb_animation, AnimationFrame};
-use super::vtk::{write_pvd, write_vtu_with_cells, NamedArray, PointArray};
 use super::{write_atomically, write_npy, IoError, LoadWarning, LoadedSequence, NpyRows};
 use super::{StagedDir, VertexMap};
 use crate::accuracy::{FlowErrors, TrackScores, TrackSummary};
 use crate::flow::{FlowParams, FlowResult, MeshSequence};
+use crate::format::vtk::{write_pvd, write_vtu_with_cells, NamedArray, PointArray};
 use crate::render::color_wheel::robust_max;
 use crate::render::{screen_flow_colors, Camera, View};
 use nalgebra::{Vector2, Vector3};

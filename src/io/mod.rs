@@ -24,17 +24,13 @@ pub mod gltf_write;
 mod ground_truth;
 mod guard;
 mod input;
-mod linked;
-mod mtl;
-pub mod ply;
 mod prepare;
 mod sequence;
-mod texture;
 mod vertex_map;
-pub mod vtk;
 mod warning;
 mod weld;
 
+pub use crate::format::{ply, vtk};
 pub use crate::format::{read_matrix_market, write_matrix_market};
 pub use crate::format::{
     read_npy, read_npy_f32, read_npy_float, read_npy_float_rows, read_npy_image,
@@ -42,6 +38,7 @@ pub use crate::format::{
     KeepRows, NpyArray, NpyRows,
 };
 pub use crate::format::{read_obj, write_obj, ObjMesh};
+pub use crate::format::{resolve_linked, texture_colors, Texture, TextureCache};
 pub use analysis_output::{
     analysis_arrays, analysis_json, file_faces, write_analysis_outputs, AnalysisArray,
 };
@@ -59,15 +56,12 @@ pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use ground_truth::read_ground_truth;
 pub use guard::{refuse_output_over_inputs, OutputKind};
 pub use input::{frame_files, FrameFormat, SequenceSource};
-pub use linked::resolve_linked;
-pub use mtl::{texture_colors, TextureCache};
 pub use prepare::{load_mesh, mesh_from_arrays, read_mesh_geometry, LoadedMesh};
 pub use sequence::{
     count_frames, load_frames, load_geometry, load_sequence, natural_order, read_intensity_array,
     read_mesh, read_mesh_with, read_times_file, sequence_from_arrays, LoadOptions, LoadedGeometry,
     LoadedSequence, SumOverReaders,
 };
-pub use texture::Texture;
 pub use vertex_map::VertexMap;
 pub use warning::{LoadWarning, STATIC_IMAGE_TOLERANCE};
 

@@ -14,9 +14,9 @@
 //! need). [`load_mesh`] reads one mesh file through these steps, geometry only.
 
 use super::gltf_read::read_gltf_geometry;
-use super::ply::read_ply;
 use super::weld::{weld, SumOverReaders, Weld};
 use super::{read_obj, FrameFormat, FrameMesh, IoError, LoadOptions, LoadWarning, VertexMap};
+use crate::format::ply::read_ply;
 use crate::mesh::{check_index_range, orient, repair, ConnectivityError, Mesh};
 use crate::mesh::{RepairReport, Repaired};
 use crate::Error;

@@ -16,7 +16,6 @@
 
 use super::gltf_read::{read_gltf_animation, read_gltf_animation_frames, read_gltf_frame};
 use super::input::{FrameFormat, SequenceSource};
-use super::ply::read_ply;
 use super::prepare::{prepare_mesh, Prepared};
 use super::warning::STATIC_IMAGE_TOLERANCE;
 pub use super::weld::SumOverReaders;
@@ -27,6 +26,7 @@ use super::{
 use super::{Channels, VertexValues};
 use super::{FrameMesh, IoError, LoadWarning, RawSequence, TextureCache, VertexMap};
 use crate::flow::{check_finite_intensities, FlowError, Images, MeshSequence};
+use crate::format::ply::read_ply;
 use crate::mesh::Mesh;
 use crate::render::UpChoice;
 use crate::Error;
