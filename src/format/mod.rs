@@ -3,7 +3,8 @@
 //!
 //! It holds what every format shares: the error type ([`IoError`], naming the file and the line
 //! or element at fault), reading a named file only if it is a regular file within the memory
-//! limit ([`read_file`], [`open_regular`]), and writing one atomically ([`write_atomically`]: a
+//! limit ([`read_file`], [`open_regular`]), which files make the frames ([`frame_files`], in
+//! [`natural_order`]), and writing one atomically ([`write_atomically`]: a
 //! temporary file beside the target, renamed onto it); the rule for files named inside other
 //! files ([`resolve_linked`]); and the codecs: NPY arrays (`npy`), OBJ geometry (`obj`), MTL
 //! materials and their textures (`mtl`, `texture`), PLY ([`ply`]), VTK XML ([`vtk`]) and
@@ -12,6 +13,7 @@
 
 mod error;
 mod file;
+mod frames;
 mod linked;
 mod mtl;
 mod mtx;
@@ -24,6 +26,8 @@ pub mod vtk;
 pub use error::IoError;
 pub(crate) use file::temporary_beside;
 pub use file::{open_regular, read_file, write_atomically};
+pub(crate) use frames::{directory_files, glob_files};
+pub use frames::{frame_files, natural_order};
 pub use linked::resolve_linked;
 pub use mtl::{texture_colors, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};

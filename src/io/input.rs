@@ -7,7 +7,8 @@
 //! | glob such as `run/frame_*.ply` | the matching files, natural order |
 //! | one `.gltf` or `.glb` file | an animation of its mesh (morph targets, skin, node transforms), one frame per keyframe |
 
-use super::{natural_order, IoError};
+use super::IoError;
+use crate::format::{directory_files, glob_files, natural_order};
 use crate::render::UpAxis;
 use std::path::{Path, PathBuf};
 
@@ -149,47 +150,4 @@ impl SequenceSource {
         files.sort_by(|a, b| natural_order(&a.to_string_lossy(), &b.to_string_lossy()));
         Ok(Self::Frames { format, files })
     }
-}
-
-/// The files that `path` names, in natural order, for readers of one file per frame (volumes,
-/// point clouds): a directory's or a glob's files that `accepts`, or the one file `path`.
-/// `what` names them in the error when there are none (e.g. "volumes (.npy, .tif)").
-pub fn frame_files(
-    path: &Path,
-    accepts: impl Fn(&Path) -> bool,
-    what: &str,
-) -> Result<Vec<PathBuf>, IoError> {
-    let text = path.to_string_lossy();
-    let mut files = if text.contains(['*', '?', '[']) && !path.exists() {
-        glob_files(&text, path)?
-    } else if std::fs::metadata(path)
-        .map_err(|e| IoError::file(path, e))?
-        .is_dir()
-    {
-        directory_files(path)?
-    } else {
-        vec![path.to_path_buf()]
-    };
-    files.retain(|f| accepts(f));
-    if files.is_empty() {
-        return Err(IoError::format(path, format!("no {what} here")));
-    }
-    files.sort_by(|a, b| natural_order(&a.to_string_lossy(), &b.to_string_lossy()));
-    Ok(files)
-}
-
-fn directory_files(dir: &Path) -> Result<Vec<PathBuf>, IoError> {
-    let mut files = Vec::new();
-    for entry in std::fs::read_dir(dir).map_err(|e| IoError::file(dir, e))? {
-        files.push(entry.map_err(|e| IoError::file(dir, e))?.path());
-    }
-    Ok(files)
-}
-
-fn glob_files(pattern: &str, path: &Path) -> Result<Vec<PathBuf>, IoError> {
-    let matches = glob::glob(pattern)
-        .map_err(|e| IoError::format(path, format!("not a valid glob ({e})")))?;
-    matches
-        .map(|m| m.map_err(|e| IoError::file(e.path().to_path_buf(), e.into())))
-        .collect()
 }

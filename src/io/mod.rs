@@ -30,6 +30,7 @@ mod vertex_map;
 mod warning;
 mod weld;
 
+pub use crate::format::{frame_files, natural_order};
 pub use crate::format::{ply, vtk};
 pub use crate::format::{read_matrix_market, write_matrix_market};
 pub use crate::format::{
@@ -55,11 +56,11 @@ pub use flow_over_ranks::{send_own_slabs, write_flow_over_ranks, WrittenFlow};
 pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use ground_truth::read_ground_truth;
 pub use guard::{refuse_output_over_inputs, OutputKind};
-pub use input::{frame_files, FrameFormat, SequenceSource};
+pub use input::{FrameFormat, SequenceSource};
 pub use prepare::{load_mesh, mesh_from_arrays, read_mesh_geometry, LoadedMesh};
 pub use sequence::{
-    count_frames, load_frames, load_geometry, load_sequence, natural_order, read_intensity_array,
-    read_mesh, read_mesh_with, read_times_file, sequence_from_arrays, LoadOptions, LoadedGeometry,
+    count_frames, load_frames, load_geometry, load_sequence, read_intensity_array, read_mesh,
+    read_mesh_with, read_times_file, sequence_from_arrays, LoadOptions, LoadedGeometry,
     LoadedSequence, SumOverReaders,
 };
 pub use vertex_map::VertexMap;

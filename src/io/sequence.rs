@@ -32,7 +32,6 @@ use crate::render::UpChoice;
 use crate::Error;
 use nalgebra::Vector3;
 use rayon::prelude::*;
-use std::cmp::Ordering;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
@@ -1045,41 +1044,4 @@ fn parse_time(token: &str) -> Result<f64, String> {
         Ok(_) => Err(format!("'{shown}' is not a finite time")),
         Err(_) => Err(format!("'{shown}' is not a number")),
     }
-}
-
-/// Compares strings with digit runs ordered by value: `f2 < f10`.
-pub fn natural_order(a: &str, b: &str) -> Ordering {
-    let (mut x, mut y) = (a.as_bytes(), b.as_bytes());
-    loop {
-        match (x.first(), y.first()) {
-            (None, None) => return Ordering::Equal,
-            (None, _) => return Ordering::Less,
-            (_, None) => return Ordering::Greater,
-            (Some(p), Some(q)) if p.is_ascii_digit() && q.is_ascii_digit() => {
-                let (dx, rx) = split_digits(x);
-                let (dy, ry) = split_digits(y);
-                let (tx, ty) = (dx.trim_start_matches('0'), dy.trim_start_matches('0'));
-                let order = tx
-                    .len()
-                    .cmp(&ty.len())
-                    .then_with(|| tx.cmp(ty))
-                    .then_with(|| dx.len().cmp(&dy.len()));
-                if order != Ordering::Equal {
-                    return order;
-                }
-                (x, y) = (rx, ry);
-            }
-            (Some(p), Some(q)) => {
-                if p != q {
-                    return p.cmp(q);
-                }
-                (x, y) = (&x[1..], &y[1..]);
-            }
-        }
-    }
-}
-
-fn split_digits(s: &[u8]) -> (&str, &[u8]) {
-    let n = s.iter().take_while(|c| c.is_ascii_digit()).count();
-    (std::str::from_utf8(&s[..n]).expect("ASCII digits"), &s[n..])
 }

@@ -1,8 +1,7 @@
 //! Point clouds per frame from files: `(N, 3)` NPY or CSV files (one frame each, a directory
 //! or glob in natural order), or one `(K, N, 3)` NPY of tracks (rows that are NaN dropped).
 
-use crate::format::{read_npy_float, IoError};
-use crate::io::frame_files;
+use crate::format::{frame_files, read_npy_float, IoError};
 use crate::Error;
 use nalgebra::Vector3;
 use std::path::Path;

@@ -15,8 +15,7 @@
 //! memory limit ([`crate::limits`]) does not allow is an error before anything is allocated.
 
 use super::{tiff_stack, Volume, VolumeError};
-use crate::format::{read_npy_f32, read_npy_image_rows, IoError};
-use crate::io::frame_files;
+use crate::format::{frame_files, read_npy_f32, read_npy_image_rows, IoError};
 use crate::{limits, Error};
 use nalgebra::Vector3;
 use std::io::{Read, Seek};
