@@ -104,13 +104,23 @@ impl VertexPattern {
         self.matrix(self.assemble_values(n_faces, element))
     }
 
+    /// Zero values in this pattern's order, written rather than `vec![0.0; n]`, to scatter
+    /// elements into: calloc's fresh pages are the shared zero page until the scatter's first
+    /// write, which then faults a second time and flushes every core's TLB (a tenth of the
+    /// assembly's time on 200 frames of 96,900 faces).
+    pub fn zero_values(&self) -> Vec<f64> {
+        let mut values = Vec::with_capacity(self.nnz());
+        values.resize(self.nnz(), 0.0);
+        values
+    }
+
     /// The values (in this pattern's order) of the sum of the element matrices of all faces.
     pub fn assemble_values<const N: usize>(
         &self,
         n_faces: usize,
         element: impl Fn(usize) -> SMatrix<f64, N, N>,
     ) -> Vec<f64> {
-        let mut values = vec![0.0; self.nnz()];
+        let mut values = self.zero_values();
         for face in 0..n_faces {
             self.add_element(face, &element(face), &mut values);
         }

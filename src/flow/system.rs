@@ -370,11 +370,7 @@ fn assemble_slab(
     weights: &Weights,
 ) -> (Vec<f64>, Vec<f64>, f64) {
     let coupling = params.time_coupling;
-    // Written, not `vec![0.0; n]`: calloc's fresh pages are the shared zero page until the
-    // scatter's first write, which then faults again and flushes every core's TLB (a tenth of
-    // the assembly's time on 200 frames).
-    let mut values = Vec::with_capacity(pattern.nnz());
-    values.resize(pattern.nnz(), 0.0);
+    let mut values = pattern.zero_values();
     let mut rhs = vec![0.0; pattern.dimension()];
     let mut constant = 0.0;
     for (f, face) in mesh.faces().iter().enumerate() {

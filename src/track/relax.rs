@@ -168,7 +168,7 @@ impl Relaxer {
         bases: &[Matrix3x2<f64>],
     ) -> Result<CholeskyFactor, String> {
         let proximal = PROXIMAL_WEIGHT / total_area;
-        let mut values = vec![0.0; self.pattern.nnz()];
+        let mut values = self.pattern.zero_values();
         for (f, face) in mesh.faces().iter().enumerate() {
             let rest = &faces[f];
             let stiffness = rest.stiffness();
