@@ -1,7 +1,8 @@
 //! Medians of per-element values (faces, vertices, tracked points): the robust statistics that
 //! the accuracy scores, the tracker's alignment and the flow's automatic scales (`auto` `λ`
-//! and `ε`) share. Written by hand: two short functions over `select_nth_unstable` and a sort
-//! need no crate.
+//! and `ε`) share; and the mean of an image's channels per vertex, which readers, tracking and
+//! the flow's grey picture share. Written by hand: short functions over
+//! `select_nth_unstable`, a sort and a sum need no crate.
 
 /// The (upper, for an even count) median of `values`; 0 for none.
 pub fn median(mut values: Vec<f64>) -> f64 {
@@ -26,4 +27,12 @@ pub fn weighted_median(mut pairs: Vec<(f64, f64)>) -> f64 {
         }
     }
     f64::NAN
+}
+
+/// The unweighted mean over channels per vertex (`channels[c][i]`).
+pub fn channel_mean(channels: &[Vec<f64>]) -> Vec<f64> {
+    let scale = 1.0 / channels.len() as f64;
+    (0..channels.first().map_or(0, Vec::len))
+        .map(|i| channels.iter().map(|c| c[i]).sum::<f64>() * scale)
+        .collect()
 }

@@ -495,7 +495,7 @@ fn gltf_survives_mutation() {
 #[test]
 fn glb_survives_mutation() {
     fuzz(write_glb, "a.glb", "a.glb", |p| {
-        let options = meshflow::io::LoadOptions::default();
+        let options = meshflow::format::gltf::AnimationOptions::default();
         ok(meshflow::io::gltf_read::read_gltf_animation(p, &options))
     });
 }

@@ -2,9 +2,9 @@
 //! and clear errors (naming the file) for broken or unsupported files.
 
 use base64::Engine;
-use meshflow::io::gltf_read::{read_gltf_animation, read_gltf_frame};
-use meshflow::io::gltf_write::{write_glb_animation, AnimationFrame};
-use meshflow::io::{IoError, LoadOptions};
+use meshflow::format::gltf::{read_gltf_animation, read_gltf_frame, AnimationOptions};
+use meshflow::format::gltf::{write_glb_animation, AnimationFrame};
+use meshflow::format::IoError;
 use nalgebra::{Matrix4, Quaternion, UnitQuaternion, Vector3, Vector4};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -75,10 +75,10 @@ impl Animation {
 const TIMES: [f64; 4] = [0.0, 0.5, 1.25, 2.0];
 
 /// Options that resample an animation at `fps` frames per unit of time.
-fn at_fps(fps: f64) -> LoadOptions {
-    LoadOptions {
+fn at_fps(fps: f64) -> AnimationOptions {
+    AnimationOptions {
         fps: Some(fps),
-        ..LoadOptions::default()
+        ..AnimationOptions::default()
     }
 }
 
@@ -93,7 +93,7 @@ fn written_animation_reads_back_bit_identically() {
     let dir = tempfile::tempdir().unwrap();
     let animation = Animation::grid(&TIMES);
     let path = written(dir.path(), &animation);
-    let sequence = read_gltf_animation(&path, &LoadOptions::default()).unwrap();
+    let sequence = read_gltf_animation(&path, &AnimationOptions::default()).unwrap();
     assert_eq!(sequence.faces, animation.faces);
     assert_eq!(sequence.positions, animation.positions);
     assert_eq!(greys(sequence.images.unwrap()), animation.greys);
@@ -178,7 +178,7 @@ fn a_single_frame_is_a_static_mesh_without_animation() {
     let frame = read_gltf_frame(&path).unwrap();
     assert_eq!(frame.positions, animation.positions[0]);
     assert_eq!(frame.faces, animation.faces);
-    let error = read_gltf_animation(&path, &LoadOptions::default())
+    let error = read_gltf_animation(&path, &AnimationOptions::default())
         .unwrap_err()
         .to_string();
     assert!(error.contains("moving.glb"), "{error}");
@@ -414,7 +414,7 @@ fn node_transforms_of_the_node_and_its_parents_are_applied() {
     assert_close(&frame.positions, &base);
     assert_eq!(frame.faces, vec![[0, 1, 2]]);
     assert!(frame.image.is_none());
-    let sequence = read_gltf_animation(&path, &LoadOptions::default()).unwrap();
+    let sequence = read_gltf_animation(&path, &AnimationOptions::default()).unwrap();
     assert_eq!(sequence.times.unwrap(), [0.0, 1.0]);
     assert_close(&sequence.positions[0], &base);
     // The lift (0, 0, 1) is scaled by 4 in z.
@@ -624,7 +624,7 @@ fn textured_meshes_sample_the_base_colour_texture_bilinearly() {
     let frame = read_gltf_frame(&path).unwrap();
     assert_eq!(frame.faces, vec![[0, 1, 2], [3, 4, 5]]);
     assert_all_close(&frame.image.unwrap().to_grey(), &base);
-    let intensities = read_gltf_animation(&path, &LoadOptions::default())
+    let intensities = read_gltf_animation(&path, &AnimationOptions::default())
         .unwrap()
         .images
         .map(greys)
@@ -636,7 +636,7 @@ fn textured_meshes_sample_the_base_colour_texture_bilinearly() {
 /// The error message of reading `path` both ways, which must agree.
 fn read_error(path: &Path) -> String {
     let frame = read_gltf_frame(path).unwrap_err().to_string();
-    let animation = read_gltf_animation(path, &LoadOptions::default())
+    let animation = read_gltf_animation(path, &AnimationOptions::default())
         .unwrap_err()
         .to_string();
     assert_eq!(frame, animation);
@@ -734,7 +734,7 @@ fn unsupported_or_inconsistent_meshes_give_clear_errors() {
         assert!(error.contains(&*name) && error.contains(message), "{error}");
     }
     let static_mesh = patched_triangle(d, "static.gltf", |_, _| {});
-    let error = read_gltf_animation(&static_mesh, &LoadOptions::default())
+    let error = read_gltf_animation(&static_mesh, &AnimationOptions::default())
         .unwrap_err()
         .to_string();
     assert!(
@@ -800,16 +800,16 @@ fn clips_triangle(dir: &Path) -> PathBuf {
     gltf.write(dir, "clips.gltf", document)
 }
 
-fn choosing(animation: &str) -> LoadOptions {
-    LoadOptions {
+fn choosing(animation: &str) -> AnimationOptions {
+    AnimationOptions {
         animation: Some(animation.to_string()),
-        ..LoadOptions::default()
+        ..AnimationOptions::default()
     }
 }
 
 #[test]
 fn animations_are_chosen_by_name_or_index_else_the_first_that_moves_the_mesh() {
-    use meshflow::io::gltf_read::AnimationClip;
+    use meshflow::format::gltf::{AnimationClip, ImplicitClip};
     use meshflow::io::LoadWarning;
     let dir = tempfile::tempdir().unwrap();
     let path = clips_triangle(dir.path());
@@ -826,7 +826,7 @@ fn animations_are_chosen_by_name_or_index_else_the_first_that_moves_the_mesh() {
     ];
 
     // None chosen: "Lift", with a warning that lists the four.
-    let lifted = read_gltf_animation(&path, &LoadOptions::default()).unwrap();
+    let lifted = read_gltf_animation(&path, &AnimationOptions::default()).unwrap();
     assert_eq!(lifted.times.as_deref(), Some([0.0, 1.0].as_slice()));
     assert_close(
         &lifted.positions[1],
@@ -837,7 +837,11 @@ fn animations_are_chosen_by_name_or_index_else_the_first_that_moves_the_mesh() {
         clips: clips.clone(),
         chosen: clips[1].clone(),
     };
-    assert_eq!(lifted.warnings, vec![warning.clone()]);
+    let implicit = ImplicitClip {
+        clips: clips.clone(),
+        chosen: clips[1].clone(),
+    };
+    assert_eq!(lifted.implicit_clip, Some(implicit));
     assert_eq!(
         warning.to_string(),
         format!(
@@ -855,7 +859,7 @@ fn animations_are_chosen_by_name_or_index_else_the_first_that_moves_the_mesh() {
         &slid.positions[2],
         &[[0.0, 0.0, 0.0], [3.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
     );
-    assert!(slid.warnings.is_empty());
+    assert!(slid.implicit_clip.is_none());
     let late = read_gltf_animation(&path, &choosing("3")).unwrap();
     assert_eq!(late.times.as_deref(), Some([5.0, 6.0].as_slice()));
     assert_close(
@@ -883,10 +887,10 @@ fn animations_are_chosen_by_name_or_index_else_the_first_that_moves_the_mesh() {
     // One animation: nothing to warn about.
     let (gltf, document) = lifted_triangle("LINEAR", &[0.0, 1.0]);
     let single = gltf.write(dir.path(), "single.gltf", document);
-    assert!(read_gltf_animation(&single, &LoadOptions::default())
+    assert!(read_gltf_animation(&single, &AnimationOptions::default())
         .unwrap()
-        .warnings
-        .is_empty());
+        .implicit_clip
+        .is_none());
 }
 
 /// The grey value (luma) of every frame's colours.
@@ -1183,16 +1187,18 @@ fn skinned_meshes_follow_linear_blend_skinning_at_keyframes_and_between() {
             .map(|f| [f[0], f[1], f[2]])
             .collect::<Vec<_>>()
     );
-    let sequence = read_gltf_animation(&path, &LoadOptions::default()).unwrap();
+    let sequence = read_gltf_animation(&path, &AnimationOptions::default()).unwrap();
     assert_eq!(sequence.times.as_deref(), Some(BEND_TIMES.as_slice()));
     for (&t, positions) in BEND_TIMES.iter().zip(&sequence.positions) {
         assert_close(positions, &bent_strip(Some(t), false));
     }
-    let warning = sequence.warnings[0].to_string();
-    assert!(
-        warning.contains("(0: \"Idle\" (does not move the mesh), 1: \"Bend\"); read 1: \"Bend\""),
-        "{warning}"
+    let implicit = sequence.implicit_clip.expect("two animations, none named");
+    let clips: Vec<String> = implicit.clips.iter().map(ToString::to_string).collect();
+    assert_eq!(
+        clips,
+        ["0: \"Idle\" (does not move the mesh)", "1: \"Bend\""]
     );
+    assert_eq!(implicit.chosen.to_string(), "1: \"Bend\"");
     // Between keyframes: slerp, the cubic spline, the step and the linear root.
     let resampled = read_gltf_animation(&path, &at_fps(8.0)).unwrap();
     let times = resampled.times.unwrap();
@@ -1214,7 +1220,7 @@ fn morph_targets_are_applied_before_skinning() {
         &read_gltf_frame(&path).unwrap().positions,
         &bent_strip(None, true),
     );
-    for options in [LoadOptions::default(), at_fps(8.0)] {
+    for options in [AnimationOptions::default(), at_fps(8.0)] {
         let sequence = read_gltf_animation(&path, &options).unwrap();
         for (&t, positions) in sequence.times.unwrap().iter().zip(&sequence.positions) {
             assert_close(positions, &bent_strip(Some(t), true));
@@ -1244,7 +1250,7 @@ fn animated_node_transforms_move_a_mesh_without_skin() {
         .unwrap()
         .push(json!({ "sampler": 1, "target": { "node": 0, "path": "rotation" } }));
     let path = gltf.write(dir.path(), "turning.gltf", document);
-    let sequence = read_gltf_animation(&path, &LoadOptions::default()).unwrap();
+    let sequence = read_gltf_animation(&path, &AnimationOptions::default()).unwrap();
     assert_eq!(sequence.times.as_deref(), Some([0.0, 1.0, 2.0].as_slice()));
     for (&t, positions) in [0.0, 1.0, 2.0].iter().zip(&sequence.positions) {
         let angle = std::f64::consts::FRAC_PI_2 * (1.0 + t / 2.0);
@@ -1428,7 +1434,7 @@ fn animations_of_skins_are_checked() {
         ),
     ];
     for (path, message) in cases {
-        let error = read_gltf_animation(&path, &LoadOptions::default())
+        let error = read_gltf_animation(&path, &AnimationOptions::default())
             .unwrap_err()
             .to_string();
         assert_eq!(error, format!("{}: {message}", path.display()));

@@ -268,7 +268,7 @@ fn gltf_unknown_animation_path_is_an_error() {
 "accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}],
 "animations":[{"samplers":[{"input":0,"output":0}],"channels":[{"sampler":0,"target":{"node":0,"path":"weighus"}}]}]}"#;
     let path = file(&dir, "bad.gltf", json.as_bytes());
-    let options = meshflow::io::LoadOptions::default();
+    let options = meshflow::format::gltf::AnimationOptions::default();
     let result = meshflow::io::gltf_read::read_gltf_animation(&path, &options);
     let text = message(result, &path);
     assert!(
@@ -346,7 +346,7 @@ fn gltf_accessor_decoded_over_the_limit_is_refused() {
             ),
         );
     std::fs::write(&path, json).unwrap();
-    let options = meshflow::io::LoadOptions::default();
+    let options = meshflow::format::gltf::AnimationOptions::default();
     let result = meshflow::io::gltf_read::read_gltf_animation(&path, &options);
     let text = message(result, &path);
     assert!(
@@ -445,7 +445,7 @@ fn gltf_fps_frames_over_the_limit_name_fps() {
     });
     let path = dir.path().join("a.glb");
     write_glb_animation(&path, &[[0, 1, 2]], &frames).unwrap();
-    let options = meshflow::io::LoadOptions {
+    let options = meshflow::format::gltf::AnimationOptions {
         fps: Some(1e6),
         ..Default::default()
     };

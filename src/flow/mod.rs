@@ -62,7 +62,7 @@ pub use pyramid::{heat_times, scale_pyramid, COARSEST_HEAT_TIME};
 pub use regularizer::Regularizer;
 pub use robust::FlowDriven;
 pub use scales::{DataScales, ScaleSums};
-pub(crate) use sequence::{channel_mean, check_finite_intensities};
+pub(crate) use sequence::check_finite_intensities;
 pub use sequence::{Images, MeshSequence};
 pub use slab::{Slab, SlabChannel};
 pub use solve::distributed;

@@ -4,6 +4,7 @@ use super::FlowError;
 use crate::connection::{vertex_frames_in_r3, Connection};
 use crate::geometry::{edge_lengths, IntrinsicGeometry};
 use crate::mesh::Mesh;
+use crate::statistics::channel_mean;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use nalgebra::{Matrix3x2, Vector3};
 use std::sync::{Arc, OnceLock};
@@ -241,14 +242,6 @@ impl MeshSequence {
         part.positions = (self.positions.as_ref()).map(|p| p[frames].to_vec());
         Ok(part)
     }
-}
-
-/// The unweighted mean over channels per vertex (`channels[c][i]`).
-pub(crate) fn channel_mean(channels: &[Vec<f64>]) -> Vec<f64> {
-    let scale = 1.0 / channels.len() as f64;
-    (0..channels.first().map_or(0, Vec::len))
-        .map(|i| channels.iter().map(|c| c[i]).sum::<f64>() * scale)
-        .collect()
 }
 
 fn check_images(mesh: &Mesh, images: &Images, n_frames: usize) -> Result<(), FlowError> {

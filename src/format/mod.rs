@@ -8,12 +8,16 @@
 //! temporary file beside the target, renamed onto it); the rule for files named inside other
 //! files ([`resolve_linked`]); and the codecs: NPY arrays (`npy`), OBJ geometry (`obj`), MTL
 //! materials and their textures (`mtl`, `texture`), PLY ([`ply`]), VTK XML ([`vtk`]) and
-//! MatrixMarket matrices (`mtx`). glTF still lives in `io` (its reader takes the loader's
-//! options and returns its warnings) and moves here next (issue 39).
+//! MatrixMarket matrices (`mtx`), glTF 2.0 ([`gltf`]: static and animated meshes in, an
+//! animated `.glb` out). Every mesh reader yields the same raw frame ([`FrameMesh`], with the
+//! file's grey values or colours as [`VertexValues`]) or, from a single animated file, a
+//! [`RawSequence`]; welding, orientation and validation come later, in the loader.
 
 mod error;
 mod file;
+mod frame_mesh;
 mod frames;
+pub mod gltf;
 mod linked;
 mod mtl;
 mod mtx;
@@ -26,6 +30,7 @@ pub mod vtk;
 pub use error::IoError;
 pub(crate) use file::temporary_beside;
 pub use file::{open_regular, read_file, write_atomically};
+pub use frame_mesh::{grey_value, grey_values, FrameMesh, RawSequence, VertexValues};
 pub(crate) use frames::{directory_files, glob_files};
 pub use frames::{frame_files, natural_order};
 pub use linked::resolve_linked;

@@ -16,72 +16,9 @@
 //! Colours are taken as stored (no gamma decoding): brightness constancy needs a consistent
 //! scale per channel, not a perceptual one.
 
-use super::frame::grey_value;
-use crate::flow::{channel_mean as mean_channel, Images};
-
-/// One frame's image as a reader (or caller) gives it, one entry per file vertex.
-#[derive(Clone, Debug, PartialEq)]
-pub enum VertexValues {
-    /// A grey value per vertex.
-    Grey(Vec<f64>),
-    /// An RGB colour per vertex.
-    Colors(Vec<[f64; 3]>),
-    /// `C` channels: `values[c][i]`.
-    Channels(Vec<Vec<f64>>),
-}
-
-impl VertexValues {
-    /// The number of values of a channel that does not have `n` (one per vertex), if any: the
-    /// channels of a [`VertexValues::Channels`] may differ in length when a caller builds them.
-    pub fn wrong_length(&self, n: usize) -> Option<usize> {
-        let lengths: Vec<usize> = match self {
-            VertexValues::Grey(v) => vec![v.len()],
-            VertexValues::Colors(v) => vec![v.len()],
-            VertexValues::Channels(c) => c.iter().map(Vec::len).collect(),
-        };
-        lengths.into_iter().find(|&length| length != n)
-    }
-
-    /// One grey value per vertex: itself, the luma of a colour, the mean of several channels
-    /// (what tracking and pictures use).
-    pub fn to_grey(&self) -> Vec<f64> {
-        match self {
-            VertexValues::Grey(v) => v.clone(),
-            VertexValues::Colors(v) => v.iter().map(|&c| grey_value(c)).collect(),
-            VertexValues::Channels(c) => mean_channel(c),
-        }
-    }
-
-    /// Row-major values of the vertices: one grey value each (`channels` = `None`), or
-    /// `channels` values each (an `(V, C)` array row by row).
-    pub fn from_rows(values: Vec<f64>, channels: Option<usize>) -> Self {
-        match channels {
-            None => VertexValues::Grey(values),
-            Some(c) => VertexValues::Channels(
-                (0..c)
-                    .map(|j| values.iter().skip(j).step_by(c).copied().collect())
-                    .collect(),
-            ),
-        }
-    }
-
-    /// The values as channels `[c][i]`.
-    pub(crate) fn into_channels(self) -> Vec<Vec<f64>> {
-        match self {
-            VertexValues::Grey(v) => vec![v],
-            VertexValues::Colors(v) => (0..3).map(|c| v.iter().map(|x| x[c]).collect()).collect(),
-            VertexValues::Channels(c) => c,
-        }
-    }
-
-    fn n_channels(&self) -> usize {
-        match self {
-            VertexValues::Grey(_) => 1,
-            VertexValues::Colors(_) => 3,
-            VertexValues::Channels(c) => c.len(),
-        }
-    }
-}
+use crate::flow::Images;
+use crate::format::{grey_value, VertexValues};
+use crate::statistics::channel_mean;
 
 /// The image channels a sequence is made of (`--channels`; see the module docs).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -163,7 +100,7 @@ pub fn select_channels(frames: Vec<VertexValues>, choice: Channels) -> Result<Im
         Channels::Luma => needs_three("luma")
             .map(|()| Images::grey(channels.iter().map(|c| luma_of_channels(c)).collect())),
         Channels::Grey => Ok(Images::grey(
-            channels.iter().map(|c| mean_channel(c)).collect(),
+            channels.iter().map(|c| channel_mean(c)).collect(),
         )),
     }
 }

@@ -17,10 +17,6 @@ mod atomic;
 mod channels;
 mod flow_output;
 mod flow_over_ranks;
-mod frame;
-mod glb;
-pub mod gltf_read;
-pub mod gltf_write;
 mod ground_truth;
 mod guard;
 mod input;
@@ -30,7 +26,10 @@ mod vertex_map;
 mod warning;
 mod weld;
 
+pub use crate::format::gltf as gltf_read;
+pub use crate::format::gltf as gltf_write;
 pub use crate::format::{frame_files, natural_order};
+pub use crate::format::{grey_value, grey_values, FrameMesh, RawSequence, VertexValues};
 pub use crate::format::{ply, vtk};
 pub use crate::format::{read_matrix_market, write_matrix_market};
 pub use crate::format::{
@@ -47,13 +46,12 @@ pub use atomic::RUN_MANIFEST;
 pub use atomic::{
     input_files, remove_live_staging, Overwrite, RecordedInput, RunManifest, StagedDir,
 };
-pub use channels::{select_channels, Channels, VertexValues};
+pub use channels::{select_channels, Channels};
 pub use flow_output::{
     summary_json, track_scores_json, write_flow_outputs, write_run_input, write_slab_vtus,
     write_slab_vtus_with_cells, GroundTruthReport, OutputFormat, Scores, TrackReport,
 };
 pub use flow_over_ranks::{send_own_slabs, write_flow_over_ranks, WrittenFlow};
-pub use frame::{grey_value, grey_values, FrameMesh, RawSequence};
 pub use ground_truth::read_ground_truth;
 pub use guard::{refuse_output_over_inputs, OutputKind};
 pub use input::{FrameFormat, SequenceSource};

@@ -14,7 +14,6 @@
 //! `times.txt` next to the frames (numbers separated by white space or commas, `#` comments),
 //! else `0, 1, 2, …`.
 
-use super::gltf_read::{read_gltf_animation, read_gltf_animation_frames, read_gltf_frame};
 use super::input::{FrameFormat, SequenceSource};
 use super::prepare::{prepare_mesh, Prepared};
 use super::warning::STATIC_IMAGE_TOLERANCE;
@@ -26,6 +25,10 @@ use super::{
 use super::{Channels, VertexValues};
 use super::{FrameMesh, IoError, LoadWarning, RawSequence, TextureCache, VertexMap};
 use crate::flow::{check_finite_intensities, FlowError, Images, MeshSequence};
+use crate::format::gltf::{
+    read_gltf_animation, read_gltf_animation_frames, read_gltf_frame, AnimationOptions,
+    ImplicitClip,
+};
 use crate::format::ply::read_ply;
 use crate::mesh::Mesh;
 use crate::render::UpChoice;
@@ -67,6 +70,14 @@ pub struct LoadOptions {
 impl LoadOptions {
     /// The default [`LoadOptions::weld_tolerance`].
     pub const DEFAULT_WELD_TOLERANCE: f64 = 1e-9;
+
+    /// What the glTF reader takes of these options: the animation and `fps`.
+    pub fn animation_options(&self) -> AnimationOptions {
+        AnimationOptions {
+            animation: self.animation.clone(),
+            fps: self.fps,
+        }
+    }
 }
 
 impl Default for LoadOptions {
@@ -150,7 +161,7 @@ pub fn count_frames(path: &Path, options: &LoadOptions) -> Result<usize, Error> 
         SequenceSource::Frames { files, .. } => files.len(),
         SequenceSource::Npy(dir) => read_npy_sequence(dir, &|_| false)?.1,
         SequenceSource::GltfAnimation(file) => {
-            read_gltf_animation_frames(file, options, &|_| false)?.1
+            read_gltf_animation_frames(file, &options.animation_options(), &|_| false)?.1
         }
         SequenceSource::Arrays => unreachable!("arrays are not read"),
     })
@@ -242,7 +253,8 @@ fn read_window(
             (raw, in_range(n_frames_in_all)?)
         }
         SequenceSource::GltfAnimation(file) => {
-            let (raw, n_frames_in_all) = read_gltf_animation_frames(file, options, &is_read)?;
+            let animation = options.animation_options();
+            let (raw, n_frames_in_all) = read_gltf_animation_frames(file, &animation, &is_read)?;
             (raw, in_range(n_frames_in_all)?)
         }
         SequenceSource::Arrays => unreachable!("arrays are not read"),
@@ -272,7 +284,7 @@ pub fn sequence_from_arrays(
         positions,
         images: Some(images),
         times,
-        warnings: Vec::new(),
+        implicit_clip: None,
     };
     build_sequence(source, RawWindow::whole(raw), options, path, &|_| {})
 }
@@ -295,8 +307,9 @@ fn build_sequence(
         images,
         times,
         sources: files,
-        mut warnings,
+        implicit_clip,
     } = std::mem::take(&mut window.raw);
+    let mut warnings = clip_warnings(&source, implicit_clip);
     if window.n_frames_in_all < 2 {
         return Err(FlowError::TooFewFrames(window.n_frames_in_all).into());
     }
@@ -377,6 +390,18 @@ fn build_sequence(
     })
 }
 
+/// The warning for a glTF animation chosen among several without being named.
+fn clip_warnings(source: &SequenceSource, implicit: Option<ImplicitClip>) -> Vec<LoadWarning> {
+    match (source, implicit) {
+        (SequenceSource::GltfAnimation(file), Some(clip)) => vec![LoadWarning::SeveralAnimations {
+            file: file.clone(),
+            clips: clip.clips,
+            chosen: clip.chosen,
+        }],
+        _ => Vec::new(),
+    }
+}
+
 /// The frame times: `options.times`, else the file's own (`read`, a glTF animation's), else a
 /// `times.txt` beside the frames (`None` without any: 0, 1, 2, …); and whether they came from
 /// that `times.txt`.
@@ -434,7 +459,7 @@ pub fn load_geometry(path: &Path, options: &LoadOptions) -> Result<LoadedGeometr
         .iter()
         .map(|p| vertex_map.positions(p))
         .collect();
-    let mut warnings = raw.warnings;
+    let mut warnings = clip_warnings(&source, raw.implicit_clip);
     warnings.extend(prepared.warnings);
     let (times, _) = frame_times(&source, options, raw.times)?;
     Ok(LoadedGeometry {
@@ -623,7 +648,9 @@ fn check_options(
 fn read_raw(source: &SequenceSource, options: &LoadOptions) -> Result<RawSequence, Error> {
     match source {
         SequenceSource::Frames { format, files } => read_frames(*format, files, options),
-        SequenceSource::GltfAnimation(file) => Ok(read_gltf_animation(file, options)?),
+        SequenceSource::GltfAnimation(file) => {
+            Ok(read_gltf_animation(file, &options.animation_options())?)
+        }
         SequenceSource::Npy(dir) => Ok(read_npy_sequence(dir, &|_| true)?.0),
         SequenceSource::Arrays => unreachable!("arrays are not read"),
     }
@@ -664,7 +691,7 @@ fn read_frames(
         images: images.into_iter().collect(),
         times: None,
         sources: files.to_vec(),
-        warnings: Vec::new(),
+        implicit_clip: None,
     })
 }
 
@@ -832,7 +859,7 @@ fn read_npy_sequence(dir: &Path, keep: KeepRows) -> Result<(RawSequence, usize),
         images,
         times: None,
         sources: vec![positions_file; k as usize],
-        warnings: Vec::new(),
+        implicit_clip: None,
     };
     Ok((raw, k_all as usize))
 }

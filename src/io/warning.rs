@@ -1,7 +1,7 @@
 //! Things a loader noticed and worked around without failing: the caller decides how to show
 //! them (the CLI prints each as one `meshflow: warning: …` line).
 
-use super::gltf_read::{clip_list, AnimationClip};
+use crate::format::gltf::{clip_list, AnimationClip};
 use crate::mesh::RepairReport;
 use std::path::PathBuf;
 

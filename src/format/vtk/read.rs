@@ -4,7 +4,7 @@
 use super::data_array::{DataArray, Encoding};
 use super::tree::{parse_document, Element, LineError};
 use super::{PointArray, VTK_TRIANGLE};
-use crate::io::IoError;
+use crate::format::IoError;
 use nalgebra::{Vector2, Vector3};
 use std::path::{Path, PathBuf};
 
@@ -87,20 +87,20 @@ impl NamedArray {
 /// Reads a VTK XML UnstructuredGrid of triangles (see the module docs of [`super`] for what is
 /// accepted). Errors name the file and, where it helps, the line, array and cell.
 pub fn read_vtu(path: &Path) -> Result<VtuMesh, IoError> {
-    let bytes = crate::io::read_file(path)?;
+    let bytes = crate::format::read_file(path)?;
     parse_vtu(&bytes).map_err(|e| IoError::at_line(path, e))
 }
 
 /// Reads a ParaView collection: `(timestep, file)` of every `<DataSet>`, the files resolved
 /// against the `.pvd`'s directory, in order of time (equal times keep their listed order).
 pub fn read_pvd(path: &Path) -> Result<Vec<(f64, PathBuf)>, IoError> {
-    let bytes = crate::io::read_file(path)?;
+    let bytes = crate::format::read_file(path)?;
     let mut datasets = parse_pvd(&bytes).map_err(|e| IoError::at_line(path, e))?;
     datasets.sort_by(|(a, _), (b, _)| a.total_cmp(b));
     datasets
         .into_iter()
         .map(|(time, file)| {
-            let resolved = crate::io::resolve_linked(path, "DataSet file", &file, &file)?;
+            let resolved = crate::format::resolve_linked(path, "DataSet file", &file, &file)?;
             Ok((time, resolved))
         })
         .collect()

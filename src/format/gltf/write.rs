@@ -23,7 +23,8 @@
 //! (Sterbenz's lemma) or both multiples of 2⁻¹⁰ below 2¹⁴ in magnitude; otherwise it adds
 //! one rounding of the delta (relative error ≤ 2⁻²⁴ of the delta).
 
-use super::{glb, write_atomically, IoError};
+use super::glb;
+use crate::format::{write_atomically, IoError};
 use nalgebra::Vector3;
 use serde_json::{json, Value};
 use std::path::Path;

@@ -10,7 +10,8 @@
 //! normalized `u8`/`u16` to `c / (2ⁿ − 1)`, normalized `i8`/`i16` to `max(c / (2ⁿ⁻¹ − 1), −1)`,
 //! other integers to their value.
 
-use crate::io::{glb, resolve_linked, IoError, Texture};
+use super::glb;
+use crate::format::{resolve_linked, IoError, Texture};
 use base64::Engine;
 use gltf::accessor::DataType;
 use gltf::buffer::View;
@@ -37,7 +38,7 @@ impl<'p> GltfFile<'p> {
     /// Reads and validates `path` (`.gltf` JSON or `.glb` binary) and loads its buffers.
     pub fn open(path: &'p Path) -> Result<Self, IoError> {
         let error = |message: String| IoError::format(path, message);
-        let bytes = crate::io::read_file(path)?;
+        let bytes = crate::format::read_file(path)?;
         let (json, blob) = if glb::is_glb(&bytes) {
             let chunks = glb::split(&bytes).map_err(error)?;
             (chunks.json, chunks.bin)

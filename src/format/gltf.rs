@@ -23,7 +23,7 @@
 //! STEP, CUBICSPLINE (the cubic Hermite spline of Appendix C, rotations normalized); before the
 //! first and after the last keyframe the end values hold.
 //!
-//! Colours (the image, see [`super::Channels`]) come from `COLOR_0` (RGB, alpha ignored) plus its
+//! Colours (the image, see [`crate::io::Channels`]) come from `COLOR_0` (RGB, alpha ignored) plus its
 //! morph-target deltas, the same weighted sum; without `COLOR_0`, from the material's
 //! base-colour texture sampled bilinearly (see [`Texture`], always with repeat wrapping) at
 //! the texture coordinates it names (`TEXCOORD_n` plus deltas, `t` from the top as glTF
@@ -46,13 +46,15 @@
 
 mod animation;
 mod file;
+mod glb;
 mod nodes;
 mod skin;
+mod write;
 
-use super::{FrameMesh, IoError, KeepRows, LoadOptions, RawSequence, Texture, VertexValues};
+use super::{FrameMesh, IoError, KeepRows, RawSequence, Texture, VertexValues};
 pub(crate) use animation::clip_list;
-pub use animation::AnimationClip;
 use animation::{resampled_times, Motion};
+pub use animation::{AnimationClip, ImplicitClip};
 use file::GltfFile;
 use gltf::mesh::{Mode, Semantic};
 use gltf::Node;
@@ -62,13 +64,27 @@ use skin::{Influences, Skin};
 use std::collections::HashMap;
 use std::path::Path;
 use std::rc::Rc;
+pub use write::{write_glb_animation, AnimationFrame};
+
+/// Which frames of a file's animation to read.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AnimationOptions {
+    /// The animation, by name or index; `None`: the first that moves the mesh.
+    pub animation: Option<String>,
+    /// Frames at `t₀, t₀ + 1/fps, …` up to the last keyframe, interpolated; `None`: one frame
+    /// per keyframe.
+    pub fps: Option<f64>,
+}
 
 /// Reads an animation (`options.animation`, by name or index, else the first that moves the
 /// mesh): one frame per keyframe of its channels that move the mesh (`options.fps = None`), or
 /// frames at `t₀, t₀ + 1/fps, …` up to the last keyframe, interpolated. See the module
 /// documentation for what the file must contain. `times` are the frame times, `sources` the
-/// path once per frame; the other options are not used here.
-pub fn read_gltf_animation(path: &Path, options: &LoadOptions) -> Result<RawSequence, IoError> {
+/// path once per frame.
+pub fn read_gltf_animation(
+    path: &Path,
+    options: &AnimationOptions,
+) -> Result<RawSequence, IoError> {
     Ok(read_gltf_animation_frames(path, options, &|_| true)?.0)
 }
 
@@ -77,14 +93,14 @@ pub fn read_gltf_animation(path: &Path, options: &LoadOptions) -> Result<RawSequ
 /// its time window needs. With no frame kept, only the animation's times are read.
 pub fn read_gltf_animation_frames(
     path: &Path,
-    options: &LoadOptions,
+    options: &AnimationOptions,
     keep: KeepRows,
 ) -> Result<(RawSequence, usize), IoError> {
     let file = GltfFile::open(path)?;
     let node = mesh_node(&file)?;
     let nodes = Nodes::read(&file)?;
     let surface = Surface::read(&file, &node, true)?;
-    let (motion, warning) = Motion::read(
+    let (motion, implicit_clip) = Motion::read(
         &file,
         &nodes,
         &node,
@@ -106,7 +122,11 @@ pub fn read_gltf_animation_frames(
     let mut images = Vec::with_capacity(kept.len());
     for &t in &kept {
         let weights = motion.weights(t).unwrap_or_else(|| rest_weights.clone());
-        positions.push(surface.positions(&weights, &nodes.pose(&motion, t), &file)?);
+        positions.push(surface.positions(
+            &weights,
+            &nodes.pose(motion.node_values(t), t),
+            &file,
+        )?);
         images.push(surface.image(&weights, &file)?);
     }
     let n_frames = times.len();
@@ -116,7 +136,7 @@ pub fn read_gltf_animation_frames(
         images: images.into_iter().collect(),
         sources: vec![path.to_path_buf(); kept.len()],
         times: Some(times),
-        warnings: warning.into_iter().collect(),
+        implicit_clip,
     };
     Ok((raw, n_frames))
 }

@@ -16,7 +16,7 @@
 
 use super::nodes::{Nodes, Pose};
 use super::{GltfFile, PrimitiveReader};
-use crate::io::IoError;
+use crate::format::IoError;
 use gltf::accessor::DataType;
 use gltf::mesh::Semantic;
 use nalgebra::{Matrix3x4, Matrix4, Vector3, Vector4};

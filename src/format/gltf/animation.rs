@@ -26,7 +26,7 @@
 
 use super::nodes::Nodes;
 use super::{GltfFile, NO_ANIMATION};
-use crate::io::{IoError, LoadWarning};
+use crate::format::IoError;
 use gltf::animation::{Channel, Interpolation, Property};
 use gltf::Node;
 use nalgebra::Vector4;
@@ -59,6 +59,14 @@ impl std::fmt::Display for AnimationClip {
             false => f.write_str(" (does not move the mesh)"),
         }
     }
+}
+
+/// The animation read from a file with several when none was named: the first that moves the
+/// mesh (`chosen`), among all of them (`clips`). The loader reports it as a warning.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImplicitClip {
+    pub clips: Vec<AnimationClip>,
+    pub chosen: AnimationClip,
 }
 
 /// `0: "A", 1: "B"`.
@@ -96,12 +104,12 @@ impl Movers<'_> {
 }
 
 /// The animation named (by name, else by index) by `choice`, or the first that moves the
-/// mesh; with a warning when the choice was implicit among several animations.
+/// mesh; with the list of clips when the choice was implicit among several animations.
 fn chosen_animation<'a>(
     file: &'a GltfFile,
     movers: &Movers,
     choice: Option<&str>,
-) -> Result<(gltf::Animation<'a>, Option<LoadWarning>), IoError> {
+) -> Result<(gltf::Animation<'a>, Option<ImplicitClip>), IoError> {
     let animations: Vec<gltf::Animation> = file.document.animations().collect();
     let clips: Vec<AnimationClip> = animations
         .iter()
@@ -116,12 +124,11 @@ fn chosen_animation<'a>(
             .iter()
             .position(|c| c.moves_mesh)
             .ok_or_else(|| file.error(NO_ANIMATION))?;
-        let warning = (clips.len() > 1).then(|| LoadWarning::SeveralAnimations {
-            file: file.path.to_path_buf(),
+        let implicit = (clips.len() > 1).then(|| ImplicitClip {
             chosen: clips[first].clone(),
             clips: clips.clone(),
         });
-        return Ok((animations[first].clone(), warning));
+        return Ok((animations[first].clone(), implicit));
     };
     let found = clips
         .iter()
@@ -142,7 +149,7 @@ fn chosen_animation<'a>(
 }
 
 /// A channel of node motion: the translation, rotation or scale of one node.
-pub(super) struct NodeChannel {
+struct NodeChannel {
     pub node: usize,
     pub property: Property,
     pub track: Track,
@@ -168,12 +175,12 @@ impl Motion {
         placing: &[usize],
         target_count: usize,
         choice: Option<&str>,
-    ) -> Result<(Self, Option<LoadWarning>), IoError> {
+    ) -> Result<(Self, Option<ImplicitClip>), IoError> {
         let movers = Movers {
             mesh_node: mesh_node.index(),
             placing,
         };
-        let (animation, warning) = chosen_animation(file, &movers, choice)?;
+        let (animation, implicit) = chosen_animation(file, &movers, choice)?;
         let mut motion = Motion {
             times: Vec::new(),
             weights: None,
@@ -227,7 +234,7 @@ impl Motion {
         times.sort_by(f64::total_cmp);
         times.dedup();
         motion.times = times;
-        Ok((motion, warning))
+        Ok((motion, implicit))
     }
 
     /// The morph weights at time `t`, if the animation drives them.
@@ -235,9 +242,10 @@ impl Motion {
         self.weights.as_ref().map(|track| track.at(t))
     }
 
-    /// The translation, rotation and scale channels.
-    pub fn node_channels(&self) -> &[NodeChannel] {
-        &self.nodes
+    /// The node transforms at time `t`: `(node, property, value)` per translation, rotation
+    /// and scale channel (what [`Nodes::pose`] takes).
+    pub fn node_values(&self, t: f64) -> impl Iterator<Item = (usize, Property, Vec<f64>)> + '_ {
+        (self.nodes.iter()).map(move |c| (c.node, c.property, c.track.at(t)))
     }
 }
 

@@ -14,9 +14,8 @@
 //! W = L_root ⋯ L_parent · L_node
 //! ```
 
-use super::animation::Motion;
 use super::{node_label, GltfFile};
-use crate::io::IoError;
+use crate::format::IoError;
 use gltf::animation::Property;
 use nalgebra::{Matrix3, Matrix4, Quaternion, Unit, Vector3};
 use std::collections::HashMap;
@@ -111,18 +110,22 @@ impl Nodes {
         }
     }
 
-    /// The nodes at time `t` of `motion`: its translation, rotation and scale channels replace
-    /// those of the rest transforms.
-    pub fn pose(&self, motion: &Motion, t: f64) -> Pose<'_> {
+    /// The nodes at time `t` of an animation whose channels give `values`, as
+    /// `(node, property, value at t)`: they replace the translation, rotation and scale of the
+    /// rest transforms.
+    pub fn pose(
+        &self,
+        values: impl IntoIterator<Item = (usize, Property, Vec<f64>)>,
+        t: f64,
+    ) -> Pose<'_> {
         let mut animated = HashMap::new();
-        for channel in motion.node_channels() {
+        for (node, property, value) in values {
             // Motion::read refused channels on nodes with a matrix.
-            let Local::Trs(rest) = self.rest[channel.node] else {
+            let Local::Trs(rest) = self.rest[node] else {
                 continue;
             };
-            let trs: &mut Trs = animated.entry(channel.node).or_insert(rest);
-            let value = channel.track.at(t);
-            match channel.property {
+            let trs: &mut Trs = animated.entry(node).or_insert(rest);
+            match property {
                 Property::Translation => trs.translation = Vector3::from_column_slice(&value),
                 Property::Scale => trs.scale = Vector3::from_column_slice(&value),
                 Property::Rotation => {
