@@ -24,7 +24,6 @@ mod prepare;
 mod sequence;
 mod vertex_map;
 mod warning;
-mod weld;
 
 pub use crate::format::gltf as gltf_read;
 pub use crate::format::gltf as gltf_write;

@@ -13,7 +13,7 @@
 //! as a [`LoadWarning`] naming the file (welding itself is not a warning: it is what seams
 //! need). [`load_mesh`] reads one mesh file through these steps, geometry only.
 
-use super::weld::{weld, SumOverReaders, Weld};
+use crate::mesh::{weld, SumOverReaders, Weld};
 use super::{read_obj, FrameFormat, FrameMesh, IoError, LoadOptions, LoadWarning, VertexMap};
 use crate::format::gltf::read_gltf_geometry;
 use crate::format::ply::read_ply;

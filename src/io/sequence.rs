@@ -17,7 +17,7 @@
 use super::input::{FrameFormat, SequenceSource};
 use super::prepare::{prepare_mesh, Prepared};
 use super::warning::STATIC_IMAGE_TOLERANCE;
-pub use super::weld::SumOverReaders;
+pub use crate::mesh::SumOverReaders;
 use super::{
     read_npy_float_rows, read_npy_image_rows, read_npy_indices, read_obj, select_channels,
     texture_colors, KeepRows,

@@ -3,7 +3,8 @@
 //! Nothing here knows about positions or lengths. A [`Mesh`] is validated on construction: it is
 //! an oriented 2-manifold (possibly with boundary) with every vertex used by some face.
 //! [`orient`] makes the faces of a manifold agree in orientation and [`repair`] turns any face
-//! list into an oriented manifold by splitting vertices.
+//! list into an oriented manifold by splitting vertices; welding (module `weld`) joins the
+//! vertices that a file split along seams, where that keeps the mesh manifold.
 //!
 //! # Conventions (used by every other module)
 //!
@@ -21,11 +22,14 @@
 mod cohomology;
 mod repair;
 mod validate;
+mod weld;
 
 pub use cohomology::{halfedge_sign, TreeCotree};
 pub(crate) use repair::UnionFind;
 pub use repair::{orient, repair, RepairReport, Repaired};
 pub use validate::{check_index_range, ConnectivityError};
+pub use weld::SumOverReaders;
+pub(crate) use weld::{weld, Weld};
 
 /// A corner of a face: the face and the local index (0, 1, 2) of the vertex in it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -25,7 +25,7 @@
 //! So welding never makes a vertex or an edge less manifold than the file had it. Welded
 //! vertices are numbered in the order of their first file vertex.
 
-use crate::mesh::UnionFind;
+use super::UnionFind;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use std::collections::{HashMap, HashSet};
