@@ -16,7 +16,7 @@
 //!   A file named inside another file (glTF `buffers[].uri` and `images[].uri`, OBJ `mtllib`,
 //!   MTL `map_Kd`) is read only when it lies in the naming file's directory or below it, as a
 //!   regular file, after percent-decoding and following links
-//!   ([`crate::io::resolve_linked`]). [`LinkedFiles::Anywhere`] lifts the containment for
+//!   ([`crate::format::resolve_linked`]). [`LinkedFiles::Anywhere`] lifts the containment for
 //!   trusted data that lives elsewhere; non-regular files (`/dev/zero`, FIFOs) stay refused.
 //!
 //! Both are process-wide, like rayon's global thread pool, because they describe the process

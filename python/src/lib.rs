@@ -26,7 +26,7 @@ use meshflow::io::{
 };
 use meshflow::mesh::Mesh;
 use meshflow::render::{
-    result_views, write_chosen_slab_pictures, FigureOptions, SlabSelection, UpAxis, View,
+    result_views, write_chosen_slab_pictures, FigureOptions, SlabSelection, UpAxis, UpChoice, View,
 };
 use meshflow::surface::{FitOptions, Reference, Resolution, Shape};
 use meshflow::volume::{Reduce, SampleOptions, SampledSequence, Shell, Volume};
@@ -854,7 +854,7 @@ type TrajectoryArrays<'py> = (
 impl Flow {
     /// The view of the pictures: the default angles and the input's up axis.
     fn view(&self) -> View {
-        View::default().with_up(self.loaded.default_up().axis)
+        View::default().with_up(UpChoice::of_sequence(&self.loaded).axis)
     }
 }
 

@@ -12,7 +12,7 @@
 //! summed over ranks, the distributed solve ([`super::distributed`]), its slabs' flow and
 //! energy, gathered into one [`FlowResult`] on rank 0; [`flow_of_own_slabs`] is the same
 //! without the gathering, for a writer that streams the slabs
-//! ([`crate::io::write_flow_over_ranks`]).
+//! ([`crate::run::write_flow_over_ranks`]).
 //!
 //! Coarse-to-fine warping and robust smoothness change only slab-local data between their
 //! solves, so each rank warps or reweights its own slabs (`flow::outer`). The check that
@@ -258,7 +258,7 @@ pub fn flow_over_ranks(
 /// own slabs `window.slabs` (their flow, R³ vectors, warped residual), with the whole
 /// sequence's energy, iterations and weights (equal on every rank; timings are each rank's
 /// own). What a writer that streams the slabs to their files needs
-/// ([`crate::io::write_flow_over_ranks`]): no rank ever holds the whole flow.
+/// ([`crate::run::write_flow_over_ranks`]): no rank ever holds the whole flow.
 pub fn flow_of_own_slabs(
     frames: &MeshSequence,
     window: &TimeWindow,

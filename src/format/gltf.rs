@@ -23,7 +23,7 @@
 //! STEP, CUBICSPLINE (the cubic Hermite spline of Appendix C, rotations normalized); before the
 //! first and after the last keyframe the end values hold.
 //!
-//! Colours (the image, see [`crate::io::Channels`]) come from `COLOR_0` (RGB, alpha ignored) plus its
+//! Colours (the image, see [`crate::load::Channels`]) come from `COLOR_0` (RGB, alpha ignored) plus its
 //! morph-target deltas, the same weighted sum; without `COLOR_0`, from the material's
 //! base-colour texture sampled bilinearly (see [`Texture`], always with repeat wrapping) at
 //! the texture coordinates it names (`TEXCOORD_n` plus deltas, `t` from the top as glTF

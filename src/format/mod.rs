@@ -1,5 +1,5 @@
 //! File formats, the lowest layer of meshflow's I/O: bytes in and out of files, below the
-//! loading of sequences and the writing of a run's outputs ([`crate::io`]).
+//! loading of sequences and the writing of a run's outputs ([`crate::load`], [`crate::run`]).
 //!
 //! It holds what every format shares: the error type ([`IoError`], naming the file and the line
 //! or element at fault), reading a named file only if it is a regular file within the memory

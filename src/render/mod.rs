@@ -90,4 +90,4 @@ pub use slabs::{
     result_views, sequence_views, write_chosen_slab_pictures, write_slab_pictures, FigureOptions,
     SlabSelection, SlabView,
 };
-pub use upright::{Shape, ShapeUp, UpChoice, UpReason};
+pub use upright::{up_convention, Shape, ShapeUp, UpChoice, UpReason};

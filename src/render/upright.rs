@@ -40,6 +40,7 @@
 //! (0.19 : 0.84 : 1) are disks and get z. Where the rule guesses wrong, `--up` decides.
 
 use super::UpAxis;
+use crate::load::{FrameFormat, LoadedSequence, SequenceSource};
 use nalgebra::{Matrix3, Vector3};
 
 /// A sheet is thinner than this fraction of its narrower side.
@@ -211,6 +212,20 @@ pub enum UpReason {
     NoShape,
 }
 
+/// The axis that is up by the input format's convention, and the format: +y for glTF (its
+/// specification says so); `None` for OBJ, PLY and NPY, which do not say (see the module
+/// documentation for what the data then suggests).
+pub fn up_convention(source: &SequenceSource) -> Option<(UpAxis, &'static str)> {
+    match source {
+        SequenceSource::Frames {
+            format: FrameFormat::Gltf,
+            ..
+        }
+        | SequenceSource::GltfAnimation(_) => Some((UpAxis::Y, FrameFormat::Gltf.name())),
+        SequenceSource::Frames { .. } | SequenceSource::Npy(_) | SequenceSource::Arrays => None,
+    }
+}
+
 /// The up axis a sequence gets when `--up` is not given, and why.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct UpChoice {
@@ -232,6 +247,20 @@ impl UpChoice {
                 axis: shape.axis,
                 reason: UpReason::Shape(shape),
             },
+            None => Self::without_shape(),
+        }
+    }
+
+    /// The up axis of a loaded sequence's pictures when `--up` is not given: its format's
+    /// convention ([`up_convention`]), else what frame 0's shape suggests, z for an intrinsic
+    /// sequence.
+    pub fn of_sequence(loaded: &LoadedSequence) -> Self {
+        if let Some((axis, format)) = up_convention(&loaded.source) {
+            return Self::by_convention(axis, format);
+        }
+        let sequence = &loaded.sequence;
+        match sequence.positions(0) {
+            Some(positions) => Self::from_shape(positions, sequence.mesh().faces()),
             None => Self::without_shape(),
         }
     }

@@ -9,7 +9,9 @@ use meshflow::io::{
     read_npy_float, write_npy, write_npy_sequence, write_npy_vectors, IoError, Overwrite, StagedDir,
 };
 use meshflow::render::colormap::finite_range;
-use meshflow::render::{trajectory_picture, write_png, Camera, PictureStyle, Surface, View};
+use meshflow::render::{
+    trajectory_picture, write_png, Camera, PictureStyle, Surface, UpChoice, View,
+};
 use meshflow::Error;
 use nalgebra::Vector3;
 use std::path::Path;
@@ -49,7 +51,7 @@ pub fn advect(
         let (faces, times) = (sequence.mesh().faces(), sequence.times());
         write_npy_sequence(staged.path(), &positions, faces, Some(&grey), times)
             .map_err(|e| target(e.into()))?;
-        let up = loaded.default_up();
+        let up = UpChoice::of_sequence(&loaded);
         println!("{}", crate::pictures::up_axis_line(&up, None));
         let view = View::default().with_up(up.axis);
         draw_paths(&staged, sequence, &trajectories, view).map_err(target)?;

@@ -10,7 +10,7 @@ use meshflow::io::{write_analysis_outputs, LoadedSequence, OutputFormat, Overwri
 use meshflow::render::colormap::symmetric_range;
 use meshflow::render::text::format_number;
 use meshflow::render::{
-    series_chart, signed_picture, write_png, Camera, PictureStyle, Series, Surface,
+    series_chart, signed_picture, write_png, Camera, PictureStyle, Series, Surface, UpChoice,
 };
 use meshflow::Error;
 use rayon::prelude::*;
@@ -123,7 +123,7 @@ fn draw(
     args: &PictureArgs,
 ) -> Result<usize, Error> {
     let sequence = &loaded.sequence;
-    let view = args.announced_view(&loaded.default_up());
+    let view = args.announced_view(&UpChoice::of_sequence(&loaded));
     let chosen = args.slabs(slabs.len())?;
     let (width, height) = args.size();
     let everywhere: Vec<_> = (0..sequence.n_frames())

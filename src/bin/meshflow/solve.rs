@@ -18,7 +18,7 @@ use meshflow::io::{
 };
 use meshflow::io::{read_ground_truth, GroundTruthReport, LoadOptions, LoadedSequence};
 use meshflow::io::{write_flow_over_ranks, OutputFormat};
-use meshflow::render::{result_views, View};
+use meshflow::render::{result_views, UpChoice, View};
 use meshflow::Error;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
@@ -88,7 +88,9 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
         true => args.pictures.slabs(sequence.n_slabs())?,
         false => Vec::new(),
     };
-    let view = args.pictures.announced_view(&loaded.default_up());
+    let view = args
+        .pictures
+        .announced_view(&UpChoice::of_sequence(&loaded));
     let truth = args
         .ground_truth
         .as_deref()
@@ -335,7 +337,9 @@ fn solve_streamed(
     let (window, loaded) = during(reading, || read_window(args, ranks))?;
     crate::print_warnings(&loaded.warnings);
     print_input(args, &loaded);
-    let view = args.pictures.announced_view(&loaded.default_up());
+    let view = args
+        .pictures
+        .announced_view(&UpChoice::of_sequence(&loaded));
     let progress = solver_progress(params.tolerance);
     progress.println(solving_over(ranks, window.n_slabs_in_all));
     let observer = |event| show(&progress, event);

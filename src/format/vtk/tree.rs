@@ -7,7 +7,7 @@
 //! number or base64 parser then reports them. Declarations, comments, processing instructions
 //! and DOCTYPEs are skipped.
 //!
-//! Errors are `(line, message)` pairs (see [`crate::io::IoError::at_line`]). Nesting is limited
+//! Errors are `(line, message)` pairs (see [`crate::format::IoError::at_line`]). Nesting is limited
 //! to [`MAX_DEPTH`] levels, so a hostile file cannot exhaust the stack when the tree is dropped.
 
 use quick_xml::encoding::EncodingError;

@@ -17,11 +17,13 @@
 //! | `analysis_SSSS.vtu`, `analysis.pvd` | ParaView: frame `s` with the vertex arrays as point data (`divergence`, `curl`, `potential`, `stream`, `intensity`) and the face arrays as cell data (`divergence`, `curl`, `areal_rate`, `shear_rate`, `principal_rates`, `stretch_direction`, `field`, `exact`, `coexact`, `harmonic`) |
 //! | `summary.json` | per slab: time, duration, total area, mean speed, mean divergence, curl, areal and shear rate, the energies `∫|·|²` of the field and its Hodge parts |
 
+use super::write_slab_vtus_with_cells;
 use super::OutputFormat;
-use super::{write_atomically, write_npy, write_slab_vtus_with_cells, IoError, LoadedSequence};
 use crate::analysis::{face_frames, in_r3, SlabAnalysis};
 use crate::flow::MeshSequence;
 use crate::format::vtk::NamedArray;
+use crate::format::{write_atomically, write_npy, IoError};
+use crate::load::LoadedSequence;
 use nalgebra::{Matrix3x2, Vector2, Vector3};
 use std::path::Path;
 

@@ -13,11 +13,12 @@
 //! as a [`LoadWarning`] naming the file (welding itself is not a warning: it is what seams
 //! need). [`load_mesh`] reads one mesh file through these steps, geometry only.
 
-use crate::mesh::{weld, SumOverReaders, Weld};
-use super::{read_obj, FrameFormat, FrameMesh, IoError, LoadOptions, LoadWarning, VertexMap};
+use super::{FrameFormat, LoadOptions, LoadWarning, VertexMap};
 use crate::format::gltf::read_gltf_geometry;
 use crate::format::ply::read_ply;
+use crate::format::{read_obj, FrameMesh, IoError};
 use crate::mesh::{check_index_range, orient, repair, ConnectivityError, Mesh};
+use crate::mesh::{weld, SumOverReaders, Weld};
 use crate::mesh::{RepairReport, Repaired};
 use crate::Error;
 use nalgebra::Vector3;

@@ -17,21 +17,18 @@
 use super::input::{FrameFormat, SequenceSource};
 use super::prepare::{prepare_mesh, Prepared};
 use super::warning::STATIC_IMAGE_TOLERANCE;
-pub use crate::mesh::SumOverReaders;
-use super::{
-    read_npy_float_rows, read_npy_image_rows, read_npy_indices, read_obj, select_channels,
-    texture_colors, KeepRows,
-};
-use super::{Channels, VertexValues};
-use super::{FrameMesh, IoError, LoadWarning, RawSequence, TextureCache, VertexMap};
+use super::{select_channels, Channels, LoadWarning, VertexMap};
 use crate::flow::{check_finite_intensities, FlowError, Images, MeshSequence};
 use crate::format::gltf::{
     read_gltf_animation, read_gltf_animation_frames, read_gltf_frame, AnimationOptions,
     ImplicitClip,
 };
 use crate::format::ply::read_ply;
-use crate::mesh::Mesh;
-use crate::render::UpChoice;
+use crate::format::{
+    read_npy_float_rows, read_npy_image_rows, read_npy_indices, read_obj, texture_colors, KeepRows,
+};
+use crate::format::{FrameMesh, IoError, RawSequence, TextureCache, VertexValues};
+use crate::mesh::{Mesh, SumOverReaders};
 use crate::Error;
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -109,21 +106,6 @@ pub struct LoadedSequence {
     pub frame_files: Vec<PathBuf>,
     /// What the loader noticed and worked around (see [`LoadWarning`]).
     pub warnings: Vec<LoadWarning>,
-}
-
-impl LoadedSequence {
-    /// The up axis of pictures when `--up` is not given: the format's convention (glTF: y),
-    /// else what frame 0's shape suggests ([`crate::render::upright`]), z for an intrinsic
-    /// sequence.
-    pub fn default_up(&self) -> UpChoice {
-        if let Some((axis, format)) = self.source.up_convention() {
-            return UpChoice::by_convention(axis, format);
-        }
-        match self.sequence.positions(0) {
-            Some(positions) => UpChoice::from_shape(positions, self.sequence.mesh().faces()),
-            None => UpChoice::without_shape(),
-        }
-    }
 }
 
 /// Reads the sequence that `path` names (a directory, a glob, a glTF animation; see
@@ -540,7 +522,7 @@ fn static_image_warning(sequence: &MeshSequence, path: &Path) -> Option<LoadWarn
 
 /// [`static_image_warning`] taking the frames one at a time, in order from frame 0: what a
 /// reader that sees each frame once (streamed from other ranks) can tell.
-pub(super) struct StaticImageCheck {
+pub(crate) struct StaticImageCheck {
     /// Frame 0's positions (`None`: intrinsic) and channels.
     zero_positions: Option<Vec<Vector3<f64>>>,
     zero_channels: Vec<Vec<f64>>,
@@ -1046,7 +1028,7 @@ pub fn read_times_file(path: &Path) -> Result<Option<Vec<f64>>, IoError> {
         _ => {}
     }
     // A regular file within the memory limit: a FIFO or device would never end.
-    let bytes = super::read_file(path)?;
+    let bytes = crate::format::read_file(path)?;
     let text = std::str::from_utf8(&bytes).map_err(|_| IoError::format(path, "not UTF-8 text"))?;
     let mut times = Vec::new();
     for (number, line) in text.lines().enumerate() {

@@ -10,7 +10,8 @@
 //! dropped must be finite (dropped ones are ignored). Errors name the file, and the slab and
 //! file vertices at fault.
 
-use super::{read_npy_float, read_npy_float_rows, IoError, VertexMap};
+use super::VertexMap;
+use crate::format::{read_npy_float, read_npy_float_rows, IoError};
 use nalgebra::Vector3;
 use std::path::Path;
 

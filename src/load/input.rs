@@ -7,9 +7,8 @@
 //! | glob such as `run/frame_*.ply` | the matching files, natural order |
 //! | one `.gltf` or `.glb` file | an animation of its mesh (morph targets, skin, node transforms), one frame per keyframe |
 
-use super::IoError;
+use crate::format::IoError;
 use crate::format::{directory_files, glob_files, natural_order};
-use crate::render::UpAxis;
 use std::path::{Path, PathBuf};
 
 /// The format of per-frame mesh files.
@@ -101,20 +100,6 @@ impl SequenceSource {
             Self::Arrays => return None,
         };
         Some(directory.join("times.txt"))
-    }
-
-    /// The axis that is up by the input format's convention, and the format: +y for glTF (its
-    /// specification says so); `None` for OBJ, PLY and NPY, which do not say (see
-    /// [`crate::render::upright`] for what the data then suggests).
-    pub fn up_convention(&self) -> Option<(UpAxis, &'static str)> {
-        match self {
-            Self::Frames {
-                format: FrameFormat::Gltf,
-                ..
-            }
-            | Self::GltfAnimation(_) => Some((UpAxis::Y, FrameFormat::Gltf.name())),
-            Self::Frames { .. } | Self::Npy(_) | Self::Arrays => None,
-        }
     }
 
     /// A short description, e.g. "6 OBJ frames".

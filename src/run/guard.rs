@@ -7,7 +7,7 @@
 //! that does not exist yet is resolved through its nearest existing ancestor, and a glob input
 //! (`'frames/*.obj'`) counts as the directory it lists.
 
-use super::IoError;
+use crate::format::IoError;
 use std::path::{Component, Path, PathBuf};
 
 /// What a command writes at its output path.

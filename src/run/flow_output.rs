@@ -23,12 +23,13 @@
 //! `faces.npy`, `intensity.npy`, `times.txt`), and records `meshflow solve OUT --out OUT`, so
 //! that `meshflow advect OUT` finds its input in the run itself.
 
-use super::gltf_write::{write_glb_animation, AnimationFrame};
-use super::{write_atomically, write_npy, IoError, LoadWarning, LoadedSequence, NpyRows};
-use super::{StagedDir, VertexMap};
+use super::StagedDir;
 use crate::accuracy::{FlowErrors, TrackScores, TrackSummary};
 use crate::flow::{FlowParams, FlowResult, MeshSequence};
+use crate::format::gltf::{write_glb_animation, AnimationFrame};
 use crate::format::vtk::{write_pvd, write_vtu_with_cells, NamedArray, PointArray};
+use crate::format::{write_atomically, write_npy, IoError, NpyRows};
+use crate::load::{LoadWarning, LoadedSequence, VertexMap};
 use crate::render::color_wheel::robust_max;
 use crate::render::{screen_flow_colors, Camera, View};
 use nalgebra::{Vector2, Vector3};
@@ -92,7 +93,7 @@ pub struct Scores<'a> {
 
 /// Writes the outputs of `result` for `loaded` into `out` (see the module table), with the
 /// errors against a ground truth when there is one; `flow.glb` is coloured as pictures from
-/// `view` show the flow (e.g. `View::default().with_up(loaded.default_up().axis)`), and
+/// `view` show the flow (e.g. `View::default().with_up(UpChoice::of_sequence(loaded).axis)`), and
 /// `summary.json` records `view`.
 pub fn write_flow_outputs(
     out: &StagedDir,
@@ -651,5 +652,5 @@ pub fn write_run_input(dir: &Path, loaded: &LoadedSequence) -> Result<(), IoErro
     let grey: Vec<Vec<f64>> = frames
         .map(|k| map.file_rows(sequence.intensities(k), 0.0))
         .collect();
-    super::write_npy_sequence(dir, &positions, &faces, Some(&grey), sequence.times())
+    crate::format::write_npy_sequence(dir, &positions, &faces, Some(&grey), sequence.times())
 }

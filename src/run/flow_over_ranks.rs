@@ -16,11 +16,12 @@
 //! truth need all frames at once; `meshflow solve` gathers the whole result on rank 0 for them.
 
 use super::flow_output::{summary_of, write_summary, SequenceFacts, SlabFiles, SlabOutput};
-use super::sequence::StaticImageCheck;
-use super::{IoError, LoadWarning, LoadedSequence, OutputFormat, Scores, StagedDir};
+use super::{OutputFormat, Scores, StagedDir};
 use crate::flow::distributed::TimeRanks;
 use crate::flow::window::TimeWindow;
 use crate::flow::{FlowParams, FlowResult, MeshSequence};
+use crate::format::IoError;
+use crate::load::{LoadWarning, LoadedSequence, StaticImageCheck};
 use crate::render::View;
 use nalgebra::{Vector2, Vector3};
 use std::borrow::Cow;

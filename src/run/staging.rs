@@ -25,8 +25,8 @@
 //! SIGINT, SIGTERM and SIGHUP ([`remove_live_staging`], called from its signal handler).
 
 use super::guard::{refuse_output_over_inputs, OutputKind};
-use super::IoError;
 use crate::format::write_atomically;
+use crate::format::IoError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::io::Write;
@@ -96,7 +96,7 @@ impl RecordedInput {
         let in_file = |e| IoError::file(path, e);
         let resolved = path.canonicalize().map_err(in_file)?;
         let mut hasher = blake3::Hasher::new();
-        let (mut file, _) = super::open_regular(&resolved)?;
+        let (mut file, _) = crate::format::open_regular(&resolved)?;
         let bytes = std::io::copy(&mut file, &mut hasher).map_err(in_file)?;
         Ok(Self {
             path: resolved,
