@@ -6,8 +6,9 @@
 //!
 //! `cargo run --release --example bench_io [-- N]` (an N×N grid; default 1000)
 
+use meshflow::format::{read_obj, write_obj};
 use meshflow::geometry::IntrinsicGeometry;
-use meshflow::io::{load_sequence, read_obj, write_obj};
+use meshflow::load::load_sequence;
 use meshflow::mesh::Mesh;
 use meshflow::shapes::grid;
 use std::time::Instant;

@@ -8,7 +8,8 @@
 //! Prints one JSON line: the median and all run times in seconds.
 
 use meshflow::flow::{compute_flow, FlowParams};
-use meshflow::io::{sequence_from_arrays, write_npy_sequence, LoadOptions, VertexValues};
+use meshflow::format::{write_npy_sequence, VertexValues};
+use meshflow::load::{sequence_from_arrays, LoadOptions};
 use meshflow::synth::rotating_sphere;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -28,7 +29,7 @@ fn main() -> Result<(), meshflow::Error> {
         .collect();
     let grey: Vec<_> = frames.map(|k| sequence.intensities(k).to_vec()).collect();
     let faces = sequence.mesh().faces().to_vec();
-    std::fs::create_dir_all(&dir).map_err(|e| meshflow::io::IoError::file(&dir, e))?;
+    std::fs::create_dir_all(&dir).map_err(|e| meshflow::format::IoError::file(&dir, e))?;
     write_npy_sequence(&dir, &positions, &faces, Some(&grey), sequence.times())?;
     let mut seconds: Vec<f64> = (0..runs)
         .map(|_| -> Result<f64, meshflow::Error> {

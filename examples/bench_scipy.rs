@@ -12,7 +12,7 @@
 //! [--work DIR]` (needs `python3` with NumPy and SciPy; `--work` keeps the frames and both
 //! outputs in `DIR` instead of a temporary directory).
 
-use meshflow::io::{read_npy_float, write_npy, write_obj};
+use meshflow::format::{read_npy_float, write_npy, write_obj};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;

@@ -134,7 +134,7 @@ fn main() -> Result<(), meshflow::Error> {
         );
     }
     let out = Path::new("out/flow_analysis");
-    std::fs::create_dir_all(out).map_err(|e| meshflow::io::IoError::file(out, e))?;
+    std::fs::create_dir_all(out).map_err(|e| meshflow::format::IoError::file(out, e))?;
     pictures::draw(out, &sequence, &result, &computed[1], &divergence, &curl)?;
     println!("pictures in {}", out.display());
     Ok(())

@@ -27,7 +27,7 @@ use std::time::Instant;
 fn main() -> Result<(), meshflow::Error> {
     let (n, frames) = size_from_args();
     let out = Path::new("out/graph_surface");
-    std::fs::create_dir_all(out).map_err(|e| meshflow::io::IoError::file(out, e))?;
+    std::fs::create_dir_all(out).map_err(|e| meshflow::format::IoError::file(out, e))?;
     let params = FlowParams {
         boundary: Boundary::Dirichlet,
         ..FlowParams::paper(10.0, 0.0, 1e-3)

@@ -392,14 +392,16 @@ impl Files {
         }
         let volume = base.join("volume.npy");
         // Three frames of 8 × 16 × 16 voxels around the unit sphere (voxel size 0.15, origin −1.2).
-        meshflow::io::write_npy(&volume, &[3, 8, 16, 16], &vec![0.5f32; 3 * 8 * 16 * 16]).unwrap();
+        meshflow::format::write_npy(&volume, &[3, 8, 16, 16], &vec![0.5f32; 3 * 8 * 16 * 16])
+            .unwrap();
         let points = base.join("points");
         std::fs::create_dir(&points).unwrap();
         for k in 0..2 {
             let values: Vec<f64> = (0..30)
                 .map(|i| (i * 7 % 11) as f64 + 0.1 * k as f64)
                 .collect();
-            meshflow::io::write_npy(&points.join(format!("p{k}.npy")), &[10, 3], &values).unwrap();
+            meshflow::format::write_npy(&points.join(format!("p{k}.npy")), &[10, 3], &values)
+                .unwrap();
         }
         Self {
             linking_gltf: linking_gltf(base),
@@ -422,7 +424,7 @@ impl Files {
                 let dir = base.join("npyseq");
                 std::fs::create_dir(&dir).unwrap();
                 write(&dir, "positions.npy", npy_header("<f8", &[1_000_000, 1_000_000, 3]));
-                meshflow::io::write_npy(&dir.join("faces.npy"), &[1, 3], &[0i64, 1, 2]).unwrap();
+                meshflow::format::write_npy(&dir.join("faces.npy"), &[1, 3], &[0i64, 1, 2]).unwrap();
                 dir
             },
             tiff_bomb: write(base, "bomb.tif", tiff_bomb(64, 8192)),

@@ -359,11 +359,11 @@ fn mean_edge_length(sequence: &MeshSequence) -> f64 {
 /// `meshes/rotating_sphere` with its known flow.
 fn shipped_sample() -> Result<GroundTruth, meshflow::Error> {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/rotating_sphere");
-    let loaded = meshflow::io::load_sequence(&dir, &meshflow::io::LoadOptions::default())?;
+    let loaded = meshflow::load::load_sequence(&dir, &meshflow::load::LoadOptions::default())?;
     let slabs = loaded.sequence.n_slabs();
     let file = dir.join("ground_truth.npy");
     let flow: Vec<Vec<Vector3<f64>>> =
-        meshflow::io::read_ground_truth(&file, &loaded.vertex_map, slabs)?;
+        meshflow::load::read_ground_truth(&file, &loaded.vertex_map, slabs)?;
     Ok(GroundTruth {
         sequence: loaded.sequence,
         flow,

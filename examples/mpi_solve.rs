@@ -15,7 +15,7 @@
 //! ranks). Rank 0 prints iterations, seconds and every rank's peak memory; `--check` also
 //! solves in one process (rank 0) and prints the largest difference.
 //!
-//! Every rank builds (`--torus`) or reads (INPUT, `meshflow::io::load_frames`) its window's
+//! Every rank builds (`--torus`) or reads (INPUT, `meshflow::load::load_frames`) its window's
 //! frames only; the default sphere is built whole on every rank, which keeps its window's. A rank that
 //! fails prints one line with its rank and ends the job (MPI_Abort); a panic does the same
 //! through a panic hook, so no rank is left waiting. `meshflow solve` under `mpirun` does the
@@ -24,7 +24,7 @@
 use meshflow::flow::distributed::{abort_job_on_panic, gather_to_first, MpiRanks, TimeRanks};
 use meshflow::flow::window::{flow_over_ranks, TimeWindow};
 use meshflow::flow::{FlowParams, FlowProblem, FlowResult, MeshSequence, SolverChoice};
-use meshflow::io::{count_frames, load_frames, load_sequence};
+use meshflow::load::{count_frames, load_frames, load_sequence};
 use meshflow::synth::paper_torus_frames;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;

@@ -27,7 +27,7 @@ use std::time::Instant;
 fn main() -> Result<(), meshflow::Error> {
     let (n1, n2, frames) = grid_size_from_args();
     let out = Path::new("out/paper_torus");
-    std::fs::create_dir_all(out).map_err(|e| meshflow::io::IoError::file(out, e))?;
+    std::fs::create_dir_all(out).map_err(|e| meshflow::format::IoError::file(out, e))?;
     let params = FlowParams::paper(1.0, 0.0, 1.0);
     println!(
         "paper torus: {n1} × {n2} grid, {frames} frames, α = γ = 1, β = 0, {} threads",

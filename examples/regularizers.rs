@@ -20,7 +20,8 @@ use meshflow::accuracy::compare_result;
 use meshflow::flow::{
     compute_flow, Anisotropy, FlowParams, MeshSequence, Regularizer, Scale, Warping, Weight,
 };
-use meshflow::io::{select_channels, Channels, VertexValues};
+use meshflow::format::VertexValues;
+use meshflow::load::{select_channels, Channels};
 use meshflow::synth::{isoluminant, moving_cell_sphere, rotating_sphere};
 use meshflow::synth::{rotating_sphere_in_channels, shearing_sphere, GroundTruth, STILL_CELLS};
 use nalgebra::Vector3;

@@ -15,7 +15,7 @@
 
 use meshflow::accuracy::compare_result;
 use meshflow::flow::{compute_flow, FlowParams};
-use meshflow::io::write_obj;
+use meshflow::format::write_obj;
 use meshflow::render::{mosaic_picture, write_png, Camera, Surface, View};
 use meshflow::shapes::uv_sphere;
 use meshflow::synth::{remeshed_pulsating_sphere, turning_flow, RemeshedScene};
@@ -83,7 +83,7 @@ fn errors(
 }
 
 fn write_frames(scene: &RemeshedScene, dir: &Path) -> Result<(), meshflow::Error> {
-    std::fs::create_dir_all(dir).map_err(|e| meshflow::io::IoError::file(dir, e))?;
+    std::fs::create_dir_all(dir).map_err(|e| meshflow::format::IoError::file(dir, e))?;
     for (k, frame) in scene.frames.iter().enumerate() {
         let grey: Vec<[f64; 3]> = frame.intensity.iter().map(|&g| [g; 3]).collect();
         let path = dir.join(format!("frame_{k:02}.obj"));
@@ -91,13 +91,13 @@ fn write_frames(scene: &RemeshedScene, dir: &Path) -> Result<(), meshflow::Error
     }
     let times: Vec<String> = scene.times.iter().map(f64::to_string).collect();
     std::fs::write(dir.join("times.txt"), times.join("\n") + "\n")
-        .map_err(|e| meshflow::io::IoError::file(dir, e))?;
+        .map_err(|e| meshflow::format::IoError::file(dir, e))?;
     Ok(())
 }
 
 /// Frames 0–2 as given and as tracked, every vertex a pseudo-random grey.
 fn draw_meshes(scene: &RemeshedScene, dir: &Path) -> Result<(), meshflow::Error> {
-    std::fs::create_dir_all(dir).map_err(|e| meshflow::io::IoError::file(dir, e))?;
+    std::fs::create_dir_all(dir).map_err(|e| meshflow::format::IoError::file(dir, e))?;
     let tracked = track(
         &scene.frames,
         Some(scene.times.clone()),

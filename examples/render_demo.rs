@@ -14,7 +14,7 @@ use std::time::Instant;
 
 fn main() -> Result<(), meshflow::Error> {
     let directory = PathBuf::from(std::env::args().nth(1).unwrap_or("out/render_demo".into()));
-    std::fs::create_dir_all(&directory).map_err(|e| meshflow::io::IoError::File {
+    std::fs::create_dir_all(&directory).map_err(|e| meshflow::format::IoError::File {
         path: directory.clone(),
         source: e,
     })?;

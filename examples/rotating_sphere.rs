@@ -14,9 +14,10 @@
 //! `cargo run --release --example rotating_sphere`
 use meshflow::accuracy::{compare_result, FlowErrors};
 use meshflow::flow::{compute_flow, FlowParams, FlowResult};
-use meshflow::io::vtk::NamedArray;
-use meshflow::io::{write_slab_vtus, IoError};
+use meshflow::format::vtk::NamedArray;
+use meshflow::format::IoError;
 use meshflow::render::{sequence_views, write_slab_pictures, FigureOptions};
+use meshflow::run::write_slab_vtus;
 use meshflow::synth::{deforming_sphere, GroundTruth};
 use std::path::Path;
 

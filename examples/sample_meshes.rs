@@ -2,8 +2,8 @@
 //! as OBJ frames with its true flow `ground_truth.npy`, and as a glTF animation):
 //! `cargo run --release --example sample_meshes`.
 
-use meshflow::io::gltf_write::{write_glb_animation, AnimationFrame};
-use meshflow::io::{write_npy, write_obj};
+use meshflow::format::gltf::{write_glb_animation, AnimationFrame};
+use meshflow::format::{write_npy, write_obj};
 use meshflow::shapes::{grid, icosphere, torus};
 use meshflow::synth::rotating_sphere;
 use std::path::Path;
@@ -27,7 +27,7 @@ fn main() -> Result<(), meshflow::Error> {
     // grey values as vertex colours r = g = b.
     let truth = rotating_sphere(3, 6, 1.0, 0.05)?;
     let sequence_dir = dir.join("rotating_sphere");
-    std::fs::create_dir_all(&sequence_dir).map_err(|e| meshflow::io::IoError::File {
+    std::fs::create_dir_all(&sequence_dir).map_err(|e| meshflow::format::IoError::File {
         path: sequence_dir.clone(),
         source: e,
     })?;

@@ -31,7 +31,7 @@ use faer::Side;
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::fem::{self, MassKind, SparseMatrix};
 use meshflow::geometry::IntrinsicGeometry;
-use meshflow::io::{load_mesh, LoadOptions, LoadWarning, LoadedMesh};
+use meshflow::load::{load_mesh, LoadOptions, LoadWarning, LoadedMesh};
 use meshflow::mesh::Mesh;
 use meshflow::Error;
 use std::path::Path;

@@ -15,7 +15,9 @@
 //! the input and the tracked mesh at the first, middle and last frame, every vertex a
 //! pseudo-random grey so that the triangulations show, into `out/segmentation_series/`.
 
-use meshflow::io::{frame_files, read_mesh, FrameFormat};
+use meshflow::format::frame_files;
+
+use meshflow::load::{read_mesh, FrameFormat};
 use meshflow::render::{mosaic_picture, write_png, Camera, Surface, View};
 use meshflow::track::{track, Relaxation, TrackFrame, TrackOptions, Tracked};
 use std::path::{Path, PathBuf};
@@ -39,7 +41,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 faces: mesh.faces,
             })
         })
-        .collect::<Result<Vec<_>, meshflow::io::IoError>>()?;
+        .collect::<Result<Vec<_>, meshflow::format::IoError>>()?;
     let sizes: Vec<usize> = frames.iter().map(|f| f.positions.len()).collect();
     println!(
         "{}: {} frames of {}–{} vertices; reference: {}",

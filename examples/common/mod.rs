@@ -5,13 +5,13 @@
 use meshflow::accuracy::angular_error;
 use meshflow::chart::Chart;
 use meshflow::flow::{FlowParams, FlowProblem, FlowResult, MeshSequence, SolveEvent};
-use meshflow::io::vtk::NamedArray;
-use meshflow::io::write_slab_vtus;
+use meshflow::format::vtk::NamedArray;
 use meshflow::render::color_wheel::{flow_color, robust_max};
 use meshflow::render::colormap::viridis;
 use meshflow::render::{
     chart_picture, sequence_views, write_png, write_slab_pictures, FigureOptions, View,
 };
+use meshflow::run::write_slab_vtus;
 use nalgebra::{Vector2, Vector3};
 use std::path::Path;
 

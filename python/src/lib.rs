@@ -18,16 +18,17 @@ use meshflow::flow::{
     Boundary, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence, Regularizer,
     SolveEvent, SolveObserver, SolverChoice, TimeCoupling, Warping, Weight,
 };
+use meshflow::format::{IoError, VertexValues};
 use meshflow::geometry::IntrinsicGeometry;
-use meshflow::io::{
+use meshflow::load::{
     load_geometry, load_sequence as load_files, mesh_from_arrays, sequence_from_arrays,
-    write_flow_outputs, write_run_input, IoError, LoadOptions, LoadedSequence, OutputFormat,
-    Overwrite, StagedDir, VertexMap, VertexValues,
+    LoadOptions, LoadedSequence, VertexMap,
 };
 use meshflow::mesh::Mesh;
 use meshflow::render::{
     result_views, write_chosen_slab_pictures, FigureOptions, SlabSelection, UpAxis, UpChoice, View,
 };
+use meshflow::run::{write_flow_outputs, write_run_input, OutputFormat, Overwrite, StagedDir};
 use meshflow::surface::{FitOptions, Reference, Resolution, Shape};
 use meshflow::volume::{Reduce, SampleOptions, SampledSequence, Shell, Volume};
 use meshflow::{accuracy, fem, shapes, surface, track as tracking, volume, Error};
@@ -589,9 +590,9 @@ impl Flow {
                     &self.loaded.sequence,
                     &self.result.intrinsic,
                 )?;
-                let arrays = meshflow::io::analysis_arrays(&self.loaded, &slabs)?;
+                let arrays = meshflow::run::analysis_arrays(&self.loaded, &slabs)?;
                 let input = std::path::Path::new("arrays in memory");
-                let summary = meshflow::io::analysis_json(&self.loaded.sequence, &slabs, input);
+                let summary = meshflow::run::analysis_json(&self.loaded.sequence, &slabs, input);
                 Ok((arrays, summary))
             })
             .map_err(to_py_err)?;
@@ -602,7 +603,7 @@ impl Flow {
                 .expect("shape and values agree");
             dict.set_item(array.name, values.into_pyarray(py))?;
         }
-        let faces = meshflow::io::file_faces(&self.loaded);
+        let faces = meshflow::run::file_faces(&self.loaded);
         let faces = Array2::from_shape_vec((faces.len(), 3), faces.concat()).expect("F × 3");
         dict.set_item("faces", faces.into_pyarray(py))?;
         dict.set_item("slabs", summary["slabs"].to_string())?;
@@ -690,13 +691,13 @@ impl Flow {
             values(|p| p.direction_degrees).into_pyarray(py),
         )?;
         dict.set_item("distance", values(|p| p.distance).into_pyarray(py))?;
-        let summary = meshflow::io::track_scores_json(&scores).to_string();
+        let summary = meshflow::run::track_scores_json(&scores).to_string();
         Ok((summary, dict))
     }
 
     /// `summary.json` of the CLI, as a JSON string.
     fn summary_json(&self) -> String {
-        meshflow::io::summary_json(&self.loaded, &self.params, &self.result, Default::default())
+        meshflow::run::summary_json(&self.loaded, &self.params, &self.result, Default::default())
             .to_string()
     }
 

@@ -4,14 +4,13 @@
 use crate::progress::during;
 use crate::run::FinishedRun;
 use meshflow::flow::{advect as carry, closest_seeds, vertex_seeds, MeshSequence, Trajectories};
+use meshflow::format::{read_npy_float, write_npy, write_npy_sequence, write_npy_vectors, IoError};
 use meshflow::geometry::SurfacePoint;
-use meshflow::io::{
-    read_npy_float, write_npy, write_npy_sequence, write_npy_vectors, IoError, Overwrite, StagedDir,
-};
 use meshflow::render::colormap::finite_range;
 use meshflow::render::{
     trajectory_picture, write_png, Camera, PictureStyle, Surface, UpChoice, View,
 };
+use meshflow::run::{Overwrite, StagedDir};
 use meshflow::Error;
 use nalgebra::Vector3;
 use std::path::Path;

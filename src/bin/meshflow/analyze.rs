@@ -6,12 +6,13 @@ use crate::pictures::PictureArgs;
 use crate::progress::{count_progress, during};
 use crate::run::FinishedRun;
 use meshflow::analysis::{analyze_flow, SlabAnalysis};
-use meshflow::io::{write_analysis_outputs, LoadedSequence, OutputFormat, Overwrite};
+use meshflow::load::LoadedSequence;
 use meshflow::render::colormap::symmetric_range;
 use meshflow::render::text::format_number;
 use meshflow::render::{
     series_chart, signed_picture, write_png, Camera, PictureStyle, Series, Surface, UpChoice,
 };
+use meshflow::run::{write_analysis_outputs, OutputFormat, Overwrite};
 use meshflow::Error;
 use rayon::prelude::*;
 use std::path::Path;

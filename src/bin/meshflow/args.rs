@@ -1,6 +1,8 @@
 //! Arguments several commands share: the input mesh options and `--force`.
 
-use meshflow::io::{LoadOptions, Overwrite};
+use meshflow::load::LoadOptions;
+
+use meshflow::run::Overwrite;
 
 #[derive(clap::Args)]
 pub(crate) struct ForceArg {

@@ -16,7 +16,8 @@ mod track;
 
 use args::{ForceArg, MeshArgs};
 use clap::{Parser, Subcommand};
-use meshflow::io::{FrameFormat, OutputFormat};
+use meshflow::load::FrameFormat;
+use meshflow::run::OutputFormat;
 use pictures::PictureArgs;
 use sample::SampleArgs;
 use solve::{solve_command, SolveArgs};
@@ -271,7 +272,7 @@ fn main() -> ExitCode {
 /// and exit with 130, instead of leaving `.OUT.partial-PID` behind.
 fn remove_staging_on_signals() {
     let installed = ctrlc::set_handler(|| {
-        meshflow::io::remove_live_staging();
+        meshflow::run::remove_live_staging();
         eprintln!("meshflow: interrupted: nothing was written");
         std::process::exit(130);
     });
@@ -324,7 +325,7 @@ fn welded_note(n_welded: usize) -> String {
 }
 
 /// One `meshflow: warning: …` line per warning, on stderr.
-fn print_warnings(warnings: &[meshflow::io::LoadWarning]) {
+fn print_warnings(warnings: &[meshflow::load::LoadWarning]) {
     for warning in warnings {
         eprintln!("meshflow: warning: {warning}");
     }

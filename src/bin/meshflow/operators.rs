@@ -7,8 +7,10 @@
 use crate::progress::during;
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::fem;
+use meshflow::format::{write_matrix_market, write_npy};
 use meshflow::geometry::IntrinsicGeometry;
-use meshflow::io::{load_mesh, write_matrix_market, write_npy, LoadOptions, Overwrite, StagedDir};
+use meshflow::load::{load_mesh, LoadOptions};
+use meshflow::run::{Overwrite, StagedDir};
 use meshflow::Error;
 use std::path::Path;
 

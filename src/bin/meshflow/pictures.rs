@@ -3,12 +3,13 @@
 //! [`write_slab_pictures`].
 
 use crate::progress::{count_progress, during};
-use meshflow::io::vtk::{read_pvd, read_vtu, VtuMesh};
-use meshflow::io::{IoError, Overwrite, StagedDir};
+use meshflow::format::vtk::{read_pvd, read_vtu, VtuMesh};
+use meshflow::format::IoError;
 use meshflow::render::{
     write_chosen_slab_pictures, FigureOptions, RenderError, SlabSelection, SlabView, UpAxis,
     UpChoice, View,
 };
+use meshflow::run::{Overwrite, StagedDir};
 use meshflow::Error;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! `mpirun -n R meshflow solve …` (the `mpi` feature): each rank reads and solves one time
 //! window of the sequence (`meshflow::flow::window`); rank 0 reports progress and writes the
 //! outputs, exactly those of one process, the other ranks streaming their slabs to it
-//! (`meshflow::io::write_flow_over_ranks`; for `flow.glb`, pictures and ground-truth scores
+//! (`meshflow::run::write_flow_over_ranks`; for `flow.glb`, pictures and ground-truth scores
 //! rank 0 reads all frames and gathers the whole flow instead). Any rank that fails prints its error in
 //! one line naming the rank and ends the whole job (`MPI_Abort`), so no rank is left waiting;
 //! a panic does the same through a panic hook.

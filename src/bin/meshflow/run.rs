@@ -3,9 +3,9 @@
 use crate::progress::during;
 use crate::{Cli, Command, SolveArgs};
 use clap::Parser;
-use meshflow::io::{
-    load_sequence, read_npy_float, IoError, LoadedSequence, Overwrite, RunManifest, StagedDir,
-};
+use meshflow::format::{read_npy_float, IoError};
+use meshflow::load::{load_sequence, LoadedSequence};
+use meshflow::run::{Overwrite, RunManifest, StagedDir};
 use meshflow::Error;
 use nalgebra::Vector2;
 use std::path::Path;
@@ -69,7 +69,7 @@ pub fn solve_command(run: &Path) -> Result<Box<crate::SolveArgs>, Error> {
         .ok_or_else(|| not_a_run("its manifest lists no command"))?;
     let args = match Cli::try_parse_from(command).map(|cli| cli.command) {
         // Its paths as the solve meant them, wherever `advect` runs from.
-        // A flow computed from arrays holds its input itself (`meshflow::io::write_run_input`).
+        // A flow computed from arrays holds its input itself (`meshflow::run::write_run_input`).
         Ok(Command::Solve(mut args)) if args.input == args.out => {
             args.input = run.to_path_buf();
             args.intensity = None;
@@ -92,7 +92,7 @@ pub fn solve_command(run: &Path) -> Result<Box<crate::SolveArgs>, Error> {
 /// `flow_intrinsic.npy` of the run, per mesh vertex.
 fn read_flow(
     run: &Path,
-    loaded: &meshflow::io::LoadedSequence,
+    loaded: &meshflow::load::LoadedSequence,
 ) -> Result<Vec<Vec<Vector2<f64>>>, Error> {
     let file = run.join("flow_intrinsic.npy");
     let array = read_npy_float(&file)?;

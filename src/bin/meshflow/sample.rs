@@ -6,10 +6,9 @@
 use crate::args::MeshArgs;
 use crate::progress::during;
 use crate::usage;
-use meshflow::io::{
-    count_frames, input_files, load_geometry, refuse_output_over_inputs, write_atomically,
-    write_npy, LoadOptions, OutputKind, RunManifest,
-};
+use meshflow::format::{write_atomically, write_npy};
+use meshflow::load::{count_frames, load_geometry, LoadOptions};
+use meshflow::run::{input_files, refuse_output_over_inputs, OutputKind, RunManifest};
 use meshflow::volume::{
     count_volume_frames, read_volumes, sample_sequence, SampleOptions, SampledSequence,
     VolumeError, VolumeOptions, VoxelSizeSource,
@@ -148,7 +147,7 @@ fn register_in_manifest(sequence: &Path) -> Result<(), Error> {
         manifest.files.sort();
     }
     manifest.commands.push(crate::command_line());
-    let path = sequence.join(meshflow::io::RUN_MANIFEST);
+    let path = sequence.join(meshflow::run::RUN_MANIFEST);
     write_atomically(&path, |w| {
         serde_json::to_writer_pretty(&mut *w, &manifest).map_err(std::io::Error::other)?;
         writeln!(w)
@@ -163,7 +162,7 @@ fn output_file(request: &SampleRequest) -> Result<PathBuf, Error> {
     }
     match request.sequence.is_dir() {
         true => Ok(request.sequence.join(INTENSITY)),
-        false => Err(meshflow::io::IoError::format(
+        false => Err(meshflow::format::IoError::format(
             request.sequence,
             "not a directory: give the output file with --out FILE.npy",
         )

@@ -13,12 +13,13 @@ use meshflow::flow::{
     Anisotropy, Boundary, FlowDriven, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence,
     Scale, SolveEvent, SolveObserver, SolverChoice, TimeCoupling, Weight, Weights,
 };
-use meshflow::io::{
-    load_frames, load_sequence, read_npy_float, write_flow_outputs, Scores, StagedDir, TrackReport,
-};
-use meshflow::io::{read_ground_truth, GroundTruthReport, LoadOptions, LoadedSequence};
-use meshflow::io::{write_flow_over_ranks, OutputFormat};
+use meshflow::format::read_npy_float;
+use meshflow::load::{load_frames, load_sequence};
+use meshflow::load::{read_ground_truth, LoadOptions, LoadedSequence};
 use meshflow::render::{result_views, UpChoice, View};
+use meshflow::run::GroundTruthReport;
+use meshflow::run::{write_flow_outputs, Scores, StagedDir, TrackReport};
+use meshflow::run::{write_flow_over_ranks, OutputFormat};
 use meshflow::Error;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
@@ -190,7 +191,7 @@ pub fn solve_on_rank(args: &SolveArgs, ranks: &dyn TimeRanks) -> Result<(), Erro
     match streams_outputs(args) {
         true => {
             let result = flow_of_own_slabs(sequence, &window, ranks, &params, &|_| {})?;
-            meshflow::io::send_own_slabs(&loaded, &window, ranks, &result);
+            meshflow::run::send_own_slabs(&loaded, &window, ranks, &result);
         }
         false => {
             flow_over_ranks(sequence, &window, ranks, &params, &|_| {})?;
@@ -375,7 +376,7 @@ fn read_window(
     ranks: &dyn TimeRanks,
 ) -> Result<(TimeWindow, LoadedSequence), Error> {
     let options = args.load_options();
-    let n_frames = meshflow::io::count_frames(&args.input, &options)?;
+    let n_frames = meshflow::load::count_frames(&args.input, &options)?;
     if n_frames < 2 {
         return Err(FlowError::TooFewFrames(n_frames).into());
     }
@@ -681,7 +682,7 @@ pub(crate) struct SolveArgs {
     /// Image channels: auto (every channel the input has: RGB for colours, one for grey
     /// colours and values), rgb, luma (Rec. 709) or grey (mean of the channels)
     #[arg(long, default_value = "auto")]
-    pub(crate) channels: meshflow::io::Channels,
+    pub(crate) channels: meshflow::load::Channels,
     /// Weight of each image channel in the data term, w1,w2,… (one per channel) [default: 1
     /// each]
     #[arg(

@@ -5,10 +5,8 @@
 use crate::args::ForceArg;
 use crate::progress::during;
 use meshflow::accuracy::{default_match_distance, Tracks};
-use meshflow::io::{
-    refuse_output_over_inputs, write_atomically, write_npy, write_npy_sequence, IoError,
-    OutputKind, Overwrite, StagedDir,
-};
+use meshflow::format::{write_atomically, write_npy, write_npy_sequence, IoError};
+use meshflow::run::{refuse_output_over_inputs, OutputKind, Overwrite, StagedDir};
 use meshflow::surface::{fit_surface, read_points, FitOptions, FittedSurface, Reference};
 use meshflow::Error;
 use std::path::{Path, PathBuf};

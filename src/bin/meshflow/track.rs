@@ -6,11 +6,15 @@
 
 use crate::args::{ForceArg, MeshArgs};
 use crate::progress::count_progress;
-use meshflow::io::{
-    frame_files, load_mesh, load_sequence, read_intensity_array, read_mesh_with, read_npy_image,
-    read_times_file, select_channels, write_atomically, write_npy, write_npy_sequence, IoError,
-    LoadOptions, Overwrite, SequenceSource, StagedDir, VertexValues,
+use meshflow::format::{
+    frame_files, read_npy_image, write_atomically, write_npy, write_npy_sequence, IoError,
+    VertexValues,
 };
+use meshflow::load::{
+    load_mesh, load_sequence, read_intensity_array, read_mesh_with, read_times_file,
+    select_channels, LoadOptions, SequenceSource,
+};
+use meshflow::run::{Overwrite, StagedDir};
 use meshflow::shapes::Surface;
 use meshflow::track::{
     track_with_progress, FrameReport, TrackEvent, TrackFrame, TrackOptions, Tracked,
@@ -448,7 +452,7 @@ pub(crate) struct TrackArgs {
     pub(crate) intensity_attribute: Option<String>,
     /// Image channels: auto (every channel the input has), rgb, luma (Rec. 709) or grey (mean)
     #[arg(long, default_value = "auto")]
-    pub(crate) channels: meshflow::io::Channels,
+    pub(crate) channels: meshflow::load::Channels,
     #[command(flatten)]
     pub(crate) building: MeshArgs,
 }
