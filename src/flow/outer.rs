@@ -8,8 +8,9 @@
 //! system is solved; the few scalars the iterations decide on (the robust energy) are summed
 //! over processes with [`SlabSolver::sum`].
 
-use super::{DataScales, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence};
-use super::{Slab, SolveObserver, SolveStep, Timings, Weights};
+use super::problem::{FlowProblem, FlowResult, SolveStep, Timings};
+use super::{DataScales, FlowError, FlowParams, MeshSequence};
+use super::{Slab, SolveObserver, Weights};
 use std::ops::Range;
 use std::time::Instant;
 

@@ -43,7 +43,8 @@
 //! along image edges and letting the flow jump across them where it does.
 
 use super::outer::{OuterStart, RunClock, SlabSolver};
-use super::{FlowError, FlowParams, FlowResult, SolveObserver};
+use super::problem::FlowResult;
+use super::{FlowError, FlowParams, SolveObserver};
 use super::{Regularizer, Scale};
 use crate::mesh::Mesh;
 use crate::statistics::median;

@@ -27,9 +27,10 @@
 //! should be smooth). All slabs are warped and solved together at every step.
 
 use super::outer::{OuterStart, RunClock, SlabSolver};
+use super::problem::FlowResult;
 use super::pyramid::scale_pyramid;
 use super::slab::{Slab, SlabChannel};
-use super::{FlowError, FlowParams, FlowResult, Images, MeshSequence, SolveEvent};
+use super::{FlowError, FlowParams, Images, MeshSequence, SolveEvent};
 use super::{SolveObserver, Weight};
 use crate::geometry::{trace, SurfacePoint};
 use nalgebra::Vector2;

@@ -22,14 +22,15 @@
 use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, TimeRanks};
 use super::energy::energy_terms;
 use super::outer::{OuterStart, SlabSolver};
+use super::problem::{intrinsic_fields, slab_vectors, FlowResult, Timings, KEEP_SLABS_BYTES};
 use super::robust::reweighted;
 use super::slab::{build_slabs, complete_slabs, time_links, Slab};
 use super::system::SystemWindow;
 use super::uniqueness::{check_unique_minimizer, CheckedSlabs};
 use super::warp::coarse_to_fine;
-use super::{intrinsic_fields, slab_vectors, EnergyTerms, FlowResult, SolveObserver, Timings};
+use super::Weights;
 use super::{DataScales, FlowError, FlowParams, MeshSequence, ScaleSums, SpaceTimeSystem};
-use super::{Weights, KEEP_SLABS_BYTES};
+use super::{EnergyTerms, SolveObserver};
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
 use std::borrow::Cow;
