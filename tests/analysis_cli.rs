@@ -207,15 +207,25 @@ fn an_edited_manifest_reads_nothing_else() {
     let manifest = run.join("meshflow_run.json");
     let text = std::fs::read_to_string(&manifest).unwrap();
     let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
-    json["commands"][0][2] = serde_json::Value::from(elsewhere.to_str().unwrap());
-    std::fs::write(&manifest, json.to_string()).unwrap();
-    for command in ["analyze", "advect"] {
-        let out = dir.path().join(command);
-        let (run, out_text) = (run.to_str().unwrap(), out.to_str().unwrap());
-        let edited = "which the run did not read (was meshflow_run.json edited?)";
-        meshflow_error(&[command, run, "--out", out_text], edited);
-        assert!(!out.exists());
+    let elsewhere = serde_json::Value::from(elsewhere.to_str().unwrap());
+    // The solve's record, and the command line that an earlier version's manifest holds
+    // instead.
+    let recorded = json["solve"].clone();
+    json["solve"]["input"] = elsewhere.clone();
+    let mut earlier = json.clone();
+    earlier.as_object_mut().unwrap().remove("solve");
+    earlier["commands"][0][2] = elsewhere;
+    for edited_json in [&json, &earlier] {
+        std::fs::write(&manifest, edited_json.to_string()).unwrap();
+        for command in ["analyze", "advect"] {
+            let out = dir.path().join(command);
+            let (run, out_text) = (run.to_str().unwrap(), out.to_str().unwrap());
+            let edited = "which the run did not read (was meshflow_run.json edited?)";
+            meshflow_error(&[command, run, "--out", out_text], edited);
+            assert!(!out.exists());
+        }
     }
+    json["solve"] = recorded;
     json["inputs"] = serde_json::Value::Array(Vec::new());
     std::fs::write(&manifest, json.to_string()).unwrap();
     let out = dir.path().join("analysis");
@@ -271,4 +281,57 @@ fn a_new_file_beside_the_input_is_not_a_change() {
         out.to_str().unwrap(),
     ]);
     assert!(out.join("summary.json").exists());
+}
+
+/// The library reads a solve's output back without the command line: the manifest's record
+/// names the input and how it was loaded, and the flow read back is `flow_intrinsic.npy`'s
+/// rows at the mesh vertices. A manifest without a record is refused in one line.
+#[test]
+fn the_library_reads_a_run_back_from_its_record() {
+    use meshflow::run::{read_flow, SolveInput};
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let input = shipped("rotating_sphere");
+    let out = run.to_str().unwrap();
+    meshflow_ok(&[
+        "solve",
+        &input,
+        "--out",
+        out,
+        "--format",
+        "npy",
+        "--channels",
+        "luma",
+        "--quiet",
+    ]);
+    let solved = SolveInput::of_run(&run).unwrap();
+    assert_eq!(solved.input, Path::new(&input));
+    let options = LoadOptions {
+        channels: meshflow::io::Channels::Luma,
+        ..LoadOptions::default()
+    };
+    assert_eq!(solved.load, options);
+    let loaded = solved.load().unwrap();
+    let flow = read_flow(&run, &loaded).unwrap();
+    let array = read_npy(&run.join("flow_intrinsic.npy")).unwrap();
+    let (s, v) = (
+        loaded.sequence.n_slabs(),
+        loaded.vertex_map.n_file_vertices(),
+    );
+    assert_eq!(array.shape, [s as u64, v as u64, 2]);
+    for (slab, field) in flow.iter().enumerate() {
+        for (m, vector) in field.iter().enumerate() {
+            let row = 2 * (slab * v + loaded.vertex_map.representative(m));
+            let stored = Vector2::new(array.data[row], array.data[row + 1]);
+            assert_eq!(*vector, stored, "slab {slab}, mesh vertex {m}");
+        }
+    }
+
+    let manifest = run.join("meshflow_run.json");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    json.as_object_mut().unwrap().remove("solve");
+    std::fs::write(&manifest, json.to_string()).unwrap();
+    let error = SolveInput::of_run(&run).unwrap_err().to_string();
+    assert!(error.contains("its manifest records no solve"), "{error}");
 }

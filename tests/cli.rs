@@ -1488,7 +1488,7 @@ fn output_into_a_mount_point_is_written_in_place() {
          {bin} solve {input} --out {v} --format npy,vtu --quiet; \
          {bin} solve {input} --out {v} --format npy,vtu --gamma 0.01 --quiet; \
          {bin} render {v} --slabs 0 --quiet; \
-         ls -A {v}; grep -c '\"solve\"' {v}/meshflow_run.json"
+         ls -A {v}; grep -c '\"solve\",' {v}/meshflow_run.json"
     );
     let run = std::process::Command::new("unshare")
         .args(["-m", "sh", "-c", &script])

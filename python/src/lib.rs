@@ -28,7 +28,9 @@ use meshflow::mesh::Mesh;
 use meshflow::render::{
     result_views, write_chosen_slab_pictures, FigureOptions, SlabSelection, UpAxis, UpChoice, View,
 };
-use meshflow::run::{write_flow_outputs, write_run_input, OutputFormat, Overwrite, StagedDir};
+use meshflow::run::{
+    write_flow_outputs, write_run_input, OutputFormat, Overwrite, SolveRecord, StagedDir,
+};
 use meshflow::surface::{FitOptions, Reference, Resolution, Shape};
 use meshflow::volume::{Reduce, SampleOptions, SampledSequence, Shell, Volume};
 use meshflow::{accuracy, fem, shapes, surface, track as tracking, volume, Error};
@@ -721,8 +723,9 @@ impl Flow {
         py.detach(|| -> Result<(), Error> {
             let mut staged = StagedDir::create(&out, overwrite)?;
             // The run holds its input, so `meshflow advect OUT` reads it from there.
-            let out_text = out.to_string_lossy().into_owned();
-            staged.record_command(["meshflow", "solve", &out_text, "--out", &out_text]);
+            staged.record_command(["python", "-c", "meshflow.write_outputs(...)"]);
+            let load = LoadOptions::default();
+            staged.record_solve(SolveRecord { input: None, load });
             write_run_input(staged.path(), &self.loaded).map_err(|e| staged.in_target(e))?;
             let view = self.view();
             write_flow_outputs(

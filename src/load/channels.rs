@@ -21,7 +21,7 @@ use crate::format::{grey_value, VertexValues};
 use crate::statistics::channel_mean;
 
 /// The image channels a sequence is made of (`--channels`; see the module docs).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Channels {
     /// Every channel the input has; colours that are all grey count as one.

@@ -36,8 +36,10 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 /// Choices for [`load_sequence`] (and [`super::load_mesh`]); `Default` is "everything from the
-/// files, welded at the default tolerance, not repaired".
-#[derive(Clone, Debug)]
+/// files, welded at the default tolerance, not repaired". A solve's output records them
+/// (`meshflow_run.json`), so that later commands load its input the same way.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct LoadOptions {
     /// The image from this float32, float64, uint8 or uint16 `.npy` of shape (frames, file vertices), or
     /// (frames, file vertices, channels).

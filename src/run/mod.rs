@@ -10,9 +10,11 @@
 //! The flow (and its errors against a known one) goes out as NPY, ParaView VTU/PVD and glTF
 //! ([`write_flow_outputs`]; over ranks, slab by slab as the ranks send their slabs:
 //! [`write_flow_over_ranks`]), an analysis of it likewise ([`write_analysis_outputs`]), each
-//! with a `summary.json`.
+//! with a `summary.json`. A solve's output is read back, its input loaded as the solve loaded
+//! it, by [`SolveInput::of_run`] and [`read_flow`].
 
 mod analysis_output;
+mod finished;
 mod flow_output;
 mod flow_over_ranks;
 mod guard;
@@ -21,6 +23,7 @@ mod staging;
 pub use analysis_output::{
     analysis_arrays, analysis_json, file_faces, write_analysis_outputs, AnalysisArray,
 };
+pub use finished::{read_flow, SolveInput, SolveRecord};
 pub use flow_output::{
     summary_json, track_scores_json, write_flow_outputs, write_run_input, write_slab_vtus,
     write_slab_vtus_with_cells, GroundTruthReport, OutputFormat, Scores, TrackReport,

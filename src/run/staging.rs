@@ -25,6 +25,7 @@
 //! SIGINT, SIGTERM and SIGHUP ([`remove_live_staging`], called from its signal handler).
 
 use super::guard::{refuse_output_over_inputs, OutputKind};
+use super::SolveRecord;
 use crate::format::write_atomically;
 use crate::format::IoError;
 use serde::{Deserialize, Serialize};
@@ -78,6 +79,10 @@ pub struct RunManifest {
     /// hold this ([`RunManifest::check_inputs`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub inputs: Vec<RecordedInput>,
+    /// What a solve read and how (absent in other commands' outputs and in manifests of
+    /// earlier versions): what [`super::SolveInput::of_run`] reads back.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solve: Option<SolveRecord>,
 }
 
 /// A file a run read, as it was then.
@@ -343,6 +348,8 @@ pub struct StagedDir {
     kept: Vec<String>,
     /// The files outside the output that the first command read.
     inputs: Vec<RecordedInput>,
+    /// The solve's input, when the output is a solve's.
+    solve: Option<SolveRecord>,
     committed: bool,
 }
 
@@ -421,6 +428,7 @@ impl StagedDir {
             directory: std::env::current_dir().ok(),
             kept: Vec::new(),
             inputs: Vec::new(),
+            solve: None,
             committed: false,
         };
         let manifest = match &existing {
@@ -432,6 +440,7 @@ impl StagedDir {
             staged.commands = manifest.commands.clone();
             staged.directory = manifest.directory.clone();
             staged.inputs = manifest.inputs.clone();
+            staged.solve = manifest.solve.clone();
             staged.kept = manifest.files.iter().filter(|n| keep(n)).cloned().collect();
         }
         // A whole directory is swapped in: the kept files must be in it. (Forced into a
@@ -469,6 +478,12 @@ impl StagedDir {
     pub fn record_command<S: Into<String>>(&mut self, arguments: impl IntoIterator<Item = S>) {
         self.commands
             .push(arguments.into_iter().map(Into::into).collect());
+    }
+
+    /// Records what a solve read and how, for the commands that read its output back
+    /// ([`super::SolveInput::of_run`]).
+    pub fn record_solve(&mut self, record: SolveRecord) {
+        self.solve = Some(record);
     }
 
     /// Records the files `paths` stand for ([`input_files`]) with their sizes and hashes, for
@@ -509,6 +524,7 @@ impl StagedDir {
             files: files.into_iter().collect(),
             directory: self.directory.take(),
             inputs: std::mem::take(&mut self.inputs),
+            solve: self.solve.take(),
         };
         write_atomically(&self.staging.join(RUN_MANIFEST), |w| {
             serde_json::to_writer_pretty(&mut *w, &manifest).map_err(std::io::Error::other)?;

@@ -21,15 +21,19 @@ pub fn advect(
     seeds_file: Option<&Path>,
     overwrite: Overwrite,
 ) -> Result<(), Error> {
-    let args = crate::run::solve_command(run)?;
+    let input = crate::run::solve_input(run)?;
     let staged = crate::run::stage_output(
         run,
-        &args,
+        &input,
         &seeds_file.into_iter().collect::<Vec<_>>(),
         out,
         overwrite,
     )?;
-    let FinishedRun { args, loaded, flow } = FinishedRun::read(run, args)?;
+    let FinishedRun {
+        input,
+        loaded,
+        flow,
+    } = FinishedRun::read(run, input)?;
     let sequence = &loaded.sequence;
     let seeds = match seeds_file {
         Some(file) => located_seeds(file, sequence)?,
@@ -39,7 +43,7 @@ pub fn advect(
     let grey = trajectories.intensities(sequence);
     let positions = trajectories.positions(sequence).ok_or_else(|| {
         IoError::format(
-            &args.input,
+            &input.input,
             "an intrinsic sequence has no positions to follow",
         )
     })?;

@@ -36,9 +36,9 @@ pub fn analyze(request: AnalyzeRequest) -> Result<(), Error> {
         formats,
         pictures,
     } = request;
-    let args = crate::run::solve_command(run)?;
-    let staged = crate::run::stage_output(run, &args, &[], out, overwrite)?;
-    let FinishedRun { loaded, flow, .. } = FinishedRun::read(run, args)?;
+    let input = crate::run::solve_input(run)?;
+    let staged = crate::run::stage_output(run, &input, &[], out, overwrite)?;
+    let FinishedRun { loaded, flow, .. } = FinishedRun::read(run, input)?;
     let start = std::time::Instant::now();
     let slabs = during("analysing the flow", || {
         analyze_flow(&loaded.sequence, &flow)

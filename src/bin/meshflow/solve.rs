@@ -18,7 +18,7 @@ use meshflow::load::{load_frames, load_sequence};
 use meshflow::load::{read_ground_truth, LoadOptions, LoadedSequence};
 use meshflow::render::{result_views, UpChoice, View};
 use meshflow::run::GroundTruthReport;
-use meshflow::run::{write_flow_outputs, Scores, StagedDir, TrackReport};
+use meshflow::run::{write_flow_outputs, Scores, SolveRecord, StagedDir, TrackReport};
 use meshflow::run::{write_flow_over_ranks, OutputFormat};
 use meshflow::Error;
 use nalgebra::Vector3;
@@ -68,6 +68,7 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
     let mut out = StagedDir::create_apart_from(&inputs, &args.out, args.force.overwrite())?;
     out.record_command(crate::command_line());
     out.record_inputs(&inputs)?;
+    out.record_solve(args.solve_record());
     if let Some(ranks) = ranks.filter(|_| streams_outputs(args)) {
         return solve_streamed(args, ranks, &params, out);
     }
@@ -741,6 +742,16 @@ impl SolveArgs {
             fps: self.fps,
             animation: self.animation.clone(),
             ..self.building.options()
+        }
+    }
+
+    /// What the solve reads, as its output's manifest records it for later commands: the
+    /// input (`None` when it is the output itself: a run that holds its input) and how it is
+    /// loaded.
+    pub(crate) fn solve_record(&self) -> SolveRecord {
+        SolveRecord {
+            input: (self.input != self.out).then(|| self.input.clone()),
+            load: self.load_options(),
         }
     }
 
