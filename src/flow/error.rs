@@ -64,6 +64,16 @@ pub enum FlowError {
         value: f64,
         requirement: &'static str,
     },
+    #[error("give one of {first} and {second}, not both")]
+    ConflictingOptions {
+        first: &'static str,
+        second: &'static str,
+    },
+    #[error("{option} needs {needs}")]
+    OptionNeeds {
+        option: &'static str,
+        needs: &'static str,
+    },
     #[error("the anisotropic regularizers (--anisotropic, --flow-driven anisotropic) weight the covariant |∇u|² or the strain |Sym ∇u|², not the {regularizer} regularizer (use --regularizer covariant or strain)")]
     AnisotropyUnsupported { regularizer: &'static str },
     #[error("the flow-driven anisotropic penalty (--flow-driven anisotropic) is a robust one: give its scale with --robust-smoothness EPS")]

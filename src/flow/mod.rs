@@ -35,7 +35,7 @@
 //!
 //! This file is the module's front door: declarations and re-exports only. The data flows
 //! through the submodules as follows: [`MeshSequence`] and [`Images`] (`sequence`) →
-//! [`FlowParams`] (`params`, `scales`, `anisotropy`, `regularizer`) → one [`Slab`] per time
+//! [`FlowParams`] (`options`, `params`, `scales`, `anisotropy`, `regularizer`) → one [`Slab`] per time
 //! step and the time links (`slab`) → the [`SpaceTimeSystem`] (`system`, checked by
 //! `uniqueness`) → its solvers (`solve`) → [`FlowProblem`] and [`compute_flow`] (`problem`),
 //! with the outer loops of warping (`warp`, `pyramid`) and robust reweighting (`robust`,
@@ -45,6 +45,7 @@ pub mod advect;
 pub mod anisotropy;
 mod energy;
 mod error;
+mod options;
 mod outer;
 mod params;
 mod problem;
@@ -65,6 +66,7 @@ pub use advect::{Trajectories, SUBSTEPS};
 pub use anisotropy::Anisotropy;
 pub use energy::EnergyTerms;
 pub use error::FlowError;
+pub use options::FlowOptions;
 pub use params::{Boundary, FlowParams, Scale, SolverChoice, TimeCoupling, Weight, Weights};
 pub use params::{Warping, DEFAULT_SPREAD, DEFAULT_TIME_SCALE};
 pub use problem::{compute_flow, FlowProblem, FlowResult, SolveStep, Timings, KEEP_SLABS_BYTES};

@@ -10,8 +10,8 @@ use meshflow::accuracy::{
 use meshflow::flow::distributed::TimeRanks;
 use meshflow::flow::window::{flow_of_own_slabs, flow_over_ranks, TimeWindow};
 use meshflow::flow::{
-    Anisotropy, Boundary, FlowDriven, FlowError, FlowParams, FlowProblem, FlowResult, MeshSequence,
-    Scale, SolveEvent, SolveObserver, SolverChoice, TimeCoupling, Weight, Weights,
+    Boundary, FlowDriven, FlowError, FlowOptions, FlowParams, FlowProblem, FlowResult,
+    MeshSequence, Scale, SolveEvent, SolveObserver, SolverChoice, TimeCoupling, Weight, Weights,
 };
 use meshflow::format::read_npy_float;
 use meshflow::load::{load_frames, load_sequence};
@@ -24,37 +24,9 @@ use meshflow::Error;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
-/// The flow's parameters from the command line, validated.
+/// The parameters of the solve's flags ([`FlowOptions::params`]).
 fn flow_params(args: &SolveArgs) -> Result<FlowParams, Error> {
-    let defaults = FlowParams::default();
-    let weight = |value: Option<f64>, relative: Option<f64>, default: Weight| {
-        value
-            .map(Weight::Value)
-            .or(relative.map(Weight::Relative))
-            .unwrap_or(default)
-    };
-    let params = FlowParams {
-        alpha: weight(args.alpha, args.time_scale, defaults.alpha),
-        beta: weight(args.beta, args.speed_penalty, defaults.beta),
-        gamma: weight(args.gamma, args.spread, defaults.gamma),
-        regularizer: args.regularizer()?,
-        anisotropy: (args.anisotropic).map(|lambda| Anisotropy {
-            sigma: args.anisotropic_sigma,
-            in_time: args.anisotropic_in_time,
-            ..Anisotropy::with(lambda)
-        }),
-        robust_smoothness: args.robust_smoothness,
-        flow_driven: args.flow_driven,
-        channel_weights: args.channel_weights.clone(),
-        boundary: args.boundary,
-        time_coupling: args.time_coupling,
-        solver: args.solver,
-        tolerance: args.tolerance,
-        warping: args.warping(),
-        ..FlowParams::default()
-    };
-    params.validate()?;
-    Ok(params)
+    Ok(args.flow_options().params()?)
 }
 
 /// `meshflow solve`; with `ranks` (under `mpirun`, the `mpi` feature) this is rank 0 of a
@@ -765,16 +737,31 @@ impl SolveArgs {
             .collect()
     }
 
-    /// `--regularizer` with `--dirichlet-mix`.
-    pub(crate) fn regularizer(
-        &self,
-    ) -> Result<meshflow::flow::Regularizer, meshflow::flow::FlowError> {
-        meshflow::flow::Regularizer::with_mix(self.regularizer, self.dirichlet_mix)
-    }
-
-    /// `--levels`, `--warps` and `--large-motion` as one setting.
-    pub(crate) fn warping(&self) -> meshflow::flow::Warping {
-        meshflow::flow::Warping::from_options(self.levels, self.warps, self.large_motion)
+    /// The solve's flags, one setting each.
+    pub(crate) fn flow_options(&self) -> FlowOptions {
+        FlowOptions {
+            alpha: self.alpha,
+            time_scale: self.time_scale,
+            beta: self.beta,
+            speed_penalty: self.speed_penalty,
+            gamma: self.gamma,
+            spread: self.spread,
+            regularizer: self.regularizer,
+            dirichlet_mix: self.dirichlet_mix,
+            anisotropic: self.anisotropic,
+            anisotropic_sigma: self.anisotropic_sigma,
+            anisotropic_in_time: self.anisotropic_in_time,
+            robust_smoothness: self.robust_smoothness,
+            flow_driven: self.flow_driven,
+            channel_weights: self.channel_weights.clone(),
+            boundary: self.boundary,
+            time_coupling: self.time_coupling,
+            solver: self.solver,
+            tolerance: self.tolerance,
+            levels: self.levels,
+            warps: self.warps,
+            large_motion: self.large_motion,
+        }
     }
 }
 

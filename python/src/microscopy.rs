@@ -1,0 +1,201 @@
+//! Microscopy: surfaces fitted through points (`meshflow surface`) and volumes sampled onto
+//! surfaces (`meshflow sample`).
+
+use crate::convert::{faces_array, parse, points_array, read_faces, read_points, read_positions};
+use crate::{to_py_err, value_error};
+use meshflow::mesh::Mesh;
+use meshflow::surface::{FitOptions, Reference, Resolution, Shape};
+use meshflow::volume::{Reduce, SampleOptions, SampledSequence, Shell, Volume};
+use meshflow::{surface, volume};
+use nalgebra::Vector3;
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyReadonlyArray2, PyReadonlyArray3};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// A moving surface fitted through point clouds (`meshflow surface`): `frames[k]` (N_k, 3).
+/// Returns a dict: `positions` (K, V, 3), `faces` (F, 3), `reference`, `frames` (per-frame
+/// fit), `mean_point_spacing`, `lambda`.
+#[pyfunction]
+#[pyo3(signature = (frames, shape, whole_sphere, vertices, edge_length, smoothing, margin))]
+#[allow(clippy::too_many_arguments)] // the Python signature, one argument per option
+pub(crate) fn fit_surface<'py>(
+    py: Python<'py>,
+    frames: Vec<PyReadonlyArray2<'py, f64>>,
+    shape: &str,
+    whole_sphere: bool,
+    vertices: Option<usize>,
+    edge_length: Option<f64>,
+    smoothing: f64,
+    margin: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let shape = match (shape, whole_sphere) {
+        ("sphere-like", whole) => Shape::SphereLike { whole },
+        ("graph", false) => Shape::Graph,
+        ("graph", true) => {
+            return Err(value_error(
+                "whole_sphere applies to shape=\"sphere-like\" only, not \"graph\"",
+            ))
+        }
+        (other, _) => {
+            return Err(value_error(format!(
+                "shape: '{other}': expected sphere-like or graph"
+            )))
+        }
+    };
+    let resolution = match (vertices, edge_length) {
+        (Some(_), Some(_)) => {
+            return Err(value_error(
+                "give one of vertices and edge_length, not both",
+            ))
+        }
+        (Some(n), None) => Resolution::Vertices(n),
+        (None, Some(length)) => Resolution::EdgeLength(length),
+        (None, None) => FitOptions::default().resolution,
+    };
+    let options = FitOptions {
+        shape,
+        resolution,
+        smoothing,
+        margin,
+    };
+    let frames: Vec<Vec<Vector3<f64>>> = frames.iter().map(read_points).collect();
+    let fitted = py
+        .detach(|| surface::fit_surface(&frames, &options))
+        .map_err(|e| to_py_err(e.into()))?;
+    let k = fitted.positions.len();
+    let v = fitted.positions.first().map_or(0, Vec::len);
+    let all: Vec<Vector3<f64>> = fitted.positions.concat();
+    let positions = points_array(&all)
+        .into_shape_with_order((k, v, 3))
+        .expect("K × V × 3");
+    let out = PyDict::new(py);
+    out.set_item("positions", positions.into_pyarray(py))?;
+    out.set_item("faces", faces_array(&fitted.faces).into_pyarray(py))?;
+    out.set_item("reference", reference_dict(py, &fitted.reference)?)?;
+    let fits = fitted
+        .frames
+        .iter()
+        .map(|fit| -> PyResult<_> {
+            let dict = PyDict::new(py);
+            dict.set_item("points", fit.points)?;
+            dict.set_item("dropped", fit.dropped)?;
+            dict.set_item("rms_residual", fit.rms_residual)?;
+            dict.set_item("max_residual", fit.max_residual)?;
+            Ok(dict)
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    out.set_item("frames", fits)?;
+    out.set_item("mean_point_spacing", fitted.mean_point_spacing)?;
+    out.set_item("lambda", fitted.lambda)?;
+    Ok(out)
+}
+
+/// `{"kind": "sphere", "centre", "radius", "cap_degrees" (None: whole), "axis"}` or
+/// `{"kind": "plane", "min", "max"}` (the rectangle of `z = 0` in `x` and `y`); points as
+/// tuples.
+pub(crate) fn reference_dict<'py>(
+    py: Python<'py>,
+    reference: &Reference,
+) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    match *reference {
+        Reference::Sphere {
+            centre,
+            radius,
+            cap_degrees,
+            axis,
+        } => {
+            dict.set_item("kind", "sphere")?;
+            dict.set_item("centre", (centre[0], centre[1], centre[2]))?;
+            dict.set_item("radius", radius)?;
+            dict.set_item("cap_degrees", cap_degrees)?;
+            dict.set_item("axis", (axis[0], axis[1], axis[2]))?;
+        }
+        Reference::Plane { min, max } => {
+            dict.set_item("kind", "plane")?;
+            dict.set_item("min", (min[0], min[1]))?;
+            dict.set_item("max", (max[0], max[1]))?;
+        }
+    }
+    Ok(dict)
+}
+
+/// One volume's shape `[n_z, n_y, n_x]` and its values in C order.
+pub(crate) fn read_volume(array: &PyReadonlyArray3<f32>) -> ([usize; 3], Vec<f32>) {
+    let array = array.as_array();
+    let shape = [array.shape()[0], array.shape()[1], array.shape()[2]];
+    let values = match array.as_slice() {
+        Some(values) => values.to_vec(),
+        None => array.iter().copied().collect(),
+    };
+    (shape, values)
+}
+
+/// A recording carried onto a moving surface (`meshflow sample`): `volumes[k]` (Z, Y, X)
+/// read along the vertex normals of frame `k` of (`positions`, `faces`). Returns a dict:
+/// `values` (K, V), `outside` (per frame), `shell` (inside, outside, layers), `smoothing`.
+#[pyfunction]
+#[pyo3(signature = (volumes, positions, faces, voxel_size, origin, smoothing, shell, layers, reduce))]
+#[allow(clippy::too_many_arguments)] // the Python signature, one argument per option
+pub(crate) fn sample_volume<'py>(
+    py: Python<'py>,
+    volumes: Vec<PyReadonlyArray3<'py, f32>>,
+    positions: PyReadonlyArray3<'py, f64>,
+    faces: PyReadonlyArray2<'py, i64>,
+    voxel_size: (f64, f64, f64),
+    origin: (f64, f64, f64),
+    smoothing: Option<f64>,
+    shell: Option<(f64, f64)>,
+    layers: usize,
+    reduce: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let reduce = parse::<Reduce>(reduce, "reduce")?;
+    let faces = read_faces(&faces)?;
+    let positions = read_positions(&positions);
+    let n_vertices = positions.first().map_or(0, Vec::len);
+    let grids: Vec<([usize; 3], Vec<f32>)> = volumes.iter().map(read_volume).collect();
+    let voxel_size = Vector3::new(voxel_size.0, voxel_size.1, voxel_size.2);
+    let origin = Vector3::new(origin.0, origin.1, origin.2);
+    let sampled = py.detach(|| -> PyResult<SampledSequence> {
+        let volumes = grids
+            .into_iter()
+            .enumerate()
+            .map(|(k, (shape, values))| {
+                Volume::new(shape, values, voxel_size, origin)
+                    .map_err(|e| value_error(format!("volumes[{k}]: {e}")))
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        let mesh = Mesh::new(n_vertices, faces).map_err(|e| to_py_err(e.into()))?;
+        // No shell given: the library's default reach (± two of the largest voxel sides),
+        // with `layers` layers.
+        let shell = shell
+            .map(|(inside, outside)| Shell {
+                inside,
+                outside,
+                layers,
+            })
+            .or_else(|| {
+                let first = volumes.first()?;
+                let reach = SampleOptions::default().shell_for(first);
+                Some(Shell { layers, ..reach })
+            });
+        let options = SampleOptions {
+            smoothing,
+            shell,
+            reduce,
+        };
+        volume::sample_sequence(&volumes, &mesh, &positions, &options)
+            .map_err(|e| to_py_err(e.into()))
+    })?;
+    let k = sampled.values.len();
+    let values =
+        Array2::from_shape_vec((k, n_vertices), sampled.values.concat()).expect("K × V values");
+    let out = PyDict::new(py);
+    out.set_item("values", values.into_pyarray(py))?;
+    out.set_item("outside", sampled.outside)?;
+    let shell = sampled.shell;
+    out.set_item("shell", (shell.inside, shell.outside, shell.layers))?;
+    out.set_item("smoothing", sampled.smoothing)?;
+    Ok(out)
+}
