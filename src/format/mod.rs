@@ -22,6 +22,7 @@ mod linked;
 mod mtl;
 mod mtx;
 mod npy;
+mod npy_sequence;
 mod obj;
 pub mod ply;
 mod texture;
@@ -38,8 +39,13 @@ pub use mtl::{texture_colors, TextureCache};
 pub use mtx::{read_matrix_market, write_matrix_market};
 pub use npy::{
     read_npy, read_npy_f32, read_npy_float, read_npy_float_rows, read_npy_image,
-    read_npy_image_rows, read_npy_indices, write_npy, write_npy_sequence, write_npy_vectors,
-    KeepRows, NpyArray, NpyRows,
+    read_npy_image_rows, read_npy_indices, write_npy, write_npy_vectors, KeepRows, NpyArray,
+    NpyRows,
 };
+pub use npy_sequence::{
+    read_intensity_array, read_npy_sequence, write_intensity_array, write_npy_sequence, FACES,
+    INTENSITY, POSITIONS, TIMES,
+};
+pub(crate) use npy_sequence::{read_intensity_rows, VertexCount};
 pub use obj::{read_obj, write_obj, ObjMesh};
 pub use texture::Texture;

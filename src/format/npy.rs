@@ -419,33 +419,6 @@ fn open_npy(
     Ok(file)
 }
 
-/// Writes a sequence as the NPY directory that `meshflow solve` reads: `positions.npy`
-/// (K, V, 3) float64, `faces.npy` (F, 3) int64, `intensity.npy` (K, V) float64 when given, and
-/// `times.txt` (one time per line).
-pub fn write_npy_sequence(
-    dir: &Path,
-    positions: &[Vec<nalgebra::Vector3<f64>>],
-    faces: &[[u32; 3]],
-    intensities: Option<&[Vec<f64>]>,
-    times: &[f64],
-) -> Result<(), IoError> {
-    let (k, v) = (
-        positions.len() as u64,
-        positions.first().map_or(0, Vec::len) as u64,
-    );
-    write_npy_vectors(&dir.join("positions.npy"), positions)?;
-    let indices: Vec<i64> = faces.iter().flatten().map(|&i| i as i64).collect();
-    write_npy(&dir.join("faces.npy"), &[faces.len() as u64, 3], &indices)?;
-    if let Some(intensities) = intensities {
-        let values: Vec<f64> = intensities.iter().flatten().copied().collect();
-        write_npy(&dir.join("intensity.npy"), &[k, v], &values)?;
-    }
-    write_atomically(&dir.join("times.txt"), |w| {
-        use std::io::Write;
-        times.iter().try_for_each(|t| writeln!(w, "{t}"))
-    })
-}
-
 /// Writes `rows[k][n]` as a float64 `.npy` of shape (K, N, 3) (all rows of equal length).
 pub fn write_npy_vectors(path: &Path, rows: &[Vec<nalgebra::Vector3<f64>>]) -> Result<(), IoError> {
     let (k, n) = (rows.len() as u64, rows.first().map_or(0, Vec::len) as u64);

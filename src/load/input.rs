@@ -7,8 +7,8 @@
 //! | glob such as `run/frame_*.ply` | the matching files, natural order |
 //! | one `.gltf` or `.glb` file | an animation of its mesh (morph targets, skin, node transforms), one frame per keyframe |
 
-use crate::format::IoError;
 use crate::format::{directory_files, glob_files, natural_order};
+use crate::format::{IoError, FACES, POSITIONS, TIMES};
 use std::path::{Path, PathBuf};
 
 /// The format of per-frame mesh files.
@@ -66,7 +66,7 @@ impl SequenceSource {
         }
         let metadata = std::fs::metadata(path).map_err(|e| IoError::file(path, e))?;
         if metadata.is_dir() {
-            if path.join("positions.npy").exists() {
+            if path.join(POSITIONS).exists() {
                 return Ok(Self::Npy(path.to_path_buf()));
             }
             return Self::frames(path, directory_files(path)?);
@@ -86,7 +86,7 @@ impl SequenceSource {
         match self {
             Self::Frames { files, .. } => files.clone(),
             Self::GltfAnimation(file) => vec![file.clone()],
-            Self::Npy(dir) => vec![dir.join("positions.npy"), dir.join("faces.npy")],
+            Self::Npy(dir) => vec![dir.join(POSITIONS), dir.join(FACES)],
             Self::Arrays => Vec::new(),
         }
     }
@@ -99,7 +99,7 @@ impl SequenceSource {
             Self::GltfAnimation(file) => file.parent().unwrap_or(Path::new(".")),
             Self::Arrays => return None,
         };
-        Some(directory.join("times.txt"))
+        Some(directory.join(TIMES))
     }
 
     /// A short description, e.g. "6 OBJ frames".

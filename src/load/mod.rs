@@ -21,15 +21,16 @@ mod sequence;
 mod vertex_map;
 mod warning;
 
+/// Moved to [`crate::format`] (the NPY sequence's layout); kept here for one release.
+pub use crate::format::read_intensity_array;
 pub use channels::{select_channels, Channels};
 pub use ground_truth::read_ground_truth;
 pub use input::{FrameFormat, SequenceSource};
 pub use prepare::{load_mesh, mesh_from_arrays, read_mesh_geometry, LoadedMesh};
 pub(crate) use sequence::StaticImageCheck;
 pub use sequence::{
-    count_frames, load_frames, load_geometry, load_sequence, read_intensity_array, read_mesh,
-    read_mesh_with, read_times_file, sequence_from_arrays, LoadOptions, LoadedGeometry,
-    LoadedSequence,
+    count_frames, load_frames, load_geometry, load_sequence, read_mesh, read_mesh_with,
+    read_times_file, sequence_from_arrays, LoadOptions, LoadedGeometry, LoadedSequence,
 };
 pub use vertex_map::VertexMap;
 pub use warning::{LoadWarning, STATIC_IMAGE_TOLERANCE};

@@ -24,9 +24,8 @@ use crate::format::gltf::{
     ImplicitClip,
 };
 use crate::format::ply::read_ply;
-use crate::format::{
-    read_npy_float_rows, read_npy_image_rows, read_npy_indices, read_obj, texture_colors, KeepRows,
-};
+use crate::format::{read_intensity_rows, read_npy_sequence, VertexCount};
+use crate::format::{read_obj, texture_colors};
 use crate::format::{FrameMesh, IoError, RawSequence, TextureCache, VertexValues};
 use crate::mesh::{Mesh, SumOverReaders};
 use crate::Error;
@@ -779,92 +778,6 @@ fn ply_property(
         })
 }
 
-/// `positions.npy` (K, V, 3), `faces.npy` (F, 3) and, if present, `intensity.npy` (K, V) or
-/// (K, V, C).
-/// The frames `keep` of an NPY directory (the other rows of its arrays are not read), and how
-/// many frames it has.
-fn read_npy_sequence(dir: &Path, keep: KeepRows) -> Result<(RawSequence, usize), Error> {
-    let positions_file = dir.join("positions.npy");
-    let (array, k_all) = read_npy_float_rows(&positions_file, keep)?;
-    let [k, v, 3] = array.shape[..] else {
-        let mut shape = array.shape.clone();
-        if let Some(first) = shape.first_mut() {
-            *first = k_all;
-        }
-        return Err(IoError::format(
-            &positions_file,
-            format!("shape {shape:?}, expected (frames, vertices, 3)"),
-        )
-        .into());
-    };
-    let coordinates = split_frames(&array.data, k as usize, 3 * v as usize);
-    let positions: Vec<Vec<Vector3<f64>>> = coordinates
-        .iter()
-        .map(|frame| {
-            frame
-                .chunks_exact(3)
-                .map(Vector3::from_column_slice)
-                .collect()
-        })
-        .collect();
-    let faces_file = dir.join("faces.npy");
-    let (shape, indices) = read_npy_indices(&faces_file)?;
-    if !matches!(shape[..], [_, 3]) {
-        return Err(
-            IoError::format(&faces_file, format!("shape {shape:?}, expected (faces, 3)")).into(),
-        );
-    }
-    let faces: Vec<[u32; 3]> = indices
-        .chunks_exact(3)
-        .map(|f| [f[0], f[1], f[2]])
-        .collect();
-    // Checked here, so that the error names the file at fault, not positions.npy.
-    if let Some((face, &vertex)) = (faces.iter().enumerate())
-        .find_map(|(f, corners)| Some((f, corners.iter().find(|&&i| i as u64 >= v)?)))
-    {
-        let message =
-            format!("face {face} refers to vertex {vertex}, but positions.npy has {v} vertices");
-        return Err(IoError::format(&faces_file, message).into());
-    }
-    let intensity_file = dir.join("intensity.npy");
-    let images = match intensity_file.exists() {
-        true => {
-            let counts = [VertexCount::new(v as usize, "vertices")];
-            Some(read_intensity_rows(&intensity_file, k_all as usize, &counts, keep)?.0)
-        }
-        false => None,
-    };
-    if let Some(message) = images.as_deref().and_then(first_non_finite) {
-        return Err(IoError::format(&intensity_file, message).into());
-    }
-    let raw = RawSequence {
-        faces,
-        positions,
-        images,
-        times: None,
-        sources: vec![positions_file; k as usize],
-        implicit_clip: None,
-    };
-    Ok((raw, k_all as usize))
-}
-
-/// Where the first value that is not a finite number is, as a sentence.
-fn first_non_finite(frames: &[VertexValues]) -> Option<String> {
-    frames.iter().enumerate().find_map(|(k, frame)| {
-        let channels = frame.clone().into_channels();
-        channels.iter().enumerate().find_map(|(c, values)| {
-            let (i, value) = values.iter().enumerate().find(|(_, x)| !x.is_finite())?;
-            let channel = match channels.len() {
-                1 => String::new(),
-                _ => format!(", channel {c}"),
-            };
-            Some(format!(
-                "frame {k}: intensity at vertex {i}{channel} is {value}"
-            ))
-        })
-    })
-}
-
 fn is_about_times(error: &FlowError) -> bool {
     matches!(
         error,
@@ -942,86 +855,6 @@ fn check_same_connectivity(first: &FrameMesh, frame: &FrameMesh, k: usize) -> Re
 /// What a `--intensity` array of mesh vertices is called in messages.
 const MESH_VERTICES: &str =
     "vertices of the mesh, welded and cleaned, as load_sequence returns them";
-
-/// A number of vertices an image may have rows for, and what they are.
-#[derive(Clone, Copy, Debug)]
-struct VertexCount {
-    n: usize,
-    what: &'static str,
-}
-
-impl VertexCount {
-    fn new(n: usize, what: &'static str) -> Self {
-        VertexCount { n, what }
-    }
-}
-
-/// The image of an intensity `.npy`: (frames, vertices) grey values or (frames, vertices,
-/// channels).
-pub fn read_intensity_array(
-    path: &Path,
-    n_frames: usize,
-    n_vertices: usize,
-) -> Result<Vec<VertexValues>, IoError> {
-    let counts = [VertexCount::new(n_vertices, "vertices")];
-    Ok(read_intensity_rows(path, n_frames, &counts, &|_| true)?.0)
-}
-
-/// [`read_intensity_array`] with rows for any of the vertex `counts` (say, the files' and the
-/// mesh's, when they differ): the image and which count its rows matched. The first matching
-/// count wins, so equal counts are never ambiguous. Only the frames `keep` are read.
-fn read_intensity_rows(
-    path: &Path,
-    n_frames: usize,
-    counts: &[VertexCount],
-    keep: KeepRows,
-) -> Result<(Vec<VertexValues>, usize), IoError> {
-    let (array, rows) = read_npy_image_rows(path, keep)?;
-    let mut shape = array.shape.clone();
-    if let Some(first) = shape.first_mut() {
-        *first = rows;
-    }
-    let matches = |v: u64| counts.iter().position(|c| c.n as u64 == v);
-    let k = n_frames as u64;
-    let (count, channels) = match shape[..] {
-        [a, b] if a == k && matches(b).is_some() => (matches(b), None),
-        [a, b, c] if a == k && matches(b).is_some() && c > 0 => (matches(b), Some(c as usize)),
-        _ => {
-            return Err(IoError::format(
-                path,
-                intensity_shape_error(&shape, n_frames, counts),
-            ))
-        }
-    };
-    let count = count.expect("matched above");
-    let row = counts[count].n * channels.unwrap_or(1);
-    let images = split_frames(&array.data, array.shape[0] as usize, row)
-        .into_iter()
-        .map(|frame| VertexValues::from_rows(frame, channels))
-        .collect();
-    Ok((images, count))
-}
-
-/// `intensity array has shape (4, 10), expected (3, 1528) = (frames, vertices in the files) or
-/// (3, 1224) = (frames, …), each optionally with a third axis of channels`.
-fn intensity_shape_error(shape: &[u64], n_frames: usize, counts: &[VertexCount]) -> String {
-    let expected: Vec<String> = (counts.iter().enumerate())
-        .filter(|(i, c)| counts[..*i].iter().all(|earlier| earlier.n != c.n))
-        .map(|(_, c)| c)
-        .map(|c| format!("({n_frames}, {}) = (frames, {})", c.n, c.what))
-        .collect();
-    format!(
-        "intensity array has shape {shape:?}, expected {}, or with a third axis of channels",
-        expected.join(" or ")
-    )
-}
-
-/// `n_frames` rows of `row_length` values (which may be 0) from a C-order array.
-fn split_frames<T: Clone>(data: &[T], n_frames: usize, row_length: usize) -> Vec<Vec<T>> {
-    (0..n_frames)
-        .map(|k| data[k * row_length..(k + 1) * row_length].to_vec())
-        .collect()
-}
 
 /// Frame times from a `times.txt`, if there is one.
 pub fn read_times_file(path: &Path) -> Result<Option<Vec<f64>>, IoError> {

@@ -6,7 +6,7 @@
 use crate::args::MeshArgs;
 use crate::progress::during;
 use crate::usage;
-use meshflow::format::{write_atomically, write_npy};
+use meshflow::format::{write_atomically, write_intensity_array, INTENSITY};
 use meshflow::load::{count_frames, load_geometry, LoadOptions};
 use meshflow::run::{input_files, refuse_output_over_inputs, OutputKind, RunManifest};
 use meshflow::volume::{
@@ -17,7 +17,6 @@ use meshflow::Error;
 use std::path::{Path, PathBuf};
 
 /// The file `sample` writes into a sequence directory by default.
-const INTENSITY: &str = "intensity.npy";
 
 /// What `sample` needs from the command line.
 pub struct SampleRequest<'a> {
@@ -53,11 +52,10 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
     })
     .map_err(in_volumes)?;
     let map = &geometry.vertex_map;
-    let values: Vec<f64> = (sampled.values.iter())
-        .flat_map(|frame| map.file_rows(frame, 0.0))
+    let image: Vec<Vec<Vec<f64>>> = (sampled.values.iter())
+        .map(|frame| vec![map.file_rows(frame, 0.0)])
         .collect();
-    let shape = [sampled.values.len() as u64, map.n_file_vertices() as u64];
-    write_npy(&out, &shape, &values)?;
+    write_intensity_array(&out, &image)?;
     if replaces_intensity(&request, &out) {
         register_in_manifest(request.sequence)?;
     }

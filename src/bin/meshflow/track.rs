@@ -7,8 +7,8 @@
 use crate::args::{ForceArg, MeshArgs};
 use crate::progress::count_progress;
 use meshflow::format::{
-    frame_files, read_npy_image, write_atomically, write_npy, write_npy_sequence, IoError,
-    VertexValues,
+    frame_files, read_npy_image, write_atomically, write_intensity_array, write_npy_sequence,
+    IoError, VertexValues, INTENSITY,
 };
 use meshflow::load::{
     load_mesh, load_sequence, read_intensity_array, read_mesh_with, read_times_file,
@@ -301,15 +301,7 @@ fn write_outputs(
         sequence.times(),
     )?;
     if let Some(image) = image {
-        let (k, c, v) = (image.len(), image[0].len(), positions[0].len());
-        let values: Vec<f64> = (image.iter())
-            .flat_map(|frame| (0..v).flat_map(move |i| frame.iter().map(move |ch| ch[i])))
-            .collect();
-        let shape: Vec<u64> = match c {
-            1 => vec![k as u64, v as u64],
-            _ => vec![k as u64, v as u64, c as u64],
-        };
-        write_npy(&dir.join("intensity.npy"), &shape, &values)?;
+        write_intensity_array(&dir.join(INTENSITY), image)?;
     }
     let report = serde_json::to_string_pretty(&tracked.report).expect("a report serializes");
     write_atomically(&dir.join("track.json"), |w| {
