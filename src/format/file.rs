@@ -16,6 +16,20 @@ pub fn read_file(path: &Path) -> Result<Vec<u8>, IoError> {
     Ok(bytes)
 }
 
+/// All of a stream (standard input, an archive member, bytes in memory), refused once it
+/// passes the memory limit ([`crate::limits`]): a stream declares no size to check first, so
+/// at most the limit and one byte are read. `name` stands for the stream in errors.
+pub fn read_stream(reader: impl std::io::Read, name: &Path) -> Result<Vec<u8>, IoError> {
+    use std::io::Read;
+    let limit = crate::limits::memory_limit();
+    let mut bytes = Vec::new();
+    (reader.take(limit.saturating_add(1)).read_to_end(&mut bytes))
+        .map_err(|e| IoError::file(name, e))?;
+    crate::limits::check_declared("the stream", bytes.len() as u64)
+        .map_err(|e| IoError::too_large(name, e))?;
+    Ok(bytes)
+}
+
 /// `path` opened for reading if it is a regular file, with its length: a FIFO would block the
 /// open itself, a device never end.
 pub fn open_regular(path: &Path) -> Result<(std::fs::File, u64), IoError> {

@@ -12,6 +12,13 @@
 //! animated `.glb` out). Every mesh reader yields the same raw frame ([`FrameMesh`], with the
 //! file's grey values or colours as [`VertexValues`]) or, from a single animated file, a
 //! [`RawSequence`]; welding, orientation and validation come later, in the loader.
+//!
+//! Readers of self-contained files also take a stream (`impl Read`: standard input, an archive
+//! member, bytes in memory) beside a path, as tobj's `load_obj_buf` does: [`read_obj_from`],
+//! [`ply::read_ply_from`], [`vtk::read_vtu_from`], [`read_npy_from`],
+//! [`read_matrix_market_from`]. A stream declares no size, so [`read_stream`] stops at the
+//! memory limit. glTF, MTL and PVD read from paths only: they name other files relative to
+//! their own location.
 
 mod error;
 mod file;
@@ -30,15 +37,15 @@ pub mod vtk;
 
 pub use error::IoError;
 pub(crate) use file::temporary_beside;
-pub use file::{open_regular, read_file, write_atomically};
+pub use file::{open_regular, read_file, read_stream, write_atomically};
 pub use frame_mesh::{grey_value, grey_values, FrameMesh, RawSequence, VertexValues};
 pub(crate) use frames::{directory_files, glob_files};
 pub use frames::{frame_files, natural_order};
 pub use linked::resolve_linked;
 pub use mtl::{texture_colors, TextureCache};
-pub use mtx::{read_matrix_market, write_matrix_market};
+pub use mtx::{read_matrix_market, read_matrix_market_from, write_matrix_market};
 pub use npy::{
-    read_npy, read_npy_f32, read_npy_float, read_npy_float_rows, read_npy_image,
+    read_npy, read_npy_f32, read_npy_float, read_npy_float_rows, read_npy_from, read_npy_image,
     read_npy_image_rows, read_npy_indices, write_npy, write_npy_vectors, KeepRows, NpyArray,
     NpyRows,
 };
@@ -47,5 +54,5 @@ pub use npy_sequence::{
     INTENSITY, POSITIONS, TIMES,
 };
 pub(crate) use npy_sequence::{read_intensity_rows, VertexCount};
-pub use obj::{read_obj, write_obj, ObjMesh};
+pub use obj::{read_obj, read_obj_from, write_obj, ObjMesh};
 pub use texture::Texture;

@@ -23,8 +23,20 @@ pub fn write_matrix_market(path: &Path, matrix: &SparseMatrix) -> Result<(), IoE
 /// Reads a real (or integer) MatrixMarket coordinate matrix, general or symmetric, into a
 /// sparse matrix; errors name the line.
 pub fn read_matrix_market(path: &Path) -> Result<SparseMatrix, IoError> {
-    let bytes = super::read_file(path)?;
-    let text = std::str::from_utf8(&bytes).map_err(|_| IoError::format(path, "not UTF-8 text"))?;
+    matrix_from_bytes(&super::read_file(path)?, path)
+}
+
+/// [`read_matrix_market`] from a stream; `name` stands for it in errors.
+pub fn read_matrix_market_from(
+    reader: impl std::io::Read,
+    name: &Path,
+) -> Result<SparseMatrix, IoError> {
+    matrix_from_bytes(&super::read_stream(reader, name)?, name)
+}
+
+/// The MatrixMarket matrix in `bytes`, read from `path`.
+fn matrix_from_bytes(bytes: &[u8], path: &Path) -> Result<SparseMatrix, IoError> {
+    let text = std::str::from_utf8(bytes).map_err(|_| IoError::format(path, "not UTF-8 text"))?;
     let market = parse(text).map_err(|e| IoError::at_line(path, e))?;
     let (rows, cols) = market.shape;
     // The matrix's column pointers and faer's work arrays, then its entries.

@@ -4,7 +4,7 @@ use super::{write_atomically, IoError};
 use crate::format::temporary_beside;
 use npyz::WriterBuilder;
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Seek};
+use std::io::{BufReader, BufWriter, Read, Seek};
 use std::path::{Path, PathBuf};
 
 /// A float64 array in C (row-major) order.
@@ -103,6 +103,22 @@ pub fn read_npy(path: &Path) -> Result<NpyArray, IoError> {
     read_floats(path, &[8], "float64")
 }
 
+/// [`read_npy_float`] from a stream (read into memory within the memory limit); `name` stands
+/// for it in errors.
+pub fn read_npy_from(reader: impl Read, name: &Path) -> Result<NpyArray, IoError> {
+    let bytes = super::read_stream(reader, name)?;
+    let length = bytes.len() as u64;
+    let cursor = std::io::Cursor::new(bytes);
+    let file = npy_of(
+        name,
+        cursor,
+        length,
+        |t| is_float_of(t, &[4, 8]),
+        "float32 or float64",
+    )?;
+    Ok(float_rows(name, file, &|_| true)?.0)
+}
+
 /// Reads a float32 or float64 `.npy` file like [`read_npy`]; float32 values are widened to
 /// f64 exactly.
 pub fn read_npy_float(path: &Path) -> Result<NpyArray, IoError> {
@@ -131,7 +147,11 @@ pub fn read_npy_float_rows(path: &Path, keep: KeepRows) -> Result<(NpyArray, u64
 }
 
 /// [`read_npy_float_rows`] of an opened float32 or float64 file.
-fn float_rows(path: &Path, file: NpyFile, keep: KeepRows) -> Result<(NpyArray, u64), IoError> {
+fn float_rows<R: Read + Seek>(
+    path: &Path,
+    file: NpyFile<R>,
+    keep: KeepRows,
+) -> Result<(NpyArray, u64), IoError> {
     let single = matches!(file.dtype(), npyz::DType::Plain(t) if t.size_field() == 4);
     let Rows { shape, data, of } = match single {
         true => kept_rows(path, file, keep, |v: f32| f64::from(v))?,
@@ -160,9 +180,9 @@ struct Rows<U> {
 ///
 /// The rows are visited lazily (a header may declare 10¹² of them) and the output is checked
 /// against the memory limit before it is allocated.
-fn kept_rows<T: npyz::Deserialize, U>(
+fn kept_rows<T: npyz::Deserialize, U, R: Read + Seek>(
     path: &Path,
-    file: NpyFile,
+    file: NpyFile<R>,
     keep: KeepRows,
     to: impl Fn(T) -> U,
 ) -> Result<Rows<U>, IoError> {
@@ -218,10 +238,10 @@ const MAX_HEADER_BYTES: u64 = 1 << 20;
 /// `reader` at the start.
 fn check_header_length(
     path: &Path,
-    reader: &mut BufReader<File>,
+    reader: &mut (impl Read + Seek),
     length: u64,
 ) -> Result<(), IoError> {
-    use std::io::{Read, SeekFrom};
+    use std::io::SeekFrom;
     let mut prefix = [0u8; 12];
     let read = reader
         .read(&mut prefix)
@@ -361,8 +381,8 @@ fn indices<T: npyz::Deserialize + Into<i128>>(
     Ok(indices)
 }
 
-/// An open `.npy` file, positioned at its data.
-type NpyFile = npyz::NpyFile<BufReader<File>>;
+/// An open `.npy` file (or stream read into memory), positioned at its data.
+type NpyFile<R = BufReader<File>> = npyz::NpyFile<R>;
 
 /// Opens `path` and parses its header, checks the dtype with `accepts` (described as
 /// `expected` in the error), C order, and that the shape fits the bytes present (before
@@ -372,9 +392,19 @@ fn open_npy(
     accepts: impl Fn(&npyz::TypeStr) -> bool,
     expected: &str,
 ) -> Result<NpyFile, IoError> {
-    let in_file = |e| IoError::file(path, e);
     let (file, length) = super::open_regular(path)?;
-    let mut reader = BufReader::new(file);
+    npy_of(path, BufReader::new(file), length, accepts, expected)
+}
+
+/// [`open_npy`] of the `length` bytes of `reader`, which `path` names in errors.
+fn npy_of<R: Read + Seek>(
+    path: &Path,
+    mut reader: R,
+    length: u64,
+    accepts: impl Fn(&npyz::TypeStr) -> bool,
+    expected: &str,
+) -> Result<NpyFile<R>, IoError> {
+    let in_file = |e| IoError::file(path, e);
     check_header_length(path, &mut reader, length)?;
     let header = npyz::NpyHeader::from_reader(&mut reader).map_err(|e| {
         IoError::format(path, format!("not a valid .npy file ({})", first_line(&e)))

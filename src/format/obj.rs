@@ -36,8 +36,18 @@ pub struct ObjMesh {
 
 /// Reads an OBJ file (see the module docs for the supported subset).
 pub fn read_obj(path: &Path) -> Result<ObjMesh, IoError> {
-    let text = super::read_file(path)?;
-    let text = String::from_utf8_lossy(&text);
+    obj_from_bytes(&super::read_file(path)?, path)
+}
+
+/// [`read_obj`] from a stream; `name` stands for it in errors (and `mtllib` names are the
+/// caller's to resolve).
+pub fn read_obj_from(reader: impl std::io::Read, name: &Path) -> Result<ObjMesh, IoError> {
+    obj_from_bytes(&super::read_stream(reader, name)?, name)
+}
+
+/// The OBJ geometry in `bytes`, read from `path`.
+fn obj_from_bytes(bytes: &[u8], path: &Path) -> Result<ObjMesh, IoError> {
+    let text = String::from_utf8_lossy(bytes);
     parse_obj(&text).map_err(|(line, message)| {
         // A statement that breaks off where the file does: the file was cut short.
         let cut = line > 0 && line == text.lines().count() && !text.ends_with('\n');

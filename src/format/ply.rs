@@ -68,8 +68,17 @@ pub enum PlyEncoding {
 
 /// Reads a PLY file (see the module docs for what is read and what is skipped).
 pub fn read_ply(path: &Path) -> Result<PlyMesh, IoError> {
-    let bytes = super::read_file(path)?;
-    parse_ply(&bytes).map_err(|e| match e {
+    ply_from_bytes(&super::read_file(path)?, path)
+}
+
+/// [`read_ply`] from a stream; `name` stands for it in errors.
+pub fn read_ply_from(reader: impl std::io::Read, name: &Path) -> Result<PlyMesh, IoError> {
+    ply_from_bytes(&super::read_stream(reader, name)?, name)
+}
+
+/// The PLY mesh in `bytes`, read from `path`.
+fn ply_from_bytes(bytes: &[u8], path: &Path) -> Result<PlyMesh, IoError> {
+    parse_ply(bytes).map_err(|e| match e {
         PlyError::At(e) => IoError::at_line(path, e),
         PlyError::Budget(e) => IoError::too_large(path, e),
     })

@@ -53,7 +53,7 @@ mod data_array;
 mod read;
 mod tree;
 
-pub use read::{read_pvd, read_vtu, NamedArray, VtuMesh};
+pub use read::{read_pvd, read_vtu, read_vtu_from, NamedArray, VtuMesh};
 
 use super::{write_atomically, IoError};
 use base64::engine::general_purpose::STANDARD;

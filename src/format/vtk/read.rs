@@ -91,6 +91,12 @@ pub fn read_vtu(path: &Path) -> Result<VtuMesh, IoError> {
     parse_vtu(&bytes).map_err(|e| IoError::at_line(path, e))
 }
 
+/// [`read_vtu`] from a stream; `name` stands for it in errors.
+pub fn read_vtu_from(reader: impl std::io::Read, name: &Path) -> Result<VtuMesh, IoError> {
+    let bytes = crate::format::read_stream(reader, name)?;
+    parse_vtu(&bytes).map_err(|e| IoError::at_line(name, e))
+}
+
 /// Reads a ParaView collection: `(timestep, file)` of every `<DataSet>`, the files resolved
 /// against the `.pvd`'s directory, in order of time (equal times keep their listed order).
 pub fn read_pvd(path: &Path) -> Result<Vec<(f64, PathBuf)>, IoError> {
