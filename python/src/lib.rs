@@ -5,11 +5,11 @@
 //! positions and grey values, int64 faces, float32 volumes) and checked for shape; it copies
 //! them into the library's types with the GIL held, then releases the GIL (`Python::detach`)
 //! for everything long. Library errors become Python exceptions carrying the library's
-//! one-line message ([`to_py_err`]); nothing here panics on user input.
+//! one-line message (`to_py_err`); nothing here panics on user input.
 //!
 //! A running solve reacquires the GIL once per event (iteration, warp, factorization) to call
 //! the `progress` callback and to check for Ctrl-C (`PyErr_CheckSignals`); either raising stops
-//! the solve within one iteration, and the exception is re-raised ([`flow::PythonObserver`]).
+//! the solve within one iteration, and the exception is re-raised (`flow::PythonObserver`).
 //!
 //! Modules by concern: `convert` (arrays in and out, keyword words), `load` (files and arrays
 //! in, one mesh's operators), `flow` (`compute_flow` and the `Flow` class), `tracks`

@@ -166,7 +166,7 @@ impl<'a> FlowProblem<'a> {
         Self::with_slabs(sequence, params, slabs, true)
     }
 
-    /// The problem with given slabs (e.g. warped ones, [`warped_slab`]), which it keeps.
+    /// The problem with given slabs (e.g. warped ones, [`super::warped_slab`]), which it keeps.
     pub fn from_slabs(
         sequence: &'a MeshSequence,
         params: &FlowParams,

@@ -212,7 +212,7 @@ fn arrays_with(
     arrays
 }
 
-/// The mesh's triangles over file vertices ([`super::VertexMap::file_faces`]), as int64: what
+/// The mesh's triangles over file vertices ([`crate::load::VertexMap::file_faces`]), as int64: what
 /// the face arrays are per.
 pub fn file_faces(loaded: &LoadedSequence) -> Vec<[i64; 3]> {
     let faces = loaded.vertex_map.file_faces(loaded.sequence.mesh().faces());
