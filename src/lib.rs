@@ -74,6 +74,7 @@ pub mod format;
 pub mod geometry;
 pub mod io;
 pub mod limits;
+pub(crate) mod linalg;
 pub mod load;
 pub mod mesh;
 pub mod render;

@@ -50,11 +50,11 @@
 //! dissection: on the paper-size torus grid METIS's ordering cost 0.18 s more to compute and
 //! its factorizations were slower (0.078 s against 0.069 s per slab).
 
-use crate::fem::cholesky::{amd_order, analyze_in_order, CholeskyFactor};
 use crate::fem::element::cotan_stiffness;
 use crate::fem::SparseMatrix;
 use crate::flow::FlowError;
 use crate::geometry::IntrinsicGeometry;
+use crate::linalg::cholesky::{amd_order, analyze_in_order, CholeskyFactor};
 use crate::mesh::{halfedge_sign, Mesh, TreeCotree};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, Triplet};

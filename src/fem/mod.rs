@@ -17,12 +17,9 @@
 //! eigenvalues of `(K, M)` on the unit sphere approach `l(l+1) − 1` (1, 5, 11, …).
 //!
 //! Element matrices ([`element`]) are kept apart from assembly ([`VertexPattern`]), so the flow
-//! solver combines them per slab on one pattern. Their sparse Cholesky factors (`cholesky`:
-//! METIS ordering, one symbolic analysis shared by many numeric factorizations, single or double
-//! precision) serve the flow solver, the presmoothing of the images, the tracker's relaxation,
-//! the Hodge decomposition and the surface fit alike, so they live here, below all of them.
+//! solver combines them per slab on one pattern. Their sparse Cholesky factors are
+//! `crate::linalg`'s.
 
-pub(crate) mod cholesky;
 pub mod element;
 mod pattern;
 

@@ -14,9 +14,9 @@
 //! Scales come from the surface's size, not from the data's units.
 
 use super::{FlowError, Images, MeshSequence};
-use crate::fem::cholesky::{analyze, CholeskyFactor};
 use crate::fem::{cotan_laplacian, scalar_mass, MassKind, SparseMatrix};
 use crate::geometry::IntrinsicGeometry;
+use crate::linalg::cholesky::{analyze, CholeskyFactor};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
 use rayon::prelude::*;

@@ -46,9 +46,9 @@ mod reference;
 
 pub use points::read_points;
 
-use crate::fem::cholesky::{analyze, CholeskyFactor};
 use crate::fem::{cotan_laplacian, vertex_areas, SparseMatrix};
 use crate::geometry::IntrinsicGeometry;
+use crate::linalg::cholesky::{analyze, CholeskyFactor};
 use crate::mesh::Mesh;
 use crate::spatial::FrameSurface;
 use faer::sparse::{SparseColMat, Triplet};

@@ -39,8 +39,8 @@
 //! tissue's velocity is the mesh velocity plus `u` (`solve` writes it as `velocity.npy`).
 
 use super::SurfaceSample;
-use crate::fem::cholesky::{analyze, CholeskyFactor};
 use crate::fem::VertexPattern;
+use crate::linalg::cholesky::{analyze, CholeskyFactor};
 use crate::mesh::Mesh;
 use crate::spatial::FrameSurface;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;

@@ -196,7 +196,7 @@ mod precondition;
 
 use super::system::SpaceTimeSystem;
 use super::{FlowError, FlowParams, SolverChoice};
-use crate::fem::cholesky::{analyze, CholeskyFactor, FactorEntries, Precision};
+use crate::linalg::cholesky::{analyze, CholeskyFactor, FactorEntries, Precision};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
 use multigrid::{TimeHierarchy, TimeMultigrid};

@@ -18,8 +18,8 @@
 
 use super::pcg::{Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings, Whole};
-use crate::fem::cholesky::Precision;
 use crate::flow::system::SpaceTimeSystem;
+use crate::linalg::cholesky::Precision;
 use nalgebra::{Matrix2, Vector2};
 use rayon::prelude::*;
 

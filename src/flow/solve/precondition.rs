@@ -1,8 +1,8 @@
 //! Preconditioners for the block-tridiagonal space-time system.
 
 use super::pcg::Preconditioner;
-use crate::fem::cholesky::{CholeskyFactor, FactorEntries, Precision};
 use crate::flow::system::SpaceTimeSystem;
+use crate::linalg::cholesky::{CholeskyFactor, FactorEntries, Precision};
 use faer::Par;
 use rayon::prelude::*;
 

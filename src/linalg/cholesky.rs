@@ -6,13 +6,15 @@
 //! less fill than faer's approximate minimum degree, which is memory and time in every
 //! factorization and every triangular solve. AMD remains the fallback should METIS refuse.
 
-use crate::fem::SparseMatrixRef;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+
+/// A borrowed sparse matrix, CSC with `usize` indices (meshflow's `fem::SparseMatrixRef`).
+type SparseMatrixRef<'a> = SparseColMatRef<'a, usize, f64>;
 use faer::{Conj, MatMut, Par, Side};
 use std::sync::Arc;
 

@@ -1,0 +1,7 @@
+//! Sparse linear algebra that several parts of meshflow share, low in the house: the sparse
+//! Cholesky factors (`cholesky`: METIS ordering, one symbolic analysis shared by many numeric
+//! factorizations, single or double precision, faer's symbolic/numeric split) serve the flow
+//! solver, the presmoothing of the images, the tracker's relaxation, the Hodge decomposition
+//! and the surface fit alike. It depends on faer and METIS only.
+
+pub(crate) mod cholesky;
