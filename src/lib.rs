@@ -20,14 +20,23 @@
 //! quantities) → [`connection`] (frames and transport) → [`fem`] (element matrices and
 //! assembly) → [`flow`] (the space-time energy and its minimizer) → [`analysis`] (what a flow
 //! tells: divergence, curl, Hodge parts, strain rate); [`chart`] reads flows in a
-//! parameter domain, [`io`] reads and writes files, [`render`] draws PNG pictures, [`shapes`]
-//! makes sample surfaces, [`synth`] sample sequences with known flow, and [`accuracy`] measures
+//! parameter domain, [`render`] draws PNG pictures, [`shapes`] makes sample surfaces, [`synth`] sample sequences with known flow, and [`accuracy`] measures
 //! a computed flow against a known one or at tracked points. Before the flow, recordings
 //! become moving meshes: [`track`] follows frames meshed each on its own, [`surface`] fits a
 //! moving surface through points (cell centres) and [`volume`] carries 3-D images (microscope
 //! stacks) onto it. Every reader treats its files as hostile: [`limits`] holds the process's
 //! memory limit, against which declared sizes are checked before allocating, and the policy
 //! for files named inside other files. The user guide is `docs/guide.md`.
+//!
+//! Files are three layers, each above the one before: [`format`] (bytes ↔ arrays: OBJ, PLY,
+//! glTF, VTK, NPY, MTL and textures, MatrixMarket; paths or streams), [`load`] (files or arrays
+//! → a validated [`flow::MeshSequence`]: welding, orientation, repair, channels, times,
+//! warnings) and [`run`] (one command's output directory: staging, manifests, the flow and
+//! analysis writers, reading a run back). [`io`] re-exports all three under the paths of
+//! earlier versions. Shared numerics sit low: `linalg` (sparse Cholesky), [`spatial`] (a
+//! frame's surface as a spatial query structure), [`statistics`] (medians), [`subnormals`]
+//! (the floating-point mode of the solver's threads). No module imports one above it: the
+//! `use crate::` lines form no cycle.
 //!
 //! ```
 //! use meshflow::{connection::Connection, fem, geometry::IntrinsicGeometry, shapes};
