@@ -28,7 +28,7 @@
 //! memory limit, against which declared sizes are checked before allocating, and the policy
 //! for files named inside other files. The user guide is `docs/guide.md`.
 //!
-//! Files are three layers, each above the one before: [`format`] (bytes ↔ arrays: OBJ, PLY,
+//! Files are three layers, each above the one before: [`format`](mod@format) (bytes ↔ arrays: OBJ, PLY,
 //! glTF, VTK, NPY, MTL and textures, MatrixMarket; paths or streams), [`load`] (files or arrays
 //! → a validated [`flow::MeshSequence`]: welding, orientation, repair, channels, times,
 //! warnings) and [`run`] (one command's output directory: staging, manifests, the flow and
