@@ -16,6 +16,7 @@
 mod channels;
 mod ground_truth;
 mod input;
+mod options;
 mod prepare;
 mod sequence;
 mod vertex_map;
@@ -26,11 +27,12 @@ pub use crate::format::read_intensity_array;
 pub use channels::{select_channels, Channels};
 pub use ground_truth::read_ground_truth;
 pub use input::{FrameFormat, SequenceSource};
+pub use options::LoadOptions;
 pub use prepare::{load_mesh, mesh_from_arrays, read_mesh_geometry, LoadedMesh};
 pub(crate) use sequence::StaticImageCheck;
 pub use sequence::{
     count_frames, load_frames, load_geometry, load_sequence, read_mesh, read_mesh_with,
-    read_times_file, sequence_from_arrays, LoadOptions, LoadedGeometry, LoadedSequence,
+    read_times_file, sequence_from_arrays, LoadedGeometry, LoadedSequence,
 };
 pub use vertex_map::VertexMap;
 pub use warning::{LoadWarning, STATIC_IMAGE_TOLERANCE};
