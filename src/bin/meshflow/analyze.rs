@@ -124,7 +124,7 @@ fn draw(
     args: &PictureArgs,
 ) -> Result<usize, Error> {
     let sequence = &loaded.sequence;
-    let view = args.announced_view(&UpChoice::of_sequence(&loaded));
+    let view = args.announced_view(&UpChoice::of_sequence(loaded));
     let chosen = args.slabs(slabs.len())?;
     let (width, height) = args.size();
     let everywhere: Vec<_> = (0..sequence.n_frames())

@@ -16,8 +16,6 @@ use meshflow::volume::{
 use meshflow::Error;
 use std::path::{Path, PathBuf};
 
-/// The file `sample` writes into a sequence directory by default.
-
 /// What `sample` needs from the command line.
 pub struct SampleRequest<'a> {
     pub volumes: &'a Path,
