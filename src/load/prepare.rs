@@ -1,6 +1,6 @@
 //! From the faces of a file to a valid [`Mesh`]: the steps every loader takes, in order.
 //!
-//! 1. **Weld** coincident copies along seams (unless `--no-weld`; see [`super::weld`] for the
+//! 1. **Weld** coincident copies along seams (unless `--no-weld`; see [`crate::mesh`]'s welding for the
 //!    rule and `--weld-tolerance`).
 //! 2. With `--repair`, **repair** ([`crate::mesh::repair`]): drop faces with a repeated vertex
 //!    and duplicate faces, orient, cut non-manifold edges and orientation conflicts, split

@@ -1,6 +1,6 @@
 //! How the vertices of the input files map onto the vertices of the mesh.
 //!
-//! Loading renumbers vertices: welding merges file vertices ([`super::weld`]), vertices that
+//! Loading renumbers vertices: welding merges file vertices ([`crate::mesh`]'s welding), vertices that
 //! no face uses are dropped, and `--repair` splits vertices into manifold pieces
 //! ([`crate::mesh::repair`]). A [`VertexMap`] records both directions:
 //!

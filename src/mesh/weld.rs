@@ -322,7 +322,7 @@ fn close_pairs(
 /// or, when it is within a third of a cell of a cell face, across that face.
 const CELLS_PER_RADIUS: f64 = 4.0;
 
-/// How [`coincident_pairs`] buckets positions.
+/// How [`close_pairs`] buckets positions.
 #[derive(Clone, Copy)]
 enum Grid {
     /// One bucket per bit pattern.

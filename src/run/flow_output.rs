@@ -1,7 +1,7 @@
 //! Writing a computed flow: NPY arrays, ParaView files, a glTF animation and a JSON summary.
 //!
 //! NPY arrays are in the **files' vertex numbering** (`V_file` rows, through the
-//! [`super::VertexMap`]): welded copies repeat their mesh vertex's value, vertices the loader
+//! [`crate::load::VertexMap`]): welded copies repeat their mesh vertex's value, vertices the loader
 //! dropped are NaN, a file vertex split by `--repair` has the value of its first piece. VTU and
 //! glTF files are meshes and hold the `V` mesh vertices.
 //!
@@ -9,7 +9,7 @@
 //! |---|---|
 //! | `flow.npy` | (S, V_file, 3) float64: R^3 flow vectors of slab `s` at the vertices of frame `s`, one row per vertex of the input files (NaN for dropped vertices) |
 //! | `flow_intrinsic.npy` | (S, V_file, 2) float64: components in the vertex frames |
-//! | `velocity.npy` | (S, V_file, 3) float64: the material's velocity, the mesh's own motion over the slab plus the flow ([`tissue_velocity`]); the flow alone is relative to the mesh, which a tracked or animated mesh may also slide |
+//! | `velocity.npy` | (S, V_file, 3) float64: the material's velocity, the mesh's own motion over the slab plus the flow ([`crate::flow::tissue_velocity`]); the flow alone is relative to the mesh, which a tracked or animated mesh may also slide |
 //! | `vertex_map.npy` | (V_file,) int64: mesh vertex of each file vertex, −1 if dropped; only when that is not the identity |
 //! | `angular_error.npy`, `endpoint_error.npy`, `direction_error.npy` | (S, V_file) float64, with a ground truth: per-vertex AE (degrees, on displacements in mean edge lengths), EPE (velocity units) and direction error (degrees, NaN where the truth does not move) ([`crate::accuracy`]) |
 //! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` (mesh vertices) with point data `flow`, `velocity`, `flow_intrinsic`, `speed`, `intensity` (the mean of the channels for a colour or multi-channel image, whose channels are `image`; and `angular_error`, `endpoint_error`, `direction_error` with a ground truth; `warped_residual` with warping); the `.pvd` plays the slabs at their start times |
