@@ -11,6 +11,9 @@ use crate::format::{directory_files, glob_files, natural_order};
 use crate::format::{IoError, FACES, POSITIONS, TIMES};
 use std::path::{Path, PathBuf};
 
+/// What errors name when the input came as arrays (the Python package, library callers).
+pub(super) const ARRAYS: &str = "arrays";
+
 /// The format of per-frame mesh files.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FrameFormat {

@@ -297,12 +297,7 @@ pub fn mesh_from_arrays(
     faces: &[[u32; 3]],
     options: &LoadOptions,
 ) -> Result<LoadedMesh, Error> {
-    built_mesh(
-        Path::new(super::sequence::ARRAYS),
-        positions,
-        faces,
-        options,
-    )
+    built_mesh(Path::new(super::input::ARRAYS), positions, faces, options)
 }
 
 fn built_mesh(

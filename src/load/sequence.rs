@@ -14,7 +14,7 @@
 //! `times.txt` next to the frames (numbers separated by white space or commas, `#` comments),
 //! else `0, 1, 2, …`.
 
-use super::input::{FrameFormat, SequenceSource};
+use super::input::{FrameFormat, SequenceSource, ARRAYS};
 use super::prepare::{prepare_mesh, Prepared};
 use super::warning::STATIC_IMAGE_TOLERANCE;
 use super::{select_channels, LoadOptions, LoadWarning, VertexMap};
@@ -210,9 +210,6 @@ pub fn sequence_from_arrays(
     };
     build_sequence(source, RawWindow::whole(raw), options, path, &|_| {})
 }
-
-/// What errors name when the input came as arrays (the Python package, library callers).
-pub(super) const ARRAYS: &str = "arrays";
 
 /// The steps after reading (module docs): mesh, image channels, times, sequence.
 fn build_sequence(
