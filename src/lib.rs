@@ -112,7 +112,7 @@ pub enum Error {
     #[error(transparent)]
     Geometry(#[from] geometry::GeometryError),
     #[error(transparent)]
-    Io(#[from] io::IoError),
+    Io(#[from] format::IoError),
     #[error(transparent)]
     Flow(#[from] flow::FlowError),
     #[error(transparent)]
@@ -129,6 +129,8 @@ pub enum Error {
     Volume(#[from] volume::VolumeError),
     #[error(transparent)]
     Surface(#[from] surface::SurfaceError),
+    #[error(transparent)]
+    Isosurface(#[from] surface::IsosurfaceError),
     /// An error in the contents of a file, with the file's name.
     #[error("{}: {source}", path.display())]
     InFile { path: PathBuf, source: Box<Error> },

@@ -41,9 +41,11 @@
 //! `λ = S⁴ d̄²`, and scaling the points scales the surface and nothing else. One factorization
 //! order (METIS) serves all frames; each frame's `B` differs, so each is factorized anew.
 
+pub mod isosurface;
 mod points;
 mod reference;
 
+pub use isosurface::{find_surface, FoundSurface, IsosurfaceError, IsosurfaceOptions, Level};
 pub use points::read_points;
 
 use crate::fem::{cotan_laplacian, vertex_areas, SparseMatrix};

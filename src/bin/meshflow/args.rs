@@ -1,4 +1,5 @@
-//! Arguments several commands share: the input mesh options and `--force`.
+//! Arguments several commands share: the input mesh options, `--force`, and where volumes
+//! lie in space.
 
 use meshflow::load::LoadOptions;
 
@@ -47,5 +48,51 @@ impl MeshArgs {
             repair: self.repair,
             ..LoadOptions::default()
         }
+    }
+}
+
+/// Where volumes lie in space (`sample`, `surface --shape closed`).
+#[derive(clap::Args)]
+pub(crate) struct VolumePlacement {
+    /// Voxel size x,y,z in the surface's units [default: from ImageJ TIFF metadata, else
+    /// 1,1,1]
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub(crate) voxel_size: Option<Vec<f64>>,
+    /// Position of voxel (0, 0, 0), x,y,z
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub(crate) origin: Option<Vec<f64>>,
+}
+
+impl VolumePlacement {
+    pub(crate) fn options(&self) -> Result<meshflow::volume::VolumeOptions, meshflow::Error> {
+        Ok(meshflow::volume::VolumeOptions {
+            voxel_size: triple(&self.voxel_size, "--voxel-size")?,
+            origin: triple(&self.origin, "--origin")?.unwrap_or_default(),
+        })
+    }
+}
+
+/// Three numbers x,y,z of `name`, if given.
+fn triple(
+    values: &Option<Vec<f64>>,
+    name: &str,
+) -> Result<Option<nalgebra::Vector3<f64>>, meshflow::Error> {
+    match values.as_deref() {
+        None => Ok(None),
+        Some(&[x, y, z]) => Ok(Some(nalgebra::Vector3::new(x, y, z))),
+        Some(other) => Err(crate::usage(format!(
+            "{name} takes three numbers x,y,z, got {}",
+            other.len()
+        ))),
     }
 }

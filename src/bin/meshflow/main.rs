@@ -240,13 +240,10 @@ fn main() -> ExitCode {
             overwrite: args.force.overwrite(),
         }),
         Command::Sample(args) => args.request().and_then(sample::run),
-        Command::Surface(args) => surface::run(surface::SurfaceRequest {
-            points: &args.points,
-            out: &args.out,
-            options: args.options(),
-            times: args.times.clone(),
-            overwrite: args.force.overwrite(),
-        }),
+        Command::Surface(args) if matches!(args.shape, surface::ShapeArg::Closed) => {
+            args.closed_request().and_then(surface::run_closed)
+        }
+        Command::Surface(args) => args.points_request().and_then(surface::run),
         Command::Match {
             points,
             out,

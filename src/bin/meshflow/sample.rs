@@ -3,7 +3,7 @@
 //! maximum-intensity projection by default): `intensity.npy` for `meshflow solve`
 //! (`meshflow::volume::sample`).
 
-use crate::args::MeshArgs;
+use crate::args::{MeshArgs, VolumePlacement};
 use crate::progress::during;
 use crate::usage;
 use meshflow::format::{write_atomically, write_intensity_array, INTENSITY};
@@ -72,7 +72,7 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
     Ok(())
 }
 
-fn report_voxel_size(volumes: &Path, source: &VoxelSizeSource) {
+pub(crate) fn report_voxel_size(volumes: &Path, source: &VoxelSizeSource) {
     match source {
         VoxelSizeSource::Default => eprintln!(
             "meshflow: warning: {}: no voxel size given (--voxel-size X,Y,Z) or found in the files: taking 1 × 1 × 1",
@@ -202,23 +202,8 @@ pub(crate) struct SampleArgs {
     /// Output .npy [default: SEQUENCE/intensity.npy]
     #[arg(long, value_name = "FILE.npy")]
     pub(crate) out: Option<PathBuf>,
-    /// Voxel size x,y,z in the surface's units [default: from ImageJ TIFF metadata, else
-    /// 1,1,1]
-    #[arg(
-        long,
-        value_name = "X,Y,Z",
-        value_delimiter = ',',
-        allow_negative_numbers = true
-    )]
-    pub(crate) voxel_size: Option<Vec<f64>>,
-    /// Position of voxel (0, 0, 0), x,y,z
-    #[arg(
-        long,
-        value_name = "X,Y,Z",
-        value_delimiter = ',',
-        allow_negative_numbers = true
-    )]
-    pub(crate) origin: Option<Vec<f64>>,
+    #[command(flatten)]
+    pub(crate) placement: VolumePlacement,
     /// How far the shell reaches inside and outside along the normal, in the surface's units
     /// [default: two of the largest voxel sides each way]
     #[arg(
@@ -245,16 +230,6 @@ pub(crate) struct SampleArgs {
 
 impl SampleArgs {
     pub(crate) fn request(&self) -> Result<SampleRequest<'_>, meshflow::Error> {
-        let triple = |values: &Option<Vec<f64>>, name: &str| -> Result<_, meshflow::Error> {
-            match values.as_deref() {
-                None => Ok(None),
-                Some(&[x, y, z]) => Ok(Some(nalgebra::Vector3::new(x, y, z))),
-                Some(other) => Err(usage(format!(
-                    "{name} takes three numbers x,y,z, got {}",
-                    other.len()
-                ))),
-            }
-        };
         let shell = match self.shell.as_deref() {
             None => None,
             Some(&[inside, outside]) => Some(meshflow::volume::Shell {
@@ -275,10 +250,7 @@ impl SampleArgs {
             volumes: &self.volumes,
             sequence: &self.sequence,
             out: self.out.as_deref(),
-            volume: meshflow::volume::VolumeOptions {
-                voxel_size: triple(&self.voxel_size, "--voxel-size")?,
-                origin: triple(&self.origin, "--origin")?.unwrap_or_default(),
-            },
+            volume: self.placement.options()?,
             sampling: meshflow::volume::SampleOptions {
                 smoothing: self.smooth,
                 shell,

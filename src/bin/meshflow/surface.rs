@@ -2,12 +2,15 @@
 //! fixed connectivity (an NPY sequence that `meshflow sample` and `meshflow solve` read), by a
 //! smoothing-spline height over a fitted sphere or a plane (`meshflow::surface`).
 
-use crate::args::ForceArg;
+use crate::args::{ForceArg, VolumePlacement};
 use crate::progress::during;
 use meshflow::accuracy::{default_match_distance, Tracks};
 use meshflow::format::{write_atomically, write_npy, write_npy_sequence, IoError};
 use meshflow::run::{refuse_output_over_inputs, OutputKind, Overwrite, StagedDir};
+use meshflow::surface::{find_surface, FoundSurface, IsosurfaceOptions, Level};
 use meshflow::surface::{fit_surface, read_points, FitOptions, FittedSurface, Reference};
+use meshflow::track::{TrackFrame, TrackOptions, Tracked};
+use meshflow::volume::{read_volumes, VolumeOptions};
 use meshflow::Error;
 use std::path::{Path, PathBuf};
 
@@ -18,6 +21,124 @@ pub struct SurfaceRequest<'a> {
     pub options: FitOptions,
     pub times: Option<Vec<f64>>,
     pub overwrite: Overwrite,
+}
+
+/// What `surface --shape closed` needs from the command line.
+pub struct ClosedRequest<'a> {
+    pub volumes: &'a Path,
+    pub out: &'a Path,
+    pub placement: VolumeOptions,
+    pub finding: IsosurfaceOptions,
+    /// About this many vertices in the tracked mesh.
+    pub vertices: usize,
+    pub times: Option<Vec<f64>>,
+    pub overwrite: Overwrite,
+}
+
+/// The tracked mesh's size when `--vertices` is not given (as for surfaces through points).
+const DEFAULT_VERTICES: usize = 16000;
+
+/// `meshflow surface VOLUMES --shape closed`: each frame's surface found in its volume
+/// ([`find_surface`]), then one reference of about `vertices` vertices tracked through them
+/// (`meshflow track`'s machinery), written as an NPY sequence with `surface.json`.
+pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
+    if let Some(times) = &request.times {
+        check_times(times)?;
+    }
+    let mut staged =
+        StagedDir::create_apart_from(&[request.volumes], request.out, request.overwrite)?;
+    staged.record_command(crate::command_line());
+    let frames = during(format!("reading {}", request.volumes.display()), || {
+        read_volumes(request.volumes, &request.placement)
+    })?;
+    crate::sample::report_voxel_size(request.volumes, &frames.voxel_size_source);
+    let bar = crate::progress::count_progress(frames.volumes.len() as u64, "finding surfaces");
+    let mut found = Vec::with_capacity(frames.volumes.len());
+    for (k, (volume, file)) in frames.volumes.iter().zip(&frames.files).enumerate() {
+        let surface = find_surface(volume, &request.finding)
+            .map_err(|e| Error::from(e).in_file(format!("{} (frame {k})", file.display())))?;
+        bar.suspend(|| println!("  frame {k:3}: {}", describe_found(&surface)));
+        bar.inc(1);
+        found.push(surface);
+    }
+    bar.finish();
+    let times = match request.times {
+        Some(times) if times.len() != found.len() => {
+            return Err(crate::usage(format!(
+                "--times gives {} times for the {} frames of {}",
+                times.len(),
+                found.len(),
+                request.volumes.display()
+            )))
+        }
+        other => other,
+    };
+    let track_frames: Vec<TrackFrame> = (found.iter())
+        .map(|s| TrackFrame {
+            positions: s.positions.clone(),
+            faces: s.faces.clone(),
+            intensity: vec![0.0; s.positions.len()],
+        })
+        .collect();
+    let options = TrackOptions {
+        reference_vertices: Some(request.vertices),
+        ..TrackOptions::default()
+    };
+    let tracked = crate::track::tracked_with_progress(&track_frames, times, &options)?;
+    write_closed(&staged, &tracked, &found).map_err(|e| staged.error_in_target(e))?;
+    staged.commit()?;
+    crate::track::print_summary(&tracked, request.out);
+    Ok(())
+}
+
+/// One frame's line: what `surface.json` records of it.
+fn describe_found(s: &FoundSurface) -> String {
+    format!(
+        "threshold {:.4e}; the largest component holds {:.1} % of the {} voxels above it \
+         ({} filled in); {} vertices, {} faces; {}",
+        s.threshold,
+        100.0 * s.component_share,
+        s.foreground_voxels,
+        s.filled_voxels,
+        s.vertices,
+        s.faces_count,
+        match s.layer_vertices {
+            0 => "solid: the surface is its boundary".to_string(),
+            n => format!(
+                "{n} vertices moved to the middle of a bright layer {:.3e} thick",
+                s.layer_thickness
+            ),
+        }
+    )
+}
+
+/// positions.npy, faces.npy, times.txt and surface.json (the frames' surfaces and the
+/// tracking).
+fn write_closed(
+    staged: &StagedDir,
+    tracked: &Tracked,
+    found: &[FoundSurface],
+) -> Result<(), Error> {
+    let dir = staged.path();
+    let sequence = &tracked.sequence;
+    let positions: Vec<_> = (0..sequence.n_frames())
+        .map(|k| sequence.positions(k).expect("tracked in R^3").to_vec())
+        .collect();
+    let faces = sequence.mesh().faces();
+    write_npy_sequence(dir, &positions, faces, None, sequence.times())?;
+    let report = serde_json::json!({
+        "shape": "closed",
+        "vertices": sequence.mesh().n_vertices(),
+        "faces": faces.len(),
+        "frames": found,
+        "tracking": tracked.report,
+    });
+    let report = serde_json::to_string_pretty(&report).expect("a report serializes");
+    write_atomically(&dir.join("surface.json"), |w| {
+        use std::io::Write;
+        writeln!(w, "{report}")
+    })?;
+    Ok(())
 }
 
 pub fn run(request: SurfaceRequest) -> Result<(), Error> {
@@ -188,12 +309,16 @@ pub(crate) enum ShapeArg {
     SphereLike,
     /// z = h(x, y) over the plane
     Graph,
+    /// The boundary of the object in 3-D images (the input is volumes): an embryo, a gut, an
+    /// organoid
+    Closed,
 }
 
 #[derive(clap::Args)]
 pub(crate) struct SurfaceArgs {
     /// Points per frame: a directory or quoted glob of (N, 3) .npy or .csv files (natural
-    /// order), or one (frames, N, 3) .npy (NaN rows dropped)
+    /// order), or one (frames, N, 3) .npy (NaN rows dropped). With --shape closed, volumes: a
+    /// (Z, Y, X) or (K, Z, Y, X) .npy, TIFF stacks, or a directory or quoted glob of them
     pub(crate) points: PathBuf,
     /// Output directory (an NPY sequence)
     #[arg(long)]
@@ -227,9 +352,57 @@ pub(crate) struct SurfaceArgs {
     /// Frame times t0,t1,… [default: 0,1,2,…]
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     pub(crate) times: Option<Vec<f64>>,
+    /// With --shape closed: the threshold of the smoothed image, a value or auto (Otsu's); a
+    /// probability map works at 0.5
+    #[arg(long, value_name = "auto|VALUE", allow_negative_numbers = true)]
+    pub(crate) level: Option<meshflow::surface::Level>,
+    /// With --shape closed: Gaussian smoothing of each volume first, σ in physical units
+    /// [default: the largest voxel side]
+    #[arg(long, value_name = "SIGMA", allow_negative_numbers = true)]
+    pub(crate) smooth: Option<f64>,
+    #[command(flatten)]
+    pub(crate) placement: VolumePlacement,
 }
 
 impl SurfaceArgs {
+    /// `--shape closed`: what finding the surface in volumes needs.
+    pub(crate) fn closed_request(&self) -> Result<ClosedRequest<'_>, Error> {
+        Ok(ClosedRequest {
+            volumes: &self.points,
+            out: &self.out,
+            placement: self.placement.options()?,
+            finding: IsosurfaceOptions {
+                smoothing: self.smooth,
+                level: self.level.unwrap_or(Level::Otsu),
+            },
+            vertices: self.vertices.unwrap_or(DEFAULT_VERTICES),
+            times: self.times.clone(),
+            overwrite: self.force.overwrite(),
+        })
+    }
+
+    /// `--shape sphere-like|graph`: what fitting a surface through points needs; the volume
+    /// flags are refused.
+    pub(crate) fn points_request(&self) -> Result<SurfaceRequest<'_>, Error> {
+        let stray = [
+            (self.level.is_some(), "--level"),
+            (self.smooth.is_some(), "--smooth"),
+            (self.placement.voxel_size.is_some(), "--voxel-size"),
+            (self.placement.origin.is_some(), "--origin"),
+        ];
+        if let Some((_, flag)) = stray.iter().find(|(given, _)| *given) {
+            let why = format!("{flag} applies to --shape closed (volumes) only");
+            return Err(crate::usage(why));
+        }
+        Ok(SurfaceRequest {
+            points: &self.points,
+            out: &self.out,
+            options: self.options(),
+            times: self.times.clone(),
+            overwrite: self.force.overwrite(),
+        })
+    }
+
     pub(crate) fn options(&self) -> meshflow::surface::FitOptions {
         use meshflow::surface::{FitOptions, Resolution, Shape};
         FitOptions {
@@ -237,7 +410,7 @@ impl SurfaceArgs {
                 ShapeArg::SphereLike => Shape::SphereLike {
                     whole: self.whole_sphere,
                 },
-                ShapeArg::Graph => Shape::Graph,
+                ShapeArg::Graph | ShapeArg::Closed => Shape::Graph,
             },
             resolution: match (self.edge_length, self.vertices) {
                 (Some(length), _) => Resolution::EdgeLength(length),

@@ -67,30 +67,8 @@ pub fn run(request: TrackRequest) -> Result<(), Error> {
         ..request.options
     };
     print_header(request.input, &frames, &options);
-    let bar = count_progress(frames.len() as u64, "tracking frames");
-    let mut on_event = |event: TrackEvent| match event {
-        TrackEvent::Frame(report) => {
-            bar.suspend(|| println!("  {}", describe(report)));
-            bar.inc(1);
-        }
-        TrackEvent::Trimmed {
-            frame,
-            uncovered,
-            remaining,
-        } => {
-            bar.suspend(|| {
-                println!(
-                    "  frame {frame:3}: {uncovered} reference vertices lie beyond the frame's \
-                     boundary: trimmed to {remaining} vertices, tracking again from frame 0"
-                )
-            });
-            bar.set_position(0);
-        }
-    };
     let times = request.times.or(input.times);
-    let tracked = track_with_progress(&frames, times, &options, &mut on_event);
-    bar.finish();
-    let tracked = tracked?;
+    let tracked = tracked_with_progress(&frames, times, &options)?;
     let image = channels
         .iter()
         .all(Option::is_some)
@@ -333,7 +311,7 @@ fn print_header(input: &Path, frames: &[TrackFrame], options: &TrackOptions) {
     );
 }
 
-fn print_summary(tracked: &Tracked, out: &Path) {
+pub(crate) fn print_summary(tracked: &Tracked, out: &Path) {
     let mesh = tracked.sequence.mesh();
     println!(
         "{} frames tracked on {} vertices, {} faces (step bound {:.3e}) -> {}",
@@ -346,6 +324,38 @@ fn print_summary(tracked: &Tracked, out: &Path) {
     for warning in &tracked.report.warnings {
         eprintln!("meshflow: warning: {warning}");
     }
+}
+
+/// [`track_with_progress`] with a progress bar and a line per frame (and per trimming of the
+/// reference), as `meshflow track` prints them.
+pub(crate) fn tracked_with_progress(
+    frames: &[TrackFrame],
+    times: Option<Vec<f64>>,
+    options: &TrackOptions,
+) -> Result<Tracked, Error> {
+    let bar = count_progress(frames.len() as u64, "tracking frames");
+    let mut on_event = |event: TrackEvent| match event {
+        TrackEvent::Frame(report) => {
+            bar.suspend(|| println!("  {}", describe(report)));
+            bar.inc(1);
+        }
+        TrackEvent::Trimmed {
+            frame,
+            uncovered,
+            remaining,
+        } => {
+            bar.suspend(|| {
+                println!(
+                    "  frame {frame:3}: {uncovered} reference vertices lie beyond the frame's \
+                     boundary: trimmed to {remaining} vertices, tracking again from frame 0"
+                )
+            });
+            bar.set_position(0);
+        }
+    };
+    let tracked = track_with_progress(frames, times, options, &mut on_event);
+    bar.finish();
+    Ok(tracked?)
 }
 
 /// One frame's line, with track.json's names.

@@ -1,0 +1,443 @@
+//! A closed surface found in a 3-D image: the boundary of the object the image shows (an
+//! embryo, an organoid, a gut), as a triangle mesh, one frame at a time.
+//!
+//! Per volume, as TubULAR, ImSAnE and blender-tissue-cartography do it:
+//!
+//! 1. **Smooth** by a Gaussian of `σ` (physical units; [`Volume::smoothed`]).
+//! 2. **Threshold** at a level `c`: given, or Otsu's (the level that maximizes the
+//!    between-class variance `ω₀ω₁(μ₀ − μ₁)²` of a 256-bin histogram of the smoothed values).
+//!    A probability map works at 0.5.
+//! 3. **Keep the largest 6-connected component** of `v > c`, with its holes filled: every voxel
+//!    that the outside (the volume's border, 6-connected) cannot reach joins it. A hollow shell
+//!    becomes a solid, so its outer boundary is the surface.
+//! 4. **Take the isosurface** `φ = 0` of `φ = c − v`, clamped to the component
+//!    (`φ ≤ −ε` inside it, `φ ≥ ε` outside), by naive surface nets (the `fast-surface-nets`
+//!    crate): a vertex per grid cell the surface crosses, at the mean of its edges' linear
+//!    crossings, and two triangles per crossed grid edge. The volume is padded so that the
+//!    surface is closed where the object touches the border.
+//! 5. **Clean it to a manifold**: non-manifold edges and vertices split
+//!    ([`crate::mesh::repair`]), and only the largest connected piece kept.
+//! 6. **Move to the middle of the layer.** A tissue is often a bright layer around a dark
+//!    inside (an epithelium, a shell): filled, its surface is the layer's outer side. From
+//!    each vertex `p` with outward normal `n`, the smoothed image is read inward along
+//!    `p − t n` (steps of a quarter of the smallest voxel side): where it rises above the
+//!    threshold (`t₀`) and where it falls below again (`t₁`). If it falls within a quarter of
+//!    the object's smallest extent (its axis-aligned box), the vertex moves to
+//!    `p − (t₀ + t₁)/2 n`, the middle of the layer; a solid object, bright throughout,
+//!    keeps its boundary.
+//!
+//! The frames' meshes have their own vertices; `meshflow surface --shape closed` then tracks
+//! one reference through them ([`crate::track`]), which makes the fixed connectivity.
+
+use crate::connection::vertex_normals;
+use crate::mesh::{repair, Mesh};
+use crate::volume::{Volume, VolumeError};
+use fast_surface_nets::ndshape::{RuntimeShape, Shape};
+use fast_surface_nets::{surface_nets, SurfaceNetsBuffer};
+use nalgebra::Vector3;
+use std::collections::VecDeque;
+
+/// The threshold of the volume: Otsu's, or a value of the smoothed image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Level {
+    Otsu,
+    Value(f64),
+}
+
+impl std::str::FromStr for Level {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" | "otsu" => Ok(Level::Otsu),
+            other => match other.parse::<f64>() {
+                Ok(v) if v.is_finite() => Ok(Level::Value(v)),
+                _ => Err(format!("'{other}' is not a number or 'auto'")),
+            },
+        }
+    }
+}
+
+/// How a frame's surface is found (module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IsosurfaceOptions {
+    /// Gaussian smoothing, physical units; `None`: one voxel (the largest voxel size).
+    pub smoothing: Option<f64>,
+    pub level: Level,
+}
+
+impl Default for IsosurfaceOptions {
+    fn default() -> Self {
+        Self {
+            smoothing: None,
+            level: Level::Otsu,
+        }
+    }
+}
+
+/// What finding one frame's surface found: its report in `surface.json`.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct FoundSurface {
+    #[serde(skip)]
+    pub positions: Vec<Vector3<f64>>,
+    #[serde(skip)]
+    pub faces: Vec<[u32; 3]>,
+    /// The threshold used, in the image's values.
+    pub threshold: f64,
+    /// Voxels above it.
+    pub foreground_voxels: usize,
+    /// Voxels of the largest component, before its holes were filled.
+    pub component_voxels: usize,
+    /// `component_voxels / foreground_voxels`: how much of the foreground the surface bounds.
+    pub component_share: f64,
+    /// Voxels added by filling holes.
+    pub filled_voxels: usize,
+    /// Vertices moved to the middle of a bright layer (step 6), and the layer's median
+    /// thickness there (0 when none moved).
+    pub layer_vertices: usize,
+    pub layer_thickness: f64,
+    pub vertices: usize,
+    pub faces_count: usize,
+}
+
+/// Why no surface was found in a volume.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum IsosurfaceError {
+    #[error(transparent)]
+    Volume(#[from] VolumeError),
+    #[error("the image is constant ({value}): there is no object to bound")]
+    Constant { value: f64 },
+    #[error("no voxel is above the threshold {threshold} (the image ranges over {min}–{max}): give --level below the object's brightness")]
+    Empty { threshold: f64, min: f64, max: f64 },
+    #[error("every voxel is above the threshold {threshold} (the image ranges over {min}–{max}): give --level above the background")]
+    Full { threshold: f64, min: f64, max: f64 },
+    #[error("the object ({voxels} voxels) is too small to bound: smooth less or lower --level")]
+    TooSmall { voxels: usize },
+}
+
+/// The surface of the object in `volume` (module docs), in the volume's physical coordinates.
+pub fn find_surface(
+    volume: &Volume,
+    options: &IsosurfaceOptions,
+) -> Result<FoundSurface, IsosurfaceError> {
+    let largest_voxel = volume.voxel_size().max();
+    let smoothed = volume.smoothed(options.smoothing.unwrap_or(largest_voxel))?;
+    let values = smoothed.values();
+    let (min, max) = values
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    if min >= max {
+        return Err(IsosurfaceError::Constant {
+            value: f64::from(min),
+        });
+    }
+    let threshold = match options.level {
+        Level::Otsu => otsu(values, min, max),
+        Level::Value(v) => v as f32,
+    };
+    let (min, max) = (f64::from(min), f64::from(max));
+    let foreground: Vec<bool> = values.iter().map(|&v| v > threshold).collect();
+    let foreground_voxels = foreground.iter().filter(|&&f| f).count();
+    let t = f64::from(threshold);
+    match foreground_voxels {
+        0 => {
+            return Err(IsosurfaceError::Empty {
+                threshold: t,
+                min,
+                max,
+            })
+        }
+        n if n == values.len() => {
+            return Err(IsosurfaceError::Full {
+                threshold: t,
+                min,
+                max,
+            })
+        }
+        _ => {}
+    }
+    let shape = volume.shape();
+    let component = largest_component(&foreground, shape);
+    let component_voxels = component.iter().filter(|&&c| c).count();
+    let solid = filled(&component, shape);
+    let filled_voxels = solid.iter().filter(|&&s| s).count() - component_voxels;
+    let (positions, faces) = nets(values, &solid, threshold, &smoothed);
+    let (mut positions, faces) = largest_manifold_piece(positions, &faces);
+    if faces.len() < 4 {
+        return Err(IsosurfaceError::TooSmall {
+            voxels: component_voxels,
+        });
+    }
+    let (layer_vertices, layer_thickness) =
+        to_layer_middle(&mut positions, &faces, &smoothed, f64::from(threshold));
+    Ok(FoundSurface {
+        layer_vertices,
+        layer_thickness,
+        vertices: positions.len(),
+        faces_count: faces.len(),
+        positions,
+        faces,
+        threshold: t,
+        foreground_voxels,
+        component_voxels,
+        component_share: component_voxels as f64 / foreground_voxels as f64,
+        filled_voxels,
+    })
+}
+
+/// Moves each vertex to the middle of the bright layer below it, where there is one (module
+/// docs, step 6): how many moved, and the median thickness of the layer at them.
+fn to_layer_middle(
+    positions: &mut [Vector3<f64>],
+    faces: &[[u32; 3]],
+    smoothed: &Volume,
+    threshold: f64,
+) -> (usize, f64) {
+    let Ok(mesh) = Mesh::new(positions.len(), faces.to_vec()) else {
+        return (0, 0.0);
+    };
+    let normals = vertex_normals(&mesh, positions);
+    let (low, high) = positions.iter().fold(
+        (
+            Vector3::repeat(f64::INFINITY),
+            Vector3::repeat(f64::NEG_INFINITY),
+        ),
+        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+    );
+    let reach = 0.25 * (high - low).min();
+    let step = 0.25 * smoothed.voxel_size().min();
+    let bright = |p: Vector3<f64>| smoothed.sample(&p).is_some_and(|v| v > threshold);
+    let mut thicknesses = Vec::new();
+    for (p, n) in positions.iter_mut().zip(&normals) {
+        let depth = |t: f64| *p - t * n;
+        let steps = (reach / step) as usize;
+        let Some(enter) = (0..=steps)
+            .map(|s| s as f64 * step)
+            .find(|&t| bright(depth(t)))
+        else {
+            continue;
+        };
+        let leave = (0..=steps)
+            .map(|s| enter + s as f64 * step)
+            .take_while(|&t| t <= reach)
+            .find(|&t| !bright(depth(t)));
+        if let Some(leave) = leave {
+            thicknesses.push(leave - enter);
+            *p = depth(0.5 * (enter + leave));
+        }
+    }
+    let moved = thicknesses.len();
+    (moved, crate::statistics::median(thicknesses))
+}
+
+/// Otsu's threshold of `values` in `[min, max]` from a 256-bin histogram: the upper edge of
+/// the bin that maximizes the between-class variance.
+pub fn otsu(values: &[f32], min: f32, max: f32) -> f32 {
+    const BINS: usize = 256;
+    let width = (max - min) / BINS as f32;
+    let mut histogram = [0u64; BINS];
+    for &v in values {
+        let bin = (((v - min) / width) as usize).min(BINS - 1);
+        histogram[bin] += 1;
+    }
+    let centre = |b: usize| f64::from(min) + (b as f64 + 0.5) * f64::from(width);
+    let total = values.len() as f64;
+    let sum: f64 = (0..BINS).map(|b| histogram[b] as f64 * centre(b)).sum();
+    let (mut below, mut below_sum) = (0.0, 0.0);
+    let (mut best, mut best_bin) = (-1.0, 0);
+    for (b, &count) in histogram.iter().enumerate().take(BINS - 1) {
+        below += count as f64;
+        below_sum += count as f64 * centre(b);
+        let above = total - below;
+        if below == 0.0 || above == 0.0 {
+            continue;
+        }
+        let difference = below_sum / below - (sum - below_sum) / above;
+        let between = below * above * difference * difference;
+        if between > best {
+            (best, best_bin) = (between, b);
+        }
+    }
+    min + width * (best_bin + 1) as f32
+}
+
+/// The 6-neighbours of voxel `at` in a grid of `shape` (`(n_z, n_y, n_x)`, C order).
+fn neighbours(at: usize, [nz, ny, nx]: [usize; 3]) -> impl Iterator<Item = usize> {
+    let (k, j, i) = (at / (ny * nx), at / nx % ny, at % nx);
+    let plane = ny * nx;
+    [
+        (i > 0).then(|| at - 1),
+        (i + 1 < nx).then(|| at + 1),
+        (j > 0).then(|| at - nx),
+        (j + 1 < ny).then(|| at + nx),
+        (k > 0).then(|| at - plane),
+        (k + 1 < nz).then(|| at + plane),
+    ]
+    .into_iter()
+    .flatten()
+}
+
+/// The voxels 6-connected to `seeds` through voxels where `passable` holds.
+fn flood(
+    seeds: impl IntoIterator<Item = usize>,
+    passable: impl Fn(usize) -> bool,
+    shape: [usize; 3],
+) -> Vec<bool> {
+    let mut reached = vec![false; shape.iter().product()];
+    let mut queue = VecDeque::new();
+    for seed in seeds {
+        if passable(seed) && !reached[seed] {
+            reached[seed] = true;
+            queue.push_back(seed);
+        }
+    }
+    while let Some(at) = queue.pop_front() {
+        for next in neighbours(at, shape) {
+            if !reached[next] && passable(next) {
+                reached[next] = true;
+                queue.push_back(next);
+            }
+        }
+    }
+    reached
+}
+
+/// The largest 6-connected component of `mask`.
+fn largest_component(mask: &[bool], shape: [usize; 3]) -> Vec<bool> {
+    let mut label = vec![0u32; mask.len()];
+    let (mut best, mut best_size, mut next) = (0, 0, 1);
+    for start in 0..mask.len() {
+        if !mask[start] || label[start] != 0 {
+            continue;
+        }
+        let (mut queue, mut size) = (VecDeque::from([start]), 0usize);
+        label[start] = next;
+        while let Some(at) = queue.pop_front() {
+            size += 1;
+            for n in neighbours(at, shape) {
+                if mask[n] && label[n] == 0 {
+                    label[n] = next;
+                    queue.push_back(n);
+                }
+            }
+        }
+        if size > best_size {
+            (best, best_size) = (next, size);
+        }
+        next += 1;
+    }
+    label.iter().map(|&l| l == best && l != 0).collect()
+}
+
+/// `object` with its holes filled: every voxel the border cannot reach through the
+/// background.
+fn filled(object: &[bool], shape: [usize; 3]) -> Vec<bool> {
+    let [nz, ny, nx] = shape;
+    let border = (0..object.len()).filter(|&at| {
+        let (k, j, i) = (at / (ny * nx), at / nx % ny, at % nx);
+        k == 0 || j == 0 || i == 0 || k + 1 == nz || j + 1 == ny || i + 1 == nx
+    });
+    let outside = flood(border, |at| !object[at], shape);
+    outside.iter().map(|&o| !o).collect()
+}
+
+/// Cells of padding around the volume: the surface closes inside them.
+const PAD: usize = 2;
+
+/// Surface nets of `φ = threshold − v` clamped to `solid`, in `volume`'s coordinates.
+fn nets(
+    values: &[f32],
+    solid: &[bool],
+    threshold: f32,
+    volume: &Volume,
+) -> (Vec<Vector3<f64>>, Vec<[u32; 3]>) {
+    let [nz, ny, nx] = volume.shape();
+    let dims = [nx + 2 * PAD, ny + 2 * PAD, nz + 2 * PAD].map(|d| d as u32);
+    let shape = RuntimeShape::<u32, 3>::new(dims);
+    // The smallest |φ| clamped to: a tenth of the image's typical contrast is far below a level
+    // crossing and above round-off.
+    let epsilon = 1e-3 * (threshold.abs() + 1e-6);
+    let mut sdf = vec![1.0f32; shape.usize()];
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let at = (k * ny + j) * nx + i;
+                let phi = threshold - values[at];
+                let padded = [i + PAD, j + PAD, k + PAD].map(|c| c as u32);
+                sdf[shape.linearize(padded) as usize] = match solid[at] {
+                    true => phi.min(-epsilon),
+                    false => phi.max(epsilon),
+                };
+            }
+        }
+    }
+    let mut buffer = SurfaceNetsBuffer::default();
+    surface_nets(&sdf, &shape, [0; 3], dims.map(|d| d - 1), &mut buffer);
+    let origin = volume.origin();
+    let size = volume.voxel_size();
+    let positions = (buffer.positions.iter())
+        .map(|p| {
+            let grid = Vector3::new(p[0], p[1], p[2]).map(|c| f64::from(c) - PAD as f64);
+            origin + grid.component_mul(&size)
+        })
+        .collect();
+    let faces = (buffer.indices.chunks_exact(3))
+        .map(|t| [t[0], t[1], t[2]])
+        .collect();
+    (positions, faces)
+}
+
+/// The largest connected piece of the triangles, made manifold and oriented outward (positive
+/// enclosed volume), with only the vertices it uses.
+fn largest_manifold_piece(
+    positions: Vec<Vector3<f64>>,
+    faces: &[[u32; 3]],
+) -> (Vec<Vector3<f64>>, Vec<[u32; 3]>) {
+    let repaired = repair(positions.len(), faces);
+    let positions: Vec<Vector3<f64>> = (repaired.vertex_origin.iter())
+        .map(|&v| positions[v as usize])
+        .collect();
+    let (positions, faces) = compacted(&positions, &repaired.faces, |_| true);
+    let Ok(mesh) = Mesh::new(positions.len(), faces.clone()) else {
+        return (Vec::new(), Vec::new());
+    };
+    let Some(piece) = (mesh.connected_components().into_iter()).max_by_key(Vec::len) else {
+        return (Vec::new(), Vec::new());
+    };
+    let mut in_piece = vec![false; positions.len()];
+    piece.iter().for_each(|&v| in_piece[v] = true);
+    let (kept, mut faces) = compacted(&positions, &faces, |f| in_piece[f[0] as usize]);
+    let enclosed: f64 = (faces.iter())
+        .map(|&[a, b, c]| {
+            let [a, b, c] = [a, b, c].map(|v| kept[v as usize]);
+            a.dot(&b.cross(&c))
+        })
+        .sum();
+    if enclosed < 0.0 {
+        faces.iter_mut().for_each(|f| f.swap(1, 2));
+    }
+    (kept, faces)
+}
+
+/// The faces where `keep` holds, over only the vertices they use (in order of first use).
+fn compacted(
+    positions: &[Vector3<f64>],
+    faces: &[[u32; 3]],
+    keep: impl Fn(&[u32; 3]) -> bool,
+) -> (Vec<Vector3<f64>>, Vec<[u32; 3]>) {
+    let mut renumber = vec![u32::MAX; positions.len()];
+    let mut kept = Vec::new();
+    let faces = (faces.iter().filter(|f| keep(f)))
+        .map(|face| {
+            face.map(|v| {
+                if renumber[v as usize] == u32::MAX {
+                    renumber[v as usize] = kept.len() as u32;
+                    kept.push(positions[v as usize]);
+                }
+                renumber[v as usize]
+            })
+        })
+        .collect();
+    (kept, faces)
+}
