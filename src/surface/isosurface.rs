@@ -23,8 +23,9 @@
 //!    `p − t n` (steps of a quarter of the smallest voxel side): where it rises above the
 //!    threshold (`t₀`) and where it falls below again (`t₁`). If it falls within a quarter of
 //!    the object's smallest extent (its axis-aligned box), the vertex moves to
-//!    `p − (t₀ + t₁)/2 n`, the middle of the layer; a solid object, bright throughout,
-//!    keeps its boundary.
+//!    `p − d n`, the middle of the layer: `d` is `(t₀ + t₁)/2` averaged over the vertex and
+//!    its neighbours (five rounds), so that noise in where the layer ends does not fold the
+//!    surface. A solid object, bright throughout, keeps its boundary.
 //!
 //! The frames' meshes have their own vertices; `meshflow surface --shape closed` then tracks
 //! one reference through them ([`crate::track`]), which makes the fixed connectivity.
@@ -208,27 +209,72 @@ fn to_layer_middle(
     let reach = 0.25 * (high - low).min();
     let step = 0.25 * smoothed.voxel_size().min();
     let bright = |p: Vector3<f64>| smoothed.sample(&p).is_some_and(|v| v > threshold);
+    let steps = (reach / step) as usize;
+    // (depth of the layer's middle, thickness) below each vertex, where there is a layer.
+    let layers: Vec<Option<(f64, f64)>> = (positions.iter().zip(&normals))
+        .map(|(p, n)| {
+            let depth = |t: f64| p - t * n;
+            let ts = |from: f64| (0..=steps).map(move |s| from + s as f64 * step);
+            let enter = ts(0.0).find(|&t| bright(depth(t)))?;
+            let leave = ts(enter)
+                .take_while(|&t| t <= reach)
+                .find(|&t| !bright(depth(t)))?;
+            Some((0.5 * (enter + leave), leave - enter))
+        })
+        .collect();
+    // The depths averaged over each vertex's neighbours a few times: noise in where the layer
+    // ends must not fold the surface.
+    let mut depths: Vec<f64> = layers.iter().map(|l| l.map_or(0.0, |(d, _)| d)).collect();
+    let neighbours = vertex_neighbours(positions.len(), faces);
+    for _ in 0..LAYER_SMOOTHING {
+        depths = (0..depths.len())
+            .map(|i| match layers[i] {
+                None => 0.0,
+                Some(_) => {
+                    let around = neighbours[i]
+                        .iter()
+                        .filter(|&&j| layers[j as usize].is_some());
+                    let (sum, count) = around.fold((depths[i], 1.0), |(s, c), &j| {
+                        (s + depths[j as usize], c + 1.0)
+                    });
+                    sum / count
+                }
+            })
+            .collect();
+    }
     let mut thicknesses = Vec::new();
-    for (p, n) in positions.iter_mut().zip(&normals) {
-        let depth = |t: f64| *p - t * n;
-        let steps = (reach / step) as usize;
-        let Some(enter) = (0..=steps)
-            .map(|s| s as f64 * step)
-            .find(|&t| bright(depth(t)))
-        else {
-            continue;
-        };
-        let leave = (0..=steps)
-            .map(|s| enter + s as f64 * step)
-            .take_while(|&t| t <= reach)
-            .find(|&t| !bright(depth(t)));
-        if let Some(leave) = leave {
-            thicknesses.push(leave - enter);
-            *p = depth(0.5 * (enter + leave));
+    for ((p, n), (layer, depth)) in positions
+        .iter_mut()
+        .zip(&normals)
+        .zip(layers.iter().zip(&depths))
+    {
+        if let Some((_, thickness)) = layer {
+            thicknesses.push(*thickness);
+            *p -= *depth * n;
         }
     }
     let moved = thicknesses.len();
     (moved, crate::statistics::median(thicknesses))
+}
+
+/// Rounds of neighbour averaging of the layer depths.
+const LAYER_SMOOTHING: usize = 5;
+
+/// Each vertex's neighbours along the faces' edges.
+fn vertex_neighbours(n_vertices: usize, faces: &[[u32; 3]]) -> Vec<Vec<u32>> {
+    let mut neighbours = vec![Vec::new(); n_vertices];
+    for f in faces {
+        for c in 0..3 {
+            let (a, b) = (f[c], f[(c + 1) % 3]);
+            neighbours[a as usize].push(b);
+            neighbours[b as usize].push(a);
+        }
+    }
+    for list in &mut neighbours {
+        list.sort_unstable();
+        list.dedup();
+    }
+    neighbours
 }
 
 /// Otsu's threshold of `values` in `[min, max]` from a 256-bin histogram: the upper edge of

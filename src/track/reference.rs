@@ -5,7 +5,9 @@
 //! Delaunay criterion, only between nearly coplanar triangles so the shape stays), and
 //! vertices are moved a few times towards the centroid of their neighbours within the surface
 //! (tangential Laplacian smoothing, projected back onto frame 0; boundary vertices stay).
-//! meshoptimizer neither flips edges nor smooths, and both are a few lines on a face list.
+//! meshoptimizer neither flips edges nor smooths, and both are a few lines on a face list. Where
+//! a collapse flattens a thin part to a pair of back-to-back faces (four faces on each of their
+//! edges), the pair is removed.
 //!
 //! Surfaces meshed per time point by a segmentation are often finer than the flow needs, and
 //! tracking a coarser mesh is faster and folds less. The simplified mesh's vertices are a subset
@@ -21,6 +23,9 @@ use std::collections::BTreeMap;
 
 /// How many rounds adjust the triangle target to land near the asked vertex count.
 const ROUNDS: usize = 3;
+/// How many more rounds try a slightly smaller target when a collapse left a non-manifold edge
+/// (two sheets pinched together where the surface was thin).
+const MANIFOLD_RETRIES: usize = 4;
 
 /// Passes of edge flips and of smoothing.
 const FLIP_PASSES: usize = 10;
@@ -51,9 +56,9 @@ pub fn simplified_reference(
     let indices: Vec<u32> = faces.iter().flatten().copied().collect();
     // A triangle mesh has about twice as many triangles as vertices.
     let mut target_faces = 2 * vertices;
-    let mut result = indices.clone();
-    for _ in 0..ROUNDS {
-        result = meshopt::simplify(
+    let mut faces = faces.to_vec();
+    for round in 0..ROUNDS + MANIFOLD_RETRIES {
+        let result = meshopt::simplify(
             &indices,
             &adapter,
             3 * target_faces.max(1),
@@ -61,13 +66,23 @@ pub fn simplified_reference(
             meshopt::SimplifyOptions::Regularize,
             None,
         );
-        let got = used_vertices(positions.len(), result.iter().copied());
-        if got == 0 || got.abs_diff(vertices) * 50 <= vertices {
-            break;
+        faces = result.chunks_exact(3).map(|f| [f[0], f[1], f[2]]).collect();
+        drop_back_to_back(&mut faces);
+        let got = used_vertices(positions.len(), faces.iter().flatten().copied());
+        let near = got == 0 || got.abs_diff(vertices) * 50 <= vertices;
+        let manifold = || {
+            let compacted = compact(positions, faces.clone());
+            Mesh::new(compacted.positions.len(), compacted.faces).is_ok()
+        };
+        match (near || round + 1 >= ROUNDS, got == 0 || manifold()) {
+            (true, true) => break,
+            // A collapse pinched two sheets together: another target collapses otherwise.
+            (true, false) => target_faces = target_faces * 97 / 100,
+            (false, _) => {
+                target_faces = (target_faces as f64 * vertices as f64 / got as f64).round() as usize
+            }
         }
-        target_faces = (target_faces as f64 * vertices as f64 / got as f64).round() as usize;
     }
-    let mut faces: Vec<[u32; 3]> = result.chunks_exact(3).map(|f| [f[0], f[1], f[2]]).collect();
     for _ in 0..FLIP_PASSES {
         if flip_to_delaunay(positions, &mut faces) == 0 {
             break;
@@ -76,6 +91,22 @@ pub fn simplified_reference(
     let mut reference = compact(positions, faces);
     smooth_on(&mut reference, positions, all_faces);
     reference
+}
+
+/// Removes pairs of faces on the same three vertices (back to back, opposite orientations):
+/// what an edge collapse leaves where it flattens a thin part to nothing, with four faces on
+/// each of its edges.
+fn drop_back_to_back(faces: &mut Vec<[u32; 3]>) {
+    let key = |f: &[u32; 3]| {
+        let mut k = *f;
+        k.sort_unstable();
+        k
+    };
+    let mut count: std::collections::HashMap<[u32; 3], usize> = Default::default();
+    faces
+        .iter()
+        .for_each(|f| *count.entry(key(f)).or_default() += 1);
+    faces.retain(|f| count[&key(f)] == 1);
 }
 
 /// One pass of Delaunay flips between nearly coplanar triangles (module docs); how many.
@@ -100,6 +131,8 @@ fn flip_to_delaunay(x: &[Vector3<f64>], faces: &mut [[u32; 3]]) -> usize {
         u.angle(&v)
     };
     let mut touched = vec![false; faces.len()];
+    // Edges this pass made: two flips must not make the same edge (four faces on it).
+    let mut made = std::collections::BTreeSet::new();
     let mut flips = 0;
     for pair in edges.values() {
         let &[(f, c), (g, _)] = pair.as_slice() else {
@@ -115,12 +148,14 @@ fn flip_to_delaunay(x: &[Vector3<f64>], faces: &mut [[u32; 3]]) -> usize {
         let (n_f, n_g) = (normal(faces[f]), normal(faces[g]));
         let coplanar = n_f.normalize().dot(&n_g.normalize()) >= crease;
         let delaunay = angle(opposite_c, a, b) + angle(d, a, b) <= std::f64::consts::PI + 1e-9;
-        let exists = edges.contains_key(&(opposite_c.min(d), opposite_c.max(d)));
+        let new_edge = (opposite_c.min(d), opposite_c.max(d));
+        let exists = edges.contains_key(&new_edge) || made.contains(&new_edge);
         let (new_f, new_g) = ([a, d, opposite_c], [d, b, opposite_c]);
         let keeps_side = normal(new_f).dot(&n_f) > 0.0 && normal(new_g).dot(&n_f) > 0.0;
         if coplanar && !delaunay && !exists && keeps_side {
             faces[f] = new_f;
             faces[g] = new_g;
+            made.insert(new_edge);
             touched[f] = true;
             touched[g] = true;
             flips += 1;
