@@ -55,6 +55,7 @@ __all__ = [
     "advect",
     "analyze",
     "compute_flow",
+    "find_surface",
     "fit_surface",
     "load_mesh_sequence",
     "load_sequence",
@@ -821,6 +822,60 @@ def _volume_frames(volumes: Any) -> List[np.ndarray]:
             f"got {type(volumes).__name__}"
         )
     return [as_float32(f"volumes[{k}]", v, 3, "(z, y, x)") for k, v in enumerate(volumes)]
+
+
+def find_surface(
+    volume: Any,
+    voxel_size: SequenceOf[float] = (1.0, 1.0, 1.0),
+    *,
+    origin: SequenceOf[float] = (0.0, 0.0, 0.0),
+    level: Union[str, float] = "auto",
+    smoothing: Optional[float] = None,
+) -> Dict[str, Any]:
+    """The surface of the object in one 3-D image, as ``meshflow surface --shape closed`` finds
+    it in each frame: Gaussian smoothing, a threshold (Otsu's, or ``level``), the largest
+    6-connected object above it with its holes filled, its isosurface by surface nets cleaned
+    to one closed manifold, and, where the object is a bright layer around a darker inside,
+    each vertex moved to the middle of the layer.
+
+    Parameters
+    ----------
+    volume : (Z, Y, X) array of float or integer
+        The image in NumPy's ``(z, y, x)`` order.
+    voxel_size : (d_x, d_y, d_z)
+        The voxel's sides in physical units, ``(x, y, z)`` order.
+    origin : (x, y, z)
+        The position of voxel ``(0, 0, 0)``'s centre.
+    level : "auto" or float
+        The threshold of the smoothed image; "auto" is Otsu's (a probability map works at 0.5).
+    smoothing : float, optional
+        ``σ`` of the Gaussian, physical units; default the largest voxel side.
+
+    Returns
+    -------
+    dict
+        ``positions`` (V, 3) and ``faces`` (F, 3) of the surface (its own vertices: track
+        several frames' surfaces into one mesh with :func:`track`), and ``threshold``,
+        ``foreground_voxels``, ``component_voxels``, ``component_share``, ``filled_voxels``,
+        ``layer_vertices``, ``layer_thickness`` as ``surface.json`` has them.
+
+    Errors are ``ValueError`` with the library's message: a constant image, no voxel above
+    ``level`` or every voxel above it, an object too small to bound.
+    """
+    frame = _volume_frames([volume])[0]
+    if isinstance(level, str):
+        text = level
+    elif isinstance(level, (int, float)) and not isinstance(level, bool):
+        text = repr(float(level))
+    else:
+        raise ValueError(f"level must be \"auto\" or a number, got {level!r}")
+    return _meshflow.find_surface(
+        frame,
+        _triple("voxel_size", voxel_size),
+        _triple("origin", origin),
+        text,
+        _optional_float("smoothing", smoothing),
+    )
 
 
 def _triple(name: str, value: Any) -> Tuple[float, float, float]:

@@ -109,6 +109,7 @@ fn _meshflow(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(tracks::track, m)?)?;
     m.add_function(wrap_pyfunction!(tracks::match_tracks, m)?)?;
     m.add_function(wrap_pyfunction!(microscopy::fit_surface, m)?)?;
+    m.add_function(wrap_pyfunction!(microscopy::find_surface, m)?)?;
     m.add_function(wrap_pyfunction!(microscopy::sample_volume, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

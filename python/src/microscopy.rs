@@ -1,12 +1,14 @@
-//! Microscopy: surfaces fitted through points (`meshflow surface`) and volumes sampled onto
-//! surfaces (`meshflow sample`).
+//! Microscopy: surfaces fitted through points (`meshflow surface`) or found in volumes
+//! (`--shape closed`), and volumes sampled onto surfaces (`meshflow sample`).
 
 use crate::convert::{faces_array, parse, points_array, read_faces, read_points, read_positions};
 use crate::{to_py_err, value_error};
 use meshflow::mesh::Mesh;
-use meshflow::surface::{FitOptions, Reference, Resolution, Shape};
+use meshflow::surface::{
+    FitOptions, FoundSurface, IsosurfaceOptions, Level, Reference, Resolution, Shape,
+};
 use meshflow::volume::{Reduce, SampleOptions, SampledSequence, Shell, Volume};
-use meshflow::{surface, volume};
+use meshflow::{surface, volume, Error};
 use nalgebra::Vector3;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyReadonlyArray2, PyReadonlyArray3};
@@ -130,6 +132,43 @@ pub(crate) fn read_volume(array: &PyReadonlyArray3<f32>) -> ([usize; 3], Vec<f32
         None => array.iter().copied().collect(),
     };
     (shape, values)
+}
+
+/// The surface of the object in `volume` (Z, Y, X), as `meshflow surface --shape closed`
+/// finds it in a frame. Returns a dict: `positions` (V, 3), `faces` (F, 3) and the report's
+/// numbers.
+#[pyfunction]
+#[pyo3(signature = (volume, voxel_size, origin, level, smoothing))]
+pub(crate) fn find_surface<'py>(
+    py: Python<'py>,
+    volume: PyReadonlyArray3<'py, f32>,
+    voxel_size: (f64, f64, f64),
+    origin: (f64, f64, f64),
+    level: &str,
+    smoothing: Option<f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let level = parse::<Level>(level, "level")?;
+    let (shape, values) = read_volume(&volume);
+    let voxel_size = Vector3::new(voxel_size.0, voxel_size.1, voxel_size.2);
+    let origin = Vector3::new(origin.0, origin.1, origin.2);
+    let found = py
+        .detach(|| -> Result<FoundSurface, Error> {
+            let volume = Volume::new(shape, values, voxel_size, origin)?;
+            let options = IsosurfaceOptions { smoothing, level };
+            Ok(surface::find_surface(&volume, &options)?)
+        })
+        .map_err(to_py_err)?;
+    let out = PyDict::new(py);
+    out.set_item("positions", points_array(&found.positions).into_pyarray(py))?;
+    out.set_item("faces", faces_array(&found.faces).into_pyarray(py))?;
+    out.set_item("threshold", found.threshold)?;
+    out.set_item("foreground_voxels", found.foreground_voxels)?;
+    out.set_item("component_voxels", found.component_voxels)?;
+    out.set_item("component_share", found.component_share)?;
+    out.set_item("filled_voxels", found.filled_voxels)?;
+    out.set_item("layer_vertices", found.layer_vertices)?;
+    out.set_item("layer_thickness", found.layer_thickness)?;
+    Ok(out)
 }
 
 /// A recording carried onto a moving surface (`meshflow sample`): `volumes[k]` (Z, Y, X)

@@ -338,3 +338,40 @@ def test_points_and_volumes_to_a_scored_flow():
     assert scores["endpoint_ratio"] < 0.25
     assert scores["median_direction_degrees"] < 8
     assert 0.8 < scores["median_speed_ratio"] < 1.1
+
+
+def _ball_stack(shift=0.0):
+    """A (40, 40, 40) image: 100 inside the ellipsoid of semi-axes (13, 11, 9) about the
+    centre shifted by ``shift`` voxels along x, 0 outside."""
+    z, y, x = np.meshgrid(*(np.arange(40.0),) * 3, indexing="ij")
+    c = 19.5
+    r = np.sqrt(((x - c - shift) / 13) ** 2 + ((y - c) / 11) ** 2 + ((z - c) / 9) ** 2)
+    return np.where(r < 1.0, 100.0, 0.0)
+
+
+def test_find_surface_bounds_a_solid_object_and_the_cli_agrees(cli, tmp_path):
+    stack = _ball_stack()
+    found = meshflow.find_surface(stack, (0.5, 0.5, 0.5), level=50.0, smoothing=0.5)
+    p = found["positions"] / 0.5 - 19.5  # voxels, about the centre
+    r = np.sqrt((p[:, 0] / 13) ** 2 + (p[:, 1] / 11) ** 2 + (p[:, 2] / 9) ** 2)
+    assert np.abs(r - 1.0).max() < 0.05
+    assert found["faces"].shape[1] == 3 and found["faces"].max() == len(p) - 1
+    assert found["threshold"] == 50.0 and found["component_share"] == 1.0
+    assert found["layer_vertices"] == 0  # solid: its boundary
+    np.save(tmp_path / "stack.npy", np.stack([stack, _ball_stack(1.0)]))
+    run(cli, "surface", tmp_path / "stack.npy", "--shape", "closed", "--level", "50",
+        "--smooth", "0.5", "--voxel-size", "0.5,0.5,0.5", "--out", tmp_path / "s")
+    report = json.loads((tmp_path / "s" / "surface.json").read_text())
+    assert report["frames"][0]["vertices"] == len(p)
+    assert report["frames"][0]["threshold"] == 50.0
+
+
+def test_find_surface_errors():
+    with pytest.raises(ValueError, match="the image is constant"):
+        meshflow.find_surface(np.ones((8, 8, 8)))
+    with pytest.raises(ValueError, match="give level below the object"):
+        meshflow.find_surface(_ball_stack(), level=500.0)
+    with pytest.raises(ValueError, match="level must be"):
+        meshflow.find_surface(_ball_stack(), level=[1])
+    with pytest.raises(ValueError, match="level: 'high' is not a number or 'auto'"):
+        meshflow.find_surface(_ball_stack(), level="high")

@@ -97,6 +97,7 @@ pub struct FoundSurface {
     pub layer_vertices: usize,
     pub layer_thickness: f64,
     pub vertices: usize,
+    #[serde(rename = "faces")]
     pub faces_count: usize,
 }
 
