@@ -114,6 +114,8 @@ pub enum IsosurfaceError {
     Full { threshold: f64, min: f64, max: f64 },
     #[error("the object ({voxels} voxels) is too small to bound: smooth less or lower --level")]
     TooSmall { voxels: usize },
+    #[error(transparent)]
+    TooLarge(#[from] crate::limits::OverBudget),
 }
 
 /// The surface of the object in `volume` (module docs), in the volume's physical coordinates.
@@ -121,6 +123,10 @@ pub fn find_surface(
     volume: &Volume,
     options: &IsosurfaceOptions,
 ) -> Result<FoundSurface, IsosurfaceError> {
+    // The smoothed copy, the masks, the labels and the padded distance field.
+    let what = format!("finding the surface in {:?} voxels", volume.shape());
+    let voxels = volume.values().len() as u64;
+    crate::limits::check_items(what, voxels, BYTES_PER_VOXEL)?;
     let largest_voxel = volume.voxel_size().max();
     let smoothed = volume.smoothed(options.smoothing.unwrap_or(largest_voxel))?;
     let values = smoothed.values();
@@ -388,6 +394,10 @@ fn filled(object: &[bool], shape: [usize; 3]) -> Vec<bool> {
     let outside = flood(border, |at| !object[at], shape);
     outside.iter().map(|&o| !o).collect()
 }
+
+/// What finding a surface holds per voxel at most: the smoothed values and their working copy
+/// (12 bytes), three masks (3), the component labels (4) and the distance field (4).
+const BYTES_PER_VOXEL: u64 = 24;
 
 /// Cells of padding around the volume: the surface closes inside them.
 const PAD: usize = 2;
