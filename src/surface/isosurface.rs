@@ -30,6 +30,7 @@
 //! The frames' meshes have their own vertices; `meshflow surface --shape closed` then tracks
 //! one reference through them ([`crate::track`]), which makes the fixed connectivity.
 
+use super::reference::compact;
 use crate::connection::vertex_normals;
 use crate::mesh::{repair, Mesh};
 use crate::volume::{Volume, VolumeError};
@@ -455,7 +456,7 @@ fn largest_manifold_piece(
     let positions: Vec<Vector3<f64>> = (repaired.vertex_origin.iter())
         .map(|&v| positions[v as usize])
         .collect();
-    let (positions, faces) = compacted(&positions, &repaired.faces, |_| true);
+    let (positions, faces) = compact(&positions, &repaired.faces);
     let Ok(mesh) = Mesh::new(positions.len(), faces.clone()) else {
         return (Vec::new(), Vec::new());
     };
@@ -464,7 +465,11 @@ fn largest_manifold_piece(
     };
     let mut in_piece = vec![false; positions.len()];
     piece.iter().for_each(|&v| in_piece[v] = true);
-    let (kept, mut faces) = compacted(&positions, &faces, |f| in_piece[f[0] as usize]);
+    let piece_faces: Vec<[u32; 3]> = faces
+        .into_iter()
+        .filter(|f| in_piece[f[0] as usize])
+        .collect();
+    let (kept, mut faces) = compact(&positions, &piece_faces);
     let enclosed: f64 = (faces.iter())
         .map(|&[a, b, c]| {
             let [a, b, c] = [a, b, c].map(|v| kept[v as usize]);
@@ -474,27 +479,5 @@ fn largest_manifold_piece(
     if enclosed < 0.0 {
         faces.iter_mut().for_each(|f| f.swap(1, 2));
     }
-    (kept, faces)
-}
-
-/// The faces where `keep` holds, over only the vertices they use (in order of first use).
-fn compacted(
-    positions: &[Vector3<f64>],
-    faces: &[[u32; 3]],
-    keep: impl Fn(&[u32; 3]) -> bool,
-) -> (Vec<Vector3<f64>>, Vec<[u32; 3]>) {
-    let mut renumber = vec![u32::MAX; positions.len()];
-    let mut kept = Vec::new();
-    let faces = (faces.iter().filter(|f| keep(f)))
-        .map(|face| {
-            face.map(|v| {
-                if renumber[v as usize] == u32::MAX {
-                    renumber[v as usize] = kept.len() as u32;
-                    kept.push(positions[v as usize]);
-                }
-                renumber[v as usize]
-            })
-        })
-        .collect();
     (kept, faces)
 }

@@ -279,7 +279,10 @@ fn icosphere_level(resolution: Resolution, radius: f64, fraction: f64) -> u32 {
 }
 
 /// The vertices that `faces` use, renumbered in order.
-fn compact(positions: &[Vector3<f64>], faces: &[[u32; 3]]) -> (Vec<Vector3<f64>>, Vec<[u32; 3]>) {
+pub(super) fn compact(
+    positions: &[Vector3<f64>],
+    faces: &[[u32; 3]],
+) -> (Vec<Vector3<f64>>, Vec<[u32; 3]>) {
     let mut index = vec![u32::MAX; positions.len()];
     let mut kept = Vec::new();
     let faces = faces

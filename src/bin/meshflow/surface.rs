@@ -42,12 +42,12 @@ const DEFAULT_VERTICES: usize = 16000;
 /// ([`find_surface`]), then one reference of about `vertices` vertices tracked through them
 /// (`meshflow track`'s machinery), written as an NPY sequence with `surface.json`.
 pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
-    if let Some(times) = &request.times {
-        check_times(times)?;
-    }
-    let mut staged =
-        StagedDir::create_apart_from(&[request.volumes], request.out, request.overwrite)?;
-    staged.record_command(crate::command_line());
+    let staged = staged_output(
+        request.volumes,
+        request.out,
+        request.overwrite,
+        &request.times,
+    )?;
     let frames = during(format!("reading {}", request.volumes.display()), || {
         read_volumes(request.volumes, &request.placement)
     })?;
@@ -152,12 +152,12 @@ fn write_closed(
 }
 
 pub fn run(request: SurfaceRequest) -> Result<(), Error> {
-    if let Some(times) = &request.times {
-        check_times(times)?;
-    }
-    let mut staged =
-        StagedDir::create_apart_from(&[request.points], request.out, request.overwrite)?;
-    staged.record_command(crate::command_line());
+    let staged = staged_output(
+        request.points,
+        request.out,
+        request.overwrite,
+        &request.times,
+    )?;
     let frames = during(format!("reading {}", request.points.display()), || {
         read_points(request.points)
     })?;
@@ -182,6 +182,22 @@ pub fn run(request: SurfaceRequest) -> Result<(), Error> {
     staged.commit()?;
     print_report(&fitted, request.points, request.out);
     Ok(())
+}
+
+/// The output directory, refused before anything is read when it would replace `input` or
+/// `--times` is not a time series.
+fn staged_output(
+    input: &Path,
+    out: &Path,
+    overwrite: Overwrite,
+    times: &Option<Vec<f64>>,
+) -> Result<StagedDir, Error> {
+    if let Some(times) = times {
+        check_times(times)?;
+    }
+    let mut staged = StagedDir::create_apart_from(&[input], out, overwrite)?;
+    staged.record_command(crate::command_line());
+    Ok(staged)
 }
 
 /// `--times`: finite and increasing (a frame's time orders the slabs and sets their
