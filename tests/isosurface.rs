@@ -245,4 +245,8 @@ fn the_command_tracks_the_frames_surfaces_into_one_mesh() {
 
     let stray = ["surface", file, "--out", out, "--level", "0.5", "--force"];
     meshflow_error(&stray, "--level applies to --shape closed (volumes) only");
+    let two_times = [
+        "surface", file, "--shape", "closed", "--out", out, "--times", "0,1", "--force",
+    ];
+    meshflow_error(&two_times, "--times gives 2 times for the 3 frames of");
 }

@@ -10,7 +10,7 @@ use meshflow::run::{refuse_output_over_inputs, OutputKind, Overwrite, StagedDir}
 use meshflow::surface::{find_surface, FoundSurface, IsosurfaceOptions, Level};
 use meshflow::surface::{fit_surface, read_points, FitOptions, FittedSurface, Reference};
 use meshflow::track::{TrackFrame, TrackOptions, Tracked};
-use meshflow::volume::{read_volumes, VolumeOptions};
+use meshflow::volume::{count_volume_frames, read_volumes, VolumeOptions};
 use meshflow::Error;
 use std::path::{Path, PathBuf};
 
@@ -48,6 +48,15 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
         request.overwrite,
         &request.times,
     )?;
+    // The frame count from the files' headers: a wrong --times fails before any reading.
+    let n_frames = count_volume_frames(request.volumes)?;
+    if let Some(times) = request.times.as_ref().filter(|t| t.len() != n_frames) {
+        return Err(crate::usage(format!(
+            "--times gives {} times for the {n_frames} frames of {}",
+            times.len(),
+            request.volumes.display()
+        )));
+    }
     let frames = during(format!("reading {}", request.volumes.display()), || {
         read_volumes(request.volumes, &request.placement)
     })?;
@@ -62,17 +71,6 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
         found.push(surface);
     }
     bar.finish();
-    let times = match request.times {
-        Some(times) if times.len() != found.len() => {
-            return Err(crate::usage(format!(
-                "--times gives {} times for the {} frames of {}",
-                times.len(),
-                found.len(),
-                request.volumes.display()
-            )))
-        }
-        other => other,
-    };
     let track_frames: Vec<TrackFrame> = (found.iter())
         .map(|s| TrackFrame {
             positions: s.positions.clone(),
@@ -94,7 +92,7 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
         reference_vertices: Some(vertices),
         ..TrackOptions::default()
     };
-    let tracked = crate::track::tracked_with_progress(&track_frames, times, &options)?;
+    let tracked = crate::track::tracked_with_progress(&track_frames, request.times, &options)?;
     write_closed(&staged, &tracked, &found).map_err(|e| staged.error_in_target(e))?;
     staged.commit()?;
     crate::track::print_summary(&tracked, request.out);
