@@ -249,4 +249,15 @@ fn the_command_tracks_the_frames_surfaces_into_one_mesh() {
         "surface", file, "--shape", "closed", "--out", out, "--times", "0,1", "--force",
     ];
     meshflow_error(&two_times, "--times gives 2 times for the 3 frames of");
+    let spline = [
+        "surface",
+        file,
+        "--shape",
+        "closed",
+        "--out",
+        out,
+        "--edge-length",
+        "2",
+    ];
+    meshflow_error(&spline, "--edge-length applies to surfaces through points");
 }

@@ -136,9 +136,11 @@ enum Command {
     },
     /// Fit a moving surface through points per frame (cell centres, landmarks; physical
     /// units): a smoothing-spline height over a sphere fitted to frame 0's points (the cap they
-    /// cover, or --whole-sphere) or over the plane z = 0 (--shape graph). Writes positions.npy,
-    /// faces.npy and times.txt, which `meshflow sample` and `meshflow solve` read, and
-    /// surface.json (the reference, the fit's residuals per frame).
+    /// cover, or --whole-sphere) or over the plane z = 0 (--shape graph); or, with --shape
+    /// closed, the surface of the object found in 3-D images alone (volumes), tracked into one
+    /// mesh. Writes positions.npy, faces.npy and times.txt, which `meshflow sample` and
+    /// `meshflow solve` read, and surface.json (the reference and the fit's residuals, or the
+    /// thresholds and components, per frame).
     Surface(Box<SurfaceArgs>),
     /// Chain point clouds per frame (cell centres, beads) into tracks by mutual nearest
     /// neighbours between consecutive frames: a (frames, points, 3) .npy with NaN where a

@@ -363,7 +363,8 @@ pub(crate) struct SurfaceArgs {
         allow_negative_numbers = true
     )]
     pub(crate) edge_length: Option<f64>,
-    /// About this many vertices [default: 16000]
+    /// About this many vertices (with --shape closed, at most half of frame 0's surface)
+    /// [default: 16000]
     #[arg(long, value_name = "N")]
     pub(crate) vertices: Option<usize>,
     /// Smoothing length in mean point spacings: height variations shorter than it are smoothed
@@ -391,6 +392,17 @@ pub(crate) struct SurfaceArgs {
 impl SurfaceArgs {
     /// `--shape closed`: what finding the surface in volumes needs.
     pub(crate) fn closed_request(&self) -> Result<ClosedRequest<'_>, Error> {
+        let defaults = FitOptions::default();
+        let stray = [
+            (self.whole_sphere, "--whole-sphere"),
+            (self.edge_length.is_some(), "--edge-length"),
+            (self.smoothing != defaults.smoothing, "--smoothing"),
+            (self.margin != defaults.margin, "--margin"),
+        ];
+        if let Some((_, flag)) = stray.iter().find(|(given, _)| *given) {
+            let why = format!("{flag} applies to surfaces through points, not --shape closed");
+            return Err(crate::usage(why));
+        }
         Ok(ClosedRequest {
             volumes: &self.points,
             out: &self.out,
