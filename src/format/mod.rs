@@ -45,9 +45,9 @@ pub use linked::resolve_linked;
 pub use mtl::{texture_colors, TextureCache};
 pub use mtx::{read_matrix_market, read_matrix_market_from, write_matrix_market};
 pub use npy::{
-    read_npy, read_npy_f32, read_npy_float, read_npy_float_rows, read_npy_from, read_npy_image,
-    read_npy_image_rows, read_npy_indices, write_npy, write_npy_vectors, KeepRows, NpyArray,
-    NpyRows,
+    read_npy, read_npy_f32, read_npy_f32_rows, read_npy_float, read_npy_float_rows, read_npy_from,
+    read_npy_image, read_npy_image_rows, read_npy_indices, write_npy, write_npy_vectors, KeepRows,
+    NpyArray, NpyRows,
 };
 pub use npy_sequence::{
     read_intensity_array, read_npy_sequence, write_intensity_array, write_npy_sequence, FACES,

@@ -306,6 +306,13 @@ pub fn read_npy_f32(path: &Path) -> Result<(Vec<u64>, Vec<f32>), IoError> {
     Ok((rows.shape, rows.data))
 }
 
+/// [`read_npy_f32`] of the rows `keep` only (the others skipped on disk): their shape (the
+/// first axis their count) and values, and the number of rows in the file.
+pub fn read_npy_f32_rows(path: &Path, keep: KeepRows) -> Result<(Vec<u64>, Vec<f32>), IoError> {
+    let rows = read_image(path, keep, |v| v, |v| v as f32, f32::from, f32::from)?;
+    Ok((rows.shape, rows.data))
+}
+
 /// Reads a float32, float64, uint8 or uint16 `.npy` (per-vertex images: what microscopes and
 /// image tools write) as `f64` values in C order, exactly, with its shape.
 pub fn read_npy_image(path: &Path) -> Result<NpyArray, IoError> {

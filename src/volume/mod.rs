@@ -34,8 +34,12 @@ pub mod sample;
 mod smooth;
 mod tiff_stack;
 
-pub use read::{count_volume_frames, read_volumes, VolumeFrames, VolumeOptions, VoxelSizeSource};
-pub use sample::{sample_sequence, sample_shell, Reduce, SampleOptions, SampledSequence, Shell};
+pub use read::{
+    count_volume_frames, read_volumes, VolumeFrames, VolumeOptions, VolumeStream, VoxelSizeSource,
+};
+pub use sample::{
+    sample_sequence, sample_shell, FrameSampler, Reduce, SampleOptions, SampledSequence, Shell,
+};
 
 use nalgebra::Vector3;
 use std::path::PathBuf;

@@ -15,7 +15,7 @@
 //! memory limit ([`crate::limits`]) does not allow is an error before anything is allocated.
 
 use super::{tiff_stack, Volume, VolumeError};
-use crate::format::{frame_files, read_npy_f32, read_npy_image_rows, IoError};
+use crate::format::{frame_files, read_npy_f32, read_npy_f32_rows, read_npy_image_rows, IoError};
 use crate::{limits, Error};
 use nalgebra::Vector3;
 use std::io::{Read, Seek};
@@ -69,7 +69,7 @@ pub fn read_volumes(path: &Path, options: &VolumeOptions) -> Result<VolumeFrames
         super::check_voxel_size(&voxel_size).map_err(|e| Error::from(e).in_file(path))?;
     }
     let files = volume_files(path)?;
-    let declared = declare_all(path, &files)?;
+    let declared = declare_all(path, &files, Held::All)?;
     let mut volumes = Vec::with_capacity(declared.iter().map(|d| d.frames).sum());
     let mut frame_files = Vec::with_capacity(volumes.capacity());
     // From the first file's metadata (or the caller).
@@ -95,12 +95,104 @@ pub fn read_volumes(path: &Path, options: &VolumeOptions) -> Result<VolumeFrames
     })
 }
 
+/// The frames of a recording read one at a time, as [`read_volumes`] reads them all: at most
+/// one frame's values are held (a frame of a `(K, Z, Y, X)` `.npy` is read from its rows, the
+/// others skipped on disk), so a recording longer than memory streams through. The voxel size
+/// is chosen from the first file read ([`VolumeStream::voxel_size_source`]).
+pub struct VolumeStream {
+    options: VolumeOptions,
+    files: Vec<PathBuf>,
+    declared: Vec<Declared>,
+    chosen: Option<(Vector3<f64>, VoxelSizeSource)>,
+    /// The next frame: its file and its index in the file.
+    file: usize,
+    in_file: usize,
+}
+
+impl VolumeStream {
+    /// The volumes that `path` names (as [`read_volumes`]), their headers checked, one
+    /// frame's size against the memory limit; nothing read yet.
+    pub fn open(path: &Path, options: &VolumeOptions) -> Result<Self, Error> {
+        if let Some(voxel_size) = options.voxel_size {
+            super::check_voxel_size(&voxel_size).map_err(|e| Error::from(e).in_file(path))?;
+        }
+        let files = volume_files(path)?;
+        let declared = declare_all(path, &files, Held::One)?;
+        Ok(Self {
+            options: options.clone(),
+            files,
+            declared,
+            chosen: None,
+            file: 0,
+            in_file: 0,
+        })
+    }
+
+    pub fn n_frames(&self) -> usize {
+        self.declared.iter().map(|d| d.frames).sum()
+    }
+
+    /// Where the voxel size came from, once the first frame has been read.
+    pub fn voxel_size_source(&self) -> Option<&VoxelSizeSource> {
+        self.chosen.as_ref().map(|(_, source)| source)
+    }
+
+    /// The next frame's volume and its file.
+    fn read_next(&mut self) -> Result<(Volume, PathBuf), Error> {
+        let (file, declared) = (&self.files[self.file], &self.declared[self.file]);
+        let (values, metadata) = match declared.frames {
+            1 => {
+                let (mut stacks, metadata) = read_file(file, declared)?;
+                (stacks.pop().expect("one frame"), metadata)
+            }
+            _ => (npy_frame(file, declared, self.in_file)?, Metadata::None),
+        };
+        if self.chosen.is_none() {
+            self.chosen = Some(choose_voxel_size(self.options.voxel_size, metadata, file)?);
+        }
+        let voxel_size = self.chosen.as_ref().expect("chosen above").0;
+        let volume = Volume::new(declared.shape, values, voxel_size, self.options.origin)
+            .map_err(|e| Error::from(e).in_file(file))?;
+        let file = file.clone();
+        self.in_file += 1;
+        if self.in_file == self.declared[self.file].frames {
+            (self.file, self.in_file) = (self.file + 1, 0);
+        }
+        Ok((volume, file))
+    }
+}
+
+impl Iterator for VolumeStream {
+    type Item = Result<(Volume, PathBuf), Error>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        (self.file < self.files.len()).then(|| self.read_next())
+    }
+}
+
+/// Frame `k` of a `(K, Z, Y, X)` `.npy`, its other rows skipped on disk.
+fn npy_frame(file: &Path, declared: &Declared, k: usize) -> Result<Vec<f32>, Error> {
+    let (shape, values) = read_npy_f32_rows(file, &|row| row == k)?;
+    let [z, y, x] = declared.shape;
+    if shape != [1, z as u64, y as u64, x as u64] {
+        return Err(IoError::format(file, "changed while it was read").into());
+    }
+    if declared.float64 {
+        let whole = [declared.frames as u64, z as u64, y as u64, x as u64];
+        check_narrowed(file, &whole, &values, k)?;
+    }
+    Ok(values)
+}
+
 /// The number of frames that `path` holds (as [`read_volumes`] would read them), from the
 /// files' headers and page directories alone: checked before the volumes are read, and each
 /// file's declared size checked against the memory limit.
 pub fn count_volume_frames(path: &Path) -> Result<usize, Error> {
     let files = volume_files(path)?;
-    Ok(declare_all(path, &files)?.iter().map(|d| d.frames).sum())
+    Ok(declare_all(path, &files, Held::All)?
+        .iter()
+        .map(|d| d.frames)
+        .sum())
 }
 
 fn volume_files(path: &Path) -> Result<Vec<PathBuf>, IoError> {
@@ -130,9 +222,16 @@ struct Declared {
     float64: bool,
 }
 
-/// What every file declares: at least one voxel a frame, one shape for all frames, and all of
-/// them together within the memory limit.
-fn declare_all(path: &Path, files: &[PathBuf]) -> Result<Vec<Declared>, Error> {
+/// How many frames a reader holds at once.
+#[derive(Clone, Copy, PartialEq)]
+enum Held {
+    All,
+    One,
+}
+
+/// What every file declares: at least one voxel a frame, one shape for all frames, and the
+/// frames `held` at once within the memory limit.
+fn declare_all(path: &Path, files: &[PathBuf], held: Held) -> Result<Vec<Declared>, Error> {
     let mut all: Vec<Declared> = Vec::with_capacity(files.len());
     let mut frames = 0u64;
     for file in files {
@@ -147,6 +246,10 @@ fn declare_all(path: &Path, files: &[PathBuf]) -> Result<Vec<Declared>, Error> {
             return Err(Error::from(error).in_file(path));
         }
         frames += declared.frames as u64;
+        let frames = match held {
+            Held::All => frames,
+            Held::One => 1,
+        };
         let [z, y, x] = declared.shape;
         let per_frame = [z, y, x]
             .iter()
@@ -250,7 +353,7 @@ fn read_file(file: &Path, declared: &Declared) -> Result<(Vec<Vec<f32>>, Metadat
         return Err(IoError::format(file, "changed while it was read").into());
     }
     if declared.float64 {
-        check_narrowed(file, &shape, &values)?;
+        check_narrowed(file, &shape, &values, 0)?;
     }
     Ok((split_frames(values, declared.frames), Metadata::None))
 }
@@ -269,13 +372,20 @@ fn split_frames(mut values: Vec<f32>, frames: usize) -> Vec<Vec<f32>> {
     split
 }
 
-/// A float64 `.npy` whose finite value became infinite in `f32`: the value and its voxel,
-/// from the file's own row (read again, on this error only).
-fn check_narrowed(file: &Path, shape: &[u64], values: &[f32]) -> Result<(), IoError> {
+/// A float64 `.npy` of `shape` whose finite value became infinite in `f32`: the value and its
+/// voxel, from the file's own row (read again, on this error only). `values` start at row
+/// `first_row`.
+fn check_narrowed(
+    file: &Path,
+    shape: &[u64],
+    values: &[f32],
+    first_row: usize,
+) -> Result<(), IoError> {
     let Some(at) = values.iter().position(|v| v.is_infinite()) else {
         return Ok(());
     };
     let row_length: usize = shape[1..].iter().map(|&n| n as usize).product();
+    let at = first_row * row_length + at;
     let row = at / row_length;
     let (original, _) = read_npy_image_rows(file, &|r| r == row)?;
     let value = original.data[at % row_length];

@@ -257,16 +257,56 @@ pub fn sample_sequence(
             frames: 0,
         });
     };
-    let sigma = options.smoothing_for(first);
-    if !(sigma.is_finite() && sigma >= 0.0) {
-        return Err(VolumeError::Sigma(sigma));
-    }
-    let shell = options.shell_for(first);
-    shell.check(options.reduce)?;
-    shell.check_cost(mesh.n_vertices(), volumes.len())?;
-    let mut values = Vec::with_capacity(volumes.len());
-    let mut outside = Vec::with_capacity(volumes.len());
+    let sampler = FrameSampler::new(first, options, mesh.n_vertices(), volumes.len())?;
+    let mut sequence = sampler.empty(volumes.len());
     for (frame, (volume, x)) in volumes.iter().zip(positions).enumerate() {
+        let sampled = sampler.sample(volume, mesh, x, frame)?;
+        sequence.values.push(sampled.values);
+        sequence.outside.push(sampled.outside);
+    }
+    Ok(sequence)
+}
+
+/// [`sample_sequence`] one frame at a time, for volumes read one at a time
+/// ([`super::VolumeStream`]): the smoothing and shell are chosen from the first volume.
+#[derive(Clone, Debug)]
+pub struct FrameSampler {
+    sigma: f64,
+    shell: Shell,
+    reduce: Reduce,
+}
+
+impl FrameSampler {
+    /// The sampler of `n_frames` volumes like `first` onto `n_vertices` vertices; the shell's
+    /// cost is checked for all of them.
+    pub fn new(
+        first: &Volume,
+        options: &SampleOptions,
+        n_vertices: usize,
+        n_frames: usize,
+    ) -> Result<Self, VolumeError> {
+        let sigma = options.smoothing_for(first);
+        if !(sigma.is_finite() && sigma >= 0.0) {
+            return Err(VolumeError::Sigma(sigma));
+        }
+        let shell = options.shell_for(first);
+        shell.check(options.reduce)?;
+        shell.check_cost(n_vertices, n_frames)?;
+        Ok(Self {
+            sigma,
+            shell,
+            reduce: options.reduce,
+        })
+    }
+
+    /// Frame `frame`'s `volume` read along the normals of the mesh at `x`.
+    pub fn sample(
+        &self,
+        volume: &Volume,
+        mesh: &Mesh,
+        x: &[Vector3<f64>],
+        frame: usize,
+    ) -> Result<Sampled, VolumeError> {
         if x.len() != mesh.n_vertices() {
             return Err(VolumeError::NormalCount {
                 frame,
@@ -274,17 +314,21 @@ pub fn sample_sequence(
                 normals: mesh.n_vertices(),
             });
         }
-        let smoothed = (sigma > 0.0).then(|| volume.smoothed(sigma)).transpose()?;
+        let smoothed = (self.sigma > 0.0)
+            .then(|| volume.smoothed(self.sigma))
+            .transpose()?;
         let volume = smoothed.as_ref().unwrap_or(volume);
         let normals = vertex_normals(mesh, x);
-        let sampled = sample_shell(volume, x, &normals, &shell, options.reduce)?;
-        values.push(sampled.values);
-        outside.push(sampled.outside);
+        sample_shell(volume, x, &normals, &self.shell, self.reduce)
     }
-    Ok(SampledSequence {
-        values,
-        outside,
-        shell,
-        smoothing: sigma,
-    })
+
+    /// A sequence of no frames yet, with room for `n_frames`, and the smoothing and shell used.
+    pub fn empty(&self, n_frames: usize) -> SampledSequence {
+        SampledSequence {
+            values: Vec::with_capacity(n_frames),
+            outside: Vec::with_capacity(n_frames),
+            shell: self.shell,
+            smoothing: self.sigma,
+        }
+    }
 }

@@ -4,16 +4,18 @@
 //! (`meshflow::volume::sample`).
 
 use crate::args::{MeshArgs, VolumePlacement};
-use crate::progress::during;
+use crate::progress::{count_progress, during};
 use crate::usage;
 use meshflow::format::{write_atomically, write_intensity_array, INTENSITY};
 use meshflow::load::{count_frames, load_geometry, LoadOptions};
+use meshflow::mesh::Mesh;
 use meshflow::run::{input_files, refuse_output_over_inputs, OutputKind, RunManifest};
 use meshflow::volume::{
-    count_volume_frames, read_volumes, sample_sequence, SampleOptions, SampledSequence,
-    VolumeError, VolumeOptions, VoxelSizeSource,
+    count_volume_frames, FrameSampler, SampleOptions, SampledSequence, VolumeError, VolumeOptions,
+    VolumeStream, VoxelSizeSource,
 };
 use meshflow::Error;
+use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
 /// What `sample` needs from the command line.
@@ -35,20 +37,7 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
         load_geometry(request.sequence, &request.load)
     })?;
     crate::print_warnings(&geometry.warnings);
-    let frames = during(format!("reading {}", request.volumes.display()), || {
-        read_volumes(request.volumes, &request.volume)
-    })?;
-    report_voxel_size(request.volumes, &frames.voxel_size_source);
-    let in_volumes = |e: VolumeError| Error::from(e).in_file(request.volumes);
-    let sampled = during("sampling the volumes onto the surface", || {
-        sample_sequence(
-            &frames.volumes,
-            &geometry.mesh,
-            &geometry.positions,
-            &request.sampling,
-        )
-    })
-    .map_err(in_volumes)?;
+    let sampled = sample_streamed(&request, &geometry.mesh, &geometry.positions)?;
     let map = &geometry.vertex_map;
     let image: Vec<Vec<Vec<f64>>> = (sampled.values.iter())
         .map(|frame| vec![map.file_rows(frame, 0.0)])
@@ -70,6 +59,43 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
         describe(&request, &sampled, geometry.mesh.n_vertices(), &out)
     );
     Ok(())
+}
+
+/// The volumes read and sampled one frame at a time ([`VolumeStream`], [`FrameSampler`]): only
+/// one frame's volume and its smoothed copy are held, whatever the recording's length.
+fn sample_streamed(
+    request: &SampleRequest,
+    mesh: &Mesh,
+    positions: &[Vec<Vector3<f64>>],
+) -> Result<SampledSequence, Error> {
+    let in_volumes = |e: VolumeError| Error::from(e).in_file(request.volumes);
+    let mut stream = VolumeStream::open(request.volumes, &request.volume)?;
+    let n_frames = stream.n_frames();
+    let bar = count_progress(n_frames as u64, "sampling the volumes onto the surface");
+    let mut sampling: Option<(FrameSampler, SampledSequence)> = None;
+    let mut frame = 0;
+    while let Some(read) = stream.next() {
+        let (volume, _) = read?;
+        if sampling.is_none() {
+            if let Some(source) = stream.voxel_size_source() {
+                bar.suspend(|| report_voxel_size(request.volumes, source));
+            }
+            let sampler =
+                FrameSampler::new(&volume, &request.sampling, mesh.n_vertices(), n_frames)
+                    .map_err(in_volumes)?;
+            let sequence = sampler.empty(n_frames);
+            sampling = Some((sampler, sequence));
+        }
+        let (sampler, sequence) = sampling.as_mut().expect("made above");
+        let sampled =
+            (sampler.sample(&volume, mesh, &positions[frame], frame)).map_err(in_volumes)?;
+        sequence.values.push(sampled.values);
+        sequence.outside.push(sampled.outside);
+        bar.inc(1);
+        frame += 1;
+    }
+    bar.finish();
+    Ok(sampling.expect("a recording has a frame").1)
 }
 
 pub(crate) fn report_voxel_size(volumes: &Path, source: &VoxelSizeSource) {

@@ -10,7 +10,7 @@ use meshflow::run::{refuse_output_over_inputs, OutputKind, Overwrite, StagedDir}
 use meshflow::surface::{find_surface, FoundSurface, IsosurfaceOptions, Level};
 use meshflow::surface::{fit_surface, read_points, FitOptions, FittedSurface, Reference};
 use meshflow::track::{TrackFrame, TrackOptions, Tracked};
-use meshflow::volume::{count_volume_frames, read_volumes, VolumeOptions};
+use meshflow::volume::{VolumeOptions, VolumeStream};
 use meshflow::Error;
 use std::path::{Path, PathBuf};
 
@@ -48,8 +48,10 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
         request.overwrite,
         &request.times,
     )?;
-    // The frame count from the files' headers: a wrong --times fails before any reading.
-    let n_frames = count_volume_frames(request.volumes)?;
+    // Frames are read one at a time and dropped once their surface is found.
+    let mut stream = VolumeStream::open(request.volumes, &request.placement)?;
+    let n_frames = stream.n_frames();
+    // From the files' headers: a wrong --times fails before any reading.
     if let Some(times) = request.times.as_ref().filter(|t| t.len() != n_frames) {
         return Err(crate::usage(format!(
             "--times gives {} times for the {n_frames} frames of {}",
@@ -57,14 +59,16 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
             request.volumes.display()
         )));
     }
-    let frames = during(format!("reading {}", request.volumes.display()), || {
-        read_volumes(request.volumes, &request.placement)
-    })?;
-    crate::sample::report_voxel_size(request.volumes, &frames.voxel_size_source);
-    let bar = crate::progress::count_progress(frames.volumes.len() as u64, "finding surfaces");
-    let mut found = Vec::with_capacity(frames.volumes.len());
-    for (k, (volume, file)) in frames.volumes.iter().zip(&frames.files).enumerate() {
-        let surface = find_surface(volume, &request.finding)
+    let bar = crate::progress::count_progress(n_frames as u64, "finding surfaces");
+    let mut found = Vec::with_capacity(n_frames);
+    while let Some(read) = stream.next() {
+        let (volume, file) = read?;
+        let k = found.len();
+        if k == 0 {
+            let source = stream.voxel_size_source().expect("known after a frame");
+            bar.suspend(|| crate::sample::report_voxel_size(request.volumes, source));
+        }
+        let surface = find_surface(&volume, &request.finding)
             .map_err(|e| Error::from(e).in_file(format!("{} (frame {k})", file.display())))?;
         bar.suspend(|| println!("  frame {k:3}: {}", describe_found(&surface)));
         bar.inc(1);
