@@ -183,6 +183,7 @@ fn main() -> Result<(), meshflow::Error> {
     let env = |name: &str| std::env::var(name).ok().and_then(|v| v.parse::<f64>().ok());
     let options = TrackOptions {
         reference_vertices: Some(env("VERTICES").map_or(4000, |v| v as usize)),
+        keep_uncovered: true,
         ..TrackOptions::default()
     };
     let tracked = track(&frames, None, &options)?;

@@ -15,8 +15,11 @@
 //!    crate): a vertex per grid cell the surface crosses, at the mean of its edges' linear
 //!    crossings, and two triangles per crossed grid edge. The volume is padded so that the
 //!    surface is closed where the object touches the border.
-//! 5. **Clean it to a manifold**: non-manifold edges and vertices split
-//!    ([`crate::mesh::repair`]), and only the largest connected piece kept.
+//! 5. **Clean it to a manifold.** Before the isosurface, the solid is made well composed: a
+//!    2 × 2 × 2 cell whose solid (or empty) voxels touch only along an edge or at a corner is
+//!    filled, since one surface-nets vertex there would join two sheets. What remains
+//!    non-manifold is split ([`crate::mesh::repair`]), and only the largest connected piece
+//!    is kept.
 //! 6. **Move to the middle of the layer.** A tissue is often a bright layer around a dark
 //!    inside (an epithelium, a shell): filled, its surface is the layer's outer side. From
 //!    each vertex `p` with outward normal `n`, the smoothed image is read inward along
@@ -169,7 +172,8 @@ pub fn find_surface(
     let shape = volume.shape();
     let component = largest_component(&foreground, shape);
     let component_voxels = component.iter().filter(|&&c| c).count();
-    let solid = filled(&component, shape);
+    let mut solid = filled(&component, shape);
+    well_composed(&mut solid, shape);
     let filled_voxels = solid.iter().filter(|&&s| s).count() - component_voxels;
     let (positions, faces) = nets(values, &solid, threshold, &smoothed);
     let (mut positions, faces) = largest_manifold_piece(positions, &faces);
@@ -264,6 +268,60 @@ fn to_layer_middle(
     let moved = thicknesses.len();
     (moved, crate::statistics::median(thicknesses))
 }
+
+/// Whether the voxels `set` (bit `i + 2j + 4k` of a 2 × 2 × 2 cell's corners) fall apart into
+/// several face-connected pieces within the cell.
+fn split_within_cell(set: u8) -> bool {
+    let Some(start) = (0..8).find(|&c| set & (1 << c) != 0) else {
+        return false;
+    };
+    let mut reached = 1u8 << start;
+    loop {
+        let grown = (0..8)
+            .filter(|&c| reached & (1 << c) != 0)
+            .flat_map(|c| [c ^ 1, c ^ 2, c ^ 4])
+            .fold(reached, |r, n| r | (set & (1 << n)));
+        if grown == reached {
+            return reached != set;
+        }
+        reached = grown;
+    }
+}
+
+/// Makes `solid` well composed: no 2 × 2 × 2 cell whose solid or empty corners fall apart
+/// within it (pieces touching along an edge or at a corner only), where one surface-nets vertex
+/// would join two sheets and the surface would not be a manifold. Such a cell is filled; cells
+/// on the volume's border keep their outside (the padding is empty).
+fn well_composed(solid: &mut [bool], [nz, ny, nx]: [usize; 3]) {
+    let critical: Vec<bool> = (0..=255u8)
+        .map(|set| split_within_cell(set) || split_within_cell(!set))
+        .collect();
+    let at = |k: usize, j: usize, i: usize| (k * ny + j) * nx + i;
+    for _ in 0..WELL_COMPOSED_PASSES {
+        let mut changed = false;
+        for k in 0..nz.saturating_sub(1) {
+            for j in 0..ny.saturating_sub(1) {
+                for i in 0..nx.saturating_sub(1) {
+                    let corners = (0..8).map(|c| at(k + (c >> 2), j + (c >> 1 & 1), i + (c & 1)));
+                    let set = corners
+                        .clone()
+                        .enumerate()
+                        .fold(0u8, |set, (c, v)| set | (u8::from(solid[v]) << c));
+                    if critical[set as usize] {
+                        corners.for_each(|v| solid[v] = true);
+                        changed = true;
+                    }
+                }
+            }
+        }
+        if !changed {
+            return;
+        }
+    }
+}
+
+/// The most passes [`well_composed`] makes (each fills what the one before left critical).
+const WELL_COMPOSED_PASSES: usize = 8;
 
 /// Rounds of neighbour averaging of the layer depths.
 const LAYER_SMOOTHING: usize = 5;
@@ -480,4 +538,34 @@ fn largest_manifold_piece(
         faces.iter_mut().for_each(|f| f.swap(1, 2));
     }
     (kept, faces)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cells_split_where_voxels_touch_along_an_edge_or_at_a_corner_only() {
+        assert!(!split_within_cell(0b0000_0000));
+        assert!(!split_within_cell(0b0000_0001));
+        assert!(!split_within_cell(0b0000_0011), "face neighbours");
+        assert!(split_within_cell(0b0000_1001), "along an edge only");
+        assert!(split_within_cell(0b1000_0001), "at a corner only");
+        assert!(!split_within_cell(0b1000_1011), "joined through the cell");
+    }
+
+    #[test]
+    fn a_checkerboard_becomes_well_composed() {
+        let shape = [2, 2, 2];
+        let mut solid = vec![true, false, false, true, false, false, false, false];
+        well_composed(&mut solid, shape);
+        assert!(solid.iter().all(|&s| s), "the critical cell is filled");
+        let mut solid = vec![true, true, false, false, false, false, false, false];
+        well_composed(&mut solid, shape);
+        assert_eq!(
+            solid.iter().filter(|&&s| s).count(),
+            2,
+            "a face pair stays as it is"
+        );
+    }
 }

@@ -7,7 +7,8 @@
 //! (tangential Laplacian smoothing, projected back onto frame 0; boundary vertices stay).
 //! meshoptimizer neither flips edges nor smooths, and both are a few lines on a face list. Where
 //! a collapse flattens a thin part to a pair of back-to-back faces (four faces on each of their
-//! edges), the pair is removed.
+//! edges), the pair is removed; a simplification that still pinches the surface or opens a
+//! hole in it is tried again with a slightly smaller target.
 //!
 //! Surfaces meshed per time point by a segmentation are often finer than the flow needs, and
 //! tracking a coarser mesh is faster and folds less. The simplified mesh's vertices are a subset
@@ -70,9 +71,11 @@ pub fn simplified_reference(
         drop_back_to_back(&mut faces);
         let got = used_vertices(positions.len(), faces.iter().flatten().copied());
         let near = got == 0 || got.abs_diff(vertices) * 50 <= vertices;
+        // Manifold, with no boundary the surface did not have (a dropped pair leaves a hole).
         let manifold = || {
             let compacted = compact(positions, faces.clone());
-            Mesh::new(compacted.positions.len(), compacted.faces).is_ok()
+            let mesh = Mesh::new(compacted.positions.len(), compacted.faces);
+            mesh.is_ok() && boundary_edges(&faces) <= boundary_edges(all_faces)
         };
         match (near || round + 1 >= ROUNDS, got == 0 || manifold()) {
             (true, true) => break,
@@ -91,6 +94,18 @@ pub fn simplified_reference(
     let mut reference = compact(positions, faces);
     smooth_on(&mut reference, positions, all_faces);
     reference
+}
+
+/// How many edges of `faces` have one face.
+fn boundary_edges(faces: &[[u32; 3]]) -> usize {
+    let mut edges: Vec<(u32, u32)> = (faces.iter())
+        .flat_map(|f| (0..3).map(move |c| (f[c].min(f[(c + 1) % 3]), f[c].max(f[(c + 1) % 3]))))
+        .collect();
+    edges.sort_unstable();
+    edges
+        .chunk_by(|a, b| a == b)
+        .filter(|run| run.len() == 1)
+        .count()
 }
 
 /// Removes pairs of faces on the same three vertices (back to back, opposite orientations):

@@ -92,8 +92,11 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
             found[0].vertices, request.vertices
         );
     }
+    // A closed surface has no boundary to trim at: a vertex whose normal misses the next
+    // frame's surface takes its closest point.
     let options = TrackOptions {
         reference_vertices: Some(vertices),
+        keep_uncovered: true,
         ..TrackOptions::default()
     };
     let tracked = crate::track::tracked_with_progress(&track_frames, request.times, &options)?;
