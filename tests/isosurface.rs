@@ -47,15 +47,19 @@ fn euler_characteristic(n_vertices: usize, faces: &[[u32; 3]]) -> i64 {
     n_vertices as i64 - edges.len() as i64 + faces.len() as i64
 }
 
+/// A bright layer (120) between ellipsoidal radii `inner` and 1 on a background of 20, with
+/// noise of standard deviation `noise`.
+fn shell(inner: f64, noise: f64) -> Volume {
+    let layer = move |p: Vector3<f64>| match radius(&p) {
+        r if (inner..1.0).contains(&r) => 120.0,
+        _ => 20.0,
+    };
+    volume(layer, noise)
+}
+
 #[test]
 fn a_noisy_shell_gives_a_closed_surface_in_the_middle_of_its_layer() {
-    let shell = volume(
-        |p| match radius(&p) {
-            r if (0.8..1.0).contains(&r) => 120.0,
-            _ => 20.0,
-        },
-        15.0,
-    );
+    let shell = shell(0.8, 15.0);
     let found = find_surface(&shell, &IsosurfaceOptions::default()).unwrap();
     assert_eq!(euler_characteristic(found.vertices, &found.faces), 2);
     assert!(
@@ -85,13 +89,7 @@ fn a_noisy_shell_gives_a_closed_surface_in_the_middle_of_its_layer() {
 /// `examples/closed_shell 48 4` at 4000 of 4914 vertices, not on this scene.)
 #[test]
 fn a_thin_shell_simplifies_to_a_closed_manifold() {
-    let shell = volume(
-        |p| match radius(&p) {
-            r if (0.88..1.0).contains(&r) => 120.0,
-            _ => 20.0,
-        },
-        25.0,
-    );
+    let shell = shell(0.88, 25.0);
     let found = find_surface(&shell, &IsosurfaceOptions::default()).unwrap();
     for percent in [95, 90, 85, 80, 70, 60, 40] {
         let asked = found.vertices * percent / 100;
