@@ -32,6 +32,9 @@
 //!
 //! The frames' meshes have their own vertices; `meshflow surface --shape closed` then tracks
 //! one reference through them ([`crate::track`]), which makes the fixed connectivity.
+//!
+//! Surface nets come from a well-kept crate; Otsu's threshold, the flood fills and the table of
+//! critical cells are a few lines each over our `(z, y, x)` grids and are written here.
 
 use super::reference::compact;
 use crate::connection::vertex_normals;
