@@ -37,14 +37,10 @@ fn radius(p: &Vector3<f64>) -> f64 {
     ((d.x / 13.0).powi(2) + (d.y / 11.0).powi(2) + (d.z / 9.0).powi(2)).sqrt()
 }
 
-/// `V − E + F` of a triangle list.
+/// `V − E + F` of a triangle list (a valid mesh's).
 fn euler_characteristic(n_vertices: usize, faces: &[[u32; 3]]) -> i64 {
-    let mut edges: Vec<(u32, u32)> = (faces.iter())
-        .flat_map(|f| (0..3).map(move |c| (f[c].min(f[(c + 1) % 3]), f[c].max(f[(c + 1) % 3]))))
-        .collect();
-    edges.sort_unstable();
-    edges.dedup();
-    n_vertices as i64 - edges.len() as i64 + faces.len() as i64
+    let mesh = meshflow::mesh::Mesh::new(n_vertices, faces.to_vec()).expect("a manifold mesh");
+    mesh.euler_characteristic()
 }
 
 /// A bright layer (120) between ellipsoidal radii `inner` and 1 on a background of 20, with

@@ -302,8 +302,7 @@ fn is_image_type(t: &npyz::TypeStr) -> bool {
 /// Reads a float32, float64, uint8 or uint16 `.npy` (microscope volumes) as `f32` values in C
 /// order, with its shape; float64 values are rounded to the nearest `f32`.
 pub fn read_npy_f32(path: &Path) -> Result<(Vec<u64>, Vec<f32>), IoError> {
-    let rows = read_image(path, &|_| true, |v| v, |v| v as f32, f32::from, f32::from)?;
-    Ok((rows.shape, rows.data))
+    read_npy_f32_rows(path, &|_| true)
 }
 
 /// [`read_npy_f32`] of the rows `keep` only (the others skipped on disk): their shape (the

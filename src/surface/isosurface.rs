@@ -240,7 +240,11 @@ fn to_layer_middle(
     // The depths averaged over each vertex's neighbours a few times: noise in where the layer
     // ends must not fold the surface.
     let mut depths: Vec<f64> = layers.iter().map(|l| l.map_or(0.0, |(d, _)| d)).collect();
-    let neighbours = vertex_neighbours(positions.len(), faces);
+    let mut neighbours = vec![Vec::new(); positions.len()];
+    for &[a, b] in mesh.edges() {
+        neighbours[a as usize].push(b);
+        neighbours[b as usize].push(a);
+    }
     for _ in 0..LAYER_SMOOTHING {
         depths = (0..depths.len())
             .map(|i| match layers[i] {
@@ -328,23 +332,6 @@ const WELL_COMPOSED_PASSES: usize = 8;
 
 /// Rounds of neighbour averaging of the layer depths.
 const LAYER_SMOOTHING: usize = 5;
-
-/// Each vertex's neighbours along the faces' edges.
-fn vertex_neighbours(n_vertices: usize, faces: &[[u32; 3]]) -> Vec<Vec<u32>> {
-    let mut neighbours = vec![Vec::new(); n_vertices];
-    for f in faces {
-        for c in 0..3 {
-            let (a, b) = (f[c], f[(c + 1) % 3]);
-            neighbours[a as usize].push(b);
-            neighbours[b as usize].push(a);
-        }
-    }
-    for list in &mut neighbours {
-        list.sort_unstable();
-        list.dedup();
-    }
-    neighbours
-}
 
 /// Otsu's threshold of `values` in `[min, max]` from a 256-bin histogram: the upper edge of
 /// the bin that maximizes the between-class variance.
