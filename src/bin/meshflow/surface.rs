@@ -60,7 +60,7 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
         )));
     }
     let bar = crate::progress::count_progress(n_frames as u64, "finding surfaces");
-    let mut found = Vec::with_capacity(n_frames);
+    let mut found: Vec<FoundSurface> = Vec::with_capacity(n_frames);
     while let Some(read) = stream.next() {
         let (volume, file) = read?;
         let k = found.len();
@@ -75,11 +75,12 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
         found.push(surface);
     }
     bar.finish();
-    let track_frames: Vec<TrackFrame> = (found.iter())
+    // The meshes move to the tracker; `found` keeps the reports (`vertices`, `faces`).
+    let track_frames: Vec<TrackFrame> = (found.iter_mut())
         .map(|s| TrackFrame {
-            positions: s.positions.clone(),
-            faces: s.faces.clone(),
             intensity: vec![0.0; s.positions.len()],
+            positions: std::mem::take(&mut s.positions),
+            faces: std::mem::take(&mut s.faces),
         })
         .collect();
     // Surface nets' triangles are slivers where the surface cuts a voxel's corner: the
