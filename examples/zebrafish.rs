@@ -40,19 +40,31 @@ use std::time::Instant;
 /// Voxel size of the recording, x, y, z in micrometres.
 const VOXEL: [f64; 3] = [1.6774, 1.6774, 7.1847];
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+/// Errors end the example with one line, as the CLI's do.
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("zebrafish: {error}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     let (data, vertices) = arguments()?;
+    let cases = cases_found(&data)?;
     let out = Path::new("out/zebrafish");
     std::fs::create_dir_all(out)?;
-    let cells = read_cells(&data)?;
-    let volumes = read_volume_frames(&data)?;
+    let cells = read_cells(&data, &cases)?;
+    let volumes = read_volume_frames(&data, &cases)?;
     println!(
         "zebrafish endoderm (lukaslang/ofish, cxcr4aMO2_290112): cells matched by mutual nearest \
          neighbours; endpoint errors (EPE) of the tangential displacement in µm over each pair \
          of frames; surfaces of about {vertices} vertices"
     );
     let pairs_only = std::env::var("ZF_PAIRS_ONLY").is_ok_and(|v| v == "1");
-    for case in CASES.iter().filter(|c| !pairs_only || c.frames.len() == 2) {
+    for case in cases.iter().filter(|c| !pairs_only || c.frames.len() == 2) {
         run_case(case, &cells, &volumes, vertices, out)?;
     }
     Ok(())
@@ -108,9 +120,36 @@ fn arguments() -> Result<(PathBuf, usize), String> {
     Ok((data, vertices))
 }
 
-/// The frames of all cases, each once.
-fn case_frames() -> Vec<usize> {
-    let mut frames: Vec<usize> = CASES
+fn volume_file(data: &Path, frame: usize) -> PathBuf {
+    data.join(format!("volumes/frame_{frame}.npy"))
+}
+
+/// The cases whose volumes the converter wrote (it converts the pairs it finds), naming the
+/// others; an error when there is none.
+fn cases_found(data: &Path) -> Result<Vec<&'static Case>, String> {
+    let (found, missing): (Vec<&Case>, Vec<&Case>) = (CASES.iter())
+        .partition(|c| c.frames.iter().all(|&k| volume_file(data, k).is_file()));
+    let names = |cases: &[&Case]| -> String {
+        let name = |c: &&Case| c.frames.iter().map(usize::to_string).collect::<Vec<_>>();
+        cases.iter().map(|c| name(c).join("→")).collect::<Vec<_>>().join(", ")
+    };
+    if found.is_empty() {
+        return Err(format!(
+            "no volumes of any case in {} (expected volumes/frame_K.npy for {}): convert the \
+             recording first with python3 examples/zebrafish/convert_ofish.py",
+            data.join("volumes").display(),
+            names(&missing)
+        ));
+    }
+    if !missing.is_empty() {
+        println!("skipped (volumes not converted): {}", names(&missing));
+    }
+    Ok(found)
+}
+
+/// The frames of `cases`, each once.
+fn case_frames(cases: &[&Case]) -> Vec<usize> {
+    let mut frames: Vec<usize> = cases
         .iter()
         .flat_map(|c| c.frames.iter().copied())
         .collect();
@@ -123,8 +162,8 @@ fn case_frames() -> Vec<usize> {
 type Cells = Vec<Vector3<f64>>;
 
 /// Cell centres of the cases' frames, by frame number.
-fn read_cells(data: &Path) -> Result<Vec<(usize, Cells)>, meshflow::Error> {
-    case_frames()
+fn read_cells(data: &Path, cases: &[&Case]) -> Result<Vec<(usize, Cells)>, meshflow::Error> {
+    case_frames(cases)
         .into_iter()
         .map(|k| {
             let file = data.join(format!("cells/frame_{k}.npy"));
@@ -134,15 +173,18 @@ fn read_cells(data: &Path) -> Result<Vec<(usize, Cells)>, meshflow::Error> {
 }
 
 /// Volumes of the cases' frames, by frame number.
-fn read_volume_frames(data: &Path) -> Result<Vec<(usize, Volume)>, meshflow::Error> {
+fn read_volume_frames(
+    data: &Path,
+    cases: &[&Case],
+) -> Result<Vec<(usize, Volume)>, meshflow::Error> {
     let options = VolumeOptions {
         voxel_size: Some(Vector3::from(VOXEL)),
         ..VolumeOptions::default()
     };
-    case_frames()
+    case_frames(cases)
         .into_iter()
         .map(|k| {
-            let file = data.join(format!("volumes/frame_{k}.npy"));
+            let file = volume_file(data, k);
             Ok((k, read_volumes(&file, &options)?.volumes.remove(0)))
         })
         .collect()

@@ -2,7 +2,7 @@
 //! first 49 intervals, the closed seam (Lipschitz all the way round), white at zero,
 //! saturation growing with length, the robust scale.
 
-use meshflow::render::color_wheel::{flow_color, flow_colors, robust_max};
+use meshflow::render::color_wheel::{arrow_scale, flow_color, flow_colors, robust_max};
 use std::f64::consts::PI;
 
 fn assert_color(actual: [f64; 3], expected: [f64; 3]) {
@@ -156,4 +156,24 @@ fn flow_colors_divides_by_the_scale() {
     assert_color(colours[0], [1.0, 0.0, 0.0]);
     assert_eq!(colours[1], [1.0; 3]);
     assert_color(colours[2], [0.5, (1.0 + 209.0 / 255.0) / 2.0, 1.0]);
+}
+
+/// Arrows are sized by the moving part: 900 vertices at rest (below a tenth of the robust
+/// maximum), 100 moving at 1…4 and 2 % fast ones at 7: the 75th percentile of the moving.
+#[test]
+fn the_arrow_scale_is_the_typical_speed_of_the_moving_part() {
+    let mut speeds = vec![0.01; 900];
+    speeds.extend((0..100).map(|i| 1.0 + 3.0 * i as f64 / 99.0));
+    speeds.extend([7.0; 20]);
+    assert_eq!(robust_max(&speeds), 7.0);
+    // 120 moving speeds: the 90th smallest.
+    let mut moving: Vec<f64> = speeds.iter().copied().filter(|&s| s >= 0.7).collect();
+    moving.sort_by(f64::total_cmp);
+    assert_eq!(moving.len(), 120);
+    assert_eq!(arrow_scale(&speeds), moving[89]);
+    assert!((arrow_scale(&speeds) - (1.0 + 3.0 * 89.0 / 99.0)).abs() < 1e-12);
+    // At rest everywhere, and one speed: the robust maximum's fall-backs.
+    assert_eq!(arrow_scale(&[0.0; 5]), 1.0);
+    assert_eq!(arrow_scale(&[2.5]), 2.5);
+    assert_eq!(arrow_scale(&[f64::NAN, 3.0, 3.0]), 3.0);
 }

@@ -142,3 +142,58 @@ fn the_reason_names_the_shape_spreads_and_tilt() {
         "{text}"
     );
 }
+
+/// The faces of the level-4 icosphere (radius 1) whose corners all lie above `z = cut`: a
+/// spherical cap of half-angle `acos(cut)` about +z (the other vertices unused).
+fn cap(cut: f64) -> Surface {
+    let mut sphere = icosphere(4);
+    let positions = sphere.positions.clone();
+    sphere
+        .faces
+        .retain(|f| f.iter().all(|&v| positions[v as usize].z > cut));
+    sphere
+}
+
+/// A cap or sheet is seen along its mean normal from the side it faces: facing
+/// `(1 + cos θ)/2` for a cap of half-angle θ, the up axis the nearest signed axis, the eye on
+/// the normal exactly.
+#[test]
+fn caps_and_sheets_are_seen_along_their_axis() {
+    let view_of = |surface: &Surface| match choice_for(surface).reason {
+        UpReason::Cap(cap) => cap,
+        other => panic!("not seen as a cap: {other}"),
+    };
+    // A cap of about 60° about +z, seen from straight above. Its facing is `(1 + cos θ)/2 =
+    // 1 − A/4π` for the half-angle θ of a spherical cap of its area A.
+    let sixty_cap = cap(0.5);
+    let area: f64 = (sixty_cap.faces.iter())
+        .map(|f| {
+            let [a, b, c] = f.map(|v| sixty_cap.positions[v as usize]);
+            0.5 * (b - a).cross(&(c - a)).norm()
+        })
+        .sum();
+    let sixty = view_of(&sixty_cap);
+    let expected = 1.0 - area / (4.0 * std::f64::consts::PI);
+    assert!((sixty.facing - expected).abs() < 0.01, "{sixty} vs {expected}");
+    assert_eq!(sixty.view.up, UpAxis::Z);
+    assert!(sixty.view.direction().dot(&Vector3::z()) > 1.0 - 1e-9, "{sixty}");
+    // Turned 17° about x: still z up, the eye 17° off it, on the cap's axis.
+    let turned_cap = turned(cap(0.5), Vector3::x(), 17.0);
+    let tilted = view_of(&turned_cap);
+    assert_eq!(tilted.view.up, UpAxis::Z);
+    assert!((tilted.tilt_degrees - 17.0).abs() < 0.5, "{tilted}");
+    let axis = Rotation3::from_axis_angle(&Vector3::x_axis(), 17f64.to_radians()) * Vector3::z();
+    assert!(tilted.view.direction().dot(&axis) > 1.0 - 1e-4, "{tilted}");
+    // Facing down (a cap seen from below, as a yolk under an inverted microscope): -z up.
+    let down = view_of(&turned(cap(0.5), Vector3::x(), 180.0));
+    assert_eq!(down.view.up, UpAxis::NegZ);
+    assert!(down.to_string().contains("from -z"), "{down}");
+    assert_eq!(choice_for(&turned(cap(0.5), Vector3::x(), 180.0)).view(), down.view);
+    // A flat sheet faces fully.
+    assert!((view_of(&grid(12, 8, 1.5, 1.0)).facing - 1.0).abs() < 1e-12);
+    // A cap of 127° faces 0.2 of its area one way: the spread rule decides, and a closed
+    // surface is never a cap.
+    assert!(!matches!(choice_for(&cap(-0.6)).reason, UpReason::Cap(_)));
+    assert!(!matches!(choice_for(&icosphere(3)).reason, UpReason::Cap(_)));
+    assert_eq!(choice_for(&icosphere(3)).view(), meshflow::render::View::default());
+}

@@ -897,6 +897,7 @@ def sample_volume(
     shell: Optional[Tuple[float, float]] = None,
     layers: int = 9,
     reduce: str = "max",
+    allow_outside: bool = False,
 ) -> Dict[str, Any]:
     """A microscope recording read onto a moving surface (``meshflow sample``): the grey
     value of every vertex in every frame, for :func:`compute_flow`.
@@ -905,8 +906,11 @@ def sample_volume(
     trilinear samples along its unit normal ``n_i`` (the corner-angle-weighted mean of its
     faces' normals, outward for faces counter-clockwise seen from outside, as
     :func:`fit_surface` returns them), evenly spaced over ``[−inside, +outside]``, reduced
-    to one value. A vertex whose shell leaves the volume at any layer gets 0 and is counted
-    in ``outside``.
+    to one value. A vertex whose shell leaves the volume at any layer gets 0, is counted in
+    ``outside`` and flagged in ``no_data``. A frame with more than half of its vertices
+    outside its volume is refused (``ValueError`` naming the voxel size, origin, the
+    volume's and the surface's extent): most likely the voxel size is in other units than the
+    positions, or missing; ``allow_outside=True`` samples anyway.
 
     Parameters
     ----------
@@ -933,12 +937,14 @@ def sample_volume(
     reduce : {"max", "mean", "layer:L"}
         The brightest sample (a maximum-intensity projection within the shell), their mean,
         or sample ``L`` (0: the innermost).
+    allow_outside : bool
+        Sample frames whose surface lies mostly outside the volume instead of refusing them.
 
     Returns
     -------
     dict
         ``values`` (K, V) float64; ``outside``: per frame, how many vertices' shells left the
-        volume (their value is 0); ``shell`` ``(inside, outside, layers)`` and ``smoothing``
+        volume (their value is 0); ``no_data`` (K, V) bool, which they are; ``shell`` ``(inside, outside, layers)`` and ``smoothing``
         ``σ`` as used.
 
     Errors are ``ValueError`` with the library's message: a volume that is not finite
@@ -978,4 +984,5 @@ def sample_volume(
         shell,
         layer_count,
         reduce,
+        bool(allow_outside),
     )

@@ -157,6 +157,7 @@ def sample_volume(
     shell: Optional[Tuple[float, float]],
     layers: int,
     reduce: str,
+    allow_outside: bool,
 ) -> Dict[str, Any]:
-    """``values`` (K, V), ``outside`` (per frame), ``shell`` (inside, outside, layers),
+    """``values`` (K, V), ``outside`` (per frame), ``no_data`` (K, V), ``shell`` (inside, outside, layers),
     ``smoothing``."""

@@ -611,7 +611,7 @@ pub(crate) type TrajectoryArrays<'py> = (
 impl Flow {
     /// The view of the pictures: the default angles and the input's up axis.
     fn view(&self) -> View {
-        View::default().with_up(UpChoice::of_sequence(&self.loaded).axis)
+        UpChoice::of_sequence(&self.loaded).view()
     }
 }
 

@@ -173,9 +173,10 @@ pub(crate) fn find_surface<'py>(
 
 /// A recording carried onto a moving surface (`meshflow sample`): `volumes[k]` (Z, Y, X)
 /// read along the vertex normals of frame `k` of (`positions`, `faces`). Returns a dict:
-/// `values` (K, V), `outside` (per frame), `shell` (inside, outside, layers), `smoothing`.
+/// `values` (K, V), `outside` (per frame), `no_data` (K, V), `shell` (inside, outside,
+/// layers), `smoothing`.
 #[pyfunction]
-#[pyo3(signature = (volumes, positions, faces, voxel_size, origin, smoothing, shell, layers, reduce))]
+#[pyo3(signature = (volumes, positions, faces, voxel_size, origin, smoothing, shell, layers, reduce, allow_outside))]
 #[allow(clippy::too_many_arguments)] // the Python signature, one argument per option
 pub(crate) fn sample_volume<'py>(
     py: Python<'py>,
@@ -188,6 +189,7 @@ pub(crate) fn sample_volume<'py>(
     shell: Option<(f64, f64)>,
     layers: usize,
     reduce: &str,
+    allow_outside: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let reduce = parse::<Reduce>(reduce, "reduce")?;
     let faces = read_faces(&faces)?;
@@ -223,6 +225,7 @@ pub(crate) fn sample_volume<'py>(
             smoothing,
             shell,
             reduce,
+            allow_outside,
         };
         volume::sample_sequence(&volumes, &mesh, &positions, &options)
             .map_err(|e| to_py_err(e.into()))
@@ -233,6 +236,9 @@ pub(crate) fn sample_volume<'py>(
     let out = PyDict::new(py);
     out.set_item("values", values.into_pyarray(py))?;
     out.set_item("outside", sampled.outside)?;
+    let no_data = Array2::from_shape_vec((k, n_vertices), sampled.no_data.concat())
+        .expect("K × V flags");
+    out.set_item("no_data", no_data.into_pyarray(py))?;
     let shell = sampled.shell;
     out.set_item("shell", (shell.inside, shell.outside, shell.layers))?;
     out.set_item("smoothing", sampled.smoothing)?;

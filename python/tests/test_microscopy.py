@@ -249,6 +249,22 @@ def test_sample_volume_counts_vertices_outside(ball):
     values = sampled["values"][1]
     assert (values[out] == 0).all()
     assert np.abs(values[~out] - linear(shifted[~out])).max() < 1e-5
+    assert sampled["no_data"].dtype == np.bool_
+    assert not sampled["no_data"][0].any() and (sampled["no_data"][1] == out).all()
+
+
+def test_sample_volume_refuses_a_surface_mostly_outside(ball):
+    """A voxel size in mm for positions in µm: refused, naming the sizes, unless allowed."""
+    x, faces, _ = ball
+    volume = linear_volume().astype(np.float32)
+    n = len(x)
+    millimetres = np.array(VOXEL) / 1000
+    with pytest.raises(ValueError, match=rf"frame 0: {n} of {n} vertices \(100 %\) lie outside"
+                                         r".*about 1000 times larger.*allow-outside"):
+        meshflow.sample_volume([volume], x[None], faces, millimetres, origin=ORIGIN / 1000)
+    allowed = meshflow.sample_volume([volume], x[None], faces, millimetres,
+                                     origin=ORIGIN / 1000, allow_outside=True)
+    assert allowed["no_data"].all() and (allowed["values"] == 0).all()
 
 
 def test_sample_volume_defaults_dtypes_and_errors(ball):

@@ -70,7 +70,7 @@ pub use options::FlowOptions;
 pub use params::{Boundary, FlowParams, Scale, SolverChoice, TimeCoupling, Weight, Weights};
 pub use params::{Warping, DEFAULT_SPREAD, DEFAULT_TIME_SCALE};
 pub use problem::{compute_flow, FlowProblem, FlowResult, SolveStep, Timings, KEEP_SLABS_BYTES};
-pub use pyramid::{heat_times, scale_pyramid, COARSEST_HEAT_TIME};
+pub use pyramid::{heat_times, scale_pyramid, smoothed_over_length, COARSEST_HEAT_TIME};
 pub use regularizer::Regularizer;
 pub use robust::FlowDriven;
 pub use scales::{DataScales, ScaleSums};

@@ -30,6 +30,7 @@ mod mtl;
 mod mtx;
 mod npy;
 mod npy_sequence;
+mod number;
 mod obj;
 pub mod ply;
 mod texture;
@@ -50,9 +51,10 @@ pub use npy::{
     NpyArray, NpyRows,
 };
 pub use npy_sequence::{
-    read_intensity_array, read_npy_sequence, write_intensity_array, write_npy_sequence, FACES,
-    INTENSITY, POSITIONS, TIMES,
+    no_data_file, read_intensity_array, read_npy_sequence, write_intensity_array,
+    write_no_data, write_npy_sequence, FACES, INTENSITY, NO_DATA, POSITIONS, TIMES,
 };
 pub(crate) use npy_sequence::{read_intensity_rows, VertexCount};
+pub use number::format_number;
 pub use obj::{read_obj, read_obj_from, write_obj, ObjMesh};
 pub use texture::Texture;

@@ -7,6 +7,7 @@
 //! | `faces.npy` | (F, 3), 0-based, counter-clockwise | any integer |
 //! | `intensity.npy` (optional) | (K, V) grey values, or (K, V, C) channels | float32, float64, uint8, uint16 |
 //! | `times.txt` (optional) | K numbers | text |
+//! | `no_data.npy` (optional, beside the image) | (K, V), 1 where a vertex has no data (`meshflow sample`: its shell left the volume) | uint8 |
 //!
 //! An intensity array named elsewhere (`--intensity`) has the same layout, with V the files'
 //! or the mesh's vertex count ([`read_intensity_array`]).
@@ -14,7 +15,7 @@
 use super::{read_npy_float_rows, read_npy_image_rows, read_npy_indices, write_atomically};
 use super::{write_npy, write_npy_vectors, IoError, KeepRows, RawSequence, VertexValues};
 use nalgebra::Vector3;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The positions, (K, V, 3).
 pub const POSITIONS: &str = "positions.npy";
@@ -24,6 +25,29 @@ pub const FACES: &str = "faces.npy";
 pub const INTENSITY: &str = "intensity.npy";
 /// The frame times, one number per frame.
 pub const TIMES: &str = "times.txt";
+/// Beside an image sampled from volumes: (K, V) uint8, 1 where a vertex has no data.
+pub const NO_DATA: &str = "no_data.npy";
+
+/// The no-data mask that goes with the image `image`: `no_data.npy` beside `intensity.npy`,
+/// `NAME_no_data.npy` beside any other `NAME.npy`.
+pub fn no_data_file(image: &Path) -> PathBuf {
+    let name = image.file_name().map(|n| n.to_string_lossy().into_owned());
+    let companion = match name.as_deref() {
+        Some(INTENSITY) | None => NO_DATA.to_string(),
+        Some(name) => {
+            let stem = name.strip_suffix(".npy").unwrap_or(name);
+            format!("{stem}_{NO_DATA}")
+        }
+    };
+    image.with_file_name(companion)
+}
+
+/// Writes a no-data mask `mask[k][i]` (frame, vertex) as (K, V) uint8.
+pub fn write_no_data(path: &Path, mask: &[Vec<bool>]) -> Result<(), IoError> {
+    let v = mask.first().map_or(0, Vec::len);
+    let values: Vec<u8> = mask.iter().flatten().map(|&m| m as u8).collect();
+    write_npy(path, &[mask.len() as u64, v as u64], &values)
+}
 
 /// Writes a sequence as the NPY directory that `meshflow solve` reads: `positions.npy`
 /// (K, V, 3) float64, `faces.npy` (F, 3) int64, `intensity.npy` (K, V) float64 when given, and

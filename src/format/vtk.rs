@@ -65,6 +65,8 @@ use std::path::Path;
 
 /// VTK's cell type number for a linear triangle.
 const VTK_TRIANGLE: u8 = 5;
+/// VTK's cell type number for a single point.
+const VTK_VERTEX: u8 = 1;
 
 /// A named per-point array with `components` values per point, stored point-major:
 /// `values[i * components + c]` is component `c` at point `i`.
@@ -102,15 +104,57 @@ pub fn write_vtu_with_cells(
             crate::mesh::check_index_range(faces, positions.len()).map_err(|e| e.to_string())
         })
         .map_err(|message| IoError::format(path, message))?;
+    let connectivity: Vec<i64> = faces.iter().flatten().map(|&v| i64::from(v)).collect();
+    let cells = Cells {
+        connectivity: &connectivity,
+        corners: 3,
+        vtk_type: VTK_TRIANGLE,
+    };
+    write_unstructured(path, positions, cells, point_data, cell_data)
+}
+
+/// Points alone as a VTK XML UnstructuredGrid of vertex cells, with their point arrays: a point
+/// set (tracked cells, landmarks) that ParaView draws as points or glyphs.
+pub fn write_point_vtu(
+    path: &Path,
+    points: &[Vector3<f64>],
+    point_data: &[PointArray],
+) -> Result<(), IoError> {
+    check_arrays("point", points.len(), point_data).map_err(|m| IoError::format(path, m))?;
+    let connectivity: Vec<i64> = (0..points.len() as i64).collect();
+    let cells = Cells {
+        connectivity: &connectivity,
+        corners: 1,
+        vtk_type: VTK_VERTEX,
+    };
+    write_unstructured(path, points, cells, point_data, &[])
+}
+
+/// Cells of one type with `corners` points each, their point indices in a row.
+struct Cells<'a> {
+    connectivity: &'a [i64],
+    corners: usize,
+    vtk_type: u8,
+}
+
+fn write_unstructured(
+    path: &Path,
+    positions: &[Vector3<f64>],
+    cells: Cells,
+    point_data: &[PointArray],
+    cell_data: &[PointArray],
+) -> Result<(), IoError> {
+    let n_cells = cells.connectivity.len() / cells.corners;
     let points = le_bytes(
         positions
             .iter()
             .flat_map(|p| [p.x, p.y, p.z])
             .map(f64::to_le_bytes),
     );
-    let connectivity = le_bytes(faces.iter().flatten().map(|&v| i64::from(v).to_le_bytes()));
-    let offsets = le_bytes((1..=faces.len() as i64).map(|k| (3 * k).to_le_bytes()));
-    let types = vec![VTK_TRIANGLE; faces.len()];
+    let connectivity = le_bytes(cells.connectivity.iter().map(|v| v.to_le_bytes()));
+    let corners = cells.corners as i64;
+    let offsets = le_bytes((1..=n_cells as i64).map(|k| (corners * k).to_le_bytes()));
+    let types = vec![cells.vtk_type; n_cells];
     write_atomically(path, |w| {
         writeln!(w, "<?xml version=\"1.0\"?>")?;
         writeln!(
@@ -123,7 +167,7 @@ pub fn write_vtu_with_cells(
             w,
             "    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">",
             positions.len(),
-            faces.len()
+            n_cells
         )?;
         writeln!(w, "      <PointData>")?;
         for array in point_data {

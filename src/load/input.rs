@@ -60,6 +60,24 @@ pub enum SequenceSource {
     Arrays,
 }
 
+/// Why `files` hold no frames, with what to do where they are compressed mesh files.
+fn no_frames_message(files: &[PathBuf]) -> String {
+    const COMPRESSED: [&str; 4] = ["gz", "bz2", "xz", "zst"];
+    let compressed = files.iter().filter(|f| {
+        let extension = f.extension().map(|e| e.to_string_lossy().to_lowercase());
+        let inner = f.file_stem().map(Path::new).and_then(FrameFormat::of);
+        extension.is_some_and(|e| COMPRESSED.contains(&e.as_str())) && inner.is_some()
+    });
+    match compressed.clone().next() {
+        Some(first) => format!(
+            "{} compressed mesh frames ({}, …): meshflow reads them uncompressed; decompress them first (e.g. gunzip -k)",
+            compressed.count(),
+            first.file_name().unwrap_or_default().to_string_lossy()
+        ),
+        None => "no mesh frames here (.obj, .ply, .gltf, .glb files, or positions.npy + faces.npy)".into(),
+    }
+}
+
 impl SequenceSource {
     /// Finds the sequence that `path` names (see the module table).
     pub fn detect(path: &Path) -> Result<Self, IoError> {
@@ -119,10 +137,7 @@ impl SequenceSource {
     fn frames(path: &Path, mut files: Vec<PathBuf>) -> Result<Self, IoError> {
         let formats: Vec<FrameFormat> = files.iter().filter_map(|f| FrameFormat::of(f)).collect();
         let Some(&format) = formats.first() else {
-            return Err(IoError::format(
-                path,
-                "no mesh frames here (.obj, .ply, .gltf, .glb files, or positions.npy + faces.npy)",
-            ));
+            return Err(IoError::format(path, no_frames_message(&files)));
         };
         if let Some(other) = formats.iter().find(|&&f| f != format) {
             return Err(IoError::format(

@@ -16,6 +16,7 @@
 mod channels;
 mod ground_truth;
 mod input;
+mod no_data;
 mod options;
 mod prepare;
 mod sequence;

@@ -46,6 +46,9 @@ pub struct LoadedSequence {
     pub frame_files: Vec<PathBuf>,
     /// What the loader noticed and worked around (see [`LoadWarning`]).
     pub warnings: Vec<LoadWarning>,
+    /// Per frame and mesh vertex: no data there (`no_data.npy` beside the image, written by
+    /// `meshflow sample`); `None` when the image has no such mask.
+    pub no_data: Option<Vec<Vec<bool>>>,
 }
 
 /// Reads the sequence that `path` names (a directory, a glob, a glTF animation; see
@@ -258,6 +261,11 @@ fn build_sequence(
             false,
         ),
     };
+    let no_data = {
+        let held = |k: usize| window.held.contains(&k);
+        let n = window.n_frames_in_all;
+        super::no_data::read_no_data(&source, options, n, &counts, &held, &vertex_map)?
+    };
     let images = select_channels(images, options.channels)
         .map_err(|message| IoError::format(images_file, message))?;
     // Dropped vertices' values are never used.
@@ -292,6 +300,10 @@ fn build_sequence(
                 (e, Some(file)) if times_from_file && is_about_times(&e) => {
                     Error::from(e).in_file(file)
                 }
+                // Named as the option, where a path would name the file.
+                (e, _) if options.times.is_some() && is_about_times(&e) => {
+                    Error::from(e).in_file("--times")
+                }
                 (e, _) => in_frame_file(e, &files),
             }
         })?;
@@ -306,6 +318,7 @@ fn build_sequence(
         vertex_map,
         frame_files: files,
         warnings,
+        no_data,
     })
 }
 

@@ -157,6 +157,31 @@ pub fn robust_max(speeds: &[f64]) -> f64 {
     }
 }
 
+/// Below this fraction of [`robust_max`] a vector does not count as moving for
+/// [`arrow_scale`].
+pub const MOVING_FRACTION: f64 = 0.1;
+
+/// The length of the reference arrow: the 75th percentile (nearest rank) of the speeds of the
+/// moving part, those of at least [`MOVING_FRACTION`] of [`robust_max`]. Arrows are then
+/// sized by the typical motion, where the 99th percentile of all speeds (a few fast spots)
+/// made most of them dots; the faster quarter is drawn longer than the arrow spacing.
+/// Positive, like [`robust_max`], which it never exceeds.
+pub fn arrow_scale(speeds: &[f64]) -> f64 {
+    let top = robust_max(speeds);
+    let mut moving: Vec<f64> = (speeds.iter().copied())
+        .filter(|s| s.is_finite() && *s >= MOVING_FRACTION * top)
+        .collect();
+    if moving.is_empty() {
+        return top;
+    }
+    let rank = (3 * moving.len()).div_ceil(4);
+    let (_, &mut typical, _) = moving.select_nth_unstable_by(rank - 1, f64::total_cmp);
+    match typical > 0.0 {
+        true => typical.min(top),
+        false => top,
+    }
+}
+
 /// [`flow_color`] of each vector divided by `scale`, a positive flow scale such as
 /// [`robust_max`] of the speeds (a zero scale makes every vector non-finite, hence black).
 pub fn flow_colors(vectors: &[[f64; 2]], scale: f64) -> Vec<[f64; 3]> {

@@ -64,7 +64,14 @@ pub struct PictureStyle {
     pub arrow_spacing: f64,
     /// A line written in the top-left corner, e.g. `slab 3  t = 0.30`.
     pub label: Option<String>,
+    /// Per vertex: no data there (e.g. outside the recording the image was sampled from);
+    /// such vertices are drawn in [`NO_DATA_COLOUR`] whatever their value.
+    pub no_data: Option<Vec<bool>>,
 }
+
+/// The colour of vertices without data: a light blue-grey, apart from the grey scale's black
+/// (a vertex outside a recording reads 0) and from the flow wheel's saturated colours.
+pub const NO_DATA_COLOUR: [f64; 3] = [0.62, 0.64, 0.72];
 
 impl Default for PictureStyle {
     /// Supersample 3, the default light, arrows 28 pixels apart, no label.
@@ -74,6 +81,7 @@ impl Default for PictureStyle {
             lighting: Lighting::default(),
             arrow_spacing: ArrowStyle::default().spacing,
             label: None,
+            no_data: None,
         }
     }
 }
@@ -190,6 +198,35 @@ pub fn tracks_picture(
         ..style.arrows()
     };
     draw_point_arrows(&mut canvas, camera, tracked.0, tracked.1, scale, &arrows)?;
+    Ok(finish(canvas, style))
+}
+
+/// Tracked points' true displacements (red, [`TRACK_ARROW_COLOUR`]) and the flow's at the same
+/// points (near-black), over the grey surface: `points` on the surface, `truth[n]` and
+/// `flow[n]` the displacements at `points[n]`, drawn `0.9 ·` the arrow spacing long for a
+/// length `scale`, with the reference arrow. Which cells the flow gets wrong, at a glance.
+pub fn track_errors_picture(
+    camera: &Camera,
+    surface: Surface,
+    (intensity, range): (&[f64], (f64, f64)),
+    points: &[Vector3<f64>],
+    (truth, flow): (&[Vector3<f64>], &[Vector3<f64>]),
+    scale: f64,
+    style: &PictureStyle,
+) -> Result<RgbImage, RenderError> {
+    check_positive("displacement scale", scale)?;
+    let mut canvas = grey_surface(camera, surface, intensity, range, style)?;
+    let computed = ArrowStyle {
+        width: 2.0 * style.arrows().width,
+        ..style.arrows()
+    };
+    let true_arrows = ArrowStyle {
+        colour: TRACK_ARROW_COLOUR,
+        ..computed
+    };
+    draw_point_arrows(&mut canvas, camera, points, truth, scale, &true_arrows)?;
+    draw_point_arrows(&mut canvas, camera, points, flow, scale, &computed)?;
+    draw_arrow_key(&mut canvas, scale, reference_arrow_length(&computed), &computed);
     Ok(finish(canvas, style))
 }
 
@@ -409,11 +446,19 @@ fn shaded_surface(
     style: &PictureStyle,
 ) -> Result<Canvas, RenderError> {
     let mut canvas = Canvas::for_camera(camera, style.supersample);
+    let masked: Option<Vec<[f64; 3]>> = style.no_data.as_ref().map(|no_data| {
+        (colours.iter().enumerate())
+            .map(|(i, &c)| match no_data.get(i) {
+                Some(true) => NO_DATA_COLOUR,
+                _ => c,
+            })
+            .collect()
+    });
     canvas.draw_mesh(
         camera,
         surface.positions,
         surface.faces,
-        colours,
+        masked.as_deref().unwrap_or(colours),
         &style.lighting,
     )?;
     Ok(canvas)

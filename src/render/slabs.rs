@@ -3,8 +3,9 @@
 //!
 //! For slabs `s` with the surface of frame `s`, its grey values `I_s` and the slab's flow `u_s`
 //! in R^3, the camera frames the bounding box of all drawn frames from the chosen [`View`]; the
-//! flow scale is the robust maximum ([`robust_max`], the 99th percentile) of `|u_s(i)|` over all
-//! slabs and vertices unless given; grey values span the finite range of all drawn frames;
+//! flow scale (the colour wheel's rim) is the robust maximum ([`robust_max`], the 99th
+//! percentile) of `|u_s(i)|` over all slabs and vertices unless given, the arrows' the typical
+//! speed of the moving part ([`arrow_scale`]); grey values span the finite range of all drawn frames;
 //! angular errors span `[0, robust maximum]`. Per slab it writes
 //!
 //! | file | picture |
@@ -13,19 +14,23 @@
 //! | `flow_SSSS.png` | [`flow_picture`]: Middlebury colours of the flow's screen directions, with the wheel legend |
 //! | `arrows_SSSS.png` | [`arrow_picture`]: arrows on an even subsample of visible vertices |
 //! | `angular_error_SSSS.png` | [`scalar_picture`] of the angular error (degrees), when known |
+//! | `track_errors_SSSS.png` | [`track_errors_picture`], with tracked points: [`write_track_error_pictures`] |
 //! | `residual_SSSS.png` | [`scalar_picture`] of `|I⁺ − I⁻|`, the grey-value change left along the flow, with warping |
 //!
-//! labelled `slab s  t = t_s` (times with six significant digits, [`format_number`]).
+//! labelled `slab s  t = t_s` (times with six significant digits, [`format_number`]). Vertices
+//! without data in the slab ([`SlabView::no_data`]) are drawn in [`super::NO_DATA_COLOUR`] in
+//! every picture, and the label says so.
 //! [`SlabSelection`] reads which slabs to draw from a list such as `0,5,10-20,last`.
 
-use super::color_wheel::robust_max;
+use super::color_wheel::{arrow_scale, robust_max};
 use super::colormap::finite_range;
 use super::text::format_number;
 use super::RenderError;
 use super::{
-    arrow_picture, flow_picture, grey_picture, scalar_picture, write_png, Camera, PictureStyle,
-    Surface, View,
+    arrow_picture, flow_picture, grey_picture, scalar_picture, track_errors_picture, write_png,
+    Camera, PictureStyle, Surface, View,
 };
+use crate::accuracy::TrackPoint;
 use crate::flow::{FlowResult, MeshSequence};
 use crate::Error;
 use nalgebra::Vector3;
@@ -47,6 +52,9 @@ pub struct SlabView<'a> {
     /// With warping, the grey-value change left between the slab's frames read along the flow
     /// ([`FlowResult::warped_residual`](crate::flow::FlowResult)).
     pub warped_residual: Option<&'a [f64]>,
+    /// Vertices without data in the slab, drawn in [`super::NO_DATA_COLOUR`]
+    /// ([`crate::load::LoadedSequence::slab_no_data`]).
+    pub no_data: Option<&'a [bool]>,
 }
 
 /// The views of slabs `slabs` of an embedded `sequence` with its R^3 flow `vectors[s]` (as in
@@ -69,6 +77,7 @@ pub fn sequence_views<'a>(
                 flow: &vectors[s],
                 angular_error: angular_errors.map(|errors| errors[s].as_slice()),
                 warped_residual: None,
+                no_data: None,
             })
         })
         .collect()
@@ -119,7 +128,10 @@ impl Default for FigureOptions {
 /// What all slabs share: camera, flow scale and value ranges.
 struct Shared {
     camera: Camera,
+    /// The colour wheel's rim.
     scale: f64,
+    /// The reference arrow's length.
+    arrow_scale: f64,
     grey_range: (f64, f64),
     error_range: (f64, f64),
     residual_range: (f64, f64),
@@ -153,6 +165,7 @@ impl Shared {
             camera,
             residual_range: (0.0, robust_max(&residuals)),
             scale: options.flow_scale.unwrap_or_else(|| robust_max(&speeds)),
+            arrow_scale: options.flow_scale.unwrap_or_else(|| arrow_scale(&speeds)),
             grey_range: widened(finite_range(&intensities).unwrap_or((0.0, 1.0))),
             error_range: (0.0, robust_max(&errors)),
         }
@@ -209,6 +222,58 @@ pub fn write_chosen_slab_pictures(
     Ok(written.into_iter().flatten().collect())
 }
 
+/// `track_errors_SSSS.png` for the slabs `chosen` (indices into `slabs`) that hold scored
+/// points ([`track_errors_picture`]: true displacements red, the flow's black), seen as
+/// [`write_chosen_slab_pictures`] sees them; arrows are sized by [`arrow_scale`] of the true
+/// displacements of all points.
+pub fn write_track_error_pictures(
+    dir: &Path,
+    faces: &[[u32; 3]],
+    slabs: &[SlabView],
+    chosen: &[usize],
+    points: &[TrackPoint],
+    options: &FigureOptions,
+) -> Result<Vec<PathBuf>, Error> {
+    if slabs.is_empty() || points.is_empty() {
+        return Ok(Vec::new());
+    }
+    let shared = Shared::new(slabs, options);
+    let lengths: Vec<f64> = points.iter().map(|p| p.truth.norm()).collect();
+    let scale = arrow_scale(&lengths);
+    let mut written = Vec::new();
+    for view in chosen.iter().map(|&k| &slabs[k]) {
+        let here: Vec<&TrackPoint> = points.iter().filter(|p| p.slab == view.slab).collect();
+        if here.is_empty() {
+            continue;
+        }
+        let field = |f: fn(&TrackPoint) -> Vector3<f64>| here.iter().map(|p| f(p)).collect::<Vec<_>>();
+        let style = PictureStyle {
+            label: Some(format!(
+                "slab {}: cells' displacements (red) and the flow's (black)",
+                view.slab
+            )),
+            ..options.style.clone()
+        };
+        let surface = Surface {
+            positions: view.positions,
+            faces,
+        };
+        let image = track_errors_picture(
+            &shared.camera,
+            surface,
+            (view.intensity, shared.grey_range),
+            &field(|p| p.position),
+            (&field(|p| p.truth), &field(|p| p.computed)),
+            scale,
+            &style,
+        )?;
+        let path = dir.join(format!("track_errors_{:04}.png", view.slab));
+        write_png(&path, &image)?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
 fn write_one_slab(
     dir: &Path,
     faces: &[[u32; 3]],
@@ -216,12 +281,15 @@ fn write_one_slab(
     shared: &Shared,
     style: &PictureStyle,
 ) -> Result<Vec<PathBuf>, Error> {
+    let marked = view.no_data.filter(|mask| mask.iter().any(|&m| m));
     let style = PictureStyle {
         label: Some(format!(
-            "slab {}  t = {}",
+            "slab {}  t = {}{}",
             view.slab,
-            format_number(view.time)
+            format_number(view.time),
+            if marked.is_some() { "  (grey: no data)" } else { "" }
         )),
+        no_data: marked.map(<[bool]>::to_vec),
         ..style.clone()
     };
     let surface = Surface {
@@ -246,7 +314,7 @@ fn write_one_slab(
                 view.intensity,
                 shared.grey_range,
                 view.flow,
-                shared.scale,
+                shared.arrow_scale,
                 &style,
             )?,
         ),

@@ -10,10 +10,12 @@
 //! | `flow.npy` | (S, V_file, 3) float64: R^3 flow vectors of slab `s` at the vertices of frame `s`, one row per vertex of the input files (NaN for dropped vertices) |
 //! | `flow_intrinsic.npy` | (S, V_file, 2) float64: components in the vertex frames |
 //! | `velocity.npy` | (S, V_file, 3) float64: the material's velocity, the mesh's own motion over the slab plus the flow ([`crate::flow::tissue_velocity`]); the flow alone is relative to the mesh, which a tracked or animated mesh may also slide |
+//! | `no_data.npy` | (S, V_file) uint8, when the image came with a no-data mask (`meshflow sample` writes one where a vertex's shell left the recording): 1 where frame `s` or `s+1` has no data at the vertex, so the slab's flow there is the regularizer's continuation of its surroundings, not a measurement; also the VTU point data `no_data` and grey in pictures |
 //! | `vertex_map.npy` | (V_file,) int64: mesh vertex of each file vertex, −1 if dropped; only when that is not the identity |
 //! | `angular_error.npy`, `endpoint_error.npy`, `direction_error.npy` | (S, V_file) float64, with a ground truth: per-vertex AE (degrees, on displacements in mean edge lengths), EPE (velocity units) and direction error (degrees, NaN where the truth does not move) ([`crate::accuracy`]) |
 //! | `flow_SSSS.vtu`, `flow.pvd` | ParaView: frame `s` (mesh vertices) with point data `flow`, `velocity`, `flow_intrinsic`, `speed`, `intensity` (the mean of the channels for a colour or multi-channel image, whose channels are `image`; and `angular_error`, `endpoint_error`, `direction_error` with a ground truth; `warped_residual` with warping); the `.pvd` plays the slabs at their start times |
 //! | `flow.glb` | the frames as a morph-target animation, coloured by the flow as `flow_SSSS.png` shows it (Middlebury colour of the direction seen from the given [`View`], scaled by a robust maximum speed) |
+//! | `track_errors.csv`, `track_errors.vtu` | with tracked points (`--ground-truth-tracks`): every scored point's true and computed displacement and errors ([`super::write_track_errors`]) |
 //! | `summary.json` | energy and its terms, residual, iterations, image `channels`, solver with the reason for it (`solver_reason`) and its `time_levels`, sizes, input, timings, dropped vertices and warnings, the `view` of the pictures and colours; the parameters as given (`params`, each weight `{"value": x}` or `{"relative": x}`), the weights used (`weights`: α, β, γ in the data's units) and the data's scales that resolved them (`scales`); with a ground truth, `ground_truth`: its file, the space-time means (AE, direction error, relative EPE, speed ratio, EPE) and maxima, per slab the same, and `zero_flow`, the zero flow's scores; with tracked points (`--ground-truth-tracks`), `ground_truth_tracks`: its file, points, moving points, mean and median endpoint error of the flow and of the zero flow (`zero_mean_endpoint`, …), `endpoint_ratio`, mean and median direction error, median speed ratio, median distance of the points from the surface, and the same per slab |
 //!
 //! Slab `s` spans `[t_s, t_{s+1}]`; `S = K − 1` slabs for `K` frames.
@@ -28,7 +30,7 @@ use crate::accuracy::{FlowErrors, TrackScores, TrackSummary};
 use crate::flow::{FlowParams, FlowResult, MeshSequence};
 use crate::format::gltf::{write_glb_animation, AnimationFrame};
 use crate::format::vtk::{write_pvd, write_vtu_with_cells, NamedArray, PointArray};
-use crate::format::{write_atomically, write_npy, IoError, NpyRows};
+use crate::format::{write_atomically, write_no_data, write_npy, IoError, NpyRows, NO_DATA};
 use crate::load::{LoadWarning, LoadedSequence, VertexMap};
 use crate::render::color_wheel::robust_max;
 use crate::render::{screen_flow_colors, Camera, View};
@@ -93,7 +95,7 @@ pub struct Scores<'a> {
 
 /// Writes the outputs of `result` for `loaded` into `out` (see the module table), with the
 /// errors against a ground truth when there is one; `flow.glb` is coloured as pictures from
-/// `view` show the flow (e.g. `View::default().with_up(UpChoice::of_sequence(loaded).axis)`), and
+/// `view` show the flow (e.g. `UpChoice::of_sequence(loaded).view()`), and
 /// `summary.json` records `view`.
 pub fn write_flow_outputs(
     out: &StagedDir,
@@ -122,12 +124,25 @@ fn write_all(
     let embedded = result.vectors.is_some();
     let mesh = (&loaded.vertex_map, sequence.mesh().faces());
     let mut files = SlabFiles::create(dir, mesh, formats, sequence.n_slabs(), embedded)?;
+    let no_data = loaded.slab_no_data();
     for s in 0..sequence.n_slabs() {
-        files.add(s, &SlabOutput::of_result(sequence, s, result, s, errors))?;
+        let slab = SlabOutput {
+            no_data: no_data.as_ref().map(|mask| Cow::Borrowed(&mask[s][..])),
+            ..SlabOutput::of_result(sequence, s, result, s, errors)
+        };
+        files.add(s, &slab)?;
     }
     let max_speed = files.finish()?;
+    if let (true, Some(no_data)) = (formats.contains(&OutputFormat::Npy), &no_data) {
+        let rows: Vec<Vec<bool>> = no_data.iter().map(|m| loaded.vertex_map.file_rows(m, false)).collect();
+        write_no_data(&dir.join(NO_DATA), &rows)?;
+    }
     if let (true, Some(errors)) = (formats.contains(&OutputFormat::Npy), errors) {
         write_error_npy(dir, &loaded.vertex_map, errors)?;
+    }
+    if let Some(tracks) = scores.tracks {
+        let vtu = formats.contains(&OutputFormat::Vtu);
+        super::write_track_errors(dir, &tracks.scores, vtu)?;
     }
     if embedded && formats.contains(&OutputFormat::Glb) {
         write_flow_glb(&dir.join("flow.glb"), sequence, result, view)?;
@@ -169,6 +184,8 @@ pub(super) struct SlabOutput<'a> {
     pub warped_residual: Option<Cow<'a, [f64]>>,
     /// Against a ground truth: angular, endpoint and direction errors.
     pub errors: Option<[&'a [f64]; 3]>,
+    /// Vertices without data in the slab ([`LoadedSequence::slab_no_data`]).
+    pub no_data: Option<Cow<'a, [bool]>>,
 }
 
 impl<'a> SlabOutput<'a> {
@@ -184,6 +201,7 @@ impl<'a> SlabOutput<'a> {
             velocity: None,
             warped_residual: None,
             errors: None,
+            no_data: None,
         }
     }
 
@@ -241,6 +259,10 @@ impl<'a> SlabOutput<'a> {
         }
         if let Some(residual) = &self.warped_residual {
             arrays.push(NamedArray::scalars("warped_residual", residual));
+        }
+        if let Some(no_data) = &self.no_data {
+            let flags: Vec<f64> = no_data.iter().map(|&m| m as u8 as f64).collect();
+            arrays.push(NamedArray::scalars("no_data", &flags));
         }
         if let Some([angular, endpoint, direction]) = self.errors {
             arrays.extend([

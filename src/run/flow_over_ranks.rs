@@ -235,6 +235,8 @@ impl Layout {
             velocity: None,
             warped_residual: None,
             errors: None,
+            // Not sent between ranks: a solve over ranks does not flag vertices without data.
+            no_data: None,
         };
         if flow {
             let intrinsic = take(2 * v).chunks(2).map(Vector2::from_column_slice);

@@ -19,6 +19,7 @@ mod flow_output;
 mod flow_over_ranks;
 mod guard;
 mod staging;
+mod track_output;
 
 pub use analysis_output::{
     analysis_arrays, analysis_json, file_faces, write_analysis_outputs, AnalysisArray,
@@ -30,6 +31,7 @@ pub use flow_output::{
 };
 pub use flow_over_ranks::{send_own_slabs, write_flow_over_ranks, WrittenFlow};
 pub use guard::{refuse_output_over_inputs, OutputKind};
+pub use track_output::{write_track_errors, TRACK_ERRORS_CSV, TRACK_ERRORS_VTU};
 pub use staging::{
     input_files, remove_live_staging, Overwrite, RecordedInput, RunManifest, StagedDir,
     RUN_MANIFEST,

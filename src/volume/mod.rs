@@ -38,7 +38,8 @@ pub use read::{
     count_volume_frames, read_volumes, VolumeFrames, VolumeOptions, VolumeStream, VoxelSizeSource,
 };
 pub use sample::{
-    sample_sequence, sample_shell, FrameSampler, Reduce, SampleOptions, SampledSequence, Shell,
+    sample_sequence, sample_shell, FrameSampler, OutsideReport, Reduce, SampleOptions,
+    SampledSequence, Shell,
 };
 
 use nalgebra::Vector3;
@@ -88,6 +89,9 @@ pub enum VolumeError {
     },
     #[error("{0}")]
     Setting(String),
+    /// Most of a frame's surface lies outside its volume: wrong units, voxel size or origin.
+    #[error("{0}")]
+    MostlyOutside(Box<sample::OutsideReport>),
     #[error(
         "invalid voxel size in the metadata: {0}; give the voxel size with --voxel-size X,Y,Z"
     )]
@@ -165,6 +169,19 @@ impl Volume {
     /// The centre of voxel `(k, j, i)`.
     pub fn position(&self, k: usize, j: usize, i: usize) -> Vector3<f64> {
         self.origin + Vector3::new(i as f64, j as f64, k as f64).component_mul(&self.voxel_size)
+    }
+
+    /// `[low, high]`: the box of voxel centres, `o` to `o + ((n_x − 1) d_x, (n_y − 1) d_y,
+    /// (n_z − 1) d_z)`, where [`Volume::sample`] has values.
+    pub fn bounds(&self) -> [Vector3<f64>; 2] {
+        let [n_z, n_y, n_x] = self.shape;
+        [self.origin, self.position(n_z - 1, n_y - 1, n_x - 1)]
+    }
+
+    /// Whether `p` lies in [`Volume::bounds`] (where the volume has a value).
+    pub fn contains(&self, p: &Vector3<f64>) -> bool {
+        let [low, high] = self.bounds();
+        (0..3).all(|a| p[a] >= low[a] && p[a] <= high[a])
     }
 
     /// The same volume placed elsewhere: another voxel size and origin.

@@ -15,7 +15,9 @@
 //! memory limit ([`crate::limits`]) does not allow is an error before anything is allocated.
 
 use super::{tiff_stack, Volume, VolumeError};
-use crate::format::{frame_files, read_npy_f32, read_npy_f32_rows, read_npy_image_rows, IoError};
+use crate::format::{
+    format_number, frame_files, read_npy_f32, read_npy_f32_rows, read_npy_image_rows, IoError,
+};
 use crate::{limits, Error};
 use nalgebra::Vector3;
 use std::io::{Read, Seek};
@@ -427,9 +429,9 @@ fn choose_voxel_size(
             let said = format!(
                 "ImageJ metadata of {}: {} × {} × {}",
                 file.display(),
-                size.x,
-                size.y,
-                size.z
+                format_number(size.x),
+                format_number(size.y),
+                format_number(size.z)
             );
             (size, VoxelSizeSource::File(said))
         }

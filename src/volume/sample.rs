@@ -12,10 +12,18 @@
 //! projection in the shell: bright cells near the surface show whatever their exact depth), the
 //! mean, or one layer. A vertex whose shell leaves the volume, at any layer, gets 0 and is
 //! counted: a partial shell would bias the maximum and the mean against the vertices whose
-//! shell is whole, and 0 is what a dark region of a fluorescence image reads anyway.
+//! shell is whole, and 0 is what a dark region of a fluorescence image reads anyway. Such
+//! vertices have **no data** ([`Sampled::no_data`]): `meshflow sample` writes their mask beside
+//! the image, and the solve flags them in its outputs.
+//!
+//! A frame whose vertices lie outside its volume for more than half of them is refused
+//! ([`OutsideReport`]) unless [`SampleOptions::allow_outside`]: that is what a voxel size in
+//! other units than the surface (nm against µm), a missing one or a wrong origin give, and an
+//! image of zeros would otherwise pass silently to the solve.
 
 use super::{Volume, VolumeError};
 use crate::connection::vertex_normals;
+use crate::format::format_number;
 use crate::limits;
 use crate::mesh::Mesh;
 use nalgebra::Vector3;
@@ -111,11 +119,14 @@ impl Shell {
     }
 }
 
-/// One frame's values per vertex, and how many vertices' shells left the volume (value 0).
+/// One frame's values per vertex, and which vertices' shells left the volume (value 0).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Sampled {
     pub values: Vec<f64>,
+    /// How many vertices have [`Sampled::no_data`].
     pub outside: usize,
+    /// Per vertex: its shell left the volume, so its value 0 is not a measurement.
+    pub no_data: Vec<bool>,
 }
 
 /// The reduced shell samples at every vertex (module docs).
@@ -141,9 +152,11 @@ pub fn sample_shell(
         .zip(normals)
         .map(|(x, n)| reduce_shell(volume, x, n, &offsets, reduce))
         .collect();
+    let no_data: Vec<bool> = values.iter().map(Option::is_none).collect();
     Ok(Sampled {
-        outside: values.iter().filter(|v| v.is_none()).count(),
+        outside: no_data.iter().filter(|&&missing| missing).count(),
         values: values.into_iter().map(|v| v.unwrap_or(0.0)).collect(),
+        no_data,
     })
 }
 
@@ -181,6 +194,9 @@ pub struct SampleOptions {
     /// `None`: ± two of the largest voxel sides, [`DEFAULT_LAYERS`] layers.
     pub shell: Option<Shell>,
     pub reduce: Reduce,
+    /// Sample a frame even where most of its vertices lie outside the volume (see the module
+    /// docs); off by default.
+    pub allow_outside: bool,
 }
 
 /// Layers of the default shell.
@@ -198,6 +214,7 @@ impl Default for SampleOptions {
             smoothing: None,
             shell: None,
             reduce: Reduce::Max,
+            allow_outside: false,
         }
     }
 }
@@ -225,11 +242,13 @@ impl SampleOptions {
 }
 
 /// Every frame of a moving surface read from its volume: `values[k][i]` for mesh vertex `i`
-/// of frame `k`, `outside[k]` the vertices whose shell left volume `k`.
+/// of frame `k`, `outside[k]` the number of vertices whose shell left volume `k` and
+/// `no_data[k]` which they are.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SampledSequence {
     pub values: Vec<Vec<f64>>,
     pub outside: Vec<usize>,
+    pub no_data: Vec<Vec<bool>>,
     /// The shell used.
     pub shell: Shell,
     /// The Gaussian's `σ` used (0: none).
@@ -260,9 +279,7 @@ pub fn sample_sequence(
     let sampler = FrameSampler::new(first, options, mesh.n_vertices(), volumes.len())?;
     let mut sequence = sampler.empty(volumes.len());
     for (frame, (volume, x)) in volumes.iter().zip(positions).enumerate() {
-        let sampled = sampler.sample(volume, mesh, x, frame)?;
-        sequence.values.push(sampled.values);
-        sequence.outside.push(sampled.outside);
+        sequence.push(sampler.sample(volume, mesh, x, frame)?);
     }
     Ok(sequence)
 }
@@ -274,6 +291,7 @@ pub struct FrameSampler {
     sigma: f64,
     shell: Shell,
     reduce: Reduce,
+    allow_outside: bool,
 }
 
 impl FrameSampler {
@@ -296,10 +314,12 @@ impl FrameSampler {
             sigma,
             shell,
             reduce: options.reduce,
+            allow_outside: options.allow_outside,
         })
     }
 
-    /// Frame `frame`'s `volume` read along the normals of the mesh at `x`.
+    /// Frame `frame`'s `volume` read along the normals of the mesh at `x`; refused where more
+    /// than half of `x` lies outside the volume, unless allowed (module docs).
     pub fn sample(
         &self,
         volume: &Volume,
@@ -314,6 +334,9 @@ impl FrameSampler {
                 normals: mesh.n_vertices(),
             });
         }
+        if !self.allow_outside {
+            OutsideReport::check(volume, x, frame)?;
+        }
         let smoothed = (self.sigma > 0.0)
             .then(|| volume.smoothed(self.sigma))
             .transpose()?;
@@ -327,8 +350,112 @@ impl FrameSampler {
         SampledSequence {
             values: Vec::with_capacity(n_frames),
             outside: Vec::with_capacity(n_frames),
+            no_data: Vec::with_capacity(n_frames),
             shell: self.shell,
             smoothing: self.sigma,
         }
+    }
+}
+
+impl SampledSequence {
+    /// Appends the next frame.
+    pub fn push(&mut self, frame: Sampled) {
+        self.values.push(frame.values);
+        self.outside.push(frame.outside);
+        self.no_data.push(frame.no_data);
+    }
+}
+
+/// A frame most of whose surface lies outside its volume, with what tells why: the volume's
+/// box (voxel size, origin, extent) against the surface's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OutsideReport {
+    pub frame: usize,
+    /// Vertices outside the volume's box, of `vertices`.
+    pub outside: usize,
+    pub vertices: usize,
+    pub voxel_size: Vector3<f64>,
+    pub origin: Vector3<f64>,
+    /// [`Volume::bounds`].
+    pub volume_box: [Vector3<f64>; 2],
+    /// The bounding box of the surface's vertices.
+    pub surface_box: [Vector3<f64>; 2],
+}
+
+/// Above this many orders of magnitude (base 10) between the surface's extent and the
+/// volume's, the two are taken to be in different units.
+const UNITS_APART: f64 = 1.3;
+
+impl OutsideReport {
+    /// Refuses frame `frame` when more than half of `x` lies outside `volume` (module docs).
+    fn check(volume: &Volume, x: &[Vector3<f64>], frame: usize) -> Result<(), VolumeError> {
+        let outside = x.iter().filter(|p| !volume.contains(p)).count();
+        if 2 * outside <= x.len() {
+            return Ok(());
+        }
+        let mut surface_box = [Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)];
+        for p in x {
+            surface_box[0] = surface_box[0].inf(p);
+            surface_box[1] = surface_box[1].sup(p);
+        }
+        Err(VolumeError::MostlyOutside(Box::new(Self {
+            frame,
+            outside,
+            vertices: x.len(),
+            voxel_size: volume.voxel_size(),
+            origin: volume.origin(),
+            volume_box: volume.bounds(),
+            surface_box,
+        })))
+    }
+
+    /// `log10` of the surface's extent over the volume's, the geometric mean over the axes
+    /// where both have one.
+    fn scale_apart(&self) -> Option<f64> {
+        let extent = |[low, high]: [Vector3<f64>; 2]| high - low;
+        let (surface, volume) = (extent(self.surface_box), extent(self.volume_box));
+        let logs: Vec<f64> = (0..3)
+            .filter(|&a| surface[a] > 0.0 && volume[a] > 0.0)
+            .map(|a| (surface[a] / volume[a]).log10())
+            .collect();
+        (!logs.is_empty()).then(|| logs.iter().sum::<f64>() / logs.len() as f64)
+    }
+
+    /// What is probably wrong.
+    fn hint(&self) -> String {
+        match self.scale_apart() {
+            Some(apart) if apart.abs() > UNITS_APART => format!(
+                "the surface is about {} times {} than the volume: the voxel size and the surface are probably in different units (mm, µm and nm are 1000 apart); give --voxel-size in the surface's units",
+                format_number(10f64.powf(apart.abs().round())),
+                if apart > 0.0 { "larger" } else { "smaller" },
+            ),
+            _ => "check --voxel-size (X,Y,Z, in the surface's units; without it the files' metadata or 1 × 1 × 1) and --origin".into(),
+        }
+    }
+}
+
+impl std::fmt::Display for OutsideReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let triple = |v: Vector3<f64>| v.iter().map(|&c| format_number(c)).collect::<Vec<_>>();
+        let span = |[low, high]: [Vector3<f64>; 2]| {
+            let (low, high) = (triple(low), triple(high));
+            format!(
+                "x {}…{}, y {}…{}, z {}…{}",
+                low[0], high[0], low[1], high[1], low[2], high[2]
+            )
+        };
+        write!(
+            f,
+            "frame {}: {} of {} vertices ({:.0} %) lie outside the recording: the volume spans {} (voxel size {}, origin {}), the surface {}; {}, or give --allow-outside to sample anyway",
+            self.frame,
+            self.outside,
+            self.vertices,
+            100.0 * self.outside as f64 / self.vertices as f64,
+            span(self.volume_box),
+            triple(self.voxel_size).join(" × "),
+            triple(self.origin).join(", "),
+            span(self.surface_box),
+            self.hint(),
+        )
     }
 }

@@ -56,7 +56,7 @@ pub fn advect(
             .map_err(|e| target(e.into()))?;
         let up = UpChoice::of_sequence(&loaded);
         println!("{}", crate::pictures::up_axis_line(&up, None));
-        let view = View::default().with_up(up.axis);
+        let view = up.view();
         draw_paths(&staged, sequence, &trajectories, view).map_err(target)?;
     }
     staged.commit()?;

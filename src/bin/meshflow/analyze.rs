@@ -2,11 +2,13 @@
 //! divergence, curl, Helmholtz–Hodge parts and the tissue's strain rate, as NPY, ParaView and
 //! `summary.json`, with a table per slab on stdout and, with `--png`, pictures.
 
-use crate::pictures::PictureArgs;
+use crate::pictures::ViewArgs;
 use crate::progress::{count_progress, during};
 use crate::run::FinishedRun;
 use meshflow::analysis::{analyze_flow, SlabAnalysis};
 use meshflow::load::LoadedSequence;
+use meshflow::flow::smoothed_over_length;
+use meshflow::render::color_wheel::arrow_scale;
 use meshflow::render::colormap::symmetric_range;
 use meshflow::render::text::format_number;
 use meshflow::render::{
@@ -25,7 +27,9 @@ pub struct AnalyzeRequest<'a> {
     /// `--format`: npy, vtu.
     pub formats: &'a [OutputFormat],
     /// `--png` with its picture options.
-    pub pictures: Option<&'a PictureArgs>,
+    pub pictures: Option<&'a ViewArgs>,
+    /// `--tissue-scale`: the drawn fields smoothed along the surface over this length.
+    pub tissue_scale: Option<f64>,
 }
 
 pub fn analyze(request: AnalyzeRequest) -> Result<(), Error> {
@@ -35,6 +39,7 @@ pub fn analyze(request: AnalyzeRequest) -> Result<(), Error> {
         overwrite,
         formats,
         pictures,
+        tissue_scale,
     } = request;
     let input = crate::run::solve_input(run)?;
     let staged = crate::run::stage_output(run, &input, &[], out, overwrite)?;
@@ -49,15 +54,20 @@ pub fn analyze(request: AnalyzeRequest) -> Result<(), Error> {
     })
     .map_err(|e| staged.in_target(e))?;
     if let Some(args) = pictures {
-        let written =
-            draw(staged.path(), &loaded, &slabs, args).map_err(|e| staged.error_in_target(e))?;
+        let speeds: Vec<f64> = flow.iter().flatten().map(|u| u.norm()).collect();
+        let scales = DrawnScales {
+            floor: rate_floor(&slabs, &speeds),
+            tissue: tissue_scale,
+        };
+        let written = draw(staged.path(), &loaded, &slabs, args, scales)
+            .map_err(|e| staged.error_in_target(e))?;
         println!("pictures: {written} PNG files in {}", out.display());
     }
     staged.commit()?;
     println!(
-        "{}: {} slabs x {} faces analysed in {seconds:.2} s -> {}",
+        "{}: {} x {} faces analysed in {seconds:.2} s -> {}",
         run.display(),
-        slabs.len(),
+        crate::plural(slabs.len(), "slab"),
         loaded.sequence.mesh().n_faces(),
         out.display()
     );
@@ -114,14 +124,37 @@ fn face_values_at_vertices(loaded: &LoadedSequence, values: &[f64]) -> Vec<f64> 
         .collect()
 }
 
+/// How the drawn rates are scaled: the least half-range of their colours, and the length they
+/// are smoothed over first.
+#[derive(Clone, Copy, Debug)]
+struct DrawnScales {
+    floor: f64,
+    tissue: Option<f64>,
+}
+
+/// The least half-range of the rate pictures, `2 U / ρ`: the curl of the whole surface turning
+/// at the typical speed `U` ([`arrow_scale`] of the speeds), `ρ = √(A / 4π)` its radius. A
+/// field as strong as that is drawn saturated; discretization noise (±0.03 on the rigidly
+/// turning sample sphere, whose curl is about 0.1) stays pale instead of filling the range.
+fn rate_floor(slabs: &[SlabAnalysis], speeds: &[f64]) -> f64 {
+    let area = slabs.first().map_or(0.0, |a| a.totals.area);
+    let radius = (area / (4.0 * std::f64::consts::PI)).sqrt();
+    match radius > 0.0 {
+        true => 2.0 * arrow_scale(speeds) / radius,
+        false => 0.0,
+    }
+}
+
 /// `divergence_SSSS.png`, `curl_SSSS.png`, `areal_rate_SSSS.png` for the chosen slabs (one
-/// camera for the run, one symmetric range per quantity over all slabs) and `time_series.png`;
-/// the number of files written.
+/// camera for the run, one symmetric range per quantity over all slabs, at least
+/// `scales.floor`; each field smoothed over `scales.tissue` first, where given) and
+/// `time_series.png`; the number of files written.
 fn draw(
     dir: &Path,
     loaded: &LoadedSequence,
     slabs: &[SlabAnalysis],
-    args: &PictureArgs,
+    args: &ViewArgs,
+    scales: DrawnScales,
 ) -> Result<usize, Error> {
     let sequence = &loaded.sequence;
     let view = args.announced_view(&UpChoice::of_sequence(loaded));
@@ -133,12 +166,24 @@ fn draw(
     let camera = Camera::framing(&everywhere, view, width, height);
     let values: Vec<Vec<Vec<f64>>> = DRAWN
         .iter()
-        .map(|(_, of)| slabs.iter().map(|a| of(a, loaded)).collect())
-        .collect();
+        .map(|(_, of)| {
+            (slabs.iter())
+                .map(|a| tissue_scaled(loaded, a.slab, of(a, loaded), scales.tissue))
+                .collect::<Result<_, Error>>()
+        })
+        .collect::<Result<_, Error>>()?;
     let ranges: Vec<(f64, f64)> = values
         .iter()
-        .map(|v| symmetric_range(&v.concat()))
+        .map(|v| {
+            let (_, m) = symmetric_range(&v.concat());
+            let m = m.max(scales.floor);
+            (-m, m)
+        })
         .collect();
+    let smoothed = match scales.tissue {
+        Some(length) => format!("  smoothed over {}", format_number(length)),
+        None => String::new(),
+    };
     let bar = count_progress(chosen.len() as u64, "drawing slabs");
     let drawn: Result<Vec<()>, Error> = chosen
         .par_iter()
@@ -150,7 +195,7 @@ fn draw(
             for (q, (name, _)) in DRAWN.iter().enumerate() {
                 let time = format_number(sequence.times()[s]);
                 let style = PictureStyle {
-                    label: Some(format!("{name}  slab {s}  t = {time}")),
+                    label: Some(format!("{name}  slab {s}  t = {time}{smoothed}")),
                     ..Default::default()
                 };
                 let picture = signed_picture(&camera, surface, &values[q][s], ranges[q], &style)?;
@@ -167,6 +212,21 @@ fn draw(
         &time_series(sequence.times(), slabs)?,
     )?;
     Ok(DRAWN.len() * chosen.len() + 1)
+}
+
+/// `values` (per vertex of slab `s`'s frame) smoothed over `length` along the surface
+/// ([`smoothed_over_length`]), or as they are.
+fn tissue_scaled(
+    loaded: &LoadedSequence,
+    s: usize,
+    values: Vec<f64>,
+    length: Option<f64>,
+) -> Result<Vec<f64>, Error> {
+    let Some(length) = length else {
+        return Ok(values);
+    };
+    let smoothed = smoothed_over_length(&loaded.sequence, s, &[&values], length)?;
+    Ok(smoothed.into_iter().next().expect("one field"))
 }
 
 /// The means over the surface per slab, against the slabs' start times.

@@ -13,12 +13,12 @@ mod sample;
 mod solve;
 mod surface;
 mod track;
+mod usage;
 
 use args::{ForceArg, MeshArgs};
 use clap::{Parser, Subcommand};
-use meshflow::load::FrameFormat;
 use meshflow::run::OutputFormat;
-use pictures::PictureArgs;
+use pictures::{PictureArgs, ViewArgs};
 use sample::SampleArgs;
 use solve::{solve_command, SolveArgs};
 use std::path::PathBuf;
@@ -129,10 +129,15 @@ enum Command {
         /// time_series.png (the means over the surface per slab)
         #[arg(long)]
         png: bool,
+        /// With --png: draw the fields smoothed along the surface over LENGTH first (a Gaussian
+        /// of that standard deviation, in the surface's units), to see the tissue-scale pattern
+        /// behind per-cell detail
+        #[arg(long, value_name = "LENGTH", requires = "png", value_parser = pictures::parse_positive)]
+        tissue_scale: Option<f64>,
         #[command(flatten)]
         force: ForceArg,
         #[command(flatten)]
-        pictures: PictureArgs,
+        pictures: ViewArgs,
     },
     /// Fit a moving surface through points per frame (cell centres, landmarks; physical
     /// units): a smoothing-spline height over a sphere fitted to frame 0's points (the cap they
@@ -189,7 +194,7 @@ fn usage(message: String) -> meshflow::Error {
 fn main() -> ExitCode {
     let cli = match Cli::try_parse().and_then(check_usage) {
         Ok(cli) => cli,
-        Err(error) => return usage_error(error),
+        Err(error) => return usage::usage_error(error),
     };
     progress::configure(cli.quiet);
     if let Some(bytes) = cli.memory_limit {
@@ -223,6 +228,7 @@ fn main() -> ExitCode {
             out,
             format,
             png,
+            tissue_scale,
             force,
             pictures,
         } => analyze::analyze(analyze::AnalyzeRequest {
@@ -231,6 +237,7 @@ fn main() -> ExitCode {
             overwrite: force.overwrite(),
             formats: &format,
             pictures: png.then_some(&pictures),
+            tissue_scale,
         }),
         Command::Track(args) => track::run(track::TrackRequest {
             input: &args.input,
@@ -291,7 +298,7 @@ pub fn command_line() -> Vec<String> {
 fn check_usage(cli: Cli) -> Result<Cli, clap::Error> {
     use clap::CommandFactory;
     let (pictures, png) = match &cli.command {
-        Command::Solve(args) => (Some(&args.pictures), args.png),
+        Command::Solve(args) => (Some(&*args.pictures), args.png),
         Command::Analyze { pictures, png, .. } => (Some(pictures), *png),
         _ => (None, true),
     };
@@ -314,6 +321,14 @@ fn check_usage(cli: Cli) -> Result<Cli, clap::Error> {
     Ok(cli)
 }
 
+/// "1 slab", "3 slabs": a count and its noun (a regular one).
+pub(crate) fn plural(n: usize, noun: &str) -> String {
+    match n {
+        1 => format!("1 {noun}"),
+        n => format!("{n} {noun}s"),
+    }
+}
+
 /// " (welded N duplicate vertices)" after a vertex count, or nothing.
 fn welded_note(n_welded: usize) -> String {
     match n_welded {
@@ -330,51 +345,3 @@ fn print_warnings(warnings: &[meshflow::load::LoadWarning]) {
     }
 }
 
-/// `--help` and `--version` print as usual; a usage error becomes one line, exit code 2.
-fn usage_error(error: clap::Error) -> ExitCode {
-    use clap::error::ErrorKind;
-    if matches!(
-        error.kind(),
-        ErrorKind::DisplayHelp
-            | ErrorKind::DisplayVersion
-            | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
-    ) {
-        error.exit();
-    }
-    let text = error.render().to_string();
-    let message: Vec<&str> = text
-        .lines()
-        .take_while(|line| !line.starts_with("Usage:"))
-        .map(str::trim)
-        .filter(|line| !line.is_empty() && !line.starts_with("For more information"))
-        .collect();
-    let hint = glob_hint(&error).unwrap_or_default();
-    eprintln!(
-        "meshflow: {}{hint} (see meshflow --help)",
-        message.join(" ")
-    );
-    ExitCode::from(2)
-}
-
-/// When an unexpected argument is a mesh file, the shell has most likely expanded an unquoted
-/// glob into many arguments: a hint to quote it, or to give the directory.
-fn glob_hint(error: &clap::Error) -> Option<String> {
-    use clap::error::{ContextKind, ContextValue, ErrorKind};
-    if error.kind() != ErrorKind::UnknownArgument {
-        return None;
-    }
-    let Some(ContextValue::String(argument)) = error.get(ContextKind::InvalidArg) else {
-        return None;
-    };
-    let path = std::path::Path::new(argument);
-    FrameFormat::of(path)?;
-    let extension = path.extension()?.to_string_lossy();
-    let directory = match path.parent() {
-        Some(parent) if !parent.as_os_str().is_empty() => parent.display().to_string(),
-        _ => ".".to_string(),
-    };
-    Some(format!(
-        "; it looks like the shell expanded a glob into many files: quote it \
-         ('{directory}/*.{extension}') or give the directory ({directory})"
-    ))
-}

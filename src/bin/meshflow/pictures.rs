@@ -14,9 +14,9 @@ use meshflow::Error;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
-/// Picture options shared by `render` and `solve --png`.
+/// Picture options shared by `render`, `solve --png` and `analyze --png`: size, view, slabs.
 #[derive(clap::Args)]
-pub struct PictureArgs {
+pub struct ViewArgs {
     /// Picture size in pixels, WIDTHxHEIGHT
     #[arg(long, default_value = "960x720", value_parser = parse_size)]
     size: (u32, u32),
@@ -30,17 +30,44 @@ pub struct PictureArgs {
     /// axis (render)]
     #[arg(long, allow_hyphen_values = true)]
     up: Option<UpAxis>,
-    /// Flow speed at the rim of the colour wheel and of the reference arrow (default: the 99th
-    /// percentile of all speeds)
-    #[arg(long, value_name = "SPEED", allow_negative_numbers = true, value_parser = parse_speed)]
-    flow_scale: Option<f64>,
     /// The slabs to draw: numbers, ranges FIRST-LAST and 'last', e.g. 0,5,10-20,last
     /// [default: all]
     #[arg(long, value_name = "LIST")]
     slabs: Option<SlabSelection>,
 }
 
+/// The pictures of a flow (`render`, `solve --png`): [`ViewArgs`] and the flow's scale.
+#[derive(clap::Args)]
+pub struct PictureArgs {
+    #[command(flatten)]
+    shown: ViewArgs,
+    /// Flow speed at the rim of the colour wheel and of the reference arrow (default: the 99th
+    /// percentile of all speeds for the wheel, the typical speed of the moving part for arrows)
+    #[arg(long, value_name = "SPEED", allow_negative_numbers = true, value_parser = parse_positive)]
+    flow_scale: Option<f64>,
+}
+
+impl std::ops::Deref for PictureArgs {
+    type Target = ViewArgs;
+
+    fn deref(&self) -> &ViewArgs {
+        &self.shown
+    }
+}
+
 impl PictureArgs {
+    pub fn options(&self, view: View) -> FigureOptions {
+        FigureOptions {
+            width: self.size.0,
+            height: self.size.1,
+            view,
+            flow_scale: self.flow_scale,
+            ..FigureOptions::default()
+        }
+    }
+}
+
+impl ViewArgs {
     /// `base` with the angles of `--view` and the axis of `--up`, where given.
     pub fn view(&self, base: View) -> View {
         let up = self.up.unwrap_or(base.up);
@@ -51,10 +78,15 @@ impl PictureArgs {
     /// the up axis and why it was chosen.
     pub fn announced_view(&self, default: &UpChoice) -> View {
         match self.up {
-            Some(up) => println!("view: up axis {up} (--up)"),
-            None => println!("{}", up_axis_line(default, Some(default.alternative()))),
+            Some(up) => {
+                println!("view: up axis {up} (--up)");
+                self.view(View::default().with_up(up))
+            }
+            None => {
+                println!("{}", up_axis_line(default, Some(default.alternative())));
+                self.view(default.view())
+            }
         }
-        self.view(View::default().with_up(default.axis))
     }
 
     /// The slabs of `--slabs` among `n_slabs`, all by default.
@@ -75,15 +107,6 @@ impl PictureArgs {
         self.slabs.is_some()
     }
 
-    fn options(&self, view: View) -> FigureOptions {
-        FigureOptions {
-            width: self.size.0,
-            height: self.size.1,
-            view,
-            flow_scale: self.flow_scale,
-            ..FigureOptions::default()
-        }
-    }
 }
 
 /// "view: up axis y (chosen from the data: …; --up z to change)", the hint where `--up` can
@@ -107,10 +130,11 @@ fn parse_size(text: &str) -> Result<(u32, u32), String> {
     }
 }
 
-fn parse_speed(text: &str) -> Result<f64, String> {
+/// A positive, finite number (a speed, a length).
+pub(crate) fn parse_positive(text: &str) -> Result<f64, String> {
     match text.trim().parse::<f64>() {
-        Ok(speed) if speed.is_finite() && speed > 0.0 => Ok(speed),
-        _ => Err(format!("'{text}' is not a positive speed")),
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        _ => Err(format!("'{text}' is not a positive number")),
     }
 }
 
@@ -233,6 +257,9 @@ pub fn render_output(
         )),
     };
     let flows: Vec<Vec<Vector3<f64>>> = slabs.iter().map(SlabFile::flow).collect();
+    let no_data: Vec<Option<Vec<bool>>> = (slabs.iter())
+        .map(|slab| Some(slab.array("no_data")?.iter().map(|&m| m > 0.0).collect()))
+        .collect();
     let views: Vec<SlabView> = (0..slabs.len())
         .zip(&flows)
         .map(|(s, flow)| SlabView {
@@ -243,6 +270,7 @@ pub fn render_output(
             flow,
             angular_error: slabs[s].array("angular_error"),
             warped_residual: slabs[s].array("warped_residual"),
+            no_data: no_data[s].as_deref(),
         })
         .collect();
     let written = draw(
@@ -256,7 +284,7 @@ pub fn render_output(
     .map_err(|e| staged.error_in_target(e))?;
     staged.commit()?;
     let drawn = match chosen.len() == slabs.len() {
-        true => format!("{} slabs", slabs.len()),
+        true => crate::plural(slabs.len(), "slab"),
         false => format!("{} of {} slabs", chosen.len(), slabs.len()),
     };
     println!(

@@ -6,7 +6,9 @@
 use crate::args::{MeshArgs, VolumePlacement};
 use crate::progress::{count_progress, during};
 use crate::usage;
-use meshflow::format::{write_atomically, write_intensity_array, INTENSITY};
+use meshflow::format::{
+    no_data_file, write_atomically, write_intensity_array, write_no_data, INTENSITY, NO_DATA,
+};
 use meshflow::load::{count_frames, load_geometry, LoadOptions};
 use meshflow::mesh::Mesh;
 use meshflow::run::{input_files, refuse_output_over_inputs, OutputKind, RunManifest};
@@ -30,8 +32,10 @@ pub struct SampleRequest<'a> {
 }
 
 pub fn run(request: SampleRequest) -> Result<(), Error> {
+    refuse_swapped_arguments(&request)?;
     let out = output_file(&request)?;
     check_output(&request, &out)?;
+    check_output(&request, &no_data_file(&out))?;
     check_frame_counts(&request)?;
     let geometry = during(format!("reading {}", request.sequence.display()), || {
         load_geometry(request.sequence, &request.load)
@@ -43,6 +47,10 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
         .map(|frame| vec![map.file_rows(frame, 0.0)])
         .collect();
     write_intensity_array(&out, &image)?;
+    let no_data: Vec<Vec<bool>> = (sampled.no_data.iter())
+        .map(|frame| map.file_rows(frame, false))
+        .collect();
+    write_no_data(&no_data_file(&out), &no_data)?;
     if replaces_intensity(&request, &out) {
         register_in_manifest(request.sequence)?;
     }
@@ -50,8 +58,9 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
     if outside > 0 {
         let total = sampled.values.len() * geometry.mesh.n_vertices();
         eprintln!(
-            "meshflow: warning: {outside} of {total} vertex frames ({:.1} %) have a shell that leaves the volume: written as 0",
-            100.0 * outside as f64 / total as f64
+            "meshflow: warning: {outside} of {total} vertex frames ({:.1} %) have a shell that leaves the volume: written as 0, and marked in {}",
+            100.0 * outside as f64 / total as f64,
+            no_data_file(&out).display()
         );
     }
     println!(
@@ -89,8 +98,7 @@ fn sample_streamed(
         let (sampler, sequence) = sampling.as_mut().expect("made above");
         let sampled =
             (sampler.sample(&volume, mesh, &positions[frame], frame)).map_err(in_volumes)?;
-        sequence.values.push(sampled.values);
-        sequence.outside.push(sampled.outside);
+        sequence.push(sampled);
         bar.inc(1);
         frame += 1;
     }
@@ -113,16 +121,17 @@ pub(crate) fn report_voxel_size(volumes: &Path, source: &VoxelSizeSource) {
     }
 }
 
-/// Refuses an output over any input, before anything is read. The one file inside the
-/// sequence that `sample` may replace is `SEQUENCE/intensity.npy` (its default output, an
-/// earlier sample's): that output is checked against the sequence's other files instead of
-/// the directory, so a link from it to one of them is refused still.
+/// Refuses an output over any input, before anything is read. The files inside the sequence
+/// that `sample` may replace are `SEQUENCE/intensity.npy` and its `no_data.npy` (its default
+/// output, an earlier sample's): they are checked against the sequence's other files instead
+/// of the directory, so a link from one of them to another file is refused still.
 fn check_output(request: &SampleRequest, out: &Path) -> Result<(), Error> {
     let named = [request.volumes, request.sequence];
     let mut inputs: Vec<PathBuf> = input_files(&named);
     match replaces_intensity(request, out) {
         true => {
-            inputs.retain(|f| f.file_name().is_none_or(|name| name != INTENSITY));
+            let ours = |name: &std::ffi::OsStr| name == INTENSITY || name == NO_DATA;
+            inputs.retain(|f| f.file_name().is_none_or(|name| !ours(name)));
             inputs.push(request.volumes.to_path_buf());
         }
         false => inputs.extend(named.iter().map(|p| p.to_path_buf())),
@@ -131,7 +140,7 @@ fn check_output(request: &SampleRequest, out: &Path) -> Result<(), Error> {
     Ok(refuse_output_over_inputs(out, OutputKind::File, &inputs)?)
 }
 
-/// Whether `out` is `intensity.npy` directly in the sequence directory.
+/// Whether `out` is `intensity.npy` (or its `no_data.npy`) directly in the sequence directory.
 fn replaces_intensity(request: &SampleRequest, out: &Path) -> bool {
     let parent = match out.parent() {
         Some(parent) if !parent.as_os_str().is_empty() => parent,
@@ -141,7 +150,8 @@ fn replaces_intensity(request: &SampleRequest, out: &Path) -> bool {
         (Ok(a), Ok(b)) => a == b,
         _ => false,
     };
-    same_dir && request.sequence.is_dir() && out.file_name().is_some_and(|n| n == INTENSITY)
+    let ours = out.file_name().is_some_and(|n| n == INTENSITY || n == NO_DATA);
+    same_dir && request.sequence.is_dir() && ours
 }
 
 /// The volumes' frames against the sequence's, from headers alone, before either is read.
@@ -164,10 +174,12 @@ fn register_in_manifest(sequence: &Path) -> Result<(), Error> {
     let Some(mut manifest) = RunManifest::read(sequence) else {
         return Ok(());
     };
-    if !manifest.files.iter().any(|f| f == INTENSITY) {
-        manifest.files.push(INTENSITY.into());
-        manifest.files.sort();
+    for written in [INTENSITY, NO_DATA] {
+        if !manifest.files.iter().any(|f| f == written) {
+            manifest.files.push(written.into());
+        }
     }
+    manifest.files.sort();
     manifest.commands.push(crate::command_line());
     let path = sequence.join(meshflow::run::RUN_MANIFEST);
     write_atomically(&path, |w| {
@@ -177,18 +189,37 @@ fn register_in_manifest(sequence: &Path) -> Result<(), Error> {
     Ok(())
 }
 
-/// `--out`, else `intensity.npy` in the sequence's directory.
+/// `--out` (a file, not a directory), else `intensity.npy` in the sequence's directory.
 fn output_file(request: &SampleRequest) -> Result<PathBuf, Error> {
-    if let Some(out) = request.out {
-        return Ok(out.to_path_buf());
-    }
-    match request.sequence.is_dir() {
-        true => Ok(request.sequence.join(INTENSITY)),
-        false => Err(meshflow::format::IoError::format(
+    let bad = |path: &Path, message: &str| -> Result<PathBuf, Error> {
+        Err(meshflow::format::IoError::format(path, message).into())
+    };
+    match request.out {
+        Some(out) if out.is_dir() => bad(out, "a directory: --out names the .npy file to write"),
+        Some(out) => Ok(out.to_path_buf()),
+        None if request.sequence.is_dir() => Ok(request.sequence.join(INTENSITY)),
+        None => bad(
             request.sequence,
-            "not a directory: give the output file with --out FILE.npy",
-        )
-        .into()),
+            "not a directory: the surface is a sequence directory (e.g. of meshflow surface); for another sequence, give the output file with --out FILE.npy",
+        ),
+    }
+}
+
+/// `sample SEQUENCE VOLUMES` for `sample VOLUMES SEQUENCE`: the first argument holds a surface
+/// sequence (`positions.npy`), or the second is one volume file.
+fn refuse_swapped_arguments(request: &SampleRequest) -> Result<(), Error> {
+    let is_sequence = |p: &Path| p.join(meshflow::format::POSITIONS).is_file();
+    let is_volume = |p: &Path| {
+        let extension = p.extension().map(|e| e.to_string_lossy().to_lowercase());
+        p.is_file() && matches!(extension.as_deref(), Some("tif" | "tiff"))
+    };
+    match is_sequence(request.volumes) || (is_volume(request.sequence) && !is_sequence(request.sequence)) {
+        true => Err(usage(format!(
+            "{} is a surface and {} volumes: the order is meshflow sample VOLUMES SEQUENCE; swap them",
+            request.volumes.display(),
+            request.sequence.display()
+        ))),
+        false => Ok(()),
     }
 }
 
@@ -204,9 +235,9 @@ fn describe(
         sigma => format!(", smoothed by a Gaussian of σ = {sigma:.4}"),
     };
     format!(
-        "{}: {} frames onto {} vertices of {}: {:?} of {} layers over [−{}, +{}] along the normals{smoothing} -> {}",
+        "{}: {} onto {} vertices of {}: {:?} of {} layers over [−{}, +{}] along the normals{smoothing} -> {}",
         request.volumes.display(),
-        sampled.values.len(),
+        crate::plural(sampled.values.len(), "frame"),
         vertices,
         request.sequence.display(),
         request.sampling.reduce,
@@ -250,6 +281,10 @@ pub(crate) struct SampleArgs {
     /// [default: 2 of the smallest voxel sides]
     #[arg(long, value_name = "SIGMA", allow_negative_numbers = true)]
     pub(crate) smooth: Option<f64>,
+    /// Sample even where more than half of a frame's vertices lie outside its volume (refused
+    /// by default: the voxel size, its units or the origin are most likely wrong)
+    #[arg(long)]
+    pub(crate) allow_outside: bool,
     #[command(flatten)]
     pub(crate) building: MeshArgs,
 }
@@ -281,6 +316,7 @@ impl SampleArgs {
                 smoothing: self.smooth,
                 shell,
                 reduce: self.reduce,
+                allow_outside: self.allow_outside,
             },
             load: self.building.options(),
         })

@@ -16,7 +16,7 @@ use meshflow::flow::{
 use meshflow::format::read_npy_float;
 use meshflow::load::{load_frames, load_sequence};
 use meshflow::load::{read_ground_truth, LoadOptions, LoadedSequence};
-use meshflow::render::{result_views, UpChoice, View};
+use meshflow::render::{result_views, write_track_error_pictures, UpChoice, View};
 use meshflow::run::GroundTruthReport;
 use meshflow::run::{write_flow_outputs, Scores, SolveRecord, StagedDir, TrackReport};
 use meshflow::run::{write_flow_over_ranks, OutputFormat};
@@ -120,7 +120,7 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
             view,
             args: &args.pictures,
         }
-        .draw(out.path(), &loaded, &result, report.as_ref())
+        .draw(out.path(), &loaded, &result, scores)
         .map_err(|e| out.error_in_target(e))?,
         false => Vec::new(),
     };
@@ -198,11 +198,11 @@ fn print_result(
     result: &FlowResult,
 ) {
     println!(
-        "{}: {} frames x {} vertices -> {} slabs; {} solver, {} iterations, residual {:.1e}; energy {:.4e} (zero flow {:.4e}); {:.2} s -> {}",
+        "{}: {} frames x {} vertices -> {}; {} solver, {} iterations, residual {:.1e}; energy {:.4e} (zero flow {:.4e}); {:.2} s -> {}",
         args.input.display(),
         n_frames,
         n_vertices,
-        n_frames - 1,
+        crate::plural(n_frames - 1, "slab"),
         result.method,
         result.iterations_in_all(),
         result.relative_residual,
@@ -211,7 +211,10 @@ fn print_result(
         result.timings.total,
         args.out.display()
     );
-    println!("{}", describe_weights(&result.weights, params));
+    println!(
+        "{}",
+        describe_weights(&result.weights, params, result.intrinsic.len())
+    );
     println!("solver: {}", describe_solver(result));
     if !result.timings.steps.is_empty() {
         println!("{}", describe_steps(result));
@@ -470,28 +473,45 @@ impl Pictures<'_> {
         dir: &Path,
         loaded: &LoadedSequence,
         result: &FlowResult,
-        report: Option<&GroundTruthReport>,
+        scores: Scores,
     ) -> Result<Vec<PathBuf>, Error> {
         let sequence = &loaded.sequence;
-        let errors = report.map(|r| r.errors.angular_degrees.as_slice());
-        let views = result_views(sequence, result, errors)?;
+        let errors = scores.flow.map(|r| r.errors.angular_degrees.as_slice());
+        let mut views = result_views(sequence, result, errors)?;
+        let no_data = loaded.slab_no_data();
+        for view in &mut views {
+            view.no_data = no_data.as_ref().map(|mask| &mask[view.slab][..]);
+        }
         let faces = sequence.mesh().faces();
-        pictures::draw(dir, faces, &views, self.slabs, self.args, self.view)
+        let mut written = pictures::draw(dir, faces, &views, self.slabs, self.args, self.view)?;
+        if let Some(tracks) = scores.tracks {
+            let points = &tracks.scores.points;
+            let options = self.args.options(self.view);
+            written.extend(write_track_error_pictures(dir, faces, &views, self.slabs, points, &options)?);
+        }
+        Ok(written)
     }
 }
 
 /// One line with the weights used, and the unit-free scales they came from.
-fn describe_weights(weights: &Weights, params: &FlowParams) -> String {
+fn describe_weights(weights: &Weights, params: &FlowParams, n_slabs: usize) -> String {
     let origin = |weight: Weight, relative: &str| match weight {
         Weight::Value(_) => String::new(),
         Weight::Relative(x) => format!(" ({relative} {x})"),
     };
+    let alpha = match (n_slabs, weights.alpha.is_finite()) {
+        (1, _) => "α unused (one slab: nothing to couple in time)".to_string(),
+        (_, false) => "α = ∞ (frame by frame: no coupling in time)".to_string(),
+        _ => format!(
+            "α = {:.4e}{}",
+            weights.alpha,
+            origin(params.alpha, "time scale")
+        ),
+    };
     format!(
-        "weights: γ = {:.4e}{}, α = {:.4e}{}, β = {:.4e}{}",
+        "weights: γ = {:.4e}{}, {alpha}, β = {:.4e}{}",
         weights.gamma,
         origin(params.gamma, "spread"),
-        weights.alpha,
-        origin(params.alpha, "time scale"),
         weights.beta,
         origin(params.beta, "speed penalty"),
     )

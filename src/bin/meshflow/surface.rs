@@ -168,7 +168,7 @@ pub fn run(request: SurfaceRequest) -> Result<(), Error> {
         read_points(request.points)
     })?;
     let fitted = during(
-        format!("fitting a surface through {} frames", frames.len()),
+        format!("fitting a surface through {}", crate::plural(frames.len(), "frame")),
         || fit_surface(&frames, &request.options),
     )
     .map_err(|e| Error::from(e).in_file(request.points))?;
@@ -267,9 +267,9 @@ fn print_report(fitted: &FittedSurface, points: &Path, out: &Path) {
         Reference::Plane { .. } => "a height over the plane z = 0".to_string(),
     };
     println!(
-        "{}: {} frames -> {reference}: {} vertices, {} faces, mean edge {:.3e} -> {}",
+        "{}: {} -> {reference}: {} vertices, {} faces, mean edge {:.3e} -> {}",
         points.display(),
-        fitted.positions.len(),
+        crate::plural(fitted.positions.len(), "frame"),
         fitted.positions[0].len(),
         fitted.faces.len(),
         fitted.mean_edge_length(),

@@ -320,7 +320,11 @@ fn solve_flushed(
     }
     let mut solution = match params.solver {
         SolverChoice::Auto if !system.has_links() => {
-            slabwise_direct(system, observer, "α = ∞: the slabs are independent".into())?
+            let why = match system.n_slabs() {
+                1 => "one slab",
+                _ => "α = ∞: the slabs are independent",
+            };
+            slabwise_direct(system, observer, why.into())?
         }
         SolverChoice::Auto if system.dimension() <= params.direct_limit => direct(
             system,
