@@ -260,7 +260,7 @@ def test_sample_volume_refuses_a_surface_mostly_outside(ball):
     n = len(x)
     millimetres = np.array(VOXEL) / 1000
     with pytest.raises(ValueError, match=rf"frame 0: {n} of {n} vertices \(100 %\) lie outside"
-                                         r".*about 1000 times larger.*allow-outside"):
+                                         r".*about 1000 times larger.*allow_outside"):
         meshflow.sample_volume([volume], x[None], faces, millimetres, origin=ORIGIN / 1000)
     allowed = meshflow.sample_volume([volume], x[None], faces, millimetres,
                                      origin=ORIGIN / 1000, allow_outside=True)
