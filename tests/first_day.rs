@@ -8,7 +8,7 @@ use common::{meshflow, meshflow_error, meshflow_ok, shipped, write_npy};
 use meshflow::format::{read_npy, read_npy_image};
 use meshflow::mesh::Mesh;
 use meshflow::volume::{
-    sample_sequence, SampleOptions, Volume, VolumeError, OutsideReport,
+    sample_sequence, Misplacement, PlacementReport, SampleOptions, Volume, VolumeError,
 };
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
@@ -67,13 +67,18 @@ fn a_surface_mostly_outside_its_volume_is_refused_with_the_reason() {
         Vector3::new(1000.0, 3000.0, 1.0),
     ]];
     let error = sample_sequence(&[volume(1.0)], &mesh, &x, &SampleOptions::default()).unwrap_err();
-    let VolumeError::MostlyOutside(report) = &error else {
+    let VolumeError::Misplaced(report) = &error else {
         panic!("{error}")
     };
-    let OutsideReport {
-        frame, outside, vertices, ..
+    let PlacementReport {
+        frame,
+        misplacement,
+        vertices,
+        ..
     } = **report;
-    assert_eq!((frame, outside, vertices), (0, 3, 3));
+    assert_eq!(frame, 0);
+    assert_eq!(vertices, 3);
+    assert_eq!(misplacement, Misplacement::MostlyOutside { outside: 3 });
     let message = error.to_string();
     for named in [
         "frame 0: 3 of 3 vertices (100 %)",
@@ -110,6 +115,18 @@ fn a_surface_mostly_outside_its_volume_is_refused_with_the_reason() {
     ]];
     let two_of_three = sample_sequence(&[volume(1.0)], &mesh, &half, &SampleOptions::default());
     assert!(two_of_three.is_ok());
+    // The voxel size in nm for a surface in µm: inside the huge box, but within one voxel.
+    let tiny = vec![vec![
+        Vector3::new(1.0, 1.0, 1.0),
+        Vector3::new(2.0, 1.0, 1.0),
+        Vector3::new(1.0, 2.0, 1.0),
+    ]];
+    let error = sample_sequence(&[volume(1000.0)], &mesh, &tiny, &SampleOptions::default())
+        .unwrap_err();
+    let message = error.to_string();
+    assert!(message.contains("the surface spans 0.001 voxels, too few to sample"), "{message}");
+    assert!(message.contains("about 1000 times smaller"), "{message}");
+    assert!(sample_sequence(&[volume(1000.0)], &mesh, &tiny, &allowed).is_ok());
 }
 
 #[test]

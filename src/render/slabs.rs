@@ -252,6 +252,9 @@ pub fn write_track_error_pictures(
                 "slab {}: cells' displacements (red) and the flow's (black)",
                 view.slab
             )),
+            no_data: (view.no_data)
+                .filter(|mask| mask.iter().any(|&m| m))
+                .map(<[bool]>::to_vec),
             ..options.style.clone()
         };
         let surface = Surface {

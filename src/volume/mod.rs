@@ -38,8 +38,8 @@ pub use read::{
     count_volume_frames, read_volumes, VolumeFrames, VolumeOptions, VolumeStream, VoxelSizeSource,
 };
 pub use sample::{
-    sample_sequence, sample_shell, FrameSampler, OutsideReport, Reduce, SampleOptions,
-    SampledSequence, Shell,
+    sample_sequence, sample_shell, FrameSampler, Misplacement, PlacementReport, Reduce,
+    SampleOptions, SampledSequence, Shell,
 };
 
 use nalgebra::Vector3;
@@ -89,9 +89,10 @@ pub enum VolumeError {
     },
     #[error("{0}")]
     Setting(String),
-    /// Most of a frame's surface lies outside its volume: wrong units, voxel size or origin.
+    /// A frame's surface lies mostly outside its volume, or within a voxel or two: wrong units,
+    /// voxel size or origin.
     #[error("{0}")]
-    MostlyOutside(Box<sample::OutsideReport>),
+    Misplaced(Box<sample::PlacementReport>),
     #[error(
         "invalid voxel size in the metadata: {0}; give the voxel size with --voxel-size X,Y,Z"
     )]

@@ -16,10 +16,11 @@
 //! vertices have **no data** ([`Sampled::no_data`]): `meshflow sample` writes their mask beside
 //! the image, and the solve flags them in its outputs.
 //!
-//! A frame whose vertices lie outside its volume for more than half of them is refused
-//! ([`OutsideReport`]) unless [`SampleOptions::allow_outside`]: that is what a voxel size in
-//! other units than the surface (nm against µm), a missing one or a wrong origin give, and an
-//! image of zeros would otherwise pass silently to the solve.
+//! A frame whose vertices lie outside its volume for more than half of them, or whose whole
+//! surface spans fewer than [`MIN_SURFACE_VOXELS`] voxels, is refused ([`PlacementReport`])
+//! unless [`SampleOptions::allow_outside`]: that is what a voxel size in other units than the
+//! surface (mm or nm against µm), a missing one or a wrong origin give, and an image of zeros
+//! or of one interpolated value would otherwise pass silently to the solve.
 
 use super::{Volume, VolumeError};
 use crate::connection::vertex_normals;
@@ -194,8 +195,8 @@ pub struct SampleOptions {
     /// `None`: ± two of the largest voxel sides, [`DEFAULT_LAYERS`] layers.
     pub shell: Option<Shell>,
     pub reduce: Reduce,
-    /// Sample a frame even where most of its vertices lie outside the volume (see the module
-    /// docs); off by default.
+    /// Sample a frame even where most of its vertices lie outside the volume, or all of them
+    /// within a voxel or two (see the module docs); off by default.
     pub allow_outside: bool,
 }
 
@@ -319,7 +320,8 @@ impl FrameSampler {
     }
 
     /// Frame `frame`'s `volume` read along the normals of the mesh at `x`; refused where more
-    /// than half of `x` lies outside the volume, unless allowed (module docs).
+    /// than half of `x` lies outside the volume or all of it within a voxel or two, unless
+    /// allowed (module docs).
     pub fn sample(
         &self,
         volume: &Volume,
@@ -335,7 +337,7 @@ impl FrameSampler {
             });
         }
         if !self.allow_outside {
-            OutsideReport::check(volume, x, frame)?;
+            PlacementReport::check(volume, x, frame)?;
         }
         let smoothed = (self.sigma > 0.0)
             .then(|| volume.smoothed(self.sigma))
@@ -366,14 +368,23 @@ impl SampledSequence {
     }
 }
 
-/// A frame most of whose surface lies outside its volume, with what tells why: the volume's
-/// box (voxel size, origin, extent) against the surface's.
+/// How a frame's surface misses its volume.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Misplacement {
+    /// More than half of the vertices lie outside the volume's box.
+    MostlyOutside { outside: usize },
+    /// The whole surface spans fewer than [`MIN_SURFACE_VOXELS`] voxels along every axis: it
+    /// lies within a voxel or two, where sampling reads one interpolated value.
+    WithinAVoxel { voxels: f64 },
+}
+
+/// A frame whose surface does not fit its volume, with what tells why: the volume's box (voxel
+/// size, origin, extent) against the surface's.
 #[derive(Clone, Debug, PartialEq)]
-pub struct OutsideReport {
+pub struct PlacementReport {
     pub frame: usize,
-    /// Vertices outside the volume's box, of `vertices`.
-    pub outside: usize,
     pub vertices: usize,
+    pub misplacement: Misplacement,
     pub voxel_size: Vector3<f64>,
     pub origin: Vector3<f64>,
     /// [`Volume::bounds`].
@@ -386,22 +397,32 @@ pub struct OutsideReport {
 /// volume's, the two are taken to be in different units.
 const UNITS_APART: f64 = 1.3;
 
-impl OutsideReport {
-    /// Refuses frame `frame` when more than half of `x` lies outside `volume` (module docs).
+/// A surface must span at least this many voxels along some axis to be sampled.
+pub const MIN_SURFACE_VOXELS: f64 = 2.0;
+
+impl PlacementReport {
+    /// Refuses frame `frame` when more than half of `x` lies outside `volume`, or all of it
+    /// within [`MIN_SURFACE_VOXELS`] voxels (module docs).
     fn check(volume: &Volume, x: &[Vector3<f64>], frame: usize) -> Result<(), VolumeError> {
-        let outside = x.iter().filter(|p| !volume.contains(p)).count();
-        if 2 * outside <= x.len() {
-            return Ok(());
-        }
         let mut surface_box = [Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)];
         for p in x {
             surface_box[0] = surface_box[0].inf(p);
             surface_box[1] = surface_box[1].sup(p);
         }
-        Err(VolumeError::MostlyOutside(Box::new(Self {
+        let outside = x.iter().filter(|p| !volume.contains(p)).count();
+        let extent = (surface_box[1] - surface_box[0]).component_div(&volume.voxel_size());
+        let voxels = extent.max();
+        let misplacement = if 2 * outside > x.len() {
+            Misplacement::MostlyOutside { outside }
+        } else if voxels < MIN_SURFACE_VOXELS {
+            Misplacement::WithinAVoxel { voxels }
+        } else {
+            return Ok(());
+        };
+        Err(VolumeError::Misplaced(Box::new(Self {
             frame,
-            outside,
             vertices: x.len(),
+            misplacement,
             voxel_size: volume.voxel_size(),
             origin: volume.origin(),
             volume_box: volume.bounds(),
@@ -434,7 +455,7 @@ impl OutsideReport {
     }
 }
 
-impl std::fmt::Display for OutsideReport {
+impl std::fmt::Display for PlacementReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let triple = |v: Vector3<f64>| v.iter().map(|&c| format_number(c)).collect::<Vec<_>>();
         let span = |[low, high]: [Vector3<f64>; 2]| {
@@ -444,13 +465,21 @@ impl std::fmt::Display for OutsideReport {
                 low[0], high[0], low[1], high[1], low[2], high[2]
             )
         };
+        let what = match self.misplacement {
+            Misplacement::MostlyOutside { outside } => format!(
+                "{outside} of {} vertices ({:.0} %) lie outside the recording",
+                self.vertices,
+                100.0 * outside as f64 / self.vertices as f64,
+            ),
+            Misplacement::WithinAVoxel { voxels } => format!(
+                "the surface spans {} voxels, too few to sample",
+                format_number(voxels)
+            ),
+        };
         write!(
             f,
-            "frame {}: {} of {} vertices ({:.0} %) lie outside the recording: the volume spans {} (voxel size {}, origin {}), the surface {}; {}, or give --allow-outside to sample anyway",
+            "frame {}: {what}: the volume spans {} (voxel size {}, origin {}), the surface {}; {}, or give --allow-outside to sample anyway",
             self.frame,
-            self.outside,
-            self.vertices,
-            100.0 * self.outside as f64 / self.vertices as f64,
             span(self.volume_box),
             triple(self.voxel_size).join(" × "),
             triple(self.origin).join(", "),

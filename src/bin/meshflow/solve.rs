@@ -339,9 +339,9 @@ fn solve_streamed(
 /// What rank 0 says before a solve over ranks.
 fn solving_over(ranks: &dyn TimeRanks, n_slabs: usize) -> String {
     format!(
-        "solving over {} ranks (time windows of about {} slabs)",
+        "solving over {} ranks (time windows of about {})",
         ranks.size(),
-        n_slabs.div_ceil(ranks.size())
+        crate::plural(n_slabs.div_ceil(ranks.size()), "slab")
     )
 }
 
@@ -392,7 +392,7 @@ fn show(progress: &crate::progress::Progress, event: SolveEvent) {
     match event {
         SolveEvent::Factorizing { slabs } => progress.announce(match slabs {
             0 => "factorizing the space-time system".to_string(),
-            n => format!("factorizing {n} slabs"),
+            n => format!("factorizing {}", crate::plural(n, "slab")),
         }),
         SolveEvent::Warp {
             level,
