@@ -23,14 +23,18 @@
 //! (`meshflow::accuracy::tracks`), beside two baselines: the zero flow and each cell moved as
 //! the mean of its 8 nearest neighbours. It prints one table row per setting with the time of
 //! each step, and draws the recommended flow of 140 → 141 into `out/zebrafish/`: the projected
-//! image, the flow's colours and its arrows with the cells' own displacements in red.
+//! image, the flow's colours and its arrows with the cells' own displacements in red, and its
+//! divergence and curl smoothed over the tissue scale (`divergence_tissue.png`,
+//! `curl_tissue.png`, as `meshflow analyze --png --tissue-scale 20` draws them), with how much
+//! of each is at that scale. Errors end it with one line.
 
 use meshflow::accuracy::{match_tracks, score_result, TrackPoint, TrackScores};
-use meshflow::connection::vertex_normals;
+use meshflow::analysis::analyze_flow;
 use meshflow::flow::{compute_flow, FlowParams, FlowResult, MeshSequence, Regularizer, Warping};
-use meshflow::flow::{Anisotropy, Scale, Weight};
-use meshflow::render::{flow_picture, grey_picture, tracks_picture, write_png};
-use meshflow::render::{Camera, PictureStyle, Surface, View};
+use meshflow::flow::{smoothed_over_length, Anisotropy, Scale, Weight};
+use meshflow::render::colormap::symmetric_range;
+use meshflow::render::{flow_picture, grey_picture, signed_picture, tracks_picture, write_png};
+use meshflow::render::{Camera, PictureStyle, Surface, UpChoice};
 use meshflow::surface::{fit_surface, read_points, FitOptions, Resolution};
 use meshflow::volume::{read_volumes, sample_sequence, SampleOptions, Volume, VolumeOptions};
 use nalgebra::Vector3;
@@ -465,13 +469,8 @@ fn draw(
     let vectors = &flow.vectors.as_ref().expect("embedded")[0];
     let faces = sequence.mesh().faces();
     let surface = Surface { positions, faces };
-    // Look at the cap from outside, along its mean normal.
-    let normals = vertex_normals(sequence.mesh(), positions);
-    let axis = normals.iter().sum::<Vector3<f64>>().normalize();
-    let view = View::new(
-        axis.y.atan2(axis.x).to_degrees(),
-        axis.z.asin().to_degrees(),
-    );
+    // The cap from outside, along its axis, as the CLI's pictures see it.
+    let view = UpChoice::from_shape(positions, faces).view();
     let camera = Camera::framing(positions, view, 1200, 1000);
     let style = PictureStyle {
         arrow_spacing: 22.0,
@@ -516,7 +515,55 @@ fn draw(
         &labelled("flow (black) and cells (red), 140 -> 141"),
     )?;
     write_png(&out.join("arrows.png"), &picture)?;
-    println!("  pictures: {}/{{image,flow,arrows}}.png", out.display());
+    draw_tissue_scale(sequence, flow, &camera, &labelled, out)?;
+    println!(
+        "  pictures: {}/{{image,flow,arrows,divergence_tissue,curl_tissue}}.png",
+        out.display()
+    );
+    Ok(())
+}
+
+/// The tissue scale of the analysis pictures: two cells across.
+const TISSUE_SCALE: f64 = 20.0;
+
+/// Divergence and curl of slab 0 smoothed over [`TISSUE_SCALE`] along the surface, drawn, and
+/// the share of each field's mean square (over the vertices) that the smoothing keeps: what is
+/// tissue-scale pattern rather than per-nucleus detail.
+fn draw_tissue_scale(
+    sequence: &MeshSequence,
+    flow: &FlowResult,
+    camera: &Camera,
+    labelled: &dyn Fn(&str) -> PictureStyle,
+    out: &Path,
+) -> Result<(), meshflow::Error> {
+    let analysis = analyze_flow(sequence, &flow.intrinsic[..1])?;
+    let positions = sequence.positions(0).expect("embedded");
+    let surface = Surface {
+        positions,
+        faces: sequence.mesh().faces(),
+    };
+    let mean_square = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64;
+    for (name, values) in [
+        ("divergence", &analysis[0].vertex_divergence),
+        ("curl", &analysis[0].vertex_curl),
+    ] {
+        let smoothed = smoothed_over_length(sequence, 0, &[values], TISSUE_SCALE)?.remove(0);
+        let label = format!("{name} 140 -> 141, smoothed over {TISSUE_SCALE} µm");
+        let picture = signed_picture(
+            camera,
+            surface,
+            &smoothed,
+            symmetric_range(&smoothed),
+            &labelled(&label),
+        )?;
+        write_png(&out.join(format!("{name}_tissue.png")), &picture)?;
+        println!(
+            "  {name}: rms {:.3} per frame, {:.3} over {TISSUE_SCALE} µm: {:.0} % of its mean square at the tissue scale",
+            mean_square(values).sqrt(),
+            mean_square(&smoothed).sqrt(),
+            100.0 * mean_square(&smoothed) / mean_square(values)
+        );
+    }
     Ok(())
 }
 
