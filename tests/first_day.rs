@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{meshflow, meshflow_error, meshflow_ok, shipped, write_npy};
+use common::{meshflow, meshflow_error, meshflow_ok, shipped, surface, write_npy};
 use meshflow::format::{read_npy, read_npy_image};
 use meshflow::mesh::Mesh;
 use meshflow::volume::{
@@ -13,31 +13,9 @@ use meshflow::volume::{
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
+
 fn path(p: &Path) -> &str {
     p.to_str().unwrap()
-}
-
-/// Points on a sphere of radius 10 about the origin (a golden spiral), turned a little per frame.
-fn cells(k: usize, n: usize) -> Vec<Vector3<f64>> {
-    (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let phi = i as f64 * 2.399_963 + 0.02 * k as f64;
-            let r = (1.0 - z * z).sqrt();
-            10.0 * Vector3::new(r * phi.cos(), r * phi.sin(), z)
-        })
-        .collect()
-}
-
-/// Two frames of cells as a (2, N, 3) tracks file, and the surface through them.
-fn surface(dir: &Path) -> (PathBuf, PathBuf) {
-    let points = dir.join("cells.npy");
-    let frames = [cells(0, 300), cells(1, 300)];
-    let values: Vec<f64> = frames.iter().flatten().flat_map(|p| [p.x, p.y, p.z]).collect();
-    write_npy(&points, &[2, 300, 3], &values);
-    let seq = dir.join("seq");
-    meshflow_ok(&["surface", path(&points), "--out", path(&seq), "--vertices", "300"]);
-    (points, seq)
 }
 
 /// (2, 24, 24, 24) volumes of voxel 1 (a textured pattern), to be placed about the sphere by
@@ -314,4 +292,74 @@ fn smoothing_over_a_length_damps_by_the_heat_kernel() {
     assert!(smoothed[1].iter().all(|&c| (c - 1.0).abs() < 1e-12));
     let unchanged = smoothed_over_length(&sequence, 1, &[&z], 0.0).unwrap();
     assert_eq!(unchanged[0], z);
+}
+
+/// A voxel size from ImageJ metadata prints as the file says it (`1.6774`), not as the
+/// nearest float64 of `1 / (10000 / 16774)` (`1.6773999999999998`).
+#[test]
+fn voxel_sizes_from_metadata_print_their_digits() {
+    use meshflow::volume::{read_volumes, VolumeOptions, VoxelSizeSource};
+    use tiff::encoder::{colortype::Gray8, Rational, TiffEncoder};
+    use tiff::tags::Tag;
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("stack.tif");
+    let mut encoder = TiffEncoder::new(std::fs::File::create(&file).unwrap()).unwrap();
+    let mut image = encoder.new_image::<Gray8>(3, 2).unwrap();
+    let description = "ImageJ=1.54f\nimages=1\nunit=micron\nspacing=7.1847\n";
+    let tags = image.encoder();
+    tags.write_tag(Tag::ImageDescription, description).unwrap();
+    let per_micron = Rational { n: 10000, d: 16774 };
+    tags.write_tag(Tag::XResolution, per_micron).unwrap();
+    tags.write_tag(Tag::YResolution, Rational { n: 10000, d: 16774 })
+        .unwrap();
+    image.write_data(&[1u8; 6]).unwrap();
+    let read = read_volumes(&file, &VolumeOptions::default()).unwrap();
+    assert!((read.volumes[0].voxel_size().x - 1.6774).abs() < 1e-12);
+    let VoxelSizeSource::File(said) = read.voxel_size_source else {
+        panic!("{:?}", read.voxel_size_source)
+    };
+    assert!(said.ends_with(": 1.6774 × 1.6774 × 7.1847"), "{said}");
+}
+
+/// Every section of the user guide is in its table of contents.
+#[test]
+fn the_guide_lists_every_section() {
+    let guide = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/guide.md"))
+        .unwrap();
+    let contents: String = guide
+        .lines()
+        .skip_while(|l| !l.starts_with("- ["))
+        .take_while(|l| l.starts_with("- ["))
+        .collect();
+    let mut in_code = false;
+    for line in guide.lines() {
+        in_code ^= line.starts_with("```");
+        let Some(title) = line.strip_prefix("## ").filter(|_| !in_code) else {
+            continue;
+        };
+        assert!(contents.contains(&format!("[{title}](#")), "{title} is not in the contents");
+    }
+}
+
+/// A NaN in a CSV of cell centres names the file and its line.
+#[test]
+fn nan_in_a_csv_names_the_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let cells = dir.path().join("cells");
+    std::fs::create_dir(&cells).unwrap();
+    for k in 0..2 {
+        let rows: String = common::cells(k, 50)
+            .iter()
+            .enumerate()
+            .map(|(i, p)| match (k, i) {
+                (1, 7) => "1.0,NaN,2.0\n".to_string(),
+                _ => format!("{},{},{}\n", p.x, p.y, p.z),
+            })
+            .collect();
+        std::fs::write(cells.join(format!("frame_{k}.csv")), format!("x,y,z\n{rows}")).unwrap();
+    }
+    let out = dir.path().join("surf");
+    let message = meshflow_error(&["surface", path(&cells), "--out", path(&out)], "frame_1.csv");
+    assert!(message.contains("line 9"), "{message}");
+    assert!(message.contains("'NaN' is not a finite number"), "{message}");
 }

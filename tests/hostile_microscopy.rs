@@ -5,7 +5,7 @@
 mod common;
 mod hostile_support;
 
-use common::{meshflow, meshflow_ok, write_npy};
+use common::{cells, meshflow, meshflow_ok, surface, write_npy, write_points};
 use hostile_support::{small_tiff, tiff_bytes, Page};
 use meshflow::accuracy::match_tracks;
 use meshflow::surface::{fit_surface, read_points, FitOptions, Resolution};
@@ -45,44 +45,6 @@ fn fails(args: &[&str], names: &[&str]) -> String {
     let errors: Vec<&str> = stderr.lines().filter(|l| l.contains("error")).collect();
     assert_eq!(errors.len(), 1, "{args:?}: {stderr}");
     naming(errors[0], names)
-}
-
-/// Points on a sphere of radius 10 (a golden spiral), turned a little per frame.
-fn cells(k: usize, n: usize) -> Vec<Vector3<f64>> {
-    (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let phi = i as f64 * 2.399_963 + 0.02 * k as f64;
-            let r = (1.0 - z * z).sqrt();
-            10.0 * Vector3::new(r * phi.cos(), r * phi.sin(), z)
-        })
-        .collect()
-}
-
-fn write_points(file: &Path, frames: &[Vec<Vector3<f64>>]) {
-    let n = frames[0].len() as u64;
-    let values: Vec<f64> = frames
-        .iter()
-        .flatten()
-        .flat_map(|p| [p.x, p.y, p.z])
-        .collect();
-    write_npy(file, &[frames.len() as u64, n, 3], &values);
-}
-
-/// A two-frame surface directory (`meshflow surface`) and its points file.
-fn surface(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
-    let points = dir.join("cells.npy");
-    write_points(&points, &[cells(0, 300), cells(1, 300)]);
-    let seq = dir.join("seq");
-    meshflow_ok(&[
-        "surface",
-        path(&points),
-        "--out",
-        path(&seq),
-        "--vertices",
-        "300",
-    ]);
-    (points, seq)
 }
 
 /// A (2, 24, 24, 24) volume around the origin of the surface's sphere, voxel 1.

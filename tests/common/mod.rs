@@ -330,3 +330,45 @@ pub fn window_cases() -> Vec<(
     cases.push(("grid, Dirichlet, default weights".into(), grid, params));
     cases
 }
+
+/// Points on a sphere of radius 10 about the origin (a golden spiral), turned by 0.02 rad about
+/// z per frame `k`.
+pub fn cells(k: usize, n: usize) -> Vec<Vector3<f64>> {
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let phi = i as f64 * 2.399_963 + 0.02 * k as f64;
+            let r = (1.0 - z * z).sqrt();
+            10.0 * Vector3::new(r * phi.cos(), r * phi.sin(), z)
+        })
+        .collect()
+}
+
+/// Point frames as one (K, N, 3) float64 `.npy`.
+pub fn write_points(file: &Path, frames: &[Vec<Vector3<f64>>]) {
+    let n = frames[0].len() as u64;
+    let values: Vec<f64> = frames
+        .iter()
+        .flatten()
+        .flat_map(|p| [p.x, p.y, p.z])
+        .collect();
+    write_npy(file, &[frames.len() as u64, n, 3], &values);
+}
+
+/// Two frames of 300 [`cells`] in `DIR/cells.npy` (a (2, 300, 3) tracks file) and the surface
+/// through them, `DIR/seq` (`meshflow surface … --vertices 300`).
+pub fn surface(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let points = dir.join("cells.npy");
+    write_points(&points, &[cells(0, 300), cells(1, 300)]);
+    let seq = dir.join("seq");
+    let name = |p: &Path| p.to_str().unwrap().to_string();
+    meshflow_ok(&[
+        "surface",
+        &name(&points),
+        "--out",
+        &name(&seq),
+        "--vertices",
+        "300",
+    ]);
+    (points, seq)
+}
