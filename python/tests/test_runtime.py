@@ -2,6 +2,7 @@
 tracking."""
 
 import _thread
+import signal
 import threading
 
 import numpy as np
@@ -45,6 +46,10 @@ def test_an_exception_in_the_callback_stops_the_solve(sample):
 
 
 def test_ctrl_c_interrupts_within_one_iteration(sample):
+    # Python's own SIGINT handler, which a process started in the background by a
+    # non-interactive shell (a CI runner) lacks: there SIGINT is ignored, and interrupt_main()
+    # does nothing.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     seen = []
 
     def press_ctrl_c(event):
@@ -52,8 +57,11 @@ def test_ctrl_c_interrupts_within_one_iteration(sample):
         if event.get("iteration") == 5:
             _thread.interrupt_main()  # what Ctrl-C does: SIGINT's flag for the main thread
 
-    with pytest.raises(KeyboardInterrupt):
-        sample.compute_flow(progress=press_ctrl_c, **ITERATIVE)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            sample.compute_flow(progress=press_ctrl_c, **ITERATIVE)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert seen[-1]["iteration"] == 5
     sample.compute_flow(gamma=1e-3)  # and the next solve runs normally
 
