@@ -237,8 +237,6 @@ fn the_command_tracks_the_frames_surfaces_into_one_mesh() {
     assert_eq!(report["frames"].as_array().unwrap().len(), 3);
     assert!(report["frames"][0]["threshold"].as_f64().unwrap() > 0.0);
 
-    let stray = ["surface", file, "--out", out, "--level", "0.5", "--force"];
-    meshflow_error(&stray, "--level applies to --shape closed (volumes) only");
     let two_times = [
         "surface", file, "--shape", "closed", "--out", out, "--times", "0,1", "--force",
     ];

@@ -134,44 +134,11 @@ pub fn find_surface(
     let what = format!("finding the surface in {:?} voxels", volume.shape());
     let voxels = volume.values().len() as u64;
     crate::limits::check_items(what, voxels, BYTES_PER_VOXEL)?;
-    let largest_voxel = volume.voxel_size().max();
-    let smoothed = volume.smoothed(options.smoothing.unwrap_or(largest_voxel))?;
+    let (smoothed, threshold) = smoothed_threshold(volume, options)?;
     let values = smoothed.values();
-    let (min, max) = values
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
-            (lo.min(v), hi.max(v))
-        });
-    if min >= max {
-        return Err(IsosurfaceError::Constant {
-            value: f64::from(min),
-        });
-    }
-    let threshold = match options.level {
-        Level::Otsu => otsu(values, min, max),
-        Level::Value(v) => v as f32,
-    };
-    let (min, max) = (f64::from(min), f64::from(max));
+    let t = f64::from(threshold);
     let foreground: Vec<bool> = values.iter().map(|&v| v > threshold).collect();
     let foreground_voxels = foreground.iter().filter(|&&f| f).count();
-    let t = f64::from(threshold);
-    match foreground_voxels {
-        0 => {
-            return Err(IsosurfaceError::Empty {
-                threshold: t,
-                min,
-                max,
-            })
-        }
-        n if n == values.len() => {
-            return Err(IsosurfaceError::Full {
-                threshold: t,
-                min,
-                max,
-            })
-        }
-        _ => {}
-    }
     let shape = volume.shape();
     let component = largest_component(&foreground, shape);
     let component_voxels = component.iter().filter(|&&c| c).count();
@@ -200,6 +167,39 @@ pub fn find_surface(
         component_share: component_voxels as f64 / foreground_voxels as f64,
         filled_voxels,
     })
+}
+
+/// Steps 1 and 2 (module docs): the smoothed volume and its threshold; an error where the
+/// image is constant or the threshold leaves no voxel above it, or none below.
+pub(super) fn smoothed_threshold(
+    volume: &Volume,
+    options: &IsosurfaceOptions,
+) -> Result<(Volume, f32), IsosurfaceError> {
+    let largest_voxel = volume.voxel_size().max();
+    let smoothed = volume.smoothed(options.smoothing.unwrap_or(largest_voxel))?;
+    let values = smoothed.values();
+    let (min, max) = values
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    if min >= max {
+        return Err(IsosurfaceError::Constant {
+            value: f64::from(min),
+        });
+    }
+    let threshold = match options.level {
+        Level::Otsu => otsu(values, min, max),
+        Level::Value(v) => v as f32,
+    };
+    let (t, min, max) = (f64::from(threshold), f64::from(min), f64::from(max));
+    if max <= t {
+        return Err(IsosurfaceError::Empty { threshold: t, min, max });
+    }
+    if min > t {
+        return Err(IsosurfaceError::Full { threshold: t, min, max });
+    }
+    Ok((smoothed, threshold))
 }
 
 /// Moves each vertex to the middle of the bright layer below it, where there is one (module

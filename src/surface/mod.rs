@@ -44,9 +44,11 @@
 pub mod isosurface;
 mod points;
 mod reference;
+pub mod voxels;
 
 pub use isosurface::{find_surface, FoundSurface, IsosurfaceError, IsosurfaceOptions, Level};
 pub use points::read_points;
+pub use voxels::{foreground_points, ForegroundPoints};
 
 use crate::fem::{cotan_laplacian, vertex_areas, SparseMatrix};
 use crate::geometry::IntrinsicGeometry;
@@ -190,6 +192,8 @@ pub enum SurfaceError {
     },
     #[error("{what} must be a positive number, got {value}")]
     BadSetting { what: &'static str, value: f64 },
+    #[error("frame {frame}: the weights must be one positive number per point, for every frame")]
+    Weights { frame: usize },
     #[error("the reference mesh: {0}")]
     Mesh(String),
     #[error("frame {frame}: the spline system could not be factorized ({detail}); are the coordinates badly scaled?")]
@@ -219,6 +223,57 @@ pub fn fit_surface(
     frames: &[Vec<Vector3<f64>>],
     options: &FitOptions,
 ) -> Result<FittedSurface, SurfaceError> {
+    fit(frames, None, options)
+}
+
+/// Weighted points: `weights[k][n] > 0` for point `n` of frame `k`, and the length the
+/// smoothing is measured in.
+struct Weighting<'a> {
+    weights: &'a [Vec<f64>],
+    length: f64,
+}
+
+/// [`fit_surface`] with a weight per point, `weights[k][n] > 0` (the brightness of voxels,
+/// [`foreground_points`]): the data term is `Σ_n w_n (h(ξ_n) − h_n)²` with each frame's weights
+/// scaled to mean 1, and the smoothing length is `ℓ = S · length` in physical units, where
+/// points as dense as voxels have no spacing to measure it in: `λ = (N/A) ℓ⁴`, `N/A` the
+/// points' density (for `length` the mean point spacing this is [`fit_surface`]'s `λ`).
+pub fn fit_surface_weighted(
+    frames: &[Vec<Vector3<f64>>],
+    weights: &[Vec<f64>],
+    length: f64,
+    options: &FitOptions,
+) -> Result<FittedSurface, SurfaceError> {
+    if !(length.is_finite() && length > 0.0) {
+        let what = "the smoothing's length unit";
+        return Err(SurfaceError::BadSetting { what, value: length });
+    }
+    for (frame, (points, w)) in frames.iter().zip(weights).enumerate() {
+        if w.len() != points.len() || w.iter().any(|&w| !(w.is_finite() && w > 0.0)) {
+            return Err(SurfaceError::Weights { frame });
+        }
+    }
+    if weights.len() != frames.len() {
+        return Err(SurfaceError::Weights { frame: weights.len().min(frames.len()) });
+    }
+    let normalized: Vec<Vec<f64>> = (weights.iter())
+        .map(|w| {
+            let mean = w.iter().sum::<f64>() / w.len().max(1) as f64;
+            w.iter().map(|x| x / mean).collect()
+        })
+        .collect();
+    let weighting = Weighting {
+        weights: &normalized,
+        length,
+    };
+    fit(frames, Some(weighting), options)
+}
+
+fn fit(
+    frames: &[Vec<Vector3<f64>>],
+    weighting: Option<Weighting>,
+    options: &FitOptions,
+) -> Result<FittedSurface, SurfaceError> {
     check(frames, options)?;
     check_memory(frames)?;
     let reference = ReferenceMesh::new(frames, options)?;
@@ -229,7 +284,10 @@ pub fn fit_surface(
     let bilaplacian = bilaplacian(&mesh, &geometry);
     let n_points = frames.iter().map(Vec::len).sum::<usize>() as f64 / frames.len() as f64;
     let spacing = (geometry.total_area() / n_points).sqrt();
-    let lambda = options.smoothing.powi(4) * spacing * spacing;
+    let lambda = match &weighting {
+        None => options.smoothing.powi(4) * spacing * spacing,
+        Some(w) => (options.smoothing * w.length).powi(4) / (spacing * spacing),
+    };
     let locator = FrameSurface::new(0, &reference.positions, &reference.faces, &reference.zeros)
         .map_err(|e| SurfaceError::Mesh(e.to_string()))?;
     let symbolic = analyze(bilaplacian.symbolic(), 1);
@@ -237,7 +295,8 @@ pub fn fit_surface(
         .par_iter()
         .enumerate()
         .map(|(k, points)| {
-            let samples = reference.locate(&locator, points);
+            let weights = weighting.as_ref().map(|w| w.weights[k].as_slice());
+            let samples = reference.locate(&locator, points, weights);
             fit_heights(k, &samples, points.len(), &bilaplacian, lambda, &symbolic)
         })
         .collect::<Result<_, _>>()?;
@@ -348,14 +407,16 @@ fn bilaplacian(mesh: &Mesh, geometry: &IntrinsicGeometry) -> SparseMatrix {
     SparseColMat::try_new_from_triplets(n, n, &triplets).expect("indices below n")
 }
 
-/// A point on the reference: its face's corners, barycentric weights and its height.
+/// A point on the reference: its face's corners, barycentric weights, its height and the
+/// weight of its term in the fit.
 pub(crate) struct HeightSample {
     corners: [usize; 3],
     weights: [f64; 3],
     height: f64,
+    weight: f64,
 }
 
-/// Solves frame `k`'s spline `(BᵀB + λ L M⁻¹ L) h = Bᵀ h_data`.
+/// Solves frame `k`'s spline `(BᵀWB + λ L M⁻¹ L) h = BᵀW h_data` (`W` the points' weights).
 fn fit_heights(
     frame: usize,
     samples: &[HeightSample],
@@ -379,9 +440,9 @@ fn fit_heights(
     let mut rhs = vec![0.0; n];
     for s in samples {
         for (a, wa) in s.corners.iter().zip(s.weights) {
-            rhs[*a] += wa * s.height;
+            rhs[*a] += s.weight * wa * s.height;
             for (b, wb) in s.corners.iter().zip(s.weights) {
-                triplets.push(Triplet::new(*a, *b, wa * wb));
+                triplets.push(Triplet::new(*a, *b, s.weight * wa * wb));
             }
         }
     }

@@ -5,6 +5,7 @@ use super::{FitOptions, HeightSample, Reference, Resolution, Shape, SurfaceError
 use crate::shapes::{grid, icosphere};
 use crate::spatial::FrameSurface;
 use nalgebra::{DMatrix, DVector, Vector3};
+use rayon::prelude::*;
 use std::f64::consts::PI;
 
 /// Subdivision levels of the icosphere tried (level 9: 2.6 million vertices on the sphere).
@@ -140,12 +141,19 @@ impl ReferenceMesh {
         })
     }
 
-    /// Where each point sits on the reference, with its height; points beyond the mesh's extent
-    /// are left out.
-    pub fn locate(&self, locator: &FrameSurface, points: &[Vector3<f64>]) -> Vec<HeightSample> {
+    /// Where each point sits on the reference, with its height and weight (`weights[n]`, 1
+    /// without); points beyond the mesh's extent are left out.
+    pub fn locate(
+        &self,
+        locator: &FrameSurface,
+        points: &[Vector3<f64>],
+        weights: Option<&[f64]>,
+    ) -> Vec<HeightSample> {
+        let weight = |n: usize| weights.map_or(1.0, |w| w[n]);
         points
-            .iter()
-            .filter_map(|p| {
+            .par_iter()
+            .enumerate()
+            .filter_map(|(n, p)| {
                 let (on_reference, height) = match self.kind {
                     Kind::Sphere {
                         centre,
@@ -173,6 +181,7 @@ impl ReferenceMesh {
                     corners: self.faces[at.face].map(|v| v as usize),
                     weights: at.barycentric,
                     height,
+                    weight: weight(n),
                 })
             })
             .collect()
