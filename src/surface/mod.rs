@@ -1,5 +1,8 @@
 //! Moving surfaces fitted through point clouds: cell centres, landmarks or detected surface
 //! points per frame become one mesh with fixed connectivity, whose vertices move with the fit.
+//! From 3-D images, the points are the bright voxels, weighted by their brightness
+//! ([`voxels`], [`fit_surface_weighted`]); or the closed surface of the object is found
+//! ([`isosurface`]).
 //!
 //! # The model
 //!

@@ -140,10 +140,10 @@ enum Command {
         pictures: ViewArgs,
     },
     /// Fit a moving surface through points per frame (cell centres, landmarks; physical
-    /// units): a smoothing-spline height over a sphere fitted to frame 0's points (the cap they
-    /// cover, or --whole-sphere) or over the plane z = 0 (--shape graph); or, with --shape
-    /// closed, the surface of the object found in 3-D images alone (volumes), tracked into one
-    /// mesh. Writes positions.npy, faces.npy and times.txt, which `meshflow sample` and
+    /// units), or through the bright voxels of 3-D images (volumes, with --voxel-size): a
+    /// smoothing-spline height over a sphere fitted to frame 0's points (the cap they cover,
+    /// or --whole-sphere) or over the plane z = 0 (--shape graph); or, with --shape closed,
+    /// the surface of the object found in the volumes, tracked into one mesh. Writes positions.npy, faces.npy and times.txt, which `meshflow sample` and
     /// `meshflow solve` read, and surface.json (the reference and the fit's residuals, or the
     /// thresholds and components, per frame).
     Surface(Box<SurfaceArgs>),

@@ -1,6 +1,7 @@
-//! `meshflow surface`: point clouds per frame (cell centres, landmarks) → a moving surface with
-//! fixed connectivity (an NPY sequence that `meshflow sample` and `meshflow solve` read), by a
-//! smoothing-spline height over a fitted sphere or a plane (`meshflow::surface`).
+//! `meshflow surface`: point clouds per frame (cell centres, landmarks), or the bright voxels of
+//! volumes, → a moving surface with fixed connectivity (an NPY sequence that `meshflow sample`
+//! and `meshflow solve` read), by a smoothing-spline height over a fitted sphere or a plane
+//! (`meshflow::surface`); or, with `--shape closed`, the object found in the volumes, tracked.
 
 use crate::args::{ForceArg, VolumePlacement};
 use crate::progress::during;
@@ -10,6 +11,7 @@ use meshflow::run::{refuse_output_over_inputs, OutputKind, Overwrite, StagedDir}
 use meshflow::format::format_number;
 use meshflow::surface::{find_surface, foreground_points, FoundSurface, IsosurfaceOptions, Level};
 use meshflow::surface::{fit_surface, fit_surface_weighted, read_points, FitOptions};
+use meshflow::surface::voxels::voxel_spacing;
 use meshflow::surface::{FittedSurface, ForegroundPoints, Reference};
 use meshflow::track::{TrackFrame, TrackOptions, Tracked};
 use meshflow::volume::{VolumeOptions, VolumeStream};
@@ -27,11 +29,6 @@ pub struct SurfaceRequest<'a> {
     /// ([`meshflow::surface::foreground_points`]).
     pub volumes: Option<(VolumeOptions, IsosurfaceOptions)>,
 }
-
-/// A spacing of points taken from volumes, for `--smoothing` and `--margin`: this many of the
-/// largest voxel side (on the zebrafish 57 µm, near the 63 µm mean spacing of its cell centres,
-/// so that the same `--smoothing` means about the same there).
-const VOXEL_SPACING: f64 = 8.0;
 
 /// The points of each frame, and with volumes their weights, reports and the smoothing's unit.
 struct FitInput {
@@ -58,7 +55,7 @@ impl FitInput {
         let (mut frames, mut weights, mut reports, mut length) = (vec![], vec![], vec![], 0.0);
         while let Some(read) = stream.next() {
             let (volume, _) = read?;
-            length = VOXEL_SPACING * volume.voxel_size().max();
+            length = voxel_spacing(&volume);
             let frame = frames.len();
             let mut found = foreground_points(&volume, finding).map_err(|e| {
                 Error::from(e).in_file(format!("{} (frame {frame})", request.points.display()))
@@ -432,8 +429,10 @@ pub(crate) enum ShapeArg {
 #[derive(clap::Args)]
 pub(crate) struct SurfaceArgs {
     /// Points per frame: a directory or quoted glob of (N, 3) .npy or .csv files (natural
-    /// order), or one (frames, N, 3) .npy (NaN rows dropped). With --shape closed, volumes: a
-    /// (Z, Y, X) or (K, Z, Y, X) .npy, TIFF stacks, or a directory or quoted glob of them
+    /// order), or one (frames, N, 3) .npy (NaN rows dropped). Or volumes: a (Z, Y, X) or
+    /// (K, Z, Y, X) .npy, TIFF stacks, or a directory or quoted glob of them; with --shape
+    /// closed, or with TIFF input or a volume flag (--voxel-size, --origin, --level, --smooth)
+    /// the spline is fitted through their bright voxels
     pub(crate) points: PathBuf,
     /// Output directory (an NPY sequence)
     #[arg(long)]
@@ -458,8 +457,9 @@ pub(crate) struct SurfaceArgs {
     /// [default: 16000]
     #[arg(long, value_name = "N")]
     pub(crate) vertices: Option<usize>,
-    /// Smoothing length in mean point spacings: height variations shorter than it are smoothed
-    /// away (0: as close to the points as the mesh allows)
+    /// Smoothing length in mean point spacings (through volumes' bright voxels: in 8 of the
+    /// largest voxel sides): height variations shorter than it are smoothed away (0: as close
+    /// to the points as the mesh allows)
     #[arg(long, value_name = "SPACINGS", default_value_t = meshflow::surface::DEFAULT_SMOOTHING, allow_negative_numbers = true)]
     pub(crate) smoothing: f64,
     /// How far the mesh reaches beyond the outermost point, in mean point spacings
@@ -468,12 +468,12 @@ pub(crate) struct SurfaceArgs {
     /// Frame times t0,t1,… [default: 0,1,2,…]
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     pub(crate) times: Option<Vec<f64>>,
-    /// With --shape closed: the threshold of the smoothed image, a value or auto (Otsu's); a
-    /// probability map works at 0.5
+    /// Volumes: the threshold of the smoothed image, a value or auto (Otsu's); a probability
+    /// map works at 0.5
     #[arg(long, value_name = "auto|VALUE", allow_negative_numbers = true)]
     pub(crate) level: Option<meshflow::surface::Level>,
-    /// With --shape closed: Gaussian smoothing of each volume first, σ in physical units
-    /// [default: the largest voxel side]
+    /// Volumes: Gaussian smoothing of each volume first, σ in physical units [default: the
+    /// largest voxel side]
     #[arg(long, value_name = "SIGMA", allow_negative_numbers = true)]
     pub(crate) smooth: Option<f64>,
     #[command(flatten)]
