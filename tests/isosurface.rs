@@ -13,21 +13,9 @@ use std::path::Path;
 
 const N: usize = 40;
 
-/// A volume of `N³` unit voxels with `value(x, y, z)` at voxel centres, plus noise of
-/// standard deviation `noise` (a fixed hash, so the test is repeatable).
+/// `N³` unit voxels of `value` with noise ([`common::noisy_volume`]).
 fn volume(value: impl Fn(Vector3<f64>) -> f64, noise: f64) -> Volume {
-    let mut values = Vec::with_capacity(N * N * N);
-    for k in 0..N {
-        for j in 0..N {
-            for i in 0..N {
-                let p = Vector3::new(i as f64, j as f64, k as f64);
-                let hash = ((i * 73_856_093) ^ (j * 19_349_663) ^ (k * 83_492_791)) % 1000;
-                let uniform = hash as f64 / 1000.0 - 0.5; // variance 1/12
-                values.push((value(p) + noise * 12f64.sqrt() * uniform) as f32);
-            }
-        }
-    }
-    Volume::new([N; 3], values, Vector3::repeat(1.0), Vector3::zeros()).unwrap()
+    common::noisy_volume(N, value, noise)
 }
 
 /// The ellipsoidal radius of `p` about the volume's centre, semi-axes (13, 11, 9).

@@ -17,21 +17,9 @@ const N: usize = 40;
 /// The centre of the cap's sphere: below the volume's middle, so that the cap fills its top.
 const CENTRE: [f64; 3] = [19.5, 19.5, 6.0];
 
-/// `N³` unit voxels with `value(p)` at voxel centres plus uniform noise of standard deviation
-/// `noise` (a fixed hash, so the test is repeatable).
+/// `N³` unit voxels of `value` with noise ([`common::noisy_volume`]).
 fn volume(value: impl Fn(Vector3<f64>) -> f64, noise: f64) -> Volume {
-    let mut values = Vec::with_capacity(N * N * N);
-    for k in 0..N {
-        for j in 0..N {
-            for i in 0..N {
-                let p = Vector3::new(i as f64, j as f64, k as f64);
-                let hash = ((i * 73_856_093) ^ (j * 19_349_663) ^ (k * 83_492_791)) % 1000;
-                let uniform = hash as f64 / 1000.0 - 0.5;
-                values.push((value(p) + noise * 12f64.sqrt() * uniform) as f32);
-            }
-        }
-    }
-    Volume::new([N; 3], values, Vector3::repeat(1.0), Vector3::zeros()).unwrap()
+    common::noisy_volume(N, value, noise)
 }
 
 fn distance_from_centre(p: &Vector3<f64>) -> f64 {

@@ -372,3 +372,24 @@ pub fn surface(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
     ]);
     (points, seq)
 }
+
+/// `n³` unit voxels with `value(p)` at the voxel centres `p = (i, j, k)`, plus uniform noise of
+/// standard deviation `noise` from a fixed hash (repeatable).
+pub fn noisy_volume(
+    n: usize,
+    value: impl Fn(Vector3<f64>) -> f64,
+    noise: f64,
+) -> meshflow::volume::Volume {
+    let mut values = Vec::with_capacity(n * n * n);
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let p = Vector3::new(i as f64, j as f64, k as f64);
+                let hash = ((i * 73_856_093) ^ (j * 19_349_663) ^ (k * 83_492_791)) % 1000;
+                let uniform = hash as f64 / 1000.0 - 0.5; // variance 1/12
+                values.push((value(p) + noise * 12f64.sqrt() * uniform) as f32);
+            }
+        }
+    }
+    meshflow::volume::Volume::new([n; 3], values, Vector3::repeat(1.0), Vector3::zeros()).unwrap()
+}
