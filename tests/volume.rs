@@ -147,6 +147,7 @@ fn npy_volumes_read_as_one_or_many_frames() {
     let options = VolumeOptions {
         voxel_size: Some(Vector3::from(VOXEL)),
         origin: Vector3::from(ORIGIN),
+        ..VolumeOptions::default()
     };
     let frames = read_volumes(&four, &options).unwrap();
     assert_eq!(frames.volumes.len(), 2);

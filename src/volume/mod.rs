@@ -29,11 +29,13 @@
 //! is folded onto it, and a Gaussian at least as wide as that (σ ≥ 2(n − 1) voxels) averages
 //! the axis, so the cost never grows with σ beyond the volume's size.
 
+mod ome_zarr;
 mod read;
 pub mod sample;
 mod smooth;
 mod tiff_stack;
 
+pub use ome_zarr::is_ome_zarr;
 pub use read::{
     count_volume_frames, read_volumes, VolumeFrames, VolumeOptions, VolumeStream, VoxelSizeSource,
 };

@@ -14,6 +14,7 @@
 //! read alone ([`count_volume_frames`]), so that a frame count, a shape or a size that the
 //! memory limit ([`crate::limits`]) does not allow is an error before anything is allocated.
 
+use super::ome_zarr::{is_ome_zarr, OmeZarr};
 use super::{tiff_stack, Volume, VolumeError};
 use crate::format::{
     format_number, frame_files, read_npy_f32, read_npy_f32_rows, read_npy_image_rows, IoError,
@@ -23,13 +24,17 @@ use nalgebra::Vector3;
 use std::io::{Read, Seek};
 use std::path::{Path, PathBuf};
 
-/// Where volumes are in space.
+/// Where volumes are in space, and what of an OME-Zarr image is read.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct VolumeOptions {
     /// `(d_x, d_y, d_z)`; `None`: from the files' metadata, else `1 × 1 × 1`.
     pub voxel_size: Option<Vector3<f64>>,
-    /// The centre of voxel `(0, 0, 0)`.
+    /// The centre of voxel `(0, 0, 0)` (added to an OME-Zarr image's own translation).
     pub origin: Vector3<f64>,
+    /// OME-Zarr: the channel (`None`: 0).
+    pub channel: Option<usize>,
+    /// OME-Zarr: the resolution level (0: the finest).
+    pub resolution_level: usize,
 }
 
 /// Where the voxel size of [`VolumeFrames`] came from.
@@ -59,6 +64,8 @@ pub struct VolumeFrames {
 pub(super) enum Metadata {
     None,
     Found(Vector3<f64>),
+    /// Found, with its own report (an OME-Zarr image's scale and unit).
+    Said(Vector3<f64>, String),
     /// There, but not a voxel size: which tag said what.
     Invalid(String),
 }
@@ -67,9 +74,10 @@ pub(super) enum Metadata {
 /// `(K, Z, Y, X)`), a `.tif`/`.tiff` stack, or a directory or glob of such files. Every error
 /// names the file.
 pub fn read_volumes(path: &Path, options: &VolumeOptions) -> Result<VolumeFrames, Error> {
-    if let Some(voxel_size) = options.voxel_size {
-        super::check_voxel_size(&voxel_size).map_err(|e| Error::from(e).in_file(path))?;
+    if is_ome_zarr(path) {
+        return read_ome_zarr(path, options);
     }
+    check_options(path, options)?;
     let files = volume_files(path)?;
     let declared = declare_all(path, &files, Held::All)?;
     let mut volumes = Vec::with_capacity(declared.iter().map(|d| d.frames).sum());
@@ -109,15 +117,35 @@ pub struct VolumeStream {
     /// The next frame: its file and its index in the file.
     file: usize,
     in_file: usize,
+    /// An OME-Zarr image, the one "file".
+    zarr: Option<OmeZarr>,
 }
 
 impl VolumeStream {
     /// The volumes that `path` names (as [`read_volumes`]), their headers checked, one
     /// frame's size against the memory limit; nothing read yet.
     pub fn open(path: &Path, options: &VolumeOptions) -> Result<Self, Error> {
-        if let Some(voxel_size) = options.voxel_size {
-            super::check_voxel_size(&voxel_size).map_err(|e| Error::from(e).in_file(path))?;
+        if is_ome_zarr(path) {
+            if let Some(voxel_size) = options.voxel_size {
+                super::check_voxel_size(&voxel_size).map_err(|e| Error::from(e).in_file(path))?;
+            }
+            let image = OmeZarr::open(path, options.channel, options.resolution_level)?;
+            let declared = Declared {
+                frames: image.n_frames(),
+                shape: image.shape(),
+                float64: false,
+            };
+            return Ok(Self {
+                options: options.clone(),
+                files: vec![path.to_path_buf()],
+                declared: vec![declared],
+                chosen: None,
+                file: 0,
+                in_file: 0,
+                zarr: Some(image),
+            });
         }
+        check_options(path, options)?;
         let files = volume_files(path)?;
         let declared = declare_all(path, &files, Held::One)?;
         Ok(Self {
@@ -127,6 +155,7 @@ impl VolumeStream {
             chosen: None,
             file: 0,
             in_file: 0,
+            zarr: None,
         })
     }
 
@@ -142,18 +171,24 @@ impl VolumeStream {
     /// The next frame's volume and its file.
     fn read_next(&mut self) -> Result<(Volume, PathBuf), Error> {
         let (file, declared) = (&self.files[self.file], &self.declared[self.file]);
-        let (values, metadata) = match declared.frames {
-            1 => {
+        let mut origin = self.options.origin;
+        let (values, metadata) = match (&self.zarr, declared.frames) {
+            (Some(image), _) => {
+                origin += image.translation;
+                let said = image.said.clone();
+                (image.frame(self.in_file)?, Metadata::Said(image.voxel_size, said))
+            }
+            (None, 1) => {
                 let (mut stacks, metadata) = read_file(file, declared)?;
                 (stacks.pop().expect("one frame"), metadata)
             }
-            _ => (npy_frame(file, declared, self.in_file)?, Metadata::None),
+            (None, _) => (npy_frame(file, declared, self.in_file)?, Metadata::None),
         };
         if self.chosen.is_none() {
             self.chosen = Some(choose_voxel_size(self.options.voxel_size, metadata, file)?);
         }
         let voxel_size = self.chosen.as_ref().expect("chosen above").0;
-        let volume = Volume::new(declared.shape, values, voxel_size, self.options.origin)
+        let volume = Volume::new(declared.shape, values, voxel_size, origin)
             .map_err(|e| Error::from(e).in_file(file))?;
         let file = file.clone();
         self.in_file += 1;
@@ -190,11 +225,48 @@ fn npy_frame(file: &Path, declared: &Declared, k: usize) -> Result<Vec<f32>, Err
 /// files' headers and page directories alone: checked before the volumes are read, and each
 /// file's declared size checked against the memory limit.
 pub fn count_volume_frames(path: &Path) -> Result<usize, Error> {
+    if is_ome_zarr(path) {
+        return Ok(OmeZarr::open(path, None, 0)?.n_frames());
+    }
     let files = volume_files(path)?;
     Ok(declare_all(path, &files, Held::All)?
         .iter()
         .map(|d| d.frames)
         .sum())
+}
+
+/// An OME-Zarr image's frames, all held: each frame's size was checked when the image was
+/// opened, all of them here.
+fn read_ome_zarr(path: &Path, options: &VolumeOptions) -> Result<VolumeFrames, Error> {
+    let stream = VolumeStream::open(path, options)?;
+    let [z, y, x] = stream.declared[0].shape;
+    let frames = stream.n_frames() as u64;
+    let voxels = frames.saturating_mul((z * y * x) as u64);
+    let what = format!("{frames} volume frames of {z} × {y} × {x} voxels");
+    limits::check_declared(what, voxels.saturating_mul(4))
+        .map_err(|e| IoError::too_large(path, e))?;
+    let mut volumes = Vec::new();
+    let mut stream = stream;
+    for read in stream.by_ref() {
+        volumes.push(read?.0);
+    }
+    Ok(VolumeFrames {
+        files: vec![path.to_path_buf(); volumes.len()],
+        volumes,
+        voxel_size_source: stream.voxel_size_source().cloned().unwrap_or(VoxelSizeSource::Given),
+    })
+}
+
+/// The voxel size given, and no OME-Zarr options for other files.
+fn check_options(path: &Path, options: &VolumeOptions) -> Result<(), Error> {
+    if let Some(voxel_size) = options.voxel_size {
+        super::check_voxel_size(&voxel_size).map_err(|e| Error::from(e).in_file(path))?;
+    }
+    if options.channel.is_some() || options.resolution_level > 0 {
+        let message = "--channel and --resolution-level apply to OME-Zarr images (a directory with zarr.json or .zattrs)";
+        return Err(IoError::format(path, message).into());
+    }
+    Ok(())
 }
 
 fn volume_files(path: &Path) -> Result<Vec<PathBuf>, IoError> {
@@ -435,6 +507,7 @@ fn choose_voxel_size(
             );
             (size, VoxelSizeSource::File(said))
         }
+        (None, Metadata::Said(size, said)) => (size, VoxelSizeSource::File(said)),
         (None, Metadata::Invalid(why)) => {
             return Err(Error::from(VolumeError::Metadata(why)).in_file(file))
         }

@@ -54,8 +54,8 @@ impl MeshArgs {
 /// Where volumes lie in space (`sample`, `surface --shape closed`).
 #[derive(clap::Args)]
 pub(crate) struct VolumePlacement {
-    /// Voxel size x,y,z in the surface's units [default: from ImageJ TIFF metadata, else
-    /// 1,1,1]
+    /// Voxel size x,y,z in the surface's units [default: from ImageJ TIFF or OME-Zarr
+    /// metadata, else 1,1,1]
     #[arg(
         long,
         value_name = "X,Y,Z",
@@ -71,6 +71,12 @@ pub(crate) struct VolumePlacement {
         allow_negative_numbers = true
     )]
     pub(crate) origin: Option<Vec<f64>>,
+    /// OME-Zarr images: the channel to read [default: 0]
+    #[arg(long, value_name = "C")]
+    pub(crate) channel: Option<usize>,
+    /// OME-Zarr images: the resolution level to read, 0 the finest [default: 0]
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub(crate) resolution_level: usize,
 }
 
 impl VolumePlacement {
@@ -78,6 +84,8 @@ impl VolumePlacement {
         Ok(meshflow::volume::VolumeOptions {
             voxel_size: triple(&self.voxel_size, "--voxel-size")?,
             origin: triple(&self.origin, "--origin")?.unwrap_or_default(),
+            channel: self.channel,
+            resolution_level: self.resolution_level,
         })
     }
 }
