@@ -135,11 +135,15 @@ fn volume_file(data: &Path, frame: usize) -> PathBuf {
 /// The cases whose volumes the converter wrote (it converts the pairs it finds), naming the
 /// others; an error when there is none.
 fn cases_found(data: &Path) -> Result<Vec<&'static Case>, String> {
-    let (found, missing): (Vec<&Case>, Vec<&Case>) = (CASES.iter())
-        .partition(|c| c.frames.iter().all(|&k| volume_file(data, k).is_file()));
+    let (found, missing): (Vec<&Case>, Vec<&Case>) =
+        (CASES.iter()).partition(|c| c.frames.iter().all(|&k| volume_file(data, k).is_file()));
     let names = |cases: &[&Case]| -> String {
         let name = |c: &&Case| c.frames.iter().map(usize::to_string).collect::<Vec<_>>();
-        cases.iter().map(|c| name(c).join("→")).collect::<Vec<_>>().join(", ")
+        cases
+            .iter()
+            .map(|c| name(c).join("→"))
+            .collect::<Vec<_>>()
+            .join(", ")
     };
     if found.is_empty() {
         return Err(format!(
@@ -296,7 +300,12 @@ fn run_case(
             seconds,
         });
     }
-    rows.push(from_volumes_alone(&case_volumes, sequence.times(), vertices, &tracks)?);
+    rows.push(from_volumes_alone(
+        &case_volumes,
+        sequence.times(),
+        vertices,
+        &tracks,
+    )?);
     print_table(&rows, &zero_scores);
     if let (true, Some((flow, scores))) = (case.draw, recommended) {
         draw(&sequence, &flow, &scores, out)?;

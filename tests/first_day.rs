@@ -13,7 +13,6 @@ use meshflow::volume::{
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
-
 fn path(p: &Path) -> &str {
     p.to_str().unwrap()
 }
@@ -36,7 +35,13 @@ const ORIGIN: &str = "--origin=-11.5,-11.5,-11.5";
 fn a_surface_mostly_outside_its_volume_is_refused_with_the_reason() {
     let mesh = Mesh::new(3, vec![[0, 1, 2]]).unwrap();
     let volume = |voxel: f64| {
-        Volume::new([4, 4, 4], vec![1.0; 64], Vector3::repeat(voxel), Vector3::zeros()).unwrap()
+        Volume::new(
+            [4, 4, 4],
+            vec![1.0; 64],
+            Vector3::repeat(voxel),
+            Vector3::zeros(),
+        )
+        .unwrap()
     };
     // A triangle 2000 µm across on a volume of 3 × 1 µm… given in mm: 1000 times apart.
     let x = vec![vec![
@@ -71,7 +76,10 @@ fn a_surface_mostly_outside_its_volume_is_refused_with_the_reason() {
         assert!(message.contains(named), "{message:?} lacks {named:?}");
     }
     // The same sizes, but beside the volume: the origin is the suspect, not the units.
-    let beside: Vec<Vector3<f64>> = x[0].iter().map(|p| p / 1000.0 + Vector3::x() * 10.0).collect();
+    let beside: Vec<Vector3<f64>> = x[0]
+        .iter()
+        .map(|p| p / 1000.0 + Vector3::x() * 10.0)
+        .collect();
     let message = sample_sequence(&[volume(1.0)], &mesh, &[beside], &SampleOptions::default())
         .unwrap_err()
         .to_string();
@@ -99,10 +107,13 @@ fn a_surface_mostly_outside_its_volume_is_refused_with_the_reason() {
         Vector3::new(2.0, 1.0, 1.0),
         Vector3::new(1.0, 2.0, 1.0),
     ]];
-    let error = sample_sequence(&[volume(1000.0)], &mesh, &tiny, &SampleOptions::default())
-        .unwrap_err();
+    let error =
+        sample_sequence(&[volume(1000.0)], &mesh, &tiny, &SampleOptions::default()).unwrap_err();
     let message = error.to_string();
-    assert!(message.contains("the surface spans 0.001 voxels, too few to sample"), "{message}");
+    assert!(
+        message.contains("the surface spans 0.001 voxels, too few to sample"),
+        "{message}"
+    );
     assert!(message.contains("about 1000 times smaller"), "{message}");
     assert!(sample_sequence(&[volume(1000.0)], &mesh, &tiny, &allowed).is_ok());
 }
@@ -114,10 +125,21 @@ fn sample_refuses_wrong_units_and_flags_what_it_cannot_see() {
     let vols = volumes(dir.path());
     // The voxel size in mm for a surface in µm.
     let message = meshflow_error(
-        &["sample", path(&vols), path(&seq), ORIGIN, "--voxel-size", "0.001,0.001,0.001"],
+        &[
+            "sample",
+            path(&vols),
+            path(&seq),
+            ORIGIN,
+            "--voxel-size",
+            "0.001,0.001,0.001",
+        ],
         "lie outside the recording",
     );
-    for named in ["voxel size 0.001 × 0.001 × 0.001", "about 1000 times larger", "--allow-outside"] {
+    for named in [
+        "voxel size 0.001 × 0.001 × 0.001",
+        "about 1000 times larger",
+        "--allow-outside",
+    ] {
         assert!(message.contains(named), "{message}");
     }
     assert!(!seq.join("intensity.npy").exists(), "nothing is written");
@@ -128,14 +150,28 @@ fn sample_refuses_wrong_units_and_flags_what_it_cannot_see() {
     let lines: Vec<&str> = stderr.lines().collect();
     assert_eq!(run.status.code(), Some(1), "{stderr}");
     assert_eq!(lines.len(), 2, "{stderr}");
-    assert!(lines[0].contains("warning") && lines[0].contains("taking 1 × 1 × 1"), "{stderr}");
+    assert!(
+        lines[0].contains("warning") && lines[0].contains("taking 1 × 1 × 1"),
+        "{stderr}"
+    );
     assert!(lines[1].contains("lie outside"), "{stderr}");
     assert!(lines[1].contains("x 0…23, y 0…23, z 0…23"), "{stderr}");
     assert!(lines[1].contains("the surface x -10…10"), "{stderr}");
     assert!(lines[1].contains("check --voxel-size"), "{stderr}");
     // Placed so that the sphere pokes out of the volume on +x: sampled, and the vertices
     // outside flagged in no_data.npy beside the image.
-    meshflow_ok(&["sample", path(&vols), path(&seq), "--origin=-11.5,-11.5,-11.5", "--shell", "0,0", "--layers", "1", "--voxel-size", "0.9,1,1"]);
+    meshflow_ok(&[
+        "sample",
+        path(&vols),
+        path(&seq),
+        "--origin=-11.5,-11.5,-11.5",
+        "--shell",
+        "0,0",
+        "--layers",
+        "1",
+        "--voxel-size",
+        "0.9,1,1",
+    ]);
     let no_data = read_npy_image(&seq.join("no_data.npy")).unwrap();
     let positions = read_npy(&seq.join("positions.npy")).unwrap();
     let n = positions.shape[1] as usize;
@@ -152,7 +188,15 @@ fn sample_refuses_wrong_units_and_flags_what_it_cannot_see() {
     assert!(flagged > 0, "the sphere reaches x = 10 > 9.2");
     // The solve flags a slab's vertex where either frame has no data.
     let run = dir.path().join("run");
-    meshflow_ok(&["solve", path(&seq), "--out", path(&run), "--png", "--format", "npy,vtu"]);
+    meshflow_ok(&[
+        "solve",
+        path(&seq),
+        "--out",
+        path(&run),
+        "--png",
+        "--format",
+        "npy,vtu",
+    ]);
     let slab = read_npy_image(&run.join("no_data.npy")).unwrap();
     assert_eq!(slab.shape, vec![1, n as u64]);
     for i in 0..n {
@@ -194,21 +238,38 @@ fn every_scored_cell_has_its_row() {
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     assert_eq!(header.len(), 15);
     let rows: Vec<Vec<f64>> = lines
-        .map(|l| l.split(',').map(|f| f.parse().unwrap_or(f64::NAN)).collect())
+        .map(|l| {
+            l.split(',')
+                .map(|f| f.parse().unwrap_or(f64::NAN))
+                .collect()
+        })
         .collect();
     assert_eq!(rows.len(), scored);
     let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
     let (t, f, e) = (column("true_x"), column("flow_x"), column("endpoint_error"));
     let mut mean = 0.0;
     for row in &rows {
-        let difference = (0..3).map(|c| (row[f + c] - row[t + c]).powi(2)).sum::<f64>().sqrt();
-        assert!((difference - row[e]).abs() < 1e-9 * (1.0 + row[e]), "{row:?}");
+        let difference = (0..3)
+            .map(|c| (row[f + c] - row[t + c]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(
+            (difference - row[e]).abs() < 1e-9 * (1.0 + row[e]),
+            "{row:?}"
+        );
         mean += row[e] / rows.len() as f64;
     }
-    let reported = summary["ground_truth_tracks"]["mean_endpoint"].as_f64().unwrap();
-    assert!((mean - reported).abs() < 1e-9 * reported.max(1e-12), "{mean} vs {reported}");
+    let reported = summary["ground_truth_tracks"]["mean_endpoint"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        (mean - reported).abs() < 1e-9 * reported.max(1e-12),
+        "{mean} vs {reported}"
+    );
     let vtu = std::fs::read_to_string(run.join("track_errors.vtu")).unwrap();
-    assert!(vtu.contains(&format!("NumberOfPoints=\"{scored}\" NumberOfCells=\"{scored}\"")));
+    assert!(vtu.contains(&format!(
+        "NumberOfPoints=\"{scored}\" NumberOfCells=\"{scored}\""
+    )));
     assert!(run.join("track_errors_0000.png").is_file());
 }
 
@@ -219,10 +280,20 @@ fn messages_a_newcomer_meets() {
     let vols = volumes(dir.path());
     // The arguments swapped.
     let swapped = meshflow_error(&["sample", path(&seq), path(&vols)], "swap them");
-    assert!(swapped.contains("meshflow sample VOLUMES SEQUENCE"), "{swapped}");
+    assert!(
+        swapped.contains("meshflow sample VOLUMES SEQUENCE"),
+        "{swapped}"
+    );
     // --out a directory: refused before any volume is read.
     let message = meshflow_error(
-        &["sample", path(&vols), path(&seq), ORIGIN, "--out", path(dir.path())],
+        &[
+            "sample",
+            path(&vols),
+            path(&seq),
+            ORIGIN,
+            "--out",
+            path(dir.path()),
+        ],
         "a directory",
     );
     assert!(message.contains("--out names the .npy file"), "{message}");
@@ -241,13 +312,26 @@ fn messages_a_newcomer_meets() {
     for k in 0..2 {
         std::fs::write(gz.join(format!("frame_{k}.obj.gz")), b"\x1f\x8b").unwrap();
     }
-    let message = meshflow_error(&["solve", path(&gz), "--out", path(&dir.path().join("o"))], "compressed");
-    assert!(message.contains("2 compressed mesh frames (frame_0.obj.gz"), "{message}");
+    let message = meshflow_error(
+        &["solve", path(&gz), "--out", path(&dir.path().join("o"))],
+        "compressed",
+    );
+    assert!(
+        message.contains("2 compressed mesh frames (frame_0.obj.gz"),
+        "{message}"
+    );
     assert!(message.contains("decompress"), "{message}");
     // --times of the wrong length names --times.
     let sphere = shipped("rotating_sphere");
     let message = meshflow_error(
-        &["solve", &sphere, "--out", path(&dir.path().join("t")), "--times", "0,1,2"],
+        &[
+            "solve",
+            &sphere,
+            "--out",
+            path(&dir.path().join("t")),
+            "--times",
+            "0,1,2",
+        ],
         "--times",
     );
     assert!(message.contains("frame times"), "{message}");
@@ -288,7 +372,10 @@ fn smoothing_over_a_length_damps_by_the_heat_kernel() {
     let expected = (1.0 + 2.0 * t / 4.0_f64).powi(-4);
     let factor: f64 = smoothed[0].iter().zip(&z).map(|(s, z)| s * z).sum::<f64>()
         / z.iter().map(|z| z * z).sum::<f64>();
-    assert!((factor - expected).abs() < 0.01 * expected, "{factor} vs {expected}");
+    assert!(
+        (factor - expected).abs() < 0.01 * expected,
+        "{factor} vs {expected}"
+    );
     assert!(smoothed[1].iter().all(|&c| (c - 1.0).abs() < 1e-12));
     let unchanged = smoothed_over_length(&sequence, 1, &[&z], 0.0).unwrap();
     assert_eq!(unchanged[0], z);
@@ -324,8 +411,8 @@ fn voxel_sizes_from_metadata_print_their_digits() {
 /// Every section of the user guide is in its table of contents.
 #[test]
 fn the_guide_lists_every_section() {
-    let guide = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/guide.md"))
-        .unwrap();
+    let guide =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/guide.md")).unwrap();
     let contents: String = guide
         .lines()
         .skip_while(|l| !l.starts_with("- ["))
@@ -337,7 +424,15 @@ fn the_guide_lists_every_section() {
         let Some(title) = line.strip_prefix("## ").filter(|_| !in_code) else {
             continue;
         };
-        assert!(contents.contains(&format!("[{title}](#")), "{title} is not in the contents");
+        assert!(
+            contents.contains(&format!("[{title}](#")),
+            "{title} is not in the contents"
+        );
+    }
+    // The MPI section names the flags Open MPI needs as root and with more ranks than cores.
+    let cluster = guide.split("### Running on a cluster").nth(1).unwrap();
+    for flag in ["--allow-run-as-root", "--oversubscribe"] {
+        assert!(cluster.contains(flag), "the cluster section lacks {flag}");
     }
 }
 
@@ -356,10 +451,20 @@ fn nan_in_a_csv_names_the_file_and_line() {
                 _ => format!("{},{},{}\n", p.x, p.y, p.z),
             })
             .collect();
-        std::fs::write(cells.join(format!("frame_{k}.csv")), format!("x,y,z\n{rows}")).unwrap();
+        std::fs::write(
+            cells.join(format!("frame_{k}.csv")),
+            format!("x,y,z\n{rows}"),
+        )
+        .unwrap();
     }
     let out = dir.path().join("surf");
-    let message = meshflow_error(&["surface", path(&cells), "--out", path(&out)], "frame_1.csv");
+    let message = meshflow_error(
+        &["surface", path(&cells), "--out", path(&out)],
+        "frame_1.csv",
+    );
     assert!(message.contains("line 9"), "{message}");
-    assert!(message.contains("'NaN' is not a finite number"), "{message}");
+    assert!(
+        message.contains("'NaN' is not a finite number"),
+        "{message}"
+    );
 }

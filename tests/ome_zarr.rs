@@ -109,7 +109,10 @@ fn write_v3(image: &Path) {
 /// NGFF 0.4: a Zarr v2 group with `.zattrs`, arrays without compressor, chunk keys `t/c/0/0/0`.
 fn write_v2(image: &Path) {
     write_json(&image.join(".zgroup"), &json!({"zarr_format": 2}));
-    write_json(&image.join(".zattrs"), &json!({"multiscales": multiscales("0.4")}));
+    write_json(
+        &image.join(".zattrs"),
+        &json!({"multiscales": multiscales("0.4")}),
+    );
     for level in 0..2 {
         let shape = shape_of(level);
         let [_, _, z, y, x] = shape;
@@ -122,7 +125,10 @@ fn write_v2(image: &Path) {
         write_json(&dir.join(".zarray"), &array);
         for t in 0..shape[0] {
             for c in 0..shape[1] {
-                write_chunk(&dir.join(format!("{t}/{c}/0/0/0")), &chunk_bytes(level, t, c));
+                write_chunk(
+                    &dir.join(format!("{t}/{c}/0/0/0")),
+                    &chunk_bytes(level, t, c),
+                );
             }
         }
     }
@@ -258,17 +264,33 @@ fn sample_reads_ome_zarr_as_the_same_data_in_npy() {
     // some out) read the image, and never 0 there.
     let intensity = read(&from_zarr);
     let inside = intensity.iter().filter(|&&v| v > 0.0).count();
-    assert!(inside > intensity.len() / 2, "{inside} of {}", intensity.len());
+    assert!(
+        inside > intensity.len() / 2,
+        "{inside} of {}",
+        intensity.len()
+    );
     // What is not there is named.
     let args = |flag: &str, n: &str| {
-        vec!["sample".to_string(), name(&two_frames), name(&seq), flag.into(), n.into()]
+        vec![
+            "sample".to_string(),
+            name(&two_frames),
+            name(&seq),
+            flag.into(),
+            n.into(),
+        ]
     };
     let run = |a: Vec<String>, expected: &str| {
         let a: Vec<&str> = a.iter().map(String::as_str).collect();
         meshflow_error(&a, expected)
     };
-    run(args("--channel", "2"), "--channel 2: the image has channels 0 … 1");
-    run(args("--resolution-level", "1"), "--resolution-level 1: the image has levels 0 … 0");
+    run(
+        args("--channel", "2"),
+        "--channel 2: the image has channels 0 … 1",
+    );
+    run(
+        args("--resolution-level", "1"),
+        "--resolution-level 1: the image has levels 0 … 0",
+    );
     let on_npy = vec![
         "sample".to_string(),
         name(&npy),
@@ -276,5 +298,8 @@ fn sample_reads_ome_zarr_as_the_same_data_in_npy() {
         "--channel".into(),
         "1".into(),
     ];
-    run(on_npy, "--channel and --resolution-level apply to OME-Zarr images");
+    run(
+        on_npy,
+        "--channel and --resolution-level apply to OME-Zarr images",
+    );
 }

@@ -174,9 +174,15 @@ fn caps_and_sheets_are_seen_along_their_axis() {
         .sum();
     let sixty = view_of(&sixty_cap);
     let expected = 1.0 - area / (4.0 * std::f64::consts::PI);
-    assert!((sixty.facing - expected).abs() < 0.01, "{sixty} vs {expected}");
+    assert!(
+        (sixty.facing - expected).abs() < 0.01,
+        "{sixty} vs {expected}"
+    );
     assert_eq!(sixty.view.up, UpAxis::Z);
-    assert!(sixty.view.direction().dot(&Vector3::z()) > 1.0 - 1e-9, "{sixty}");
+    assert!(
+        sixty.view.direction().dot(&Vector3::z()) > 1.0 - 1e-9,
+        "{sixty}"
+    );
     // Turned 17° about x: still z up, the eye 17° off it, on the cap's axis.
     let turned_cap = turned(cap(0.5), Vector3::x(), 17.0);
     let tilted = view_of(&turned_cap);
@@ -188,12 +194,21 @@ fn caps_and_sheets_are_seen_along_their_axis() {
     let down = view_of(&turned(cap(0.5), Vector3::x(), 180.0));
     assert_eq!(down.view.up, UpAxis::NegZ);
     assert!(down.to_string().contains("from -z"), "{down}");
-    assert_eq!(choice_for(&turned(cap(0.5), Vector3::x(), 180.0)).view(), down.view);
+    assert_eq!(
+        choice_for(&turned(cap(0.5), Vector3::x(), 180.0)).view(),
+        down.view
+    );
     // A flat sheet faces fully.
     assert!((view_of(&grid(12, 8, 1.5, 1.0)).facing - 1.0).abs() < 1e-12);
     // A cap of 127° faces 0.2 of its area one way: the spread rule decides, and a closed
     // surface is never a cap.
     assert!(!matches!(choice_for(&cap(-0.6)).reason, UpReason::Cap(_)));
-    assert!(!matches!(choice_for(&icosphere(3)).reason, UpReason::Cap(_)));
-    assert_eq!(choice_for(&icosphere(3)).view(), meshflow::render::View::default());
+    assert!(!matches!(
+        choice_for(&icosphere(3)).reason,
+        UpReason::Cap(_)
+    ));
+    assert_eq!(
+        choice_for(&icosphere(3)).view(),
+        meshflow::render::View::default()
+    );
 }

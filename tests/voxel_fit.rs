@@ -63,7 +63,9 @@ fn mean_radius(fitted: &meshflow::surface::FittedSurface) -> (f64, f64, f64) {
         .map(distance_from_centre)
         .collect();
     let mean = radii.iter().sum::<f64>() / radii.len() as f64;
-    let (low, high) = radii.iter().fold((f64::INFINITY, 0.0f64), |(l, h), &r| (l.min(r), h.max(r)));
+    let (low, high) = radii
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(l, h), &r| (l.min(r), h.max(r)));
     (mean, low, high)
 }
 
@@ -72,7 +74,10 @@ fn a_cap_layer_is_fitted_through_its_middle() {
     let fitted = fit(&cap_layer(120.0, 120.0), Shape::SphereLike { whole: false });
     let (mean, low, high) = mean_radius(&fitted);
     assert!((mean - 26.5).abs() < 0.3, "mean radius {mean}");
-    assert!(low > 25.0 && high < 28.0, "radii {low}–{high} leave the layer 25–28");
+    assert!(
+        low > 25.0 && high < 28.0,
+        "radii {low}–{high} leave the layer 25–28"
+    );
 }
 
 /// Weighted by brightness: a layer bright in its outer half draws the surface outwards, one
@@ -83,8 +88,14 @@ fn the_brighter_part_of_the_layer_pulls_the_surface() {
     let cap = Shape::SphereLike { whole: false };
     let (outer, ..) = mean_radius(&fit(&cap_layer(60.0, 200.0), cap));
     let (inner, ..) = mean_radius(&fit(&cap_layer(200.0, 60.0), cap));
-    assert!(outer - inner > 0.5, "outer-bright {outer}, inner-bright {inner}");
-    assert!(outer > 26.5 && inner < 26.5, "outer-bright {outer}, inner-bright {inner}");
+    assert!(
+        outer - inner > 0.5,
+        "outer-bright {outer}, inner-bright {inner}"
+    );
+    assert!(
+        outer > 26.5 && inner < 26.5,
+        "outer-bright {outer}, inner-bright {inner}"
+    );
 }
 
 /// A tilted sheet `z = 12 + 0.3 x ± 1.5` seen from above: the graph through its middle.
@@ -98,7 +109,9 @@ fn a_sheet_is_fitted_as_a_graph() {
         12.0,
     );
     let fitted = fit(&sheet, Shape::Graph);
-    let inner = fitted.positions[0].iter().filter(|p| (4.0..35.0).contains(&p.x));
+    let inner = fitted.positions[0]
+        .iter()
+        .filter(|p| (4.0..35.0).contains(&p.x));
     let offsets: Vec<f64> = inner.map(|p| p.z - 12.0 - 0.3 * p.x).collect();
     let mean = offsets.iter().sum::<f64>() / offsets.len() as f64;
     let worst = offsets.iter().fold(0.0f64, |m, d| m.max(d.abs()));
@@ -134,11 +147,21 @@ fn the_command_fits_volumes_and_reports_their_voxels() {
     assert_eq!(report["volumes"]["smoothing_unit"], 8.0);
     let first = &report["volumes"]["frames"][0];
     assert!(first["threshold"].as_f64().unwrap() > 20.0, "{first}");
-    assert!(first["foreground_voxels"].as_u64().unwrap() > 1000, "{first}");
+    assert!(
+        first["foreground_voxels"].as_u64().unwrap() > 1000,
+        "{first}"
+    );
     let flat = dir.path().join("flat.npy");
     write_npy(&flat, &[2, 4, 4, 4], &[1.0f32; 128]);
     meshflow_error(
-        &["surface", &name(&flat), "--voxel-size", "1,1,1", "--out", &name(&dir.path().join("f"))],
+        &[
+            "surface",
+            &name(&flat),
+            "--voxel-size",
+            "1,1,1",
+            "--out",
+            &name(&dir.path().join("f")),
+        ],
         "the image is constant",
     );
 }

@@ -236,8 +236,8 @@ pub(crate) fn sample_volume<'py>(
     let out = PyDict::new(py);
     out.set_item("values", values.into_pyarray(py))?;
     out.set_item("outside", sampled.outside)?;
-    let no_data = Array2::from_shape_vec((k, n_vertices), sampled.no_data.concat())
-        .expect("K × V flags");
+    let no_data =
+        Array2::from_shape_vec((k, n_vertices), sampled.no_data.concat()).expect("K × V flags");
     out.set_item("no_data", no_data.into_pyarray(py))?;
     let shell = sampled.shell;
     out.set_item("shell", (shell.inside, shell.outside, shell.layers))?;

@@ -166,7 +166,14 @@ pub fn smoothed_over_length(
     let geometry = IntrinsicGeometry::new(sequence.mesh(), sequence.edge_lengths(frame).to_vec())
         .map_err(|source| FlowError::Frame { frame, source })?;
     let what = || format!("the smoothing of frame {frame} over {length}");
-    heat_smoothed(sequence, &geometry, values, 0.5 * length * length, LENGTH_STEPS, what)
+    heat_smoothed(
+        sequence,
+        &geometry,
+        values,
+        0.5 * length * length,
+        LENGTH_STEPS,
+        what,
+    )
 }
 
 /// One implicit heat step `I ← (M + τL)⁻¹ M I`, factorized.

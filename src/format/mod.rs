@@ -51,8 +51,8 @@ pub use npy::{
     NpyArray, NpyRows,
 };
 pub use npy_sequence::{
-    no_data_file, read_intensity_array, read_npy_sequence, write_intensity_array,
-    write_no_data, write_npy_sequence, FACES, INTENSITY, NO_DATA, POSITIONS, TIMES,
+    no_data_file, read_intensity_array, read_npy_sequence, write_intensity_array, write_no_data,
+    write_npy_sequence, FACES, INTENSITY, NO_DATA, POSITIONS, TIMES,
 };
 pub(crate) use npy_sequence::{read_intensity_rows, VertexCount};
 pub use number::format_number;

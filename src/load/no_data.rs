@@ -63,7 +63,13 @@ impl super::LoadedSequence {
         let frames = self.no_data.as_ref()?;
         Some(
             (frames.windows(2))
-                .map(|pair| pair[0].iter().zip(&pair[1]).map(|(&a, &b)| a || b).collect())
+                .map(|pair| {
+                    pair[0]
+                        .iter()
+                        .zip(&pair[1])
+                        .map(|(&a, &b)| a || b)
+                        .collect()
+                })
                 .collect(),
         )
     }

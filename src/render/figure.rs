@@ -226,7 +226,12 @@ pub fn track_errors_picture(
     };
     draw_point_arrows(&mut canvas, camera, points, truth, scale, &true_arrows)?;
     draw_point_arrows(&mut canvas, camera, points, flow, scale, &computed)?;
-    draw_arrow_key(&mut canvas, scale, reference_arrow_length(&computed), &computed);
+    draw_arrow_key(
+        &mut canvas,
+        scale,
+        reference_arrow_length(&computed),
+        &computed,
+    );
     Ok(finish(canvas, style))
 }
 

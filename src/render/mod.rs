@@ -82,15 +82,13 @@ pub use error::RenderError;
 pub use figure::{
     arrow_picture, chart_picture, flow_picture, grey_picture, mosaic_picture, mosaic_values,
     scalar_picture, screen_flow_colors, series_chart, signed_picture, track_errors_picture,
-    tracks_picture,
-    trajectory_picture, write_png, PictureStyle, Series, Surface, NO_DATA_COLOUR,
+    tracks_picture, trajectory_picture, write_png, PictureStyle, Series, Surface, NO_DATA_COLOUR,
     TRACK_ARROW_COLOUR,
 };
 pub use raster::Canvas;
 pub use shading::Lighting;
 pub use slabs::{
     result_views, sequence_views, write_chosen_slab_pictures, write_slab_pictures,
-    write_track_error_pictures, FigureOptions,
-    SlabSelection, SlabView,
+    write_track_error_pictures, FigureOptions, SlabSelection, SlabView,
 };
 pub use upright::{up_convention, CapView, Shape, ShapeUp, UpChoice, UpReason, CAP_FACING};

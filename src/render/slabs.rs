@@ -246,7 +246,8 @@ pub fn write_track_error_pictures(
         if here.is_empty() {
             continue;
         }
-        let field = |f: fn(&TrackPoint) -> Vector3<f64>| here.iter().map(|p| f(p)).collect::<Vec<_>>();
+        let field =
+            |f: fn(&TrackPoint) -> Vector3<f64>| here.iter().map(|p| f(p)).collect::<Vec<_>>();
         let style = PictureStyle {
             label: Some(format!(
                 "slab {}: cells' displacements (red) and the flow's (black)",
@@ -290,7 +291,11 @@ fn write_one_slab(
             "slab {}  t = {}{}",
             view.slab,
             format_number(view.time),
-            if marked.is_some() { "  (grey: no data)" } else { "" }
+            if marked.is_some() {
+                "  (grey: no data)"
+            } else {
+                ""
+            }
         )),
         no_data: marked.map(<[bool]>::to_vec),
         ..style.clone()

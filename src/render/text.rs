@@ -76,4 +76,3 @@ pub fn format_value(x: f64) -> String {
         format!("{x:.2e}")
     }
 }
-

@@ -54,8 +54,8 @@
 //! outside of a cap (outward normals, counter-clockwise faces), the side a microscope imaged
 //! it from, with every part of it in view. The up axis is the signed axis nearest `m`, and
 //! the view's elevation and azimuth turn the eye onto `m` exactly ([`CapView`]). Measured on
-//! the zebrafish cap of `meshflow surface` (65k vertices): facing 0.44, `m` 18° from −z, where the spread
-//! rule's oblique view into the bowl left a third of the picture black.
+//! the zebrafish cap of `meshflow surface` (65k vertices): facing 0.44, `m` 18° from −z, where
+//! the spread rule's oblique view into the bowl left a third of the picture black.
 
 use super::{UpAxis, View};
 use crate::load::{FrameFormat, LoadedSequence, SequenceSource};

@@ -134,7 +134,10 @@ fn write_all(
     }
     let max_speed = files.finish()?;
     if let (true, Some(no_data)) = (formats.contains(&OutputFormat::Npy), &no_data) {
-        let rows: Vec<Vec<bool>> = no_data.iter().map(|m| loaded.vertex_map.file_rows(m, false)).collect();
+        let rows: Vec<Vec<bool>> = no_data
+            .iter()
+            .map(|m| loaded.vertex_map.file_rows(m, false))
+            .collect();
         write_no_data(&dir.join(NO_DATA), &rows)?;
     }
     if let (true, Some(errors)) = (formats.contains(&OutputFormat::Npy), errors) {

@@ -31,8 +31,8 @@ pub use flow_output::{
 };
 pub use flow_over_ranks::{send_own_slabs, write_flow_over_ranks, WrittenFlow};
 pub use guard::{refuse_output_over_inputs, OutputKind};
-pub use track_output::{write_track_errors, TRACK_ERRORS_CSV, TRACK_ERRORS_VTU};
 pub use staging::{
     input_files, remove_live_staging, Overwrite, RecordedInput, RunManifest, StagedDir,
     RUN_MANIFEST,
 };
+pub use track_output::{write_track_errors, TRACK_ERRORS_CSV, TRACK_ERRORS_VTU};

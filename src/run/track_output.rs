@@ -25,7 +25,10 @@ pub fn write_track_errors(dir: &Path, scores: &TrackScores, vtu: bool) -> Result
             w,
             "frame,track,x,y,z,distance,true_x,true_y,true_z,flow_x,flow_y,flow_z,endpoint_error,direction_error_degrees,speed_ratio"
         )?;
-        scores.points.iter().try_for_each(|p| writeln!(w, "{}", csv_row(p)))
+        scores
+            .points
+            .iter()
+            .try_for_each(|p| writeln!(w, "{}", csv_row(p)))
     })?;
     if vtu {
         write_points(&dir.join(TRACK_ERRORS_VTU), &scores.points)?;

@@ -194,10 +194,18 @@ pub(super) fn smoothed_threshold(
     };
     let (t, min, max) = (f64::from(threshold), f64::from(min), f64::from(max));
     if max <= t {
-        return Err(IsosurfaceError::Empty { threshold: t, min, max });
+        return Err(IsosurfaceError::Empty {
+            threshold: t,
+            min,
+            max,
+        });
     }
     if min > t {
-        return Err(IsosurfaceError::Full { threshold: t, min, max });
+        return Err(IsosurfaceError::Full {
+            threshold: t,
+            min,
+            max,
+        });
     }
     Ok((smoothed, threshold))
 }

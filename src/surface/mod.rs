@@ -249,7 +249,10 @@ pub fn fit_surface_weighted(
 ) -> Result<FittedSurface, SurfaceError> {
     if !(length.is_finite() && length > 0.0) {
         let what = "the smoothing's length unit";
-        return Err(SurfaceError::BadSetting { what, value: length });
+        return Err(SurfaceError::BadSetting {
+            what,
+            value: length,
+        });
     }
     for (frame, (points, w)) in frames.iter().zip(weights).enumerate() {
         if w.len() != points.len() || w.iter().any(|&w| !(w.is_finite() && w > 0.0)) {
@@ -257,7 +260,9 @@ pub fn fit_surface_weighted(
         }
     }
     if weights.len() != frames.len() {
-        return Err(SurfaceError::Weights { frame: weights.len().min(frames.len()) });
+        return Err(SurfaceError::Weights {
+            frame: weights.len().min(frames.len()),
+        });
     }
     let normalized: Vec<Vec<f64>> = (weights.iter())
         .map(|w| {

@@ -198,11 +198,16 @@ fn multiscale(path: &Path) -> Result<Value, Error> {
 
 /// The axes by name; z, y and x required.
 fn axes(multiscale: &Value) -> Result<Axes, String> {
-    let list = (multiscale.get("axes").and_then(Value::as_array))
-        .ok_or("multiscales[0] has no axes")?;
+    let list =
+        (multiscale.get("axes").and_then(Value::as_array)).ok_or("multiscales[0] has no axes")?;
     let names: Vec<&str> = list
         .iter()
-        .map(|a| a.get("name").and_then(Value::as_str).or(a.as_str()).unwrap_or(""))
+        .map(|a| {
+            a.get("name")
+                .and_then(Value::as_str)
+                .or(a.as_str())
+                .unwrap_or("")
+        })
         .collect();
     let find = |name: &str| names.iter().position(|&n| n == name);
     let spatial = ["z", "y", "x"].map(find);
@@ -238,10 +243,17 @@ fn placement(
         for transform in transforms.and_then(Value::as_array).into_iter().flatten() {
             let numbers = |key: &str| -> Result<Vec<f64>, String> {
                 let list = transform.get(key).and_then(Value::as_array);
-                let values: Vec<f64> = list.into_iter().flatten().filter_map(Value::as_f64).collect();
+                let values: Vec<f64> = list
+                    .into_iter()
+                    .flatten()
+                    .filter_map(Value::as_f64)
+                    .collect();
                 match values.len() == n {
                     true => Ok(values),
-                    false => Err(format!("a {key} transformation of {} numbers for {n} axes", values.len())),
+                    false => Err(format!(
+                        "a {key} transformation of {} numbers for {n} axes",
+                        values.len()
+                    )),
                 }
             };
             match transform.get("type").and_then(Value::as_str) {
@@ -263,11 +275,17 @@ fn placement(
     let [z, y, x] = axes.zyx;
     let voxel_size = Vector3::new(scale[x], scale[y], scale[z]);
     if !voxel_size.iter().all(|d| d.is_normal() && *d > 0.0) {
-        return Err(format!("its scale gives the voxel size {voxel_size:?}: not positive"));
+        return Err(format!(
+            "its scale gives the voxel size {voxel_size:?}: not positive"
+        ));
     }
     let unit = (multiscale.get("axes").and_then(|a| a.get(x)))
         .and_then(|a| a.get("unit"))
         .and_then(Value::as_str)
         .map(str::to_string);
-    Ok((voxel_size, Vector3::new(translation[x], translation[y], translation[z]), unit))
+    Ok((
+        voxel_size,
+        Vector3::new(translation[x], translation[y], translation[z]),
+        unit,
+    ))
 }

@@ -176,7 +176,10 @@ impl VolumeStream {
             (Some(image), _) => {
                 origin += image.translation;
                 let said = image.said.clone();
-                (image.frame(self.in_file)?, Metadata::Said(image.voxel_size, said))
+                (
+                    image.frame(self.in_file)?,
+                    Metadata::Said(image.voxel_size, said),
+                )
             }
             (None, 1) => {
                 let (mut stacks, metadata) = read_file(file, declared)?;
@@ -253,7 +256,10 @@ fn read_ome_zarr(path: &Path, options: &VolumeOptions) -> Result<VolumeFrames, E
     Ok(VolumeFrames {
         files: vec![path.to_path_buf(); volumes.len()],
         volumes,
-        voxel_size_source: stream.voxel_size_source().cloned().unwrap_or(VoxelSizeSource::Given),
+        voxel_size_source: stream
+            .voxel_size_source()
+            .cloned()
+            .unwrap_or(VoxelSizeSource::Given),
     })
 }
 

@@ -404,7 +404,10 @@ impl PlacementReport {
     /// Refuses frame `frame` when more than half of `x` lies outside `volume`, or all of it
     /// within [`MIN_SURFACE_VOXELS`] voxels (module docs).
     fn check(volume: &Volume, x: &[Vector3<f64>], frame: usize) -> Result<(), VolumeError> {
-        let mut surface_box = [Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)];
+        let mut surface_box = [
+            Vector3::repeat(f64::INFINITY),
+            Vector3::repeat(f64::NEG_INFINITY),
+        ];
         for p in x {
             surface_box[0] = surface_box[0].inf(p);
             surface_box[1] = surface_box[1].sup(p);

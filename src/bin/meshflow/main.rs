@@ -344,4 +344,3 @@ fn print_warnings(warnings: &[meshflow::load::LoadWarning]) {
         eprintln!("meshflow: warning: {warning}");
     }
 }
-

@@ -106,7 +106,6 @@ impl ViewArgs {
     pub fn chooses_slabs(&self) -> bool {
         self.slabs.is_some()
     }
-
 }
 
 /// "view: up axis y (chosen from the data: …; --up z to change)", the hint where `--up` can

@@ -150,7 +150,9 @@ fn replaces_intensity(request: &SampleRequest, out: &Path) -> bool {
         (Ok(a), Ok(b)) => a == b,
         _ => false,
     };
-    let ours = out.file_name().is_some_and(|n| n == INTENSITY || n == NO_DATA);
+    let ours = out
+        .file_name()
+        .is_some_and(|n| n == INTENSITY || n == NO_DATA);
     same_dir && request.sequence.is_dir() && ours
 }
 

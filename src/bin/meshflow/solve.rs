@@ -487,7 +487,9 @@ impl Pictures<'_> {
         if let Some(tracks) = scores.tracks {
             let points = &tracks.scores.points;
             let options = self.args.options(self.view);
-            written.extend(write_track_error_pictures(dir, faces, &views, self.slabs, points, &options)?);
+            written.extend(write_track_error_pictures(
+                dir, faces, &views, self.slabs, points, &options,
+            )?);
         }
         Ok(written)
     }

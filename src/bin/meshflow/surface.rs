@@ -6,12 +6,12 @@
 use crate::args::{ForceArg, VolumePlacement};
 use crate::progress::during;
 use meshflow::accuracy::{default_match_distance, Tracks};
+use meshflow::format::format_number;
 use meshflow::format::{write_atomically, write_npy, write_npy_sequence, IoError};
 use meshflow::run::{refuse_output_over_inputs, OutputKind, Overwrite, StagedDir};
-use meshflow::format::format_number;
+use meshflow::surface::voxels::voxel_spacing;
 use meshflow::surface::{find_surface, foreground_points, FoundSurface, IsosurfaceOptions, Level};
 use meshflow::surface::{fit_surface, fit_surface_weighted, read_points, FitOptions};
-use meshflow::surface::voxels::voxel_spacing;
 use meshflow::surface::{FittedSurface, ForegroundPoints, Reference};
 use meshflow::track::{TrackFrame, TrackOptions, Tracked};
 use meshflow::volume::{VolumeOptions, VolumeStream};
@@ -48,10 +48,8 @@ impl FitInput {
             });
         };
         let mut stream = VolumeStream::open(request.points, placement)?;
-        let bar = crate::progress::count_progress(
-            stream.n_frames() as u64,
-            "finding the bright voxels",
-        );
+        let bar =
+            crate::progress::count_progress(stream.n_frames() as u64, "finding the bright voxels");
         let (mut frames, mut weights, mut reports, mut length) = (vec![], vec![], vec![], 0.0);
         while let Some(read) = stream.next() {
             let (volume, _) = read?;
@@ -226,7 +224,10 @@ pub fn run(request: SurfaceRequest) -> Result<(), Error> {
     let input = FitInput::read(&request)?;
     let frames = &input.frames;
     let fitted = during(
-        format!("fitting a surface through {}", crate::plural(frames.len(), "frame")),
+        format!(
+            "fitting a surface through {}",
+            crate::plural(frames.len(), "frame")
+        ),
         || input.fit(&request.options),
     )
     .map_err(|e| Error::from(e).in_file(request.points))?;
@@ -242,7 +243,10 @@ pub fn run(request: SurfaceRequest) -> Result<(), Error> {
         Some(times) => times,
         None => (0..frames.len()).map(|k| k as f64).collect(),
     };
-    let voxels = input.voxels.as_ref().map(|(_, reports, length)| (&reports[..], *length));
+    let voxels = input
+        .voxels
+        .as_ref()
+        .map(|(_, reports, length)| (&reports[..], *length));
     write_outputs(&staged, &fitted, &times, voxels).map_err(|e| staged.error_in_target(e))?;
     staged.commit()?;
     print_report(&fitted, request.points, request.out, voxels);
