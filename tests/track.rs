@@ -551,3 +551,47 @@ fn tissue_velocity_is_the_mesh_motion_plus_the_flow() {
         }
     }
 }
+
+/// Frames tracked as they come ([`meshflow::track::track_as_they_come`]: each dropped once
+/// tracked) give exactly what tracking the whole slice gives, for a closed surface with
+/// uncovered vertices kept.
+#[test]
+fn frames_tracked_as_they_come_equal_the_whole_run() {
+    let coarse = icosphere(2);
+    let fine = icosphere(4);
+    let turn = Rotation3::from_euler_angles(0.3, 0.2, 0.1);
+    let frames = vec![
+        frame(&fine, |x| *x, linear_grey),
+        frame(&coarse, |x| 1.1 * x, linear_grey),
+        frame(&fine, |x| 1.25 * (turn * x), linear_grey),
+        frame(&coarse, |x| 1.2 * (turn * turn * x), linear_grey),
+    ];
+    let options = TrackOptions {
+        keep_uncovered: true,
+        reference_vertices: Some(300),
+        ..Default::default()
+    };
+    let whole = track(&frames, None, &options).unwrap();
+    let mut rest = frames[1..].iter().cloned();
+    let mut events = 0;
+    let streamed = meshflow::track::track_as_they_come(
+        frames[0].clone(),
+        &mut rest,
+        None,
+        &options,
+        &mut |_| events += 1,
+    )
+    .unwrap();
+    assert_eq!(events, 4);
+    for k in 0..4 {
+        assert_eq!(
+            whole.sequence.positions(k),
+            streamed.sequence.positions(k),
+            "frame {k}"
+        );
+    }
+    assert_eq!(
+        whole.report.reference_vertices,
+        streamed.report.reference_vertices
+    );
+}

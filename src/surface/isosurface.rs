@@ -130,22 +130,48 @@ pub fn find_surface(
     volume: &Volume,
     options: &IsosurfaceOptions,
 ) -> Result<FoundSurface, IsosurfaceError> {
-    // The smoothed copy, the masks, the labels and the padded distance field.
+    check_memory(volume)?;
+    let (smoothed, threshold) = smoothed_threshold(volume, options)?;
+    surface_of_smoothed(&smoothed, threshold)
+}
+
+/// [`find_surface`] of a volume that is not needed afterwards: it is dropped once smoothed,
+/// so that the original and the steps after smoothing are never held together (a frame of a
+/// recording read one at a time).
+pub fn find_surface_consuming(
+    volume: Volume,
+    options: &IsosurfaceOptions,
+) -> Result<FoundSurface, IsosurfaceError> {
+    check_memory(&volume)?;
+    let (smoothed, threshold) = smoothed_threshold(&volume, options)?;
+    drop(volume);
+    surface_of_smoothed(&smoothed, threshold)
+}
+
+/// The smoothed copy, the masks, the labels and the padded distance field, against the
+/// memory limit.
+fn check_memory(volume: &Volume) -> Result<(), IsosurfaceError> {
     let what = format!("finding the surface in {:?} voxels", volume.shape());
     let voxels = volume.values().len() as u64;
-    crate::limits::check_items(what, voxels, BYTES_PER_VOXEL)?;
-    let (smoothed, threshold) = smoothed_threshold(volume, options)?;
+    Ok(crate::limits::check_items(what, voxels, BYTES_PER_VOXEL)?)
+}
+
+/// Steps 3 to 6 (module docs) on the smoothed volume and its threshold.
+fn surface_of_smoothed(smoothed: &Volume, threshold: f32) -> Result<FoundSurface, IsosurfaceError> {
     let values = smoothed.values();
     let t = f64::from(threshold);
-    let foreground: Vec<bool> = values.iter().map(|&v| v > threshold).collect();
-    let foreground_voxels = foreground.iter().filter(|&&f| f).count();
-    let shape = volume.shape();
-    let component = largest_component(&foreground, shape);
+    let shape = smoothed.shape();
+    let (component, foreground_voxels) = {
+        let foreground: Vec<bool> = values.iter().map(|&v| v > threshold).collect();
+        let count = foreground.iter().filter(|&&f| f).count();
+        (largest_component(&foreground, shape), count)
+    };
     let component_voxels = component.iter().filter(|&&c| c).count();
     let mut solid = filled(&component, shape);
+    drop(component);
     well_composed(&mut solid, shape);
     let filled_voxels = solid.iter().filter(|&&s| s).count() - component_voxels;
-    let (positions, faces) = nets(values, &solid, threshold, &smoothed);
+    let (positions, faces) = nets(values, &solid, threshold, smoothed);
     let (mut positions, faces) = largest_manifold_piece(positions, &faces);
     if faces.len() < 4 {
         return Err(IsosurfaceError::TooSmall {
@@ -153,7 +179,7 @@ pub fn find_surface(
         });
     }
     let (layer_vertices, layer_thickness) =
-        to_layer_middle(&mut positions, &faces, &smoothed, f64::from(threshold));
+        to_layer_middle(&mut positions, &faces, smoothed, f64::from(threshold));
     Ok(FoundSurface {
         layer_vertices,
         layer_thickness,

@@ -49,7 +49,9 @@ mod points;
 mod reference;
 pub mod voxels;
 
-pub use isosurface::{find_surface, FoundSurface, IsosurfaceError, IsosurfaceOptions, Level};
+pub use isosurface::{
+    find_surface, find_surface_consuming, FoundSurface, IsosurfaceError, IsosurfaceOptions, Level,
+};
 pub use points::read_points;
 pub use voxels::{foreground_points, ForegroundPoints};
 

@@ -330,7 +330,9 @@ pub fn track_with_progress(
     let made = reference.positions.len();
     let mut notes = Vec::new();
     loop {
-        match track_reference(frames, &reference, bound, options, on_event) {
+        let mut each = frames.iter().cloned().map(Ok);
+        let counted: FrameSource = (&mut each, frames.len());
+        match track_reference(counted, &reference, bound, options, on_event) {
             Err(TrackError::Uncovered { frame, vertices }) if !options.keep_uncovered => {
                 let next = trim::trimmed(&reference, &vertices)
                     .ok_or(TrackError::NothingCovered { frame })?;
@@ -352,16 +354,42 @@ pub fn track_with_progress(
                 run.report.reference_vertices = made;
                 run.report.trimmed_vertices = made - reference.positions.len();
                 run.report.warnings.splice(0..0, notes);
-                let mesh = Mesh::new(reference.positions.len(), reference.faces)?;
-                let sequence = MeshSequence::new(mesh, run.positions, run.intensities, times)?;
-                return Ok(Tracked {
-                    sequence,
-                    report: run.report,
-                    landings: run.landings,
-                });
+                return run.tracked(reference, times);
             }
         }
     }
+}
+
+/// [`track_with_progress`] for frames that arrive one at a time (surfaces found in volumes as
+/// they are read, say), each dropped once tracked: at most two frames are held, whatever the
+/// recording's length. The reference is never trimmed (a trimmed one would need every frame
+/// again), so vertices beyond a frame's boundary keep their closest point, as with
+/// [`TrackOptions::keep_uncovered`]: for closed surfaces, which have no boundary.
+pub fn track_as_they_come(
+    first: TrackFrame,
+    rest: &mut dyn Iterator<Item = TrackFrame>,
+    times: Option<Vec<f64>>,
+    options: &TrackOptions,
+    on_event: &mut dyn FnMut(TrackEvent),
+) -> Result<Tracked, TrackError> {
+    check_frame(0, &first)?;
+    let options = TrackOptions {
+        keep_uncovered: true,
+        ..options.clone()
+    };
+    let bound = match options.max_step {
+        Some(s) if s.is_finite() && s > 0.0 => s,
+        Some(s) => return Err(TrackError::BadMaxStep(s)),
+        None => 0.1 * bounding_diagonal(&first.positions),
+    };
+    let reference = reference_surface(&first, &options)?;
+    let made = reference.positions.len();
+    let checked = std::iter::once(first).chain(rest).enumerate();
+    let mut frames = checked.map(|(k, frame)| check_frame(k, &frame).map(|()| frame));
+    let source: FrameSource = (&mut frames, 0);
+    let mut run = track_reference(source, &reference, bound, &options, on_event)?;
+    run.report.reference_vertices = made;
+    run.tracked(reference, times)
 }
 
 /// One tracking run of every frame from `reference`.
@@ -372,8 +400,27 @@ struct Run {
     report: TrackReport,
 }
 
+impl Run {
+    /// The tracked sequence on `reference`'s connectivity, at `times`.
+    fn tracked(self, reference: Surface, times: Option<Vec<f64>>) -> Result<Tracked, TrackError> {
+        let mesh = Mesh::new(reference.positions.len(), reference.faces)?;
+        let sequence = MeshSequence::new(mesh, self.positions, self.intensities, times)?;
+        Ok(Tracked {
+            sequence,
+            report: self.report,
+            landings: self.landings,
+        })
+    }
+}
+
+/// Frames one at a time, checked, with how many there are (0: not known).
+type FrameSource<'a> = (
+    &'a mut dyn Iterator<Item = Result<TrackFrame, TrackError>>,
+    usize,
+);
+
 fn track_reference(
-    frames: &[TrackFrame],
+    (frames, count): FrameSource,
     reference: &Surface,
     bound: f64,
     options: &TrackOptions,
@@ -393,9 +440,9 @@ fn track_reference(
         relaxer,
     };
     let mut run = Run {
-        positions: Vec::with_capacity(frames.len()),
-        intensities: Vec::with_capacity(frames.len()),
-        landings: Vec::with_capacity(frames.len()),
+        positions: Vec::with_capacity(count),
+        intensities: Vec::with_capacity(count),
+        landings: Vec::with_capacity(count),
         report: TrackReport {
             max_step_bound: bound,
             relaxation: tracker.relaxer.is_some().then_some(options.relaxation),
@@ -406,17 +453,18 @@ fn track_reference(
     let mut current = reference.positions.clone();
     // Each frame's surface is built once: for its own step, then as the next frame's target.
     let mut previous: Option<FrameSurface> = None;
-    for (k, frame) in frames.iter().enumerate() {
+    for (k, frame) in frames.enumerate() {
+        let frame = frame?;
         let warnings_before = run.report.warnings.len();
         let (frame, alignment) = match &previous {
             Some(before) => align_to(
                 k,
-                frame,
+                &frame,
                 before,
                 options.alignment,
                 &mut run.report.warnings,
             ),
-            None => (frame.clone(), None),
+            None => (frame, None),
         };
         let surface = FrameSurface::new(k, &frame.positions, &frame.faces, &frame.intensity)?;
         let mut step = match tracker.step(k, &current, &surface) {

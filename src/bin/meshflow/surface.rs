@@ -10,10 +10,12 @@ use meshflow::format::format_number;
 use meshflow::format::{write_atomically, write_npy, write_npy_sequence, IoError};
 use meshflow::run::{refuse_output_over_inputs, OutputKind, Overwrite, StagedDir};
 use meshflow::surface::voxels::voxel_spacing;
-use meshflow::surface::{find_surface, foreground_points, FoundSurface, IsosurfaceOptions, Level};
+use meshflow::surface::{
+    find_surface_consuming, foreground_points, FoundSurface, IsosurfaceOptions, Level,
+};
 use meshflow::surface::{fit_surface, fit_surface_weighted, read_points, FitOptions};
 use meshflow::surface::{FittedSurface, ForegroundPoints, Reference};
-use meshflow::track::{TrackFrame, TrackOptions, Tracked};
+use meshflow::track::{track_as_they_come, TrackEvent, TrackFrame, TrackOptions, Tracked};
 use meshflow::volume::{VolumeOptions, VolumeStream};
 use meshflow::Error;
 use std::path::{Path, PathBuf};
@@ -116,39 +118,44 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
             request.volumes.display()
         )));
     }
-    let bar = crate::progress::count_progress(n_frames as u64, "finding surfaces");
+    // Each frame's surface is tracked as soon as it is found, then dropped: memory holds one
+    // volume and two frames' surfaces whatever the recording's length.
+    let bar = crate::progress::count_progress(n_frames as u64, "finding and tracking surfaces");
     let mut found: Vec<FoundSurface> = Vec::with_capacity(n_frames);
-    while let Some(read) = stream.next() {
+    let mut next = |found: &mut Vec<FoundSurface>| -> Result<Option<TrackFrame>, Error> {
+        let Some(read) = stream.next() else {
+            return Ok(None);
+        };
         let (volume, file) = read?;
         let k = found.len();
         if k == 0 {
             let source = stream.voxel_size_source().expect("known after a frame");
             bar.suspend(|| crate::sample::report_voxel_size(request.volumes, source));
         }
-        let surface = find_surface(&volume, &request.finding)
+        let mut surface = find_surface_consuming(volume, &request.finding)
             .map_err(|e| Error::from(e).in_file(format!("{} (frame {k})", file.display())))?;
         bar.suspend(|| println!("  frame {k:3}: {}", describe_found(&surface)));
-        bar.inc(1);
+        // The mesh moves to the tracker; `found` keeps the report (`vertices`, `faces`).
+        let frame = TrackFrame {
+            intensity: vec![0.0; surface.positions.len()],
+            positions: std::mem::take(&mut surface.positions),
+            faces: std::mem::take(&mut surface.faces),
+        };
         found.push(surface);
-    }
-    bar.finish();
-    // The meshes move to the tracker; `found` keeps the reports (`vertices`, `faces`).
-    let track_frames: Vec<TrackFrame> = (found.iter_mut())
-        .map(|s| TrackFrame {
-            intensity: vec![0.0; s.positions.len()],
-            positions: std::mem::take(&mut s.positions),
-            faces: std::mem::take(&mut s.faces),
-        })
-        .collect();
+        Ok(Some(frame))
+    };
+    let first = next(&mut found)?.expect("a recording has a frame");
     // Surface nets' triangles are slivers where the surface cuts a voxel's corner: the
     // reference is always a simplified, cleaned mesh, at most half of frame 0's vertices.
     let vertices = request.vertices.min(found[0].vertices / 2);
     if vertices < request.vertices {
-        println!(
-            "frame 0's surface has {} vertices: the tracked mesh gets {vertices} (half; {} were \
-             asked)",
-            found[0].vertices, request.vertices
-        );
+        bar.suspend(|| {
+            println!(
+                "frame 0's surface has {} vertices: the tracked mesh gets {vertices} (half; {} \
+                 were asked)",
+                found[0].vertices, request.vertices
+            )
+        });
     }
     // A closed surface has no boundary to trim at: a vertex whose normal misses the next
     // frame's surface takes its closest point.
@@ -157,7 +164,28 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
         keep_uncovered: true,
         ..TrackOptions::default()
     };
-    let tracked = crate::track::tracked_with_progress(&track_frames, request.times, &options)?;
+    let mut failure: Option<Error> = None;
+    let tracked = {
+        let mut rest = std::iter::from_fn(|| match next(&mut found) {
+            Ok(frame) => frame,
+            Err(e) => {
+                failure = Some(e);
+                None
+            }
+        });
+        let mut on_event = |event: TrackEvent| {
+            if let TrackEvent::Frame(report) = event {
+                bar.suspend(|| println!("  {}", crate::track::describe(report)));
+                bar.inc(1);
+            }
+        };
+        track_as_they_come(first, &mut rest, request.times, &options, &mut on_event)
+    };
+    bar.finish();
+    if let Some(error) = failure {
+        return Err(error);
+    }
+    let tracked = tracked?;
     write_closed(&staged, &tracked, &found).map_err(|e| staged.error_in_target(e))?;
     staged.commit()?;
     crate::track::print_summary(&tracked, request.out);

@@ -359,7 +359,7 @@ pub(crate) fn tracked_with_progress(
 }
 
 /// One frame's line, with track.json's names.
-fn describe(r: &FrameReport) -> String {
+pub(crate) fn describe(r: &FrameReport) -> String {
     let mut line = format!(
         "frame {:3}: mean_step {:.3e} max_step {:.3e}; mean_relaxation {:.3e} max_relaxation \
          {:.3e}; edge_log_ratio_p99 {:.3} edge_log_ratio_max {:.3}; flipped_triangles {}; \
