@@ -241,3 +241,65 @@ fn the_command_tracks_the_frames_surfaces_into_one_mesh() {
     ];
     meshflow_error(&spline, "--edge-length applies to surfaces through points");
 }
+
+/// What still makes a surface but looks wrong is a warning naming why: an object cut by the
+/// volume's border (it leaves the field of view), and one split in two (the largest part holds
+/// half of the foreground). A whole object inside has none.
+#[test]
+fn an_object_at_the_border_or_split_is_warned_about() {
+    let ball = |c: Vector3<f64>, r: f64| move |p: Vector3<f64>| (p - c).norm() < r;
+    let inside = volume(
+        |p| {
+            if ball(Vector3::repeat(19.5), 10.0)(p) {
+                120.0
+            } else {
+                20.0
+            }
+        },
+        5.0,
+    );
+    let found = find_surface(&inside, &IsosurfaceOptions::default()).unwrap();
+    assert_eq!(found.border_voxels, 0);
+    assert!(found.warnings().is_empty(), "{:?}", found.warnings());
+    let cut = volume(
+        |p| {
+            if ball(Vector3::new(3.0, 19.5, 19.5), 10.0)(p) {
+                120.0
+            } else {
+                20.0
+            }
+        },
+        5.0,
+    );
+    let found = find_surface(&cut, &IsosurfaceOptions::default()).unwrap();
+    assert!(found.border_voxels > 100, "{}", found.border_voxels);
+    let warnings = found.warnings();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].contains("touches the volume's border"),
+        "{warnings:?}"
+    );
+    let two = volume(
+        |p| {
+            let apart = ball(Vector3::new(10.0, 19.5, 19.5), 6.0)(p)
+                || ball(Vector3::new(29.0, 19.5, 19.5), 6.0)(p);
+            if apart {
+                120.0
+            } else {
+                20.0
+            }
+        },
+        5.0,
+    );
+    let found = find_surface(&two, &IsosurfaceOptions::default()).unwrap();
+    assert!(
+        (found.component_share - 0.5).abs() < 0.05,
+        "{}",
+        found.component_share
+    );
+    let warnings = found.warnings();
+    assert!(
+        warnings.iter().any(|w| w.contains("holds only")),
+        "{warnings:?}"
+    );
+}

@@ -857,7 +857,8 @@ def find_surface(
         ``positions`` (V, 3) and ``faces`` (F, 3) of the surface (its own vertices: track
         several frames' surfaces into one mesh with :func:`track`), and ``threshold``,
         ``foreground_voxels``, ``component_voxels``, ``component_share``, ``filled_voxels``,
-        ``layer_vertices``, ``layer_thickness`` as ``surface.json`` has them.
+        ``layer_vertices``, ``layer_thickness``, ``border_voxels`` as ``surface.json`` has
+        them, and ``warnings`` (the object touching the border, or split).
 
     Errors are ``ValueError`` with the library's message: a constant image, no voxel above
     ``level`` or every voxel above it, an object too small to bound.

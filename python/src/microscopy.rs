@@ -168,6 +168,8 @@ pub(crate) fn find_surface<'py>(
     out.set_item("filled_voxels", found.filled_voxels)?;
     out.set_item("layer_vertices", found.layer_vertices)?;
     out.set_item("layer_thickness", found.layer_thickness)?;
+    out.set_item("border_voxels", found.border_voxels)?;
+    out.set_item("warnings", found.warnings())?;
     Ok(out)
 }
 

@@ -99,6 +99,9 @@ pub struct FoundSurface {
     pub component_share: f64,
     /// Voxels added by filling holes.
     pub filled_voxels: usize,
+    /// Voxels of the component on the volume's border: the object leaves the field of view
+    /// there (its surface is closed along the border).
+    pub border_voxels: usize,
     /// Vertices moved to the middle of a bright layer (step 6), and the layer's median
     /// thickness there (0 when none moved).
     pub layer_vertices: usize,
@@ -167,6 +170,7 @@ fn surface_of_smoothed(smoothed: &Volume, threshold: f32) -> Result<FoundSurface
         (largest_component(&foreground, shape), count)
     };
     let component_voxels = component.iter().filter(|&&c| c).count();
+    let border_voxels = on_border(shape).filter(|&at| component[at]).count();
     let mut solid = filled(&component, shape);
     drop(component);
     well_composed(&mut solid, shape);
@@ -192,6 +196,40 @@ fn surface_of_smoothed(smoothed: &Volume, threshold: f32) -> Result<FoundSurface
         component_voxels,
         component_share: component_voxels as f64 / foreground_voxels as f64,
         filled_voxels,
+        border_voxels,
+    })
+}
+
+/// Below this share of the foreground, the largest component is reported: the object split,
+/// or the threshold caught other things.
+pub const SPLIT_SHARE: f64 = 0.8;
+
+impl FoundSurface {
+    /// What a surface could still be made of but looks wrong: the object touching the
+    /// volume's border, or holding less than [`SPLIT_SHARE`] of the foreground.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut warnings = Vec::new();
+        if self.border_voxels > 0 {
+            warnings.push(format!(
+                "the object touches the volume's border at {} voxels: it leaves the field of view, and its surface is closed along the border there",
+                self.border_voxels
+            ));
+        }
+        if self.component_share < SPLIT_SHARE {
+            warnings.push(format!(
+                "the largest object holds only {:.1} % of the voxels above the threshold: the object may have split, or the threshold caught other things (try --level or --smooth)",
+                100.0 * self.component_share
+            ));
+        }
+        warnings
+    }
+}
+
+/// The voxels on the faces of a grid of `shape` (`(n_z, n_y, n_x)`, C order).
+fn on_border([nz, ny, nx]: [usize; 3]) -> impl Iterator<Item = usize> {
+    (0..nz * ny * nx).filter(move |&at| {
+        let (k, j, i) = (at / (ny * nx), at / nx % ny, at % nx);
+        k == 0 || j == 0 || i == 0 || k + 1 == nz || j + 1 == ny || i + 1 == nx
     })
 }
 
@@ -469,12 +507,7 @@ fn largest_component(mask: &[bool], shape: [usize; 3]) -> Vec<bool> {
 /// `object` with its holes filled: every voxel the border cannot reach through the
 /// background.
 fn filled(object: &[bool], shape: [usize; 3]) -> Vec<bool> {
-    let [nz, ny, nx] = shape;
-    let border = (0..object.len()).filter(|&at| {
-        let (k, j, i) = (at / (ny * nx), at / nx % ny, at % nx);
-        k == 0 || j == 0 || i == 0 || k + 1 == nz || j + 1 == ny || i + 1 == nx
-    });
-    let outside = flood(border, |at| !object[at], shape);
+    let outside = flood(on_border(shape), |at| !object[at], shape);
     outside.iter().map(|&o| !o).collect()
 }
 

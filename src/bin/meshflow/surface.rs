@@ -134,7 +134,12 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
         }
         let mut surface = find_surface_consuming(volume, &request.finding)
             .map_err(|e| Error::from(e).in_file(format!("{} (frame {k})", file.display())))?;
-        bar.suspend(|| println!("  frame {k:3}: {}", describe_found(&surface)));
+        bar.suspend(|| {
+            println!("  frame {k:3}: {}", describe_found(&surface));
+            for warning in surface.warnings() {
+                eprintln!("meshflow: warning: frame {k}: {warning}");
+            }
+        });
         // The mesh moves to the tracker; `found` keeps the report (`vertices`, `faces`).
         let frame = TrackFrame {
             intensity: vec![0.0; surface.positions.len()],
@@ -227,12 +232,20 @@ fn write_closed(
         .collect();
     let faces = sequence.mesh().faces();
     write_npy_sequence(dir, &positions, faces, None, sequence.times())?;
+    let warnings: Vec<String> = (found.iter().enumerate())
+        .flat_map(|(k, s)| {
+            s.warnings()
+                .into_iter()
+                .map(move |w| format!("frame {k}: {w}"))
+        })
+        .collect();
     let report = serde_json::json!({
         "shape": "closed",
         "vertices": sequence.mesh().n_vertices(),
         "faces": faces.len(),
         "frames": found,
         "tracking": tracked.report,
+        "warnings": warnings,
     });
     let report = serde_json::to_string_pretty(&report).expect("a report serializes");
     write_atomically(&dir.join("surface.json"), |w| {
