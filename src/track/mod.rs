@@ -321,11 +321,7 @@ pub fn track_with_progress(
     for (k, frame) in frames.iter().enumerate() {
         check_frame(k, frame)?;
     }
-    let bound = match options.max_step {
-        Some(s) if s.is_finite() && s > 0.0 => s,
-        Some(s) => return Err(TrackError::BadMaxStep(s)),
-        None => 0.1 * bounding_diagonal(&first.positions),
-    };
+    let bound = step_bound(options, first)?;
     let mut reference = reference_surface(first, options)?;
     let made = reference.positions.len();
     let mut notes = Vec::new();
@@ -377,11 +373,7 @@ pub fn track_as_they_come(
         keep_uncovered: true,
         ..options.clone()
     };
-    let bound = match options.max_step {
-        Some(s) if s.is_finite() && s > 0.0 => s,
-        Some(s) => return Err(TrackError::BadMaxStep(s)),
-        None => 0.1 * bounding_diagonal(&first.positions),
-    };
+    let bound = step_bound(&options, &first)?;
     let reference = reference_surface(&first, &options)?;
     let made = reference.positions.len();
     let checked = std::iter::once(first).chain(rest).enumerate();
@@ -390,6 +382,15 @@ pub fn track_as_they_come(
     let mut run = track_reference(source, &reference, bound, &options, on_event)?;
     run.report.reference_vertices = made;
     run.tracked(reference, times)
+}
+
+/// `--max-step`, else a tenth of frame 0's bounding diagonal.
+fn step_bound(options: &TrackOptions, first: &TrackFrame) -> Result<f64, TrackError> {
+    match options.max_step {
+        Some(s) if s.is_finite() && s > 0.0 => Ok(s),
+        Some(s) => Err(TrackError::BadMaxStep(s)),
+        None => Ok(0.1 * bounding_diagonal(&first.positions)),
+    }
 }
 
 /// One tracking run of every frame from `reference`.
