@@ -178,12 +178,7 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
                 None
             }
         });
-        let mut on_event = |event: TrackEvent| {
-            if let TrackEvent::Frame(report) = event {
-                bar.suspend(|| println!("  {}", crate::track::describe(report)));
-                bar.inc(1);
-            }
-        };
+        let mut on_event = |event: TrackEvent| crate::track::show_event(&bar, event);
         track_as_they_come(first, &mut rest, request.times, &options, &mut on_event)
     };
     bar.finish();

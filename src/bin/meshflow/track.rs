@@ -5,7 +5,7 @@
 //! frame ([`Tracked::landings`]), where each channel of that frame is interpolated.
 
 use crate::args::{ForceArg, MeshArgs};
-use crate::progress::count_progress;
+use crate::progress::{count_progress, Progress};
 use meshflow::format::{
     frame_files, read_npy_image, write_atomically, write_intensity_array, write_npy_sequence,
     IoError, VertexValues, INTENSITY,
@@ -334,7 +334,15 @@ pub(crate) fn tracked_with_progress(
     options: &TrackOptions,
 ) -> Result<Tracked, Error> {
     let bar = count_progress(frames.len() as u64, "tracking frames");
-    let mut on_event = |event: TrackEvent| match event {
+    let tracked = track_with_progress(frames, times, options, &mut |e| show_event(&bar, e));
+    bar.finish();
+    Ok(tracked?)
+}
+
+/// A tracking event on the terminal: a line per frame, counted on `bar`, and a line per
+/// trimming of the reference, which starts the count again.
+pub(crate) fn show_event(bar: &Progress, event: TrackEvent) {
+    match event {
         TrackEvent::Frame(report) => {
             bar.suspend(|| println!("  {}", describe(report)));
             bar.inc(1);
@@ -352,14 +360,11 @@ pub(crate) fn tracked_with_progress(
             });
             bar.set_position(0);
         }
-    };
-    let tracked = track_with_progress(frames, times, options, &mut on_event);
-    bar.finish();
-    Ok(tracked?)
+    }
 }
 
 /// One frame's line, with track.json's names.
-pub(crate) fn describe(r: &FrameReport) -> String {
+fn describe(r: &FrameReport) -> String {
     let mut line = format!(
         "frame {:3}: mean_step {:.3e} max_step {:.3e}; mean_relaxation {:.3e} max_relaxation \
          {:.3e}; edge_log_ratio_p99 {:.3} edge_log_ratio_max {:.3}; flipped_triangles {}; \
