@@ -303,3 +303,24 @@ fn sample_reads_ome_zarr_as_the_same_data_in_npy() {
         "--channel and --resolution-level apply to OME-Zarr images",
     );
 }
+
+/// An image whose metadata names an array outside its directory is refused before anything
+/// is opened there.
+#[test]
+fn a_dataset_path_outside_the_image_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let image = dir.path().join("image.zarr");
+    write_v3(&image);
+    for path in ["../s0", "s0/../../s0", "/s0"] {
+        let group_file = image.join("zarr.json");
+        let mut group: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&group_file).unwrap()).unwrap();
+        group["attributes"]["ome"]["multiscales"][0]["datasets"][0]["path"] = json!(path);
+        write_json(&group_file, &group);
+        let error = read_volumes(&image, &VolumeOptions::default()).unwrap_err();
+        assert!(
+            error.to_string().contains("leaves the image's directory"),
+            "{path}: {error}"
+        );
+    }
+}

@@ -71,6 +71,13 @@ impl OmeZarr {
         })?;
         let array_path = (dataset.get("path").and_then(Value::as_str))
             .ok_or_else(|| bad(format!("datasets[{level}] has no path")))?;
+        // A hostile image must not name an array outside its own directory.
+        let inside = |part: &str| !part.is_empty() && part != ".." && part != ".";
+        if !array_path.split(['/', '\\']).all(inside) {
+            return Err(bad(format!(
+                "datasets[{level}].path '{array_path}' leaves the image's directory"
+            )));
+        }
         let store = FilesystemStore::new(path).map_err(|e| bad(e.to_string()))?;
         let array = Array::open(Arc::new(store), &format!("/{array_path}"))
             .map_err(|e| bad(format!("array {array_path}: {e}")))?;
