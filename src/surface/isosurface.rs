@@ -43,7 +43,7 @@ use crate::volume::{Volume, VolumeError};
 use fast_surface_nets::ndshape::{RuntimeShape, Shape};
 use fast_surface_nets::{surface_nets, SurfaceNetsBuffer};
 use nalgebra::Vector3;
-use std::collections::VecDeque;
+use rayon::prelude::*;
 
 /// The threshold of the volume: Otsu's, or a value of the smoothed image.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -164,12 +164,8 @@ fn surface_of_smoothed(smoothed: &Volume, threshold: f32) -> Result<FoundSurface
     let values = smoothed.values();
     let t = f64::from(threshold);
     let shape = smoothed.shape();
-    let (component, foreground_voxels) = {
-        let foreground: Vec<bool> = values.iter().map(|&v| v > threshold).collect();
-        let count = foreground.iter().filter(|&&f| f).count();
-        (largest_component(&foreground, shape), count)
-    };
-    let component_voxels = component.iter().filter(|&&c| c).count();
+    let foreground_voxels = values.par_iter().filter(|&&v| v > threshold).count();
+    let (component, component_voxels) = largest_component(shape, |at| values[at] > threshold);
     let border_voxels = on_border(shape).filter(|&at| component[at]).count();
     let mut solid = filled(&component, shape);
     drop(component);
@@ -225,11 +221,24 @@ impl FoundSurface {
     }
 }
 
-/// The voxels on the faces of a grid of `shape` (`(n_z, n_y, n_x)`, C order).
+/// The voxels on the faces of a grid of `shape` (`(n_z, n_y, n_x)`, C order), each once:
+/// the first and last planes whole, and of the planes between, the first and last rows whole
+/// and the ends of the rows between.
 fn on_border([nz, ny, nx]: [usize; 3]) -> impl Iterator<Item = usize> {
-    (0..nz * ny * nx).filter(move |&at| {
-        let (k, j, i) = (at / (ny * nx), at / nx % ny, at % nx);
-        k == 0 || j == 0 || i == 0 || k + 1 == nz || j + 1 == ny || i + 1 == nx
+    let plane = ny * nx;
+    (0..nz).flat_map(move |k| {
+        let whole = k == 0 || k + 1 == nz;
+        (0..ny).flat_map(move |j| {
+            let row = k * plane + j * nx;
+            let all = whole || j == 0 || j + 1 == ny;
+            let ends = [row, row + nx - 1];
+            let inner = (!all).then_some(ends.into_iter().take(if nx > 1 { 2 } else { 1 }));
+            let full = all.then_some(row..row + nx);
+            inner
+                .into_iter()
+                .flatten()
+                .chain(full.into_iter().flatten())
+        })
     })
 }
 
@@ -243,10 +252,15 @@ pub(super) fn smoothed_threshold(
     let smoothed = volume.smoothed(options.smoothing.unwrap_or(largest_voxel))?;
     let values = smoothed.values();
     let (min, max) = values
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
-            (lo.min(v), hi.max(v))
-        });
+        .par_iter()
+        .fold(
+            || (f32::INFINITY, f32::NEG_INFINITY),
+            |(lo, hi), &v| (lo.min(v), hi.max(v)),
+        )
+        .reduce(
+            || (f32::INFINITY, f32::NEG_INFINITY),
+            |(a, b), (c, d)| (a.min(c), b.max(d)),
+        );
     if min >= max {
         return Err(IsosurfaceError::Constant {
             value: f64::from(min),
@@ -298,7 +312,7 @@ fn to_layer_middle(
     let bright = |p: Vector3<f64>| smoothed.sample(&p).is_some_and(|v| v > threshold);
     let steps = (reach / step) as usize;
     // (depth of the layer's middle, thickness) below each vertex, where there is a layer.
-    let layers: Vec<Option<(f64, f64)>> = (positions.iter().zip(&normals))
+    let layers: Vec<Option<(f64, f64)>> = (positions.par_iter().zip(&normals))
         .map(|(p, n)| {
             let depth = |t: f64| p - t * n;
             let ts = |from: f64| (0..=steps).map(move |s| from + s as f64 * step);
@@ -410,11 +424,22 @@ const LAYER_SMOOTHING: usize = 5;
 pub fn otsu(values: &[f32], min: f32, max: f32) -> f32 {
     const BINS: usize = 256;
     let width = (max - min) / BINS as f32;
-    let mut histogram = [0u64; BINS];
-    for &v in values {
-        let bin = (((v - min) / width) as usize).min(BINS - 1);
-        histogram[bin] += 1;
-    }
+    let histogram = values
+        .par_chunks(1 << 16)
+        .map(|chunk| {
+            let mut histogram = [0u64; BINS];
+            for &v in chunk {
+                histogram[(((v - min) / width) as usize).min(BINS - 1)] += 1;
+            }
+            histogram
+        })
+        .reduce(
+            || [0u64; BINS],
+            |mut a, b| {
+                a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
+                a
+            },
+        );
     let centre = |b: usize| f64::from(min) + (b as f64 + 0.5) * f64::from(width);
     let total = values.len() as f64;
     let sum: f64 = (0..BINS).map(|b| histogram[b] as f64 * centre(b)).sum();
@@ -436,20 +461,55 @@ pub fn otsu(values: &[f32], min: f32, max: f32) -> f32 {
     min + width * (best_bin + 1) as f32
 }
 
-/// The 6-neighbours of voxel `at` in a grid of `shape` (`(n_z, n_y, n_x)`, C order).
-fn neighbours(at: usize, [nz, ny, nx]: [usize; 3]) -> impl Iterator<Item = usize> {
-    let (k, j, i) = (at / (ny * nx), at / nx % ny, at % nx);
+/// Marks `label` on the voxels 6-connected to `seeds` through voxels where `passable` holds
+/// and `labels` is still unmarked (`T::default()`); returns how many it marked. A scanline
+/// fill: each popped seed marks its whole run along x, and the runs above and below it
+/// (y ± 1, z ± 1) are pushed once each, so memory moves row by row and no voxel index is
+/// divided more than once per run.
+fn spread<T: Copy + PartialEq + Default>(
+    seeds: impl IntoIterator<Item = usize>,
+    [nz, ny, nx]: [usize; 3],
+    labels: &mut [T],
+    label: T,
+    passable: impl Fn(usize) -> bool,
+) -> usize {
     let plane = ny * nx;
-    [
-        (i > 0).then(|| at - 1),
-        (i + 1 < nx).then(|| at + 1),
-        (j > 0).then(|| at - nx),
-        (j + 1 < ny).then(|| at + nx),
-        (k > 0).then(|| at - plane),
-        (k + 1 < nz).then(|| at + plane),
-    ]
-    .into_iter()
-    .flatten()
+    let free = |labels: &[T], at: usize| labels[at] == T::default() && passable(at);
+    let mut stack: Vec<usize> = seeds.into_iter().collect();
+    let mut marked = 0;
+    while let Some(at) = stack.pop() {
+        if !free(labels, at) {
+            continue;
+        }
+        let row = at - at % nx;
+        let (mut low, mut high) = (at, at + 1);
+        while low > row && free(labels, low - 1) {
+            low -= 1;
+        }
+        while high < row + nx && free(labels, high) {
+            high += 1;
+        }
+        labels[low..high].fill(label);
+        marked += high - low;
+        let (k, j) = (at / plane, at / nx % ny);
+        let rows = [
+            (j > 0).then(|| row - nx),
+            (j + 1 < ny).then(|| row + nx),
+            (k > 0).then(|| row - plane),
+            (k + 1 < nz).then(|| row + plane),
+        ];
+        for next in rows.into_iter().flatten() {
+            let mut in_run = false;
+            for n in next + (low - row)..next + (high - row) {
+                let open = free(labels, n);
+                if open && !in_run {
+                    stack.push(n);
+                }
+                in_run = open;
+            }
+        }
+    }
+    marked
 }
 
 /// The voxels 6-connected to `seeds` through voxels where `passable` holds.
@@ -459,56 +519,38 @@ fn flood(
     shape: [usize; 3],
 ) -> Vec<bool> {
     let mut reached = vec![false; shape.iter().product()];
-    let mut queue = VecDeque::new();
-    for seed in seeds {
-        if passable(seed) && !reached[seed] {
-            reached[seed] = true;
-            queue.push_back(seed);
-        }
-    }
-    while let Some(at) = queue.pop_front() {
-        for next in neighbours(at, shape) {
-            if !reached[next] && passable(next) {
-                reached[next] = true;
-                queue.push_back(next);
-            }
-        }
-    }
+    spread(seeds, shape, &mut reached, true, passable);
     reached
 }
 
-/// The largest 6-connected component of `mask`.
-fn largest_component(mask: &[bool], shape: [usize; 3]) -> Vec<bool> {
-    let mut label = vec![0u32; mask.len()];
-    let (mut best, mut best_size, mut next) = (0, 0, 1);
-    for start in 0..mask.len() {
-        if !mask[start] || label[start] != 0 {
+/// The largest 6-connected component of the voxels where `inside` holds, and its size. Sizes
+/// are found with one mask of the voxels seen, which is then cleared and the largest grown
+/// again: two bytes a voxel instead of a label each.
+fn largest_component(shape: [usize; 3], inside: impl Fn(usize) -> bool) -> (Vec<bool>, usize) {
+    let mut seen = vec![false; shape.iter().product()];
+    let (mut best, mut best_size) = (None, 0);
+    for start in 0..seen.len() {
+        if seen[start] || !inside(start) {
             continue;
         }
-        let (mut queue, mut size) = (VecDeque::from([start]), 0usize);
-        label[start] = next;
-        while let Some(at) = queue.pop_front() {
-            size += 1;
-            for n in neighbours(at, shape) {
-                if mask[n] && label[n] == 0 {
-                    label[n] = next;
-                    queue.push_back(n);
-                }
-            }
-        }
+        let size = spread([start], shape, &mut seen, true, &inside);
         if size > best_size {
-            (best, best_size) = (next, size);
+            (best, best_size) = (Some(start), size);
         }
-        next += 1;
     }
-    label.iter().map(|&l| l == best && l != 0).collect()
+    seen.fill(false);
+    if let Some(start) = best {
+        spread([start], shape, &mut seen, true, &inside);
+    }
+    (seen, best_size)
 }
 
 /// `object` with its holes filled: every voxel the border cannot reach through the
 /// background.
 fn filled(object: &[bool], shape: [usize; 3]) -> Vec<bool> {
-    let outside = flood(on_border(shape), |at| !object[at], shape);
-    outside.iter().map(|&o| !o).collect()
+    let mut solid = flood(on_border(shape), |at| !object[at], shape);
+    solid.iter_mut().for_each(|s| *s = !*s);
+    solid
 }
 
 /// What finding a surface holds per voxel at most: the smoothed values and their working copy
@@ -518,7 +560,11 @@ const BYTES_PER_VOXEL: u64 = 24;
 /// Cells of padding around the volume: the surface closes inside them.
 const PAD: usize = 2;
 
-/// Surface nets of `φ = threshold − v` clamped to `solid`, in `volume`'s coordinates.
+/// Surface nets of `φ = threshold − v` clamped to `solid`, in `volume`'s coordinates. Only
+/// the solid's bounding box, padded by [`PAD`], is handed to surface nets: every cell the
+/// surface crosses has a solid corner, so it lies within one voxel of the box, and the
+/// padding holds the image's own values where the volume has them (the same mesh as over the
+/// whole volume, at the cost of the object's box).
 fn nets(
     values: &[f32],
     solid: &[bool],
@@ -526,32 +572,48 @@ fn nets(
     volume: &Volume,
 ) -> (Vec<Vector3<f64>>, Vec<[u32; 3]>) {
     let [nz, ny, nx] = volume.shape();
-    let dims = [nx + 2 * PAD, ny + 2 * PAD, nz + 2 * PAD].map(|d| d as u32);
+    let Some((low, high)) = solid_box(solid, [nz, ny, nx]) else {
+        return (Vec::new(), Vec::new());
+    };
+    // The padded box in volume coordinates (z, y, x), possibly beyond the volume.
+    let start = low.map(|c| c as i64 - PAD as i64);
+    let extent = [0, 1, 2].map(|a| high[a] - low[a] + 2 * PAD);
+    let dims = [extent[2], extent[1], extent[0]].map(|d| d as u32);
     let shape = RuntimeShape::<u32, 3>::new(dims);
     // The smallest |φ| clamped to: a tenth of the image's typical contrast is far below a level
     // crossing and above round-off.
     let epsilon = 1e-3 * (threshold.abs() + 1e-6);
     let mut sdf = vec![1.0f32; shape.usize()];
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                let at = (k * ny + j) * nx + i;
-                let phi = threshold - values[at];
-                let padded = [i + PAD, j + PAD, k + PAD].map(|c| c as u32);
-                sdf[shape.linearize(padded) as usize] = match solid[at] {
-                    true => phi.min(-epsilon),
-                    false => phi.max(epsilon),
-                };
-            }
+    let within = |c: i64, n: usize| (c >= 0 && (c as usize) < n).then_some(c as usize);
+    for (row, cells) in sdf.chunks_exact_mut(extent[2]).enumerate() {
+        let (dk, dj) = (row / extent[1], row % extent[1]);
+        let (Some(k), Some(j)) = (
+            within(start[0] + dk as i64, nz),
+            within(start[1] + dj as i64, ny),
+        ) else {
+            continue;
+        };
+        for (di, cell) in cells.iter_mut().enumerate() {
+            let Some(i) = within(start[2] + di as i64, nx) else {
+                continue;
+            };
+            let at = (k * ny + j) * nx + i;
+            let phi = threshold - values[at];
+            *cell = match solid[at] {
+                true => phi.min(-epsilon),
+                false => phi.max(epsilon),
+            };
         }
     }
     let mut buffer = SurfaceNetsBuffer::default();
     surface_nets(&sdf, &shape, [0; 3], dims.map(|d| d - 1), &mut buffer);
+    drop(sdf);
     let origin = volume.origin();
     let size = volume.voxel_size();
+    let corner = Vector3::new(start[2], start[1], start[0]).map(|c| c as f64);
     let positions = (buffer.positions.iter())
         .map(|p| {
-            let grid = Vector3::new(p[0], p[1], p[2]).map(|c| f64::from(c) - PAD as f64);
+            let grid = Vector3::new(p[0], p[1], p[2]).map(f64::from) + corner;
             origin + grid.component_mul(&size)
         })
         .collect();
@@ -559,6 +621,27 @@ fn nets(
         .map(|t| [t[0], t[1], t[2]])
         .collect();
     (positions, faces)
+}
+
+/// The smallest box `[low, high)` (z, y, x) holding every solid voxel; `None` when none is.
+fn solid_box(solid: &[bool], [nz, ny, nx]: [usize; 3]) -> Option<([usize; 3], [usize; 3])> {
+    let mut low = [usize::MAX; 3];
+    let mut high = [0; 3];
+    for (row, line) in solid.chunks_exact(nx).enumerate() {
+        let Some(first) = line.iter().position(|&s| s) else {
+            continue;
+        };
+        let last = line.iter().rposition(|&s| s).expect("one is solid");
+        let (k, j) = (row / ny, row % ny);
+        low = [low[0].min(k), low[1].min(j), low[2].min(first)];
+        high = [
+            high[0].max(k + 1),
+            high[1].max(j + 1),
+            high[2].max(last + 1),
+        ];
+    }
+    debug_assert!(nz == 0 || high[0] <= nz);
+    (low[0] != usize::MAX).then_some((low, high))
 }
 
 /// The largest connected piece of the triangles, made manifold and oriented outward (positive
@@ -624,5 +707,93 @@ mod tests {
             2,
             "a face pair stays as it is"
         );
+    }
+
+    /// The 6-connected components of `mask` by a plain breadth-first search: each voxel's
+    /// component number (0 outside the mask).
+    fn components_by_search(mask: &[bool], [nz, ny, nx]: [usize; 3]) -> Vec<usize> {
+        let mut label = vec![0; mask.len()];
+        let mut next = 0;
+        for start in 0..mask.len() {
+            if !mask[start] || label[start] != 0 {
+                continue;
+            }
+            next += 1;
+            label[start] = next;
+            let mut queue = std::collections::VecDeque::from([start]);
+            while let Some(at) = queue.pop_front() {
+                let (k, j, i) = (at / (ny * nx), at / nx % ny, at % nx);
+                let around = [
+                    (i > 0).then(|| at - 1),
+                    (i + 1 < nx).then(|| at + 1),
+                    (j > 0).then(|| at - nx),
+                    (j + 1 < ny).then(|| at + nx),
+                    (k > 0).then(|| at - ny * nx),
+                    (k + 1 < nz).then(|| at + ny * nx),
+                ];
+                for n in around.into_iter().flatten() {
+                    if mask[n] && label[n] == 0 {
+                        label[n] = next;
+                        queue.push_back(n);
+                    }
+                }
+            }
+        }
+        label
+    }
+
+    #[test]
+    fn scanline_fills_find_the_components_a_search_finds() {
+        let shape = [7, 9, 11];
+        let n: usize = shape.iter().product();
+        for density in [30, 45, 55, 70] {
+            let mask: Vec<bool> = (0..n).map(|i| (i * 2654435761) % 97 < density).collect();
+            let labels = components_by_search(&mask, shape);
+            let mut sizes = std::collections::HashMap::new();
+            labels
+                .iter()
+                .filter(|&&l| l > 0)
+                .for_each(|&l| *sizes.entry(l).or_insert(0usize) += 1);
+            let (&largest, &size) = sizes
+                .iter()
+                .max_by_key(|&(l, s)| (s, -(*l as i64)))
+                .unwrap();
+            let (component, found) = largest_component(shape, |at| mask[at]);
+            assert_eq!(found, size, "density {density}");
+            let expected: Vec<bool> = labels.iter().map(|&l| l == largest).collect();
+            assert_eq!(component, expected, "density {density}");
+            // Holes: what the border cannot reach through the background.
+            let outside = components_by_search(&mask.iter().map(|m| !m).collect::<Vec<_>>(), shape);
+            let open: std::collections::HashSet<usize> = on_border(shape)
+                .map(|at| outside[at])
+                .filter(|&l| l > 0)
+                .collect();
+            let solid = filled(&mask, shape);
+            let expected: Vec<bool> = (0..n)
+                .map(|at| mask[at] || !open.contains(&outside[at]))
+                .collect();
+            assert_eq!(solid, expected, "density {density}");
+        }
+    }
+
+    #[test]
+    fn the_border_is_every_voxel_on_a_face_once() {
+        for [nz, ny, nx] in [
+            [1, 1, 1],
+            [1, 4, 5],
+            [3, 1, 4],
+            [4, 5, 1],
+            [3, 4, 5],
+            [6, 2, 7],
+        ] {
+            let border: Vec<usize> = on_border([nz, ny, nx]).collect();
+            let expected: Vec<usize> = (0..nz * ny * nx)
+                .filter(|&at| {
+                    let (k, j, i) = (at / (ny * nx), at / nx % ny, at % nx);
+                    k == 0 || j == 0 || i == 0 || k + 1 == nz || j + 1 == ny || i + 1 == nx
+                })
+                .collect();
+            assert_eq!(border, expected, "{:?}", [nz, ny, nx]);
+        }
     }
 }

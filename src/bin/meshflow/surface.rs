@@ -110,6 +110,12 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
     // Frames are read one at a time and dropped once their surface is found.
     let mut stream = VolumeStream::open(request.volumes, &request.placement)?;
     let n_frames = stream.n_frames();
+    if n_frames < 2 {
+        return Err(crate::usage(format!(
+            "{} holds {n_frames} frame: a moving surface needs 2 frames at least (one frame's surface: meshflow.find_surface in Python)",
+            request.volumes.display()
+        )));
+    }
     // From the files' headers: a wrong --times fails before any reading.
     if let Some(times) = request.times.as_ref().filter(|t| t.len() != n_frames) {
         return Err(crate::usage(format!(
