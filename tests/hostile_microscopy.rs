@@ -151,7 +151,11 @@ fn tiffs_declaring_more_than_the_limit_are_refused_before_decoding() {
     let error = read_volumes(&bomb, &VolumeOptions::default()).unwrap_err();
     naming(
         error,
-        &["bomb.tif", "pages of 8192 × 8192", "--memory-limit"],
+        &[
+            "bomb.tif",
+            "1 volume frame of 64 × 8192 × 8192 voxels",
+            "--memory-limit",
+        ],
     );
     let error = meshflow::volume::count_volume_frames(&bomb).unwrap_err();
     naming(error, &["bomb.tif", "--memory-limit"]);

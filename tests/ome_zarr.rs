@@ -300,7 +300,7 @@ fn sample_reads_ome_zarr_as_the_same_data_in_npy() {
     ];
     run(
         on_npy,
-        "--channel and --resolution-level apply to OME-Zarr images",
+        "--channel applies to OME-Zarr images and ImageJ hyperstacks",
     );
 }
 
@@ -323,4 +323,120 @@ fn a_dataset_path_outside_the_image_is_refused() {
             "{path}: {error}"
         );
     }
+}
+
+/// The finest level as an ImageJ hyperstack, as Fiji and tifffile write one: `TZC` pages of
+/// u16, `frames=`, `slices=`, `channels=` and the voxel size (0.5 × 0.5 × 2 µm) in the first
+/// page's tags. `declared_frames` is what the metadata says.
+fn write_hyperstack(file: &Path, declared_frames: usize) {
+    use tiff::encoder::colortype::Gray16;
+    use tiff::encoder::{Rational, TiffEncoder};
+    use tiff::tags::Tag;
+    let [nt, nc, nz, ny, nx] = SHAPE;
+    let mut encoder = TiffEncoder::new(std::fs::File::create(file).unwrap()).unwrap();
+    for t in 0..nt {
+        for z in 0..nz {
+            for c in 0..nc {
+                let page: Vec<u16> = (0..ny * nx)
+                    .map(|n| value(t, c, z, n / nx, n % nx))
+                    .collect();
+                let mut image = encoder.new_image::<Gray16>(nx as u32, ny as u32).unwrap();
+                if (t, z, c) == (0, 0, 0) {
+                    let description = format!(
+                        "ImageJ=1.54f\nimages={}\nchannels={nc}\nslices={nz}\nframes={declared_frames}\nhyperstack=true\nmode=grayscale\nunit=micron\nspacing=2.0\nloop=false\n",
+                        nt * nz * nc
+                    );
+                    let tags = image.encoder();
+                    tags.write_tag(Tag::ImageDescription, description.as_str())
+                        .unwrap();
+                    let per_micron = || Rational { n: 2, d: 1 };
+                    tags.write_tag(Tag::XResolution, per_micron()).unwrap();
+                    tags.write_tag(Tag::YResolution, per_micron()).unwrap();
+                }
+                image.write_data(&page).unwrap();
+            }
+        }
+    }
+}
+
+/// One recording as OME-Zarr, as an ImageJ hyperstack and as a `(K, Z, Y, X)` `.npy` of one
+/// channel reads as the same volumes to the bit, whole or a frame at a time; the hyperstack
+/// gives its voxel size and channels as the image does.
+#[test]
+fn ome_zarr_imagej_hyperstack_and_npy_read_as_the_same_volumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let image = dir.path().join("image.zarr");
+    write_v3(&image);
+    let stack = dir.path().join("stack.tif");
+    write_hyperstack(&stack, SHAPE[0]);
+    let [nt, _, nz, ny, nx] = SHAPE;
+    let channel1: Vec<f32> = (0..nt * nz * ny * nx)
+        .map(|n| {
+            let (t, z, y, x) = (n / (nz * ny * nx), n / (ny * nx) % nz, n / nx % ny, n % nx);
+            f32::from(value(t, 1, z, y, x))
+        })
+        .collect();
+    let npy = dir.path().join("channel1.npy");
+    write_npy(&npy, &[nt, nz, ny, nx].map(|n| n as u64), &channel1);
+
+    let placed = VolumeOptions {
+        channel: Some(1),
+        ..VolumeOptions::default()
+    };
+    let from_zarr = read_volumes(&image, &placed).unwrap();
+    let from_tiff = read_volumes(&stack, &placed).unwrap();
+    let from_npy = read_volumes(&npy, &VolumeOptions::default()).unwrap();
+    assert_eq!(from_tiff.volumes.len(), nt);
+    let streamed: Vec<_> = VolumeStream::open(&stack, &placed)
+        .unwrap()
+        .map(|read| read.unwrap().0)
+        .collect();
+    for t in 0..nt {
+        let expected = &channel1[t * nz * ny * nx..][..nz * ny * nx];
+        for (name, volume) in [
+            ("zarr", &from_zarr.volumes[t]),
+            ("tiff", &from_tiff.volumes[t]),
+            ("tiff, streamed", &streamed[t]),
+            ("npy", &from_npy.volumes[t]),
+        ] {
+            assert_eq!(volume.shape(), [nz, ny, nx], "{name}");
+            assert_eq!(volume.values(), expected, "{name}, frame {t}");
+        }
+        assert_eq!(
+            from_tiff.volumes[t].voxel_size(),
+            Vector3::new(0.5, 0.5, 2.0)
+        );
+        assert_eq!(
+            from_tiff.volumes[t].voxel_size(),
+            from_zarr.volumes[t].voxel_size()
+        );
+    }
+    // Channel 0 by default, as for OME-Zarr.
+    let first = read_volumes(&stack, &VolumeOptions::default()).unwrap();
+    assert_eq!(
+        first.volumes[2].values()[5],
+        f32::from(value(2, 0, 0, 0, 5))
+    );
+
+    let message = |path: &Path, options: &VolumeOptions| {
+        let message = read_volumes(path, options).unwrap_err().to_string();
+        assert!(message.contains(path.file_name().unwrap().to_str().unwrap()));
+        message
+    };
+    let third = VolumeOptions {
+        channel: Some(2),
+        ..VolumeOptions::default()
+    };
+    let said = message(&stack, &third);
+    assert!(
+        said.contains("--channel 2: the hyperstack has channels 0 … 1"),
+        "{said}"
+    );
+    let lying = dir.path().join("lying.tif");
+    write_hyperstack(&lying, 5);
+    let said = message(&lying, &VolumeOptions::default());
+    assert!(
+        said.contains("declares 5 frames × 24 slices × 2 channels = 240 pages, the file has 144"),
+        "{said}"
+    );
 }

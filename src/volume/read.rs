@@ -1,6 +1,15 @@
 //! Reading volumes: NPY arrays of shape `(Z, Y, X)` (one frame) or `(K, Z, Y, X)` (K frames),
-//! multi-page TIFF stacks (pages = z, one frame per file), and directories or globs of either
-//! (natural order, one frame per file). Values become `f32`.
+//! multi-page TIFF stacks (pages = z, one frame per file) and ImageJ hyperstacks (`frames=`
+//! × `slices=` × `channels=` pages in one file, [`super::tiff_stack`]), OME-Zarr images
+//! ([`super::ome_zarr`]), and directories or globs of NPY and TIFF files (natural order).
+//! Values become `f32`.
+//!
+//! [`VolumeStream`] reads a recording one frame at a time, so that one longer than memory
+//! streams through: a frame of a `(K, Z, Y, X)` `.npy` is read from its rows (the others
+//! skipped by seeking), a frame of a hyperstack from its pages, a frame of an OME-Zarr image
+//! from its chunks. `.npy` files are read, not memory-mapped: a mapped file that another
+//! process truncates faults the reader (SIGBUS) instead of giving an error, and the reads
+//! convert each frame to `f32` anyway.
 //!
 //! TIFF is read with the `tiff` crate (image-rs, pure Rust): grey samples of 8 to 64 bits
 //! (integers or floats), one strip or tile layout as the file has it. The voxel size comes
@@ -15,6 +24,7 @@
 //! memory limit ([`crate::limits`]) does not allow is an error before anything is allocated.
 
 use super::ome_zarr::{is_ome_zarr, OmeZarr};
+use super::tiff_stack::StackReader;
 use super::{tiff_stack, Volume, VolumeError};
 use crate::format::{
     format_number, frame_files, read_npy_f32, read_npy_f32_rows, read_npy_image_rows, IoError,
@@ -31,7 +41,7 @@ pub struct VolumeOptions {
     pub voxel_size: Option<Vector3<f64>>,
     /// The centre of voxel `(0, 0, 0)` (added to an OME-Zarr image's own translation).
     pub origin: Vector3<f64>,
-    /// OME-Zarr: the channel (`None`: 0).
+    /// OME-Zarr or an ImageJ hyperstack TIFF: the channel (`None`: 0).
     pub channel: Option<usize>,
     /// OME-Zarr: the resolution level (0: the finest).
     pub resolution_level: usize,
@@ -79,7 +89,7 @@ pub fn read_volumes(path: &Path, options: &VolumeOptions) -> Result<VolumeFrames
     }
     check_options(path, options)?;
     let files = volume_files(path)?;
-    let declared = declare_all(path, &files, Held::All)?;
+    let declared = declare_all(path, &files, Held::All, options.channel)?;
     let mut volumes = Vec::with_capacity(declared.iter().map(|d| d.frames).sum());
     let mut frame_files = Vec::with_capacity(volumes.capacity());
     // From the first file's metadata (or the caller).
@@ -119,6 +129,8 @@ pub struct VolumeStream {
     in_file: usize,
     /// An OME-Zarr image, the one "file".
     zarr: Option<OmeZarr>,
+    /// The TIFF being read, open from one of its frames to the next.
+    stack: Option<StackReader>,
 }
 
 impl VolumeStream {
@@ -134,6 +146,7 @@ impl VolumeStream {
                 frames: image.n_frames(),
                 shape: image.shape(),
                 float64: false,
+                tiff: None,
             };
             return Ok(Self {
                 options: options.clone(),
@@ -143,11 +156,12 @@ impl VolumeStream {
                 file: 0,
                 in_file: 0,
                 zarr: Some(image),
+                stack: None,
             });
         }
         check_options(path, options)?;
         let files = volume_files(path)?;
-        let declared = declare_all(path, &files, Held::One)?;
+        let declared = declare_all(path, &files, Held::One, options.channel)?;
         Ok(Self {
             options: options.clone(),
             files,
@@ -156,6 +170,7 @@ impl VolumeStream {
             file: 0,
             in_file: 0,
             zarr: None,
+            stack: None,
         })
     }
 
@@ -181,6 +196,9 @@ impl VolumeStream {
                     Metadata::Said(image.voxel_size, said),
                 )
             }
+            (None, _) if declared.tiff.is_some() => {
+                tiff_frame(file, declared, self.in_file, &mut self.stack)?
+            }
             (None, 1) => {
                 let (mut stacks, metadata) = read_file(file, declared)?;
                 (stacks.pop().expect("one frame"), metadata)
@@ -196,7 +214,7 @@ impl VolumeStream {
         let file = file.clone();
         self.in_file += 1;
         if self.in_file == self.declared[self.file].frames {
-            (self.file, self.in_file) = (self.file + 1, 0);
+            (self.file, self.in_file, self.stack) = (self.file + 1, 0, None);
         }
         Ok((volume, file))
     }
@@ -208,6 +226,24 @@ impl Iterator for VolumeStream {
     fn next(&mut self) -> Option<Self::Item> {
         (self.file < self.files.len()).then(|| self.read_next())
     }
+}
+
+/// Frame `k` of a TIFF stack or hyperstack through `reader` (opened on the first frame read),
+/// page by page, and the file's voxel-size metadata. Each page is checked against the
+/// declared layout as it is read.
+fn tiff_frame(
+    file: &Path,
+    declared: &Declared,
+    k: usize,
+    reader: &mut Option<StackReader>,
+) -> Result<(Vec<f32>, Metadata), Error> {
+    let (layout, channel) = declared.tiff.as_ref().expect("a TIFF");
+    let reader = match reader {
+        Some(reader) => reader,
+        None => reader.insert(StackReader::open(file)?),
+    };
+    let values = reader.read_frame(file, layout, k, *channel)?;
+    Ok((values, reader.metadata.clone()))
 }
 
 /// Frame `k` of a `(K, Z, Y, X)` `.npy`, its other rows skipped on disk.
@@ -232,7 +268,7 @@ pub fn count_volume_frames(path: &Path) -> Result<usize, Error> {
         return Ok(OmeZarr::open(path, None, 0)?.n_frames());
     }
     let files = volume_files(path)?;
-    Ok(declare_all(path, &files, Held::All)?
+    Ok(declare_all(path, &files, Held::All, None)?
         .iter()
         .map(|d| d.frames)
         .sum())
@@ -245,7 +281,7 @@ fn read_ome_zarr(path: &Path, options: &VolumeOptions) -> Result<VolumeFrames, E
     let [z, y, x] = stream.declared[0].shape;
     let frames = stream.n_frames() as u64;
     let voxels = frames.saturating_mul((z * y * x) as u64);
-    let what = format!("{frames} volume frames of {z} × {y} × {x} voxels");
+    let what = volume_frames(frames, [z, y, x]);
     limits::check_declared(what, voxels.saturating_mul(4))
         .map_err(|e| IoError::too_large(path, e))?;
     let mut volumes = Vec::new();
@@ -263,13 +299,20 @@ fn read_ome_zarr(path: &Path, options: &VolumeOptions) -> Result<VolumeFrames, E
     })
 }
 
+/// "1 volume frame of 3 × 4 × 5 voxels", "2 volume frames of …".
+fn volume_frames(frames: u64, [z, y, x]: [usize; 3]) -> String {
+    let plural = if frames == 1 { "" } else { "s" };
+    format!("{frames} volume frame{plural} of {z} × {y} × {x} voxels")
+}
+
 /// The voxel size given, and no OME-Zarr options for other files.
 fn check_options(path: &Path, options: &VolumeOptions) -> Result<(), Error> {
     if let Some(voxel_size) = options.voxel_size {
         super::check_voxel_size(&voxel_size).map_err(|e| Error::from(e).in_file(path))?;
     }
-    if options.channel.is_some() || options.resolution_level > 0 {
-        let message = "--channel and --resolution-level apply to OME-Zarr images (a directory with zarr.json or .zattrs)";
+    if options.resolution_level > 0 {
+        let message =
+            "--resolution-level applies to OME-Zarr images (a directory with zarr.json or .zattrs)";
         return Err(IoError::format(path, message).into());
     }
     Ok(())
@@ -300,6 +343,8 @@ struct Declared {
     shape: [usize; 3],
     /// float64 values, rounded to `f32` when read.
     float64: bool,
+    /// A TIFF's pages, and the channel read.
+    tiff: Option<(tiff_stack::Layout, usize)>,
 }
 
 /// How many frames a reader holds at once.
@@ -311,11 +356,16 @@ enum Held {
 
 /// What every file declares: at least one voxel a frame, one shape for all frames, and the
 /// frames `held` at once within the memory limit.
-fn declare_all(path: &Path, files: &[PathBuf], held: Held) -> Result<Vec<Declared>, Error> {
+fn declare_all(
+    path: &Path,
+    files: &[PathBuf],
+    held: Held,
+    channel: Option<usize>,
+) -> Result<Vec<Declared>, Error> {
     let mut all: Vec<Declared> = Vec::with_capacity(files.len());
     let mut frames = 0u64;
     for file in files {
-        let declared = declare(file)?;
+        let declared = declare(file, channel)?;
         if let Some(first) = all.first().filter(|first| first.shape != declared.shape) {
             let error = VolumeError::FrameShape {
                 frame: frames as usize,
@@ -340,7 +390,7 @@ fn declare_all(path: &Path, files: &[PathBuf], held: Held) -> Result<Vec<Declare
             .saturating_add(3)
             .saturating_mul(per_frame.saturating_mul(4)))
         .saturating_add(frames.saturating_mul(FRAME_BYTES));
-        let what = format!("{frames} volume frames of {z} × {y} × {x} voxels");
+        let what = volume_frames(frames, [z, y, x]);
         limits::check_declared(what, bytes).map_err(|e| IoError::too_large(file, e))?;
         all.push(declared);
     }
@@ -351,21 +401,34 @@ fn declare_all(path: &Path, files: &[PathBuf], held: Held) -> Result<Vec<Declare
 const FRAME_BYTES: u64 =
     (std::mem::size_of::<Volume>() + std::mem::size_of::<PathBuf>() + 64) as u64;
 
-fn declare(file: &Path) -> Result<Declared, IoError> {
+fn declare(file: &Path, channel: Option<usize>) -> Result<Declared, IoError> {
     if is_npy(file) {
+        if let Some(c) = channel {
+            let message = format!("--channel {c}: an .npy volume has no channels (--channel applies to OME-Zarr images and ImageJ hyperstacks)");
+            return Err(IoError::format(file, message));
+        }
         let (shape, float64) = npy_header(file)?;
         let (frames, frame) = frames_of(file, &shape)?;
         return Ok(Declared {
             frames,
             shape: frame,
             float64,
+            tiff: None,
         });
     }
     let layout = tiff_stack::layout(file)?;
+    if let Some(c) = channel.filter(|&c| c >= layout.channels) {
+        let message = match layout.channels {
+            1 => format!("--channel {c}: the stack has one channel (no ImageJ hyperstack metadata naming more)"),
+            n => format!("--channel {c}: the hyperstack has channels 0 … {}", n - 1),
+        };
+        return Err(IoError::format(file, message));
+    }
     Ok(Declared {
-        frames: 1,
-        shape: [layout.pages, layout.height as usize, layout.width as usize],
+        frames: layout.frames,
+        shape: [layout.slices, layout.height as usize, layout.width as usize],
         float64: false,
+        tiff: Some((layout, channel.unwrap_or(0))),
     })
 }
 
@@ -420,13 +483,14 @@ fn npy_header(file: &Path) -> Result<(Vec<u64>, bool), IoError> {
 
 /// The frames' values of one file and its voxel-size metadata.
 fn read_file(file: &Path, declared: &Declared) -> Result<(Vec<Vec<f32>>, Metadata), Error> {
-    if !is_npy(file) {
-        let (layout, values, metadata) = tiff_stack::read(file)?;
-        let shape = [layout.pages, layout.height as usize, layout.width as usize];
-        if shape != declared.shape {
-            return Err(IoError::format(file, "changed while it was read").into());
+    if declared.tiff.is_some() {
+        let (mut reader, mut metadata) = (None, Metadata::None);
+        let mut frames = Vec::with_capacity(declared.frames);
+        for k in 0..declared.frames {
+            let (values, said) = tiff_frame(file, declared, k, &mut reader)?;
+            (frames.push(values), metadata = said);
         }
-        return Ok((vec![values], metadata));
+        return Ok((frames, metadata));
     }
     let (shape, values) = read_npy_f32(file)?;
     if frames_of(file, &shape)? != (declared.frames, declared.shape) {

@@ -1,11 +1,15 @@
-//! Multi-page grey TIFF stacks (pages = z), read with the `tiff` crate under the memory limit.
+//! Multi-page grey TIFF stacks, read with the `tiff` crate under the memory limit: a plain
+//! stack is one frame, a page per slice; an ImageJ hyperstack (`frames=`, `slices=`,
+//! `channels=` in its ImageDescription, as Fiji and tifffile write 4-D and 5-D recordings)
+//! holds its frames in `TZC` page order, and one frame of one channel is read page by page,
+//! the others' pages never decoded.
 //!
 //! A TIFF is a list of page directories that may all point at one small compressed strip: a
 //! 73 kB file can declare 64 pages of 8192² pixels, 4.3 GB once inflated. So the pages are
-//! walked first, without decoding, and `pages × width × height` values checked against the
-//! memory limit ([`crate::limits`]); the decoder's own [`Limits`] bound each page's buffer
-//! and so the inflation of its strips. Every error names the file and, where there is one,
-//! the page.
+//! walked first, without decoding, and the caller checks what it will hold (a frame, or all
+//! of them) against the memory limit ([`crate::limits`]); the decoder's own [`Limits`] bound
+//! each page's buffer and so the inflation of its strips. Every error names the file and,
+//! where there is one, the page.
 
 use super::read::Metadata;
 use crate::format::IoError;
@@ -21,48 +25,119 @@ use tiff::ColorType;
 
 type TiffDecoder = Decoder<BufReader<File>>;
 
-/// The pages of a stack as its directories declare them.
+/// The pages of a stack as its directories declare them, and how ImageJ's hyperstack
+/// metadata orders them: `frames × slices × channels` pages, the channel changing fastest
+/// (ImageJ's and tifffile's `TZCYX`). A file without that metadata is one frame of one
+/// channel, a slice per page.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) struct Layout {
     pub pages: usize,
     pub width: u32,
     pub height: u32,
+    pub frames: usize,
+    pub slices: usize,
+    pub channels: usize,
 }
 
 impl Layout {
     fn values_per_page(&self) -> usize {
         self.width as usize * self.height as usize
     }
-}
 
-/// The pages of `file`, walked without decoding, and `file` checked against the memory limit.
-pub(super) fn layout(file: &Path) -> Result<Layout, IoError> {
-    walk(&mut open(file)?, file)
-}
-
-/// The stack's values (`f32`, C order: page, row, column), its layout and its ImageJ
-/// metadata.
-pub(super) fn read(file: &Path) -> Result<(Layout, Vec<f32>, Metadata), IoError> {
-    let mut decoder = open(file)?;
-    let metadata = imagej_voxel_size(&mut decoder);
-    let layout = walk(&mut decoder, file)?;
-    decoder
-        .seek_to_image(0)
-        .map_err(|e| unreadable(file, Some(0), e))?;
-    let mut values = Vec::with_capacity(layout.pages * layout.values_per_page());
-    for page in 0..layout.pages {
-        if page > 0 {
-            decoder
-                .next_image()
-                .map_err(|e| unreadable(file, Some(page), e))?;
-        }
-        let decoded = decoder
-            .read_image()
-            .map_err(|e| unreadable(file, Some(page), e))?;
-        append_values(decoded, &layout, &mut values)
-            .map_err(|message| IoError::format(file, format!("page {page}: {message}")))?;
+    /// The page of `slice` in `frame` for `channel`.
+    fn page(&self, frame: usize, slice: usize, channel: usize) -> usize {
+        (frame * self.slices + slice) * self.channels + channel
     }
-    Ok((layout, values, metadata))
+}
+
+/// The pages of `file`, walked without decoding, each page's buffer checked against the
+/// memory limit (what a frame or the whole file takes is the caller's to check).
+pub(super) fn layout(file: &Path) -> Result<Layout, IoError> {
+    let mut decoder = open(file)?;
+    let hyperstack = imagej_hyperstack(&mut decoder);
+    let mut layout = walk(&mut decoder, file)?;
+    let Some([frames, slices, channels]) = hyperstack else {
+        return Ok(layout);
+    };
+    let declared = frames.saturating_mul(slices).saturating_mul(channels);
+    if declared != layout.pages {
+        return Err(IoError::format(
+            file,
+            format!(
+                "its ImageJ metadata declares {frames} frames × {slices} slices × {channels} channels = {declared} pages, the file has {}",
+                layout.pages
+            ),
+        ));
+    }
+    (layout.frames, layout.slices, layout.channels) = (frames, slices, channels);
+    Ok(layout)
+}
+
+/// An open stack whose frames are read one at a time: the decoder keeps the page offsets it
+/// has walked, so a frame late in a long hyperstack is not found by walking from page 0.
+pub(super) struct StackReader {
+    decoder: TiffDecoder,
+    /// The file's ImageJ voxel-size metadata.
+    pub metadata: Metadata,
+}
+
+impl StackReader {
+    pub fn open(file: &Path) -> Result<Self, IoError> {
+        let mut decoder = open(file)?;
+        let metadata = imagej_voxel_size(&mut decoder);
+        Ok(Self { decoder, metadata })
+    }
+
+    /// Frame `frame` of channel `channel` of `file` as `layout` declared it (values `f32`,
+    /// C order: slice, row, column), read page by page.
+    pub fn read_frame(
+        &mut self,
+        file: &Path,
+        layout: &Layout,
+        frame: usize,
+        channel: usize,
+    ) -> Result<Vec<f32>, IoError> {
+        let decoder = &mut self.decoder;
+        let mut values = Vec::with_capacity(layout.slices * layout.values_per_page());
+        for slice in 0..layout.slices {
+            let page = layout.page(frame, slice, channel);
+            decoder
+                .seek_to_image(page)
+                .map_err(|e| unreadable(file, Some(page), e))?;
+            check_page(decoder, file, page, layout)?;
+            let decoded = decoder
+                .read_image()
+                .map_err(|e| unreadable(file, Some(page), e))?;
+            append_values(decoded, layout, &mut values)
+                .map_err(|message| IoError::format(file, format!("page {page}: {message}")))?;
+        }
+        Ok(values)
+    }
+}
+
+/// `[frames, slices, channels]` from an ImageJ ImageDescription that names frames or
+/// channels (each absent one is 1); `None` for any other file, a plain stack.
+fn imagej_hyperstack(decoder: &mut TiffDecoder) -> Option<[usize; 3]> {
+    let description = decoder.get_tag_ascii_string(Tag::ImageDescription).ok()?;
+    if !description.starts_with("ImageJ") {
+        return None;
+    }
+    let count = |key: &str| {
+        description
+            .lines()
+            .find_map(|line| line.strip_prefix(key)?.strip_prefix('='))
+            .and_then(|n| n.trim().parse::<usize>().ok())
+            .filter(|&n| n > 0)
+    };
+    let (frames, channels) = (count("frames"), count("channels"));
+    if frames.is_none() && channels.is_none() {
+        return None;
+    }
+    Some([
+        frames.unwrap_or(1),
+        count("slices").unwrap_or(1),
+        channels.unwrap_or(1),
+    ])
 }
 
 /// A decoder whose buffers stay within the memory limit.
@@ -200,7 +275,7 @@ fn unreadable(file: &Path, page: Option<usize>, e: tiff::TiffError) -> IoError {
 }
 
 /// Walks every page directory (the decoder left at the last one): one size, grey samples of
-/// a supported width, the growing stack checked against the memory limit at every page.
+/// a supported width, each page's decoding within the memory limit.
 fn walk(decoder: &mut TiffDecoder, file: &Path) -> Result<Layout, IoError> {
     let (width, height) = decoder
         .dimensions()
@@ -209,15 +284,18 @@ fn walk(decoder: &mut TiffDecoder, file: &Path) -> Result<Layout, IoError> {
         pages: 0,
         width,
         height,
+        frames: 1,
+        slices: 0,
+        channels: 1,
     };
     loop {
-        let sample_bytes = check_page(decoder, file, &layout)?;
+        let sample_bytes = check_page(decoder, file, layout.pages, &layout)?;
         layout.pages += 1;
-        // The f32 values of the pages so far, and one page decoded at its own sample width
-        // (twice: the decoder may stage a strip's samples before they reach the page).
-        let per_page = layout.values_per_page() as u64;
-        let bytes = (layout.pages as u64 * 4 + 2 * sample_bytes).saturating_mul(per_page);
-        let what = format!("{} pages of {width} × {height} pixels", layout.pages);
+        layout.slices = layout.pages;
+        // One page decoded at its own sample width (twice: the decoder may stage a strip's
+        // samples before they reach the page) and its f32 values.
+        let bytes = (4 + 2 * sample_bytes).saturating_mul(layout.values_per_page() as u64);
+        let what = format!("a page of {width} × {height} pixels");
         limits::check_declared(what, bytes).map_err(|e| IoError::too_large(file, e))?;
         if !decoder.more_images() {
             return Ok(layout);
@@ -228,10 +306,14 @@ fn walk(decoder: &mut TiffDecoder, file: &Path) -> Result<Layout, IoError> {
     }
 }
 
-/// Page `layout.pages` (the decoder's current one): of the first page's size, grey, and of a
-/// sample width the reader converts, which it returns in bytes.
-fn check_page(decoder: &mut TiffDecoder, file: &Path, layout: &Layout) -> Result<u64, IoError> {
-    let page = layout.pages;
+/// Page `page` (the decoder's current one): of the first page's size, grey, and of a sample
+/// width the reader converts, which it returns in bytes.
+fn check_page(
+    decoder: &mut TiffDecoder,
+    file: &Path,
+    page: usize,
+    layout: &Layout,
+) -> Result<u64, IoError> {
     let bad = |message: String| IoError::format(file, format!("page {page}: {message}"));
     let (width, height) = decoder
         .dimensions()

@@ -71,7 +71,7 @@ pub(crate) struct VolumePlacement {
         allow_negative_numbers = true
     )]
     pub(crate) origin: Option<Vec<f64>>,
-    /// OME-Zarr images: the channel to read [default: 0]
+    /// OME-Zarr images and ImageJ hyperstack TIFFs: the channel to read [default: 0]
     #[arg(long, value_name = "C")]
     pub(crate) channel: Option<usize>,
     /// OME-Zarr images: the resolution level to read, 0 the finest [default: 0]
