@@ -62,6 +62,7 @@ __all__ = [
     "match_tracks",
     "set_limits",
     "operators",
+    "read_volumes",
     "render",
     "sample_volume",
     "score_tracks",
@@ -824,13 +825,83 @@ def _volume_frames(volumes: Any) -> List[np.ndarray]:
     return [as_float32(f"volumes[{k}]", v, 3, "(z, y, x)") for k, v in enumerate(volumes)]
 
 
+def _is_path(value: Any) -> bool:
+    return isinstance(value, (str, PathLike))
+
+
+def _optional_triple(name: str, value: Any) -> Optional[Tuple[float, float, float]]:
+    return None if value is None else _triple(name, value)
+
+
+def _level(name: str, value: Any) -> int:
+    count = _count(name, value)
+    if count is None:
+        raise ValueError(f"{name} must be a whole number ≥ 0, not None")
+    return count
+
+
+def read_volumes(
+    path: Union[str, PathLike],
+    *,
+    voxel_size: Optional[SequenceOf[float]] = None,
+    origin: SequenceOf[float] = (0.0, 0.0, 0.0),
+    channel: Optional[int] = None,
+    resolution_level: int = 0,
+    frames: Optional[SequenceOf[int]] = None,
+) -> Dict[str, Any]:
+    """A recording's volumes read as ``meshflow sample`` and ``meshflow surface`` read them:
+    an ``.npy`` of (Z, Y, X) or (K, Z, Y, X), a TIFF stack or an ImageJ hyperstack (Fiji's
+    and tifffile's 4-D/5-D TIFF), an OME-Zarr image (NGFF 0.4 or 0.5), or a directory of
+    ``.npy``/``.tif`` files, one frame each.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The recording.
+    voxel_size : (d_x, d_y, d_z), optional
+        Default: from the files' metadata (ImageJ's, or OME-Zarr's ``scale``), else 1 × 1 × 1.
+    origin : (x, y, z)
+        The position of voxel ``(0, 0, 0)``'s centre (an OME-Zarr image's own translation is
+        added).
+    channel : int, optional
+        OME-Zarr images and hyperstacks: the channel (default 0).
+    resolution_level : int
+        OME-Zarr: the pyramid level (0: the finest).
+    frames : list of int, optional
+        Only these frames, in this order; the others are not read. Default: every frame.
+
+    Returns
+    -------
+    dict
+        ``volumes`` (K, Z, Y, X) float32, ``voxel_size`` and ``origin`` as placed, and
+        ``voxel_size_source`` (where the voxel size came from; None where given).
+
+    What is held is checked against the memory limit (:func:`set_limits`) before anything is
+    read; a recording larger than memory goes to :func:`sample_volume` as a path instead,
+    which reads one frame at a time.
+    """
+    if frames is not None:
+        frames = [_level("frames[]", k) for k in frames]
+    return _meshflow.read_volumes(
+        _path(path),
+        _optional_triple("voxel_size", voxel_size),
+        _triple("origin", origin),
+        _count("channel", channel),
+        _level("resolution_level", resolution_level),
+        frames,
+    )
+
+
 def find_surface(
     volume: Any,
-    voxel_size: SequenceOf[float] = (1.0, 1.0, 1.0),
+    voxel_size: Optional[SequenceOf[float]] = None,
     *,
     origin: SequenceOf[float] = (0.0, 0.0, 0.0),
     level: Union[str, float] = "auto",
     smoothing: Optional[float] = None,
+    frame: int = 0,
+    channel: Optional[int] = None,
+    resolution_level: int = 0,
 ) -> Dict[str, Any]:
     """The surface of the object in one 3-D image, as ``meshflow surface --shape closed`` finds
     it in each frame: Gaussian smoothing, a threshold (Otsu's, or ``level``), the largest
@@ -840,12 +911,16 @@ def find_surface(
 
     Parameters
     ----------
-    volume : (Z, Y, X) array of float or integer
-        The image in NumPy's ``(z, y, x)`` order.
-    voxel_size : (d_x, d_y, d_z)
-        The voxel's sides in physical units, ``(x, y, z)`` order.
+    volume : (Z, Y, X) array of float or integer, or a path
+        The image in NumPy's ``(z, y, x)`` order, or a recording on disk (as
+        :func:`read_volumes` reads it), of which frame ``frame`` is read.
+    voxel_size : (d_x, d_y, d_z), optional
+        The voxel's sides in physical units, ``(x, y, z)`` order. Default: 1 × 1 × 1 for an
+        array, the files' metadata for a path.
     origin : (x, y, z)
         The position of voxel ``(0, 0, 0)``'s centre.
+    frame, channel, resolution_level : int
+        For a path: which frame, channel and pyramid level (:func:`read_volumes`).
     level : "auto" or float
         The threshold of the smoothed image; "auto" is Otsu's (a probability map works at 0.5).
     smoothing : float, optional
@@ -863,7 +938,20 @@ def find_surface(
     Errors are ``ValueError`` with the library's message: a constant image, no voxel above
     ``level`` or every voxel above it, an object too small to bound.
     """
-    frame = _volume_frames([volume])[0]
+    if _is_path(volume):
+        read = read_volumes(
+            volume,
+            voxel_size=voxel_size,
+            origin=origin,
+            channel=channel,
+            resolution_level=resolution_level,
+            frames=[frame],
+        )
+        image, voxel_size, origin = read["volumes"][0], read["voxel_size"], read["origin"]
+    else:
+        if channel is not None or resolution_level != 0 or frame != 0:
+            raise ValueError("frame, channel and resolution_level apply to a path, not an array")
+        image = _volume_frames([volume])[0]
     if isinstance(level, str):
         text = level
     elif isinstance(level, (int, float)) and not isinstance(level, bool):
@@ -871,8 +959,8 @@ def find_surface(
     else:
         raise ValueError(f"level must be \"auto\" or a number, got {level!r}")
     return _meshflow.find_surface(
-        frame,
-        _triple("voxel_size", voxel_size),
+        image,
+        _triple("voxel_size", (1.0, 1.0, 1.0) if voxel_size is None else voxel_size),
         _triple("origin", origin),
         text,
         _optional_float("smoothing", smoothing),
@@ -891,7 +979,7 @@ def sample_volume(
     volumes: Any,
     positions: Any,
     faces: Any,
-    voxel_size: SequenceOf[float],
+    voxel_size: Optional[SequenceOf[float]] = None,
     *,
     origin: SequenceOf[float] = (0.0, 0.0, 0.0),
     smoothing: Optional[float] = None,
@@ -899,6 +987,8 @@ def sample_volume(
     layers: int = 9,
     reduce: str = "max",
     allow_outside: bool = False,
+    channel: Optional[int] = None,
+    resolution_level: int = 0,
 ) -> Dict[str, Any]:
     """A microscope recording read onto a moving surface (``meshflow sample``): the grey
     value of every vertex in every frame, for :func:`compute_flow`.
@@ -915,18 +1005,24 @@ def sample_volume(
 
     Parameters
     ----------
-    volumes : (K, Z, Y, X) array, or a list of K (Z, Y, X) arrays
+    volumes : (K, Z, Y, X) array, a list of K (Z, Y, X) arrays, or a path
         One 3-D image per frame in NumPy's ``(z, y, x)`` order (as tifffile and h5py read
         stacks), float32, float64 or any integer dtype (uint8, uint16 …); stored as float32.
-        Voxel ``(k, j, i)`` is the value at ``origin + (i·d_x, j·d_y, k·d_z)``.
+        Voxel ``(k, j, i)`` is the value at ``origin + (i·d_x, j·d_y, k·d_z)``. A path names a
+        recording on disk as :func:`read_volumes` reads it (``.npy``, TIFF, ImageJ
+        hyperstack, OME-Zarr, a directory): it is read and sampled one frame at a time, so
+        that only one frame is ever held, as ``meshflow sample`` does.
     positions : (K, V, 3) array of float
         The surface's vertex positions per frame, in the same physical units.
     faces : (F, 3) array of int
         Its triangles (every vertex in one; no welding is done here).
     voxel_size : (d_x, d_y, d_z)
-        The voxel's sides in the surface's units (e.g. µm), in ``(x, y, z)`` order.
+        The voxel's sides in the surface's units (e.g. µm), in ``(x, y, z)`` order. Required
+        for arrays; for a path, the files' metadata gives it where this is not given.
     origin : (x, y, z)
         The position of voxel ``(0, 0, 0)``'s centre.
+    channel, resolution_level : int
+        For a path: the channel and pyramid level (:func:`read_volumes`).
     smoothing : float, optional
         ``σ`` of a Gaussian applied to each volume first (physical units; 0: none); default
         two of the smallest voxel sides.
@@ -945,8 +1041,9 @@ def sample_volume(
     -------
     dict
         ``values`` (K, V) float64; ``outside``: per frame, how many vertices' shells left the
-        volume (their value is 0); ``no_data`` (K, V) bool, which they are; ``shell`` ``(inside, outside, layers)`` and ``smoothing``
-        ``σ`` as used.
+        volume (their value is 0); ``no_data`` (K, V) bool, which they are; ``shell``
+        ``(inside, outside, layers)`` and ``smoothing`` ``σ`` as used. For a path, also
+        ``voxel_size`` as used and ``voxel_size_source``.
 
     Errors are ``ValueError`` with the library's message: a volume that is not finite
     (naming the frame and voxel), a voxel size that is not positive, as many volumes as
@@ -959,7 +1056,6 @@ def sample_volume(
                                          voxel_size=(0.4, 0.4, 2.0), reduce="max")
         flow = meshflow.compute_flow(surface["positions"], surface["faces"], sampled["values"])
     """
-    frames = _volume_frames(volumes)
     positions = _floats("positions", positions, 3, 3)
     faces = _faces(faces)
     if shell is not None:
@@ -975,8 +1071,27 @@ def sample_volume(
         raise ValueError("layers must be a whole number ≥ 1, not None")
     if not isinstance(reduce, str):
         raise ValueError(f"reduce must be \"max\", \"mean\" or \"layer:L\", got {reduce!r}")
+    if _is_path(volumes):
+        return _meshflow.sample_volume_file(
+            _path(volumes),
+            positions,
+            faces,
+            _optional_triple("voxel_size", voxel_size),
+            _triple("origin", origin),
+            _count("channel", channel),
+            _level("resolution_level", resolution_level),
+            _optional_float("smoothing", smoothing),
+            shell,
+            layer_count,
+            reduce,
+            bool(allow_outside),
+        )
+    if channel is not None or resolution_level != 0:
+        raise ValueError("channel and resolution_level apply to a path, not to arrays")
+    if voxel_size is None:
+        raise ValueError("voxel_size is required with arrays: (d_x, d_y, d_z) in the surface's units")
     return _meshflow.sample_volume(
-        frames,
+        _volume_frames(volumes),
         positions,
         faces,
         _triple("voxel_size", voxel_size),

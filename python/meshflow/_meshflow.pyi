@@ -161,3 +161,36 @@ def sample_volume(
 ) -> Dict[str, Any]:
     """``values`` (K, V), ``outside`` (per frame), ``no_data`` (K, V), ``shell`` (inside, outside, layers),
     ``smoothing``."""
+def sample_volume_file(
+    path: str,
+    positions: npt.NDArray[np.float64],
+    faces: npt.NDArray[np.int64],
+    voxel_size: Optional[Tuple[float, float, float]],
+    origin: Tuple[float, float, float],
+    channel: Optional[int],
+    resolution_level: int,
+    smoothing: Optional[float],
+    shell: Optional[Tuple[float, float]],
+    layers: int,
+    reduce: str,
+    allow_outside: bool,
+) -> Dict[str, Any]:
+    """As ``sample_volume``, the volumes read one frame at a time from ``path``; adds
+    ``voxel_size`` and ``voxel_size_source``."""
+def read_volumes(
+    path: str,
+    voxel_size: Optional[Tuple[float, float, float]],
+    origin: Tuple[float, float, float],
+    channel: Optional[int],
+    resolution_level: int,
+    frames: Optional[List[int]],
+) -> Dict[str, Any]:
+    """``volumes`` (K, Z, Y, X) float32, ``voxel_size``, ``origin``, ``voxel_size_source``."""
+def find_surface(
+    volume: npt.NDArray[np.float32],  # (Z, Y, X)
+    voxel_size: Tuple[float, float, float],
+    origin: Tuple[float, float, float],
+    level: str,
+    smoothing: Optional[float],
+) -> Dict[str, Any]:
+    """``positions`` (V, 3), ``faces`` (F, 3), the report's numbers and ``warnings``."""

@@ -111,6 +111,8 @@ fn _meshflow(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(microscopy::fit_surface, m)?)?;
     m.add_function(wrap_pyfunction!(microscopy::find_surface, m)?)?;
     m.add_function(wrap_pyfunction!(microscopy::sample_volume, m)?)?;
+    m.add_function(wrap_pyfunction!(microscopy::sample_volume_file, m)?)?;
+    m.add_function(wrap_pyfunction!(microscopy::read_volumes, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

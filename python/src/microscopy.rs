@@ -7,13 +7,17 @@ use meshflow::mesh::Mesh;
 use meshflow::surface::{
     FitOptions, FoundSurface, IsosurfaceOptions, Level, Reference, Resolution, Shape,
 };
-use meshflow::volume::{Reduce, SampleOptions, SampledSequence, Shell, Volume};
+use meshflow::volume::{
+    Reduce, SampleOptions, SampledSequence, Shell, StreamEvent, Volume, VolumeOptions,
+    VolumeStream, VoxelSizeSource,
+};
 use meshflow::{surface, volume, Error};
 use nalgebra::Vector3;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use std::path::PathBuf;
 
 /// A moving surface fitted through point clouds (`meshflow surface`): `frames[k]` (N_k, 3).
 /// Returns a dict: `positions` (K, V, 3), `faces` (F, 3), `reference`, `frames` (per-frame
@@ -210,28 +214,41 @@ pub(crate) fn sample_volume<'py>(
             })
             .collect::<PyResult<Vec<_>>>()?;
         let mesh = Mesh::new(n_vertices, faces).map_err(|e| to_py_err(e.into()))?;
-        // No shell given: the library's default reach (± two of the largest voxel sides),
-        // with `layers` layers.
-        let shell = shell
-            .map(|(inside, outside)| Shell {
-                inside,
-                outside,
-                layers,
-            })
-            .or_else(|| {
-                let first = volumes.first()?;
-                let reach = SampleOptions::default().shell_for(first);
-                Some(Shell { layers, ..reach })
-            });
-        let options = SampleOptions {
-            smoothing,
-            shell,
-            reduce,
-            allow_outside,
-        };
+        let options = sample_options(smoothing, shell, layers, reduce, allow_outside);
         volume::sample_sequence(&volumes, &mesh, &positions, &options)
             .map_err(|e| to_py_err(e.into()))
     })?;
+    sampled_dict(py, sampled, n_vertices)
+}
+
+/// The sampling's options: `shell` (inside, outside) or the library's default reach (± two
+/// of the largest voxel sides), with `layers` layers either way.
+fn sample_options(
+    smoothing: Option<f64>,
+    shell: Option<(f64, f64)>,
+    layers: usize,
+    reduce: Reduce,
+    allow_outside: bool,
+) -> SampleOptions {
+    SampleOptions {
+        smoothing,
+        shell: shell.map(|(inside, outside)| Shell {
+            inside,
+            outside,
+            layers,
+        }),
+        layers: Some(layers),
+        reduce,
+        allow_outside,
+    }
+}
+
+/// `values` (K, V), `outside`, `no_data` (K, V), `shell` and `smoothing` of a sampling.
+fn sampled_dict(
+    py: Python<'_>,
+    sampled: SampledSequence,
+    n_vertices: usize,
+) -> PyResult<Bound<'_, PyDict>> {
     let k = sampled.values.len();
     let values =
         Array2::from_shape_vec((k, n_vertices), sampled.values.concat()).expect("K × V values");
@@ -244,5 +261,150 @@ pub(crate) fn sample_volume<'py>(
     let shell = sampled.shell;
     out.set_item("shell", (shell.inside, shell.outside, shell.layers))?;
     out.set_item("smoothing", sampled.smoothing)?;
+    Ok(out)
+}
+
+/// Where and what of the volumes at `path` is read: the caller's voxel size (`None`: the
+/// files' metadata, else 1), origin, channel and resolution level.
+fn volume_options(
+    voxel_size: Option<(f64, f64, f64)>,
+    origin: (f64, f64, f64),
+    channel: Option<usize>,
+    resolution_level: usize,
+) -> VolumeOptions {
+    VolumeOptions {
+        voxel_size: voxel_size.map(|(x, y, z)| Vector3::new(x, y, z)),
+        origin: Vector3::new(origin.0, origin.1, origin.2),
+        channel,
+        resolution_level,
+    }
+}
+
+/// Where the voxel size came from, in words (`None` where the caller gave it).
+fn voxel_size_said(source: Option<&VoxelSizeSource>) -> Option<String> {
+    match source? {
+        VoxelSizeSource::Given => None,
+        VoxelSizeSource::GivenOverInvalid(why) => Some(format!(
+            "given, in place of the files' invalid metadata ({why})"
+        )),
+        VoxelSizeSource::File(said) => Some(said.clone()),
+        VoxelSizeSource::Default => Some("none given or found in the files: 1 × 1 × 1".to_string()),
+    }
+}
+
+/// [`sample_volume`] of the volumes that `path` names (NPY, TIFF, ImageJ hyperstack, OME-Zarr,
+/// or a directory of them), read and sampled one frame at a time. The dict adds
+/// `voxel_size` (as used) and `voxel_size_source`.
+#[pyfunction]
+#[pyo3(signature = (path, positions, faces, voxel_size, origin, channel, resolution_level, smoothing, shell, layers, reduce, allow_outside))]
+#[allow(clippy::too_many_arguments)] // the Python signature, one argument per option
+pub(crate) fn sample_volume_file<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    positions: PyReadonlyArray3<'py, f64>,
+    faces: PyReadonlyArray2<'py, i64>,
+    voxel_size: Option<(f64, f64, f64)>,
+    origin: (f64, f64, f64),
+    channel: Option<usize>,
+    resolution_level: usize,
+    smoothing: Option<f64>,
+    shell: Option<(f64, f64)>,
+    layers: usize,
+    reduce: &str,
+    allow_outside: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let reduce = parse::<Reduce>(reduce, "reduce")?;
+    let faces = read_faces(&faces)?;
+    let positions = read_positions(&positions);
+    let n_vertices = positions.first().map_or(0, Vec::len);
+    let placement = volume_options(voxel_size, origin, channel, resolution_level);
+    let options = sample_options(smoothing, shell, layers, reduce, allow_outside);
+    let (sampled, voxel, said) = py
+        .detach(|| -> Result<_, Error> {
+            let mesh = Mesh::new(n_vertices, faces)?;
+            let mut stream = VolumeStream::open(&path, &placement)?;
+            let mut voxel = None;
+            let mut on_event = |event: StreamEvent| {
+                if let StreamEvent::VoxelSize(source) = event {
+                    voxel = Some(source.clone());
+                }
+            };
+            let sampled =
+                volume::sample_stream(&mut stream, &mesh, &positions, &options, &mut on_event)?;
+            let size = stream.voxel_size();
+            Ok((sampled, size, voxel))
+        })
+        .map_err(to_py_err)?;
+    let out = sampled_dict(py, sampled, n_vertices)?;
+    out.set_item("voxel_size", voxel.map(|v| (v.x, v.y, v.z)))?;
+    out.set_item("voxel_size_source", voxel_size_said(said.as_ref()))?;
+    Ok(out)
+}
+
+/// The volumes that `path` names, as one `(K, Z, Y, X)` float32 array (only `frames`, in
+/// their order, where given: the others are passed over unread), with the voxel size and
+/// origin they are placed at. The frames held are checked against the memory limit first.
+#[pyfunction]
+#[pyo3(signature = (path, voxel_size, origin, channel, resolution_level, frames))]
+pub(crate) fn read_volumes<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    voxel_size: Option<(f64, f64, f64)>,
+    origin: (f64, f64, f64),
+    channel: Option<usize>,
+    resolution_level: usize,
+    frames: Option<Vec<usize>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let placement = volume_options(voxel_size, origin, channel, resolution_level);
+    let read = py
+        .detach(|| -> Result<_, Error> {
+            let mut stream = VolumeStream::open(&path, &placement)?;
+            let n_frames = stream.n_frames();
+            let wanted: Vec<usize> = frames.clone().unwrap_or_else(|| (0..n_frames).collect());
+            if let Some(&k) = wanted.iter().find(|&&k| k >= n_frames) {
+                let message = format!("frame {k}: the recording has frames 0 … {}", n_frames - 1);
+                return Err(meshflow::format::IoError::format(&path, message).into());
+            }
+            let [z, y, x] = stream.shape();
+            let voxels = (wanted.len() as u64).saturating_mul((z * y * x) as u64);
+            let what = format!("{} volume frames of {z} × {y} × {x} voxels", wanted.len());
+            meshflow::limits::check_declared(what, voxels.saturating_mul(4))
+                .map_err(|e| meshflow::format::IoError::too_large(&path, e))?;
+            // Each wanted frame read once, in file order, then placed in the asked order.
+            let mut order: Vec<usize> = wanted.clone();
+            order.sort_unstable();
+            order.dedup();
+            let mut held: Vec<(usize, Vec<f32>)> = Vec::with_capacity(order.len());
+            let mut next = 0;
+            for &k in &order {
+                (next..k).for_each(|_| stream.skip_frame());
+                let (volume, _) = stream.next().expect("k < n_frames")?;
+                held.push((k, volume.values().to_vec()));
+                next = k + 1;
+            }
+            let values: Vec<f32> = (wanted.iter())
+                .flat_map(|k| {
+                    let at = order.binary_search(k).expect("held");
+                    held[at].1.iter().copied()
+                })
+                .collect();
+            let source = stream.voxel_size_source().cloned();
+            Ok((
+                values,
+                [wanted.len(), z, y, x],
+                stream.voxel_size(),
+                stream.origin(),
+                source,
+            ))
+        })
+        .map_err(to_py_err)?;
+    let (values, [k, z, y, x], voxel, origin, source) = read;
+    let volumes =
+        numpy::ndarray::Array4::from_shape_vec((k, z, y, x), values).expect("K × Z × Y × X values");
+    let out = PyDict::new(py);
+    out.set_item("volumes", volumes.into_pyarray(py))?;
+    out.set_item("voxel_size", voxel.map(|v| (v.x, v.y, v.z)))?;
+    out.set_item("origin", origin.map(|o| (o.x, o.y, o.z)))?;
+    out.set_item("voxel_size_source", voxel_size_said(source.as_ref()))?;
     Ok(out)
 }

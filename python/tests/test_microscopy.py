@@ -391,3 +391,75 @@ def test_find_surface_errors():
         meshflow.find_surface(_ball_stack(), level=[1])
     with pytest.raises(ValueError, match="level: 'high' is not a number or 'auto'"):
         meshflow.find_surface(_ball_stack(), level="high")
+
+
+def _write_ome_zarr(path, volumes, voxel, origin):
+    """NGFF 0.5 (Zarr v3, uncompressed float32, one chunk per frame) of (K, Z, Y, X)
+    ``volumes`` with the voxel size and origin as its scale and translation."""
+    import os
+
+    k, z, y, x = volumes.shape
+    os.makedirs(path / "s0")
+    transforms = [{"type": "scale", "scale": [1.0, voxel[2], voxel[1], voxel[0]]},
+                  {"type": "translation", "translation": [0.0, origin[2], origin[1], origin[0]]}]
+    axes = [{"name": "t", "type": "time"}] + [
+        {"name": n, "type": "space", "unit": "micrometer"} for n in "zyx"]
+    group = {"zarr_format": 3, "node_type": "group", "attributes": {"ome": {
+        "version": "0.5", "multiscales": [{"version": "0.5", "axes": axes, "datasets": [
+            {"path": "s0", "coordinateTransformations": transforms}]}]}}}
+    (path / "zarr.json").write_text(json.dumps(group))
+    array = {"zarr_format": 3, "node_type": "array", "shape": [k, z, y, x],
+             "data_type": "float32",
+             "chunk_grid": {"name": "regular", "configuration": {"chunk_shape": [1, z, y, x]}},
+             "chunk_key_encoding": {"name": "default", "configuration": {"separator": "/"}},
+             "fill_value": 0.0, "codecs": [{"name": "bytes", "configuration": {"endian": "little"}}]}
+    (path / "s0" / "zarr.json").write_text(json.dumps(array))
+    for t in range(k):
+        chunk = path / "s0" / "c" / str(t) / "0" / "0" / "0"
+        chunk.parent.mkdir(parents=True)
+        chunk.write_bytes(volumes[t].astype("<f4").tobytes())
+
+
+def test_volumes_on_disk_are_read_and_sampled_a_frame_at_a_time(ball, tmp_path):
+    """A path to an .npy or an OME-Zarr image samples as the same arrays do, the Zarr
+    image's voxel size and origin from its metadata; read_volumes picks frames; find_surface
+    reads one frame of a path."""
+    x, faces, _ = ball
+    positions = np.stack([x, x + [2.0, 3.0, -1.0]])
+    volume = linear_volume().astype(np.float32)
+    volumes = np.stack([volume, volume + 1.0])
+    np.save(tmp_path / "stack.npy", volumes)
+    zarr = tmp_path / "stack.zarr"
+    _write_ome_zarr(zarr, volumes, VOXEL, ORIGIN)
+    options = {"smoothing": 1.5, "shell": (3.0, 3.0), "layers": 5}
+    arrays = meshflow.sample_volume(volumes, positions, faces, VOXEL, origin=ORIGIN, **options)
+    from_npy = meshflow.sample_volume(tmp_path / "stack.npy", positions, faces, VOXEL,
+                                      origin=ORIGIN, **options)
+    from_zarr = meshflow.sample_volume(str(zarr), positions, faces, **options)
+    for sampled in (from_npy, from_zarr):
+        assert np.array_equal(sampled["values"], arrays["values"])
+        assert sampled["shell"] == arrays["shell"] and sampled["outside"] == [0, 0]
+        assert sampled["voxel_size"] == VOXEL
+    assert from_npy["voxel_size_source"] is None                 # given
+    assert "micrometer" in from_zarr["voxel_size_source"]
+
+    read = meshflow.read_volumes(zarr, frames=[1, 0, 1])
+    assert read["volumes"].shape == (3, 20, 40, 40) and read["volumes"].dtype == np.float32
+    assert np.array_equal(read["volumes"], volumes[[1, 0, 1]])
+    assert read["voxel_size"] == VOXEL and read["origin"] == tuple(ORIGIN)
+    with pytest.raises(ValueError, match=r"frame 2: the recording has frames 0 … 1"):
+        meshflow.read_volumes(zarr, frames=[2])
+    with pytest.raises(ValueError, match="channel=1: the image has channels 0 … 0"):
+        meshflow.read_volumes(zarr, channel=1)
+    with pytest.raises(ValueError, match="voxel_size is required with arrays"):
+        meshflow.sample_volume(volumes, positions, faces)
+    with pytest.raises(ValueError, match="apply to a path, not to arrays"):
+        meshflow.sample_volume(volumes, positions, faces, VOXEL, channel=0)
+    with pytest.raises(FileNotFoundError):
+        meshflow.sample_volume(tmp_path / "missing.npy", positions, faces, VOXEL)
+
+    ball_stack = np.stack([_ball_stack(), _ball_stack(1.0)]).astype(np.float32)
+    np.save(tmp_path / "ball.npy", ball_stack)
+    found = meshflow.find_surface(tmp_path / "ball.npy", (0.5, 0.5, 0.5), frame=1, level=50.0)
+    direct = meshflow.find_surface(ball_stack[1], (0.5, 0.5, 0.5), level=50.0)
+    assert np.array_equal(found["positions"], direct["positions"])

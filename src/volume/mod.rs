@@ -40,8 +40,8 @@ pub use read::{
     count_volume_frames, read_volumes, VolumeFrames, VolumeOptions, VolumeStream, VoxelSizeSource,
 };
 pub use sample::{
-    sample_sequence, sample_shell, FrameSampler, Misplacement, PlacementReport, Reduce,
-    SampleOptions, SampledSequence, Shell,
+    sample_sequence, sample_shell, sample_stream, FrameSampler, Misplacement, PlacementReport,
+    Reduce, SampleOptions, SampledSequence, Shell, StreamEvent,
 };
 
 use nalgebra::Vector3;

@@ -120,6 +120,8 @@ pub fn read_volumes(path: &Path, options: &VolumeOptions) -> Result<VolumeFrames
 /// others skipped on disk), so a recording longer than memory streams through. The voxel size
 /// is chosen from the first file read ([`VolumeStream::voxel_size_source`]).
 pub struct VolumeStream {
+    /// What the caller named.
+    path: PathBuf,
     options: VolumeOptions,
     files: Vec<PathBuf>,
     declared: Vec<Declared>,
@@ -149,6 +151,7 @@ impl VolumeStream {
                 tiff: None,
             };
             return Ok(Self {
+                path: path.to_path_buf(),
                 options: options.clone(),
                 files: vec![path.to_path_buf()],
                 declared: vec![declared],
@@ -163,6 +166,7 @@ impl VolumeStream {
         let files = volume_files(path)?;
         let declared = declare_all(path, &files, Held::One, options.channel)?;
         Ok(Self {
+            path: path.to_path_buf(),
             options: options.clone(),
             files,
             declared,
@@ -176,6 +180,31 @@ impl VolumeStream {
 
     pub fn n_frames(&self) -> usize {
         self.declared.iter().map(|d| d.frames).sum()
+    }
+
+    /// `(n_z, n_y, n_x)` of every frame.
+    pub fn shape(&self) -> [usize; 3] {
+        self.declared[0].shape
+    }
+
+    /// The voxel size used, once the first frame has been read.
+    pub fn voxel_size(&self) -> Option<Vector3<f64>> {
+        self.chosen.as_ref().map(|(size, _)| *size)
+    }
+
+    /// The centre of voxel `(0, 0, 0)`: the caller's origin, plus an OME-Zarr image's own
+    /// translation.
+    pub fn origin(&self) -> Option<Vector3<f64>> {
+        let shift = self
+            .zarr
+            .as_ref()
+            .map_or(Vector3::zeros(), |i| i.translation);
+        self.chosen.as_ref().map(|_| self.options.origin + shift)
+    }
+
+    /// The path it was opened on.
+    pub fn path(&self) -> &Path {
+        &self.path
     }
 
     /// Where the voxel size came from, once the first frame has been read.
@@ -212,11 +241,23 @@ impl VolumeStream {
         let volume = Volume::new(declared.shape, values, voxel_size, origin)
             .map_err(|e| Error::from(e).in_file(file))?;
         let file = file.clone();
+        self.advance();
+        Ok((volume, file))
+    }
+
+    /// Passes over the next frame without reading it (nothing is decoded or held): a frame of
+    /// a `(K, Z, Y, X)` `.npy`, a hyperstack or an OME-Zarr image is read by seeking.
+    pub fn skip_frame(&mut self) {
+        if self.file < self.files.len() {
+            self.advance();
+        }
+    }
+
+    fn advance(&mut self) {
         self.in_file += 1;
         if self.in_file == self.declared[self.file].frames {
             (self.file, self.in_file, self.stack) = (self.file + 1, 0, None);
         }
-        Ok((volume, file))
     }
 }
 

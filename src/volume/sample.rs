@@ -22,11 +22,12 @@
 //! surface (mm or nm against µm), a missing one or a wrong origin give, and an image of zeros
 //! or of one interpolated value would otherwise pass silently to the solve.
 
-use super::{Volume, VolumeError};
+use super::{Volume, VolumeError, VolumeStream, VoxelSizeSource};
 use crate::connection::vertex_normals;
 use crate::format::format_number;
 use crate::limits;
 use crate::mesh::Mesh;
+use crate::Error;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use std::str::FromStr;
@@ -192,8 +193,10 @@ pub struct SampleOptions {
     /// `σ` of the Gaussian applied to each volume first (physical units; 0: none); `None`:
     /// [`DEFAULT_SMOOTHING_VOXELS`] of the smallest voxel side.
     pub smoothing: Option<f64>,
-    /// `None`: ± two of the largest voxel sides, [`DEFAULT_LAYERS`] layers.
+    /// `None`: ± two of the largest voxel sides, with [`SampleOptions::layers`] layers.
     pub shell: Option<Shell>,
+    /// The default shell's layers (`None`: [`DEFAULT_LAYERS`]); a given `shell` has its own.
+    pub layers: Option<usize>,
     pub reduce: Reduce,
     /// Sample a frame even where most of its vertices lie outside the volume, or all of them
     /// within a voxel or two (see the module docs); off by default.
@@ -214,6 +217,7 @@ impl Default for SampleOptions {
         Self {
             smoothing: None,
             shell: None,
+            layers: None,
             reduce: Reduce::Max,
             allow_outside: false,
         }
@@ -236,7 +240,7 @@ impl SampleOptions {
             Shell {
                 inside: reach,
                 outside: reach,
-                layers: DEFAULT_LAYERS,
+                layers: self.layers.unwrap_or(DEFAULT_LAYERS),
             }
         })
     }
@@ -283,6 +287,56 @@ pub fn sample_sequence(
         sequence.push(sampler.sample(volume, mesh, x, frame)?);
     }
     Ok(sequence)
+}
+
+/// What [`sample_stream`] reports as it goes.
+#[derive(Clone, Copy, Debug)]
+pub enum StreamEvent<'a> {
+    /// The first frame was read: where the voxel size came from.
+    VoxelSize(&'a VoxelSizeSource),
+    /// Frame `k` was sampled.
+    Sampled(usize),
+}
+
+/// [`sample_sequence`] of volumes read one at a time from `stream`: only one frame's volume
+/// and its smoothed copy are held, whatever the recording's length. Errors name the
+/// stream's path.
+pub fn sample_stream(
+    stream: &mut VolumeStream,
+    mesh: &Mesh,
+    positions: &[Vec<Vector3<f64>>],
+    options: &SampleOptions,
+    on_event: &mut dyn FnMut(StreamEvent),
+) -> Result<SampledSequence, Error> {
+    let path = stream.path().to_path_buf();
+    let in_volumes = |e: VolumeError| Error::from(e).in_file(&path);
+    let n_frames = stream.n_frames();
+    if n_frames != positions.len() {
+        return Err(in_volumes(VolumeError::FrameCount {
+            volumes: n_frames,
+            frames: positions.len(),
+        }));
+    }
+    let mut sampling: Option<(FrameSampler, SampledSequence)> = None;
+    for (frame, x) in positions.iter().enumerate() {
+        let (volume, _) = stream.next().expect("as many frames as declared")?;
+        if sampling.is_none() {
+            if let Some(source) = stream.voxel_size_source() {
+                on_event(StreamEvent::VoxelSize(source));
+            }
+            let sampler = FrameSampler::new(&volume, options, mesh.n_vertices(), n_frames)
+                .map_err(in_volumes)?;
+            sampling = Some((sampler.clone(), sampler.empty(n_frames)));
+        }
+        let (sampler, sequence) = sampling.as_mut().expect("made above");
+        sequence.push(
+            sampler
+                .sample(&volume, mesh, x, frame)
+                .map_err(in_volumes)?,
+        );
+        on_event(StreamEvent::Sampled(frame));
+    }
+    Ok(sampling.expect("a recording has a frame").1)
 }
 
 /// [`sample_sequence`] one frame at a time, for volumes read one at a time

@@ -13,8 +13,8 @@ use meshflow::load::{count_frames, load_geometry, LoadOptions};
 use meshflow::mesh::Mesh;
 use meshflow::run::{input_files, refuse_output_over_inputs, OutputKind, RunManifest};
 use meshflow::volume::{
-    count_volume_frames, FrameSampler, SampleOptions, SampledSequence, VolumeError, VolumeOptions,
-    VolumeStream, VoxelSizeSource,
+    count_volume_frames, sample_stream, SampleOptions, SampledSequence, StreamEvent, VolumeError,
+    VolumeOptions, VolumeStream, VoxelSizeSource,
 };
 use meshflow::Error;
 use nalgebra::Vector3;
@@ -70,40 +70,33 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
     Ok(())
 }
 
-/// The volumes read and sampled one frame at a time ([`VolumeStream`], [`FrameSampler`]): only
-/// one frame's volume and its smoothed copy are held, whatever the recording's length.
+/// The volumes read and sampled one frame at a time ([`sample_stream`]): only one frame's
+/// volume and its smoothed copy are held, whatever the recording's length.
 fn sample_streamed(
     request: &SampleRequest,
     mesh: &Mesh,
     positions: &[Vec<Vector3<f64>>],
 ) -> Result<SampledSequence, Error> {
-    let in_volumes = |e: VolumeError| Error::from(e).in_file(request.volumes);
     let mut stream = VolumeStream::open(request.volumes, &request.volume)?;
-    let n_frames = stream.n_frames();
-    let bar = count_progress(n_frames as u64, "sampling the volumes onto the surface");
-    let mut sampling: Option<(FrameSampler, SampledSequence)> = None;
-    let mut frame = 0;
-    while let Some(read) = stream.next() {
-        let (volume, _) = read?;
-        if sampling.is_none() {
-            if let Some(source) = stream.voxel_size_source() {
-                bar.suspend(|| report_voxel_size(request.volumes, source));
-            }
-            let sampler =
-                FrameSampler::new(&volume, &request.sampling, mesh.n_vertices(), n_frames)
-                    .map_err(in_volumes)?;
-            let sequence = sampler.empty(n_frames);
-            sampling = Some((sampler, sequence));
+    let bar = count_progress(
+        stream.n_frames() as u64,
+        "sampling the volumes onto the surface",
+    );
+    let mut on_event = |event: StreamEvent| match event {
+        StreamEvent::VoxelSize(source) => {
+            bar.suspend(|| report_voxel_size(request.volumes, source))
         }
-        let (sampler, sequence) = sampling.as_mut().expect("made above");
-        let sampled =
-            (sampler.sample(&volume, mesh, &positions[frame], frame)).map_err(in_volumes)?;
-        sequence.push(sampled);
-        bar.inc(1);
-        frame += 1;
-    }
+        StreamEvent::Sampled(_) => bar.inc(1),
+    };
+    let sampled = sample_stream(
+        &mut stream,
+        mesh,
+        positions,
+        &request.sampling,
+        &mut on_event,
+    )?;
     bar.finish();
-    Ok(sampling.expect("a recording has a frame").1)
+    Ok(sampled)
 }
 
 pub(crate) fn report_voxel_size(volumes: &Path, source: &VoxelSizeSource) {
@@ -317,6 +310,7 @@ impl SampleArgs {
             sampling: meshflow::volume::SampleOptions {
                 smoothing: self.smooth,
                 shell,
+                layers: None,
                 reduce: self.reduce,
                 allow_outside: self.allow_outside,
             },
