@@ -23,8 +23,9 @@
 //! 6. **Move to the middle of the layer.** A tissue is often a bright layer around a dark
 //!    inside (an epithelium, a shell): filled, its surface is the layer's outer side. From
 //!    each vertex `p` with outward normal `n`, the smoothed image is read inward along
-//!    `p − t n` (steps of a quarter of the smallest voxel side): where it rises above the
-//!    threshold (`t₀`) and where it falls below again (`t₁`). If it falls within a quarter of
+//!    `p − t n` (steps of half the smallest voxel side, each crossing then bisected to a
+//!    sixteenth): where it rises above the threshold (`t₀`) and where it falls below again
+//!    (`t₁`). If it falls within a quarter of
 //!    the object's smallest extent (its axis-aligned box), the vertex moves to
 //!    `p − d n`, the middle of the layer: `d` is `(t₀ + t₁)/2` averaged over the vertex and
 //!    its neighbours (five rounds), so that noise in where the layer ends does not fold the
@@ -134,20 +135,19 @@ pub fn find_surface(
     options: &IsosurfaceOptions,
 ) -> Result<FoundSurface, IsosurfaceError> {
     check_memory(volume)?;
-    let (smoothed, threshold) = smoothed_threshold(volume, options)?;
+    let (smoothed, threshold) = smoothed_threshold(volume.clone(), options)?;
     surface_of_smoothed(&smoothed, threshold)
 }
 
-/// [`find_surface`] of a volume that is not needed afterwards: it is dropped once smoothed,
-/// so that the original and the steps after smoothing are never held together (a frame of a
-/// recording read one at a time).
+/// [`find_surface`] of a volume that is not needed afterwards: it is smoothed in place, so
+/// that the original and its smoothed copy are never held together (a frame of a recording
+/// read one at a time).
 pub fn find_surface_consuming(
     volume: Volume,
     options: &IsosurfaceOptions,
 ) -> Result<FoundSurface, IsosurfaceError> {
     check_memory(&volume)?;
-    let (smoothed, threshold) = smoothed_threshold(&volume, options)?;
-    drop(volume);
+    let (smoothed, threshold) = smoothed_threshold(volume, options)?;
     surface_of_smoothed(&smoothed, threshold)
 }
 
@@ -245,11 +245,11 @@ fn on_border([nz, ny, nx]: [usize; 3]) -> impl Iterator<Item = usize> {
 /// Steps 1 and 2 (module docs): the smoothed volume and its threshold; an error where the
 /// image is constant or the threshold leaves no voxel above it, or none below.
 pub(super) fn smoothed_threshold(
-    volume: &Volume,
+    volume: Volume,
     options: &IsosurfaceOptions,
 ) -> Result<(Volume, f32), IsosurfaceError> {
     let largest_voxel = volume.voxel_size().max();
-    let smoothed = volume.smoothed(options.smoothing.unwrap_or(largest_voxel))?;
+    let smoothed = volume.into_smoothed(options.smoothing.unwrap_or(largest_voxel))?;
     let values = smoothed.values();
     let (min, max) = values
         .par_iter()
@@ -308,18 +308,14 @@ fn to_layer_middle(
         |(lo, hi), p| (lo.inf(p), hi.sup(p)),
     );
     let reach = 0.25 * (high - low).min();
-    let step = 0.25 * smoothed.voxel_size().min();
+    let step = LAYER_STEP * smoothed.voxel_size().min();
     let bright = |p: Vector3<f64>| smoothed.sample(&p).is_some_and(|v| v > threshold);
-    let steps = (reach / step) as usize;
     // (depth of the layer's middle, thickness) below each vertex, where there is a layer.
     let layers: Vec<Option<(f64, f64)>> = (positions.par_iter().zip(&normals))
         .map(|(p, n)| {
-            let depth = |t: f64| p - t * n;
-            let ts = |from: f64| (0..=steps).map(move |s| from + s as f64 * step);
-            let enter = ts(0.0).find(|&t| bright(depth(t)))?;
-            let leave = ts(enter)
-                .take_while(|&t| t <= reach)
-                .find(|&t| !bright(depth(t)))?;
+            let at = |t: f64| bright(p - t * n);
+            let enter = first_crossing(0.0, reach, step, |t| at(t))?;
+            let leave = first_crossing(enter, reach, step, |t| !at(t))?;
             Some((0.5 * (enter + leave), leave - enter))
         })
         .collect();
@@ -361,6 +357,33 @@ fn to_layer_middle(
     let moved = thicknesses.len();
     (moved, crate::statistics::median(thicknesses))
 }
+
+/// The first `t` in `[from, to]` where `holds`, found in steps of `step` and then refined by
+/// [`CROSSING_BISECTIONS`] bisections between the last step where it did not hold and the
+/// first where it does (to `step / 2^CROSSING_BISECTIONS`); `from` itself where it holds.
+fn first_crossing(from: f64, to: f64, step: f64, holds: impl Fn(f64) -> bool) -> Option<f64> {
+    if holds(from) {
+        return Some(from);
+    }
+    let steps = ((to - from) / step).floor() as usize;
+    let first = (1..=steps).find(|&s| holds(from + s as f64 * step))?;
+    let (mut outside, mut inside) = (from + (first - 1) as f64 * step, from + first as f64 * step);
+    for _ in 0..CROSSING_BISECTIONS {
+        let middle = 0.5 * (outside + inside);
+        match holds(middle) {
+            true => inside = middle,
+            false => outside = middle,
+        }
+    }
+    Some(inside)
+}
+
+/// The layer march's step, in smallest voxel sides: after smoothing by a voxel the layer is
+/// wider than that, so no layer is stepped over.
+const LAYER_STEP: f64 = 0.5;
+
+/// Bisections refining each crossing of the layer march: to a sixteenth of a voxel.
+const CROSSING_BISECTIONS: usize = 3;
 
 /// Whether the voxels `set` (bit `i + 2j + 4k` of a 2 × 2 × 2 cell's corners) fall apart into
 /// several face-connected pieces within the cell.

@@ -58,7 +58,7 @@ pub fn foreground_points(
     volume: &Volume,
     options: &IsosurfaceOptions,
 ) -> Result<ForegroundPoints, IsosurfaceError> {
-    let (smoothed, threshold) = smoothed_threshold(volume, options)?;
+    let (smoothed, threshold) = smoothed_threshold(volume.clone(), options)?;
     let values = smoothed.values();
     let foreground_voxels = values.iter().filter(|&&v| v > threshold).count();
     let stride = foreground_voxels.div_ceil(MAX_POINTS).max(1);

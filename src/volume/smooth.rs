@@ -8,16 +8,18 @@ impl Volume {
     /// The volume convolved with a Gaussian of standard deviation `sigma` (physical units):
     /// `σ/d` voxels along each axis, truncated at 3σ and normalized, mirrored at the boundary
     /// (folded onto the mirrored axis, or its mean, for Gaussians as wide as the volume).
-    /// `sigma = 0` returns a copy. The
-    /// working copies (two of the values) are checked against the memory limit first.
+    /// `sigma = 0` returns a copy. The working copies (two of the values) are checked against
+    /// the memory limit first.
     pub fn smoothed(&self, sigma: f64) -> Result<Volume, VolumeError> {
-        if !(sigma.is_finite() && sigma >= 0.0) {
-            return Err(VolumeError::Sigma(sigma));
-        }
-        let what = format!("smoothing a volume of {:?} voxels", self.shape);
-        limits::check_items(what, self.values.len() as u64, 2 * 4 + 8)
-            .map_err(|e| VolumeError::Setting(e.to_string()))?;
-        let mut values = self.values.clone();
+        check_sigma(sigma)?;
+        self.check_smoothing_memory()?;
+        self.clone().into_smoothed(sigma)
+    }
+
+    /// [`Volume::smoothed`] in place, for a volume not needed afterwards: no copy is made.
+    pub fn into_smoothed(mut self, sigma: f64) -> Result<Volume, VolumeError> {
+        check_sigma(sigma)?;
+        self.check_smoothing_memory()?;
         let [nz, ny, nx] = self.shape;
         // (axis length, stride, voxel size) for x, y, z.
         let axes = [
@@ -28,13 +30,23 @@ impl Volume {
         for (length, stride, size) in axes {
             match AxisFilter::new(sigma / size, length) {
                 AxisFilter::Identity => {}
-                filter => convolve_axis(&mut values, length, stride, &filter),
+                filter => convolve_axis(&mut self.values, length, stride, &filter),
             }
         }
-        Ok(Volume {
-            values,
-            ..self.clone()
-        })
+        Ok(self)
+    }
+
+    fn check_smoothing_memory(&self) -> Result<(), VolumeError> {
+        let what = format!("smoothing a volume of {:?} voxels", self.shape);
+        limits::check_items(what, self.values.len() as u64, 2 * 4 + 8)
+            .map_err(|e| VolumeError::Setting(e.to_string()))
+    }
+}
+
+fn check_sigma(sigma: f64) -> Result<(), VolumeError> {
+    match sigma.is_finite() && sigma >= 0.0 {
+        true => Ok(()),
+        false => Err(VolumeError::Sigma(sigma)),
     }
 }
 
