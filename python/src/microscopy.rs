@@ -197,10 +197,8 @@ pub(crate) fn sample_volume<'py>(
     reduce: &str,
     allow_outside: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let reduce = parse::<Reduce>(reduce, "reduce")?;
-    let faces = read_faces(&faces)?;
-    let positions = read_positions(&positions);
-    let n_vertices = positions.first().map_or(0, Vec::len);
+    let surface = SampledSurface::read(&positions, &faces)?;
+    let options = sample_options(smoothing, shell, layers, reduce, allow_outside)?;
     let grids: Vec<([usize; 3], Vec<f32>)> = volumes.iter().map(read_volume).collect();
     let voxel_size = Vector3::new(voxel_size.0, voxel_size.1, voxel_size.2);
     let origin = Vector3::new(origin.0, origin.1, origin.2);
@@ -213,12 +211,38 @@ pub(crate) fn sample_volume<'py>(
                     .map_err(|e| value_error(format!("volumes[{k}]: {e}")))
             })
             .collect::<PyResult<Vec<_>>>()?;
-        let mesh = Mesh::new(n_vertices, faces).map_err(|e| to_py_err(e.into()))?;
-        let options = sample_options(smoothing, shell, layers, reduce, allow_outside);
-        volume::sample_sequence(&volumes, &mesh, &positions, &options)
+        let mesh = surface.mesh().map_err(to_py_err)?;
+        volume::sample_sequence(&volumes, &mesh, &surface.positions, &options)
             .map_err(|e| to_py_err(e.into()))
     })?;
-    sampled_dict(py, sampled, n_vertices)
+    sampled_dict(py, sampled, surface.n_vertices)
+}
+
+/// The moving surface a recording is sampled onto: positions (K, V, 3) and faces.
+struct SampledSurface {
+    positions: Vec<Vec<Vector3<f64>>>,
+    faces: Vec<[u32; 3]>,
+    n_vertices: usize,
+}
+
+impl SampledSurface {
+    fn read(
+        positions: &PyReadonlyArray3<'_, f64>,
+        faces: &PyReadonlyArray2<'_, i64>,
+    ) -> PyResult<Self> {
+        let faces = read_faces(faces)?;
+        let positions = read_positions(positions);
+        let n_vertices = positions.first().map_or(0, Vec::len);
+        Ok(Self {
+            positions,
+            faces,
+            n_vertices,
+        })
+    }
+
+    fn mesh(&self) -> Result<Mesh, Error> {
+        Ok(Mesh::new(self.n_vertices, self.faces.clone())?)
+    }
 }
 
 /// The sampling's options: `shell` (inside, outside) or the library's default reach (± two
@@ -227,10 +251,11 @@ fn sample_options(
     smoothing: Option<f64>,
     shell: Option<(f64, f64)>,
     layers: usize,
-    reduce: Reduce,
+    reduce: &str,
     allow_outside: bool,
-) -> SampleOptions {
-    SampleOptions {
+) -> PyResult<SampleOptions> {
+    let reduce = parse::<Reduce>(reduce, "reduce")?;
+    Ok(SampleOptions {
         smoothing,
         shell: shell.map(|(inside, outside)| Shell {
             inside,
@@ -240,7 +265,7 @@ fn sample_options(
         layers: Some(layers),
         reduce,
         allow_outside,
-    }
+    })
 }
 
 /// `values` (K, V), `outside`, `no_data` (K, V), `shell` and `smoothing` of a sampling.
@@ -313,15 +338,12 @@ pub(crate) fn sample_volume_file<'py>(
     reduce: &str,
     allow_outside: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let reduce = parse::<Reduce>(reduce, "reduce")?;
-    let faces = read_faces(&faces)?;
-    let positions = read_positions(&positions);
-    let n_vertices = positions.first().map_or(0, Vec::len);
+    let surface = SampledSurface::read(&positions, &faces)?;
+    let options = sample_options(smoothing, shell, layers, reduce, allow_outside)?;
     let placement = volume_options(voxel_size, origin, channel, resolution_level);
-    let options = sample_options(smoothing, shell, layers, reduce, allow_outside);
     let (sampled, voxel, said) = py
         .detach(|| -> Result<_, Error> {
-            let mesh = Mesh::new(n_vertices, faces)?;
+            let mesh = surface.mesh()?;
             let mut stream = VolumeStream::open(&path, &placement)?;
             let mut voxel = None;
             let mut on_event = |event: StreamEvent| {
@@ -329,13 +351,18 @@ pub(crate) fn sample_volume_file<'py>(
                     voxel = Some(source.clone());
                 }
             };
-            let sampled =
-                volume::sample_stream(&mut stream, &mesh, &positions, &options, &mut on_event)?;
+            let sampled = volume::sample_stream(
+                &mut stream,
+                &mesh,
+                &surface.positions,
+                &options,
+                &mut on_event,
+            )?;
             let size = stream.voxel_size();
             Ok((sampled, size, voxel))
         })
         .map_err(to_py_err)?;
-    let out = sampled_dict(py, sampled, n_vertices)?;
+    let out = sampled_dict(py, sampled, surface.n_vertices)?;
     out.set_item("voxel_size", voxel.map(|v| (v.x, v.y, v.z)))?;
     out.set_item("voxel_size_source", voxel_size_said(said.as_ref()))?;
     Ok(out)
