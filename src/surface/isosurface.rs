@@ -43,7 +43,7 @@
 
 use super::reference::compact;
 use crate::connection::vertex_normals;
-use crate::mesh::{repair, Mesh};
+use crate::mesh::{repair, Mesh, UnionFind};
 use crate::volume::{Volume, VolumeError};
 use fast_surface_nets::ndshape::{RuntimeShape, Shape};
 use fast_surface_nets::{surface_nets, SurfaceNetsBuffer};
@@ -176,17 +176,12 @@ fn surface_of_smoothed(smoothed: &Volume, threshold: f32) -> Result<FoundSurface
     well_composed(&mut solid, shape);
     let filled_voxels = solid.iter().filter(|&&s| s).count() - component_voxels;
     let (positions, faces) = nets(values, &solid, threshold, smoothed);
-    let (mut positions, faces) = largest_manifold_piece(positions, &faces);
-    if faces.len() < 4 {
-        return Err(IsosurfaceError::TooSmall {
-            voxels: component_voxels,
-        });
-    }
-    let Ok(mesh) = Mesh::new(positions.len(), faces.clone()) else {
-        return Err(IsosurfaceError::TooSmall {
-            voxels: component_voxels,
-        });
+    let too_small = IsosurfaceError::TooSmall {
+        voxels: component_voxels,
     };
+    let (mut positions, faces, mesh) = largest_manifold_piece(positions, &faces)
+        .filter(|(_, faces, _)| faces.len() >= 4)
+        .ok_or(too_small)?;
     let neighbours = Neighbours::of_mesh(mesh.n_vertices(), mesh.edges());
     let (layer_vertices, layer_thickness) = to_layer_middle(
         &mut positions,
@@ -405,20 +400,19 @@ impl Neighbours {
 /// without shrinking the surface as plain Laplacian smoothing does (pass band `k = 1/λ + 1/μ
 /// ≈ 0.11`).
 fn taubin_smooth(positions: &mut [Vector3<f64>], neighbours: &Neighbours, rounds: usize) {
+    let mut moved = positions.to_vec();
     for _ in 0..rounds {
         for weight in [TAUBIN_LAMBDA, TAUBIN_MU] {
-            let moved: Vec<Vector3<f64>> = (0..positions.len())
-                .into_par_iter()
-                .map(|i| {
-                    let around = neighbours.of(i);
-                    if around.is_empty() {
-                        return positions[i];
-                    }
-                    let sum: Vector3<f64> = around.iter().map(|&j| positions[j as usize]).sum();
-                    let mean = sum / around.len() as f64;
-                    positions[i] + weight * (mean - positions[i])
-                })
-                .collect();
+            let from = &*positions;
+            moved.par_iter_mut().enumerate().for_each(|(i, out)| {
+                let around = neighbours.of(i);
+                if around.is_empty() {
+                    return;
+                }
+                let sum: Vector3<f64> = around.iter().map(|&j| from[j as usize]).sum();
+                let mean = sum / around.len() as f64;
+                *out = from[i] + weight * (mean - from[i]);
+            });
             positions.copy_from_slice(&moved);
         }
     }
@@ -740,27 +734,30 @@ fn solid_box(solid: &[bool], [nz, ny, nx]: [usize; 3]) -> Option<([usize; 3], [u
 }
 
 /// The largest connected piece of the triangles, made manifold and oriented outward (positive
-/// enclosed volume), with only the vertices it uses.
+/// enclosed volume), with only the vertices it uses, and its mesh; `None` where nothing valid
+/// is left. The pieces are found by joining each face's vertices, so the mesh is built once,
+/// for the piece kept.
 fn largest_manifold_piece(
     positions: Vec<Vector3<f64>>,
     faces: &[[u32; 3]],
-) -> (Vec<Vector3<f64>>, Vec<[u32; 3]>) {
+) -> Option<(Vec<Vector3<f64>>, Vec<[u32; 3]>, Mesh)> {
     let repaired = repair(positions.len(), faces);
     let positions: Vec<Vector3<f64>> = (repaired.vertex_origin.iter())
         .map(|&v| positions[v as usize])
         .collect();
-    let (positions, faces) = compact(&positions, &repaired.faces);
-    let Ok(mesh) = Mesh::new(positions.len(), faces.clone()) else {
-        return (Vec::new(), Vec::new());
-    };
-    let Some(piece) = (mesh.connected_components().into_iter()).max_by_key(Vec::len) else {
-        return (Vec::new(), Vec::new());
-    };
-    let mut in_piece = vec![false; positions.len()];
-    piece.iter().for_each(|&v| in_piece[v] = true);
-    let piece_faces: Vec<[u32; 3]> = faces
-        .into_iter()
-        .filter(|f| in_piece[f[0] as usize])
+    let mut pieces = UnionFind::new(positions.len());
+    for &[a, b, c] in &repaired.faces {
+        pieces.union(a as usize, b as usize);
+        pieces.union(a as usize, c as usize);
+    }
+    let mut faces_of_piece = vec![0usize; positions.len()];
+    for f in &repaired.faces {
+        faces_of_piece[pieces.find(f[0] as usize)] += 1;
+    }
+    let (largest, _) = (faces_of_piece.iter().enumerate()).max_by_key(|&(_, n)| *n)?;
+    let piece_faces: Vec<[u32; 3]> = (repaired.faces.iter())
+        .filter(|f| pieces.find(f[0] as usize) == largest)
+        .copied()
         .collect();
     let (kept, mut faces) = compact(&positions, &piece_faces);
     let enclosed: f64 = (faces.iter())
@@ -772,7 +769,8 @@ fn largest_manifold_piece(
     if enclosed < 0.0 {
         faces.iter_mut().for_each(|f| f.swap(1, 2));
     }
-    (kept, faces)
+    let mesh = Mesh::new(kept.len(), faces.clone()).ok()?;
+    Some((kept, faces, mesh))
 }
 
 #[cfg(test)]
