@@ -7,7 +7,7 @@
 //! scatter with no search and no allocation but the value array.
 
 use super::{SparseMatrix, SparseMatrixRef};
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, VertexNeighbours};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use nalgebra::SMatrix;
 
@@ -24,7 +24,10 @@ impl VertexPattern {
     /// The pattern of `mesh` for `block`×`block` vertex blocks (`block` is 1 or 2).
     pub fn new(mesh: &Mesh, block: usize) -> Self {
         assert!(block == 1 || block == 2, "vertex blocks are 1×1 or 2×2");
-        let (offsets, neighbours) = closed_neighbourhoods(mesh);
+        let VertexNeighbours {
+            offsets,
+            indices: neighbours,
+        } = VertexNeighbours::closed(mesh);
         let n = mesh.n_vertices();
         let mut col_ptr = Vec::with_capacity(block * n + 1);
         let mut row_idx = Vec::with_capacity(block * block * neighbours.len());
@@ -136,35 +139,4 @@ impl VertexPattern {
     pub fn matrix(&self, values: Vec<f64>) -> SparseMatrix {
         SparseColMat::new(self.symbolic.clone(), values)
     }
-}
-
-/// Sorted closed neighbourhoods `{i} ∪ {j : ij is an edge}` as a CSR table.
-fn closed_neighbourhoods(mesh: &Mesh) -> (Vec<usize>, Vec<u32>) {
-    let n = mesh.n_vertices();
-    let mut offsets = vec![1usize; n + 1];
-    offsets[0] = 0;
-    for &[i, j] in mesh.edges() {
-        offsets[i as usize + 1] += 1;
-        offsets[j as usize + 1] += 1;
-    }
-    for k in 0..n {
-        offsets[k + 1] += offsets[k];
-    }
-    let mut fill = offsets.clone();
-    let mut neighbours = vec![0u32; offsets[n]];
-    let mut push = |at: usize, v: u32| {
-        neighbours[fill[at]] = v;
-        fill[at] += 1;
-    };
-    for k in 0..n {
-        push(k, k as u32);
-    }
-    for &[i, j] in mesh.edges() {
-        push(i as usize, j);
-        push(j as usize, i);
-    }
-    for k in 0..n {
-        neighbours[offsets[k]..offsets[k + 1]].sort_unstable();
-    }
-    (offsets, neighbours)
 }

@@ -20,11 +20,13 @@
 //! - Undirected edge `e` joins `edges[e][0] < edges[e][1]`.
 
 mod cohomology;
+mod neighbours;
 mod repair;
 mod validate;
 mod weld;
 
 pub use cohomology::{halfedge_sign, TreeCotree};
+pub use neighbours::VertexNeighbours;
 pub(crate) use repair::UnionFind;
 pub use repair::{orient, repair, RepairReport, Repaired};
 pub use validate::{check_index_range, ConnectivityError};

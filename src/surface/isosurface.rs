@@ -43,7 +43,7 @@
 
 use super::reference::compact;
 use crate::connection::vertex_normals;
-use crate::mesh::{repair, Mesh, UnionFind};
+use crate::mesh::{repair, Mesh, UnionFind, VertexNeighbours};
 use crate::volume::{Volume, VolumeError};
 use fast_surface_nets::ndshape::{RuntimeShape, Shape};
 use fast_surface_nets::{surface_nets, SurfaceNetsBuffer};
@@ -182,7 +182,7 @@ fn surface_of_smoothed(smoothed: &Volume, threshold: f32) -> Result<FoundSurface
     let (mut positions, faces, mesh) = largest_manifold_piece(positions, &faces)
         .filter(|(_, faces, _)| faces.len() >= 4)
         .ok_or(too_small)?;
-    let neighbours = Neighbours::of_mesh(mesh.n_vertices(), mesh.edges());
+    let neighbours = VertexNeighbours::open(&mesh);
     let (layer_vertices, layer_thickness) = to_layer_middle(
         &mut positions,
         &mesh,
@@ -304,7 +304,7 @@ pub(super) fn smoothed_threshold(
 fn to_layer_middle(
     positions: &mut [Vector3<f64>],
     mesh: &Mesh,
-    neighbours: &Neighbours,
+    neighbours: &VertexNeighbours,
     smoothed: &Volume,
     threshold: f64,
 ) -> (usize, f64) {
@@ -361,45 +361,13 @@ fn to_layer_middle(
     (moved, crate::statistics::median(thicknesses))
 }
 
-/// Each vertex's neighbours along the mesh's edges, packed (compressed rows).
-struct Neighbours {
-    offsets: Vec<usize>,
-    indices: Vec<u32>,
-}
-
-impl Neighbours {
-    fn of_mesh(n_vertices: usize, edges: &[[u32; 2]]) -> Self {
-        let mut offsets = vec![0usize; n_vertices + 1];
-        for &[a, b] in edges {
-            offsets[a as usize + 1] += 1;
-            offsets[b as usize + 1] += 1;
-        }
-        for i in 0..n_vertices {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut filled = offsets.clone();
-        let mut indices = vec![0u32; offsets[n_vertices]];
-        for &[a, b] in edges {
-            for (from, to) in [(a, b), (b, a)] {
-                indices[filled[from as usize]] = to;
-                filled[from as usize] += 1;
-            }
-        }
-        Self { offsets, indices }
-    }
-
-    fn of(&self, i: usize) -> &[u32] {
-        &self.indices[self.offsets[i]..self.offsets[i + 1]]
-    }
-}
-
 /// Taubin's λ|μ smoothing (Taubin 1995, "A signal processing approach to fair surface
 /// design"): `rounds` pairs of umbrella steps `x_i += w (x̄_i − x_i)`, `x̄_i` the mean of
 /// the neighbours, with `w = λ` and then `w = μ`. It removes the voxel staircase and the small
 /// folds left where neighbouring vertices moved to the layer's middle by different depths,
 /// without shrinking the surface as plain Laplacian smoothing does (pass band `k = 1/λ + 1/μ
 /// ≈ 0.11`).
-fn taubin_smooth(positions: &mut [Vector3<f64>], neighbours: &Neighbours, rounds: usize) {
+fn taubin_smooth(positions: &mut [Vector3<f64>], neighbours: &VertexNeighbours, rounds: usize) {
     let mut moved = positions.to_vec();
     for _ in 0..rounds {
         for weight in [TAUBIN_LAMBDA, TAUBIN_MU] {
