@@ -594,3 +594,42 @@ fn matching_agrees_with_brute_force_at_any_distance() {
         assert_eq!(got, want, "bound {bound}");
     }
 }
+
+/// A recording larger than the memory limit streams through `sample` where one frame fits
+/// (counting its frames holds nothing; reading them all at once would take 5 × 3.5 MB).
+#[test]
+fn sample_streams_a_recording_larger_than_the_memory_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, seq) = surface(dir.path());
+    // Two frames of 96³ float32 (3.5 MB each) about the sphere, voxel 0.25.
+    let n = 96u64;
+    let file = dir.path().join("recording.npy");
+    write_npy(&file, &[2, n, n, n], &vec![5.0f32; 2 * 96 * 96 * 96]);
+    let out = dir.path().join("intensity.npy");
+    let args = [
+        "sample",
+        path(&file),
+        path(&seq),
+        "--voxel-size",
+        "0.25,0.25,0.25",
+        "--origin=-11.875,-11.875,-11.875",
+        "--out",
+        path(&out),
+        "--memory-limit",
+        "16M",
+    ];
+    meshflow_ok(&args);
+    let sampled = meshflow::format::read_npy(&out).unwrap();
+    assert!(sampled.data.iter().all(|&v| (v - 5.0).abs() < 1e-6));
+    // A frame that does not fit is refused before anything is read.
+    let mut small = args;
+    small[small.len() - 1] = "8M";
+    fails(
+        &small,
+        &[
+            "recording.npy",
+            "1 volume frame of 96 × 96 × 96 voxels",
+            "--memory-limit",
+        ],
+    );
+}

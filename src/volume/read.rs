@@ -302,14 +302,14 @@ fn npy_frame(file: &Path, declared: &Declared, k: usize) -> Result<Vec<f32>, Err
 }
 
 /// The number of frames that `path` holds (as [`read_volumes`] would read them), from the
-/// files' headers and page directories alone: checked before the volumes are read, and each
-/// file's declared size checked against the memory limit.
+/// files' headers and page directories alone: checked before the volumes are streamed
+/// ([`VolumeStream`]), so one frame at a time is what must fit the memory limit.
 pub fn count_volume_frames(path: &Path) -> Result<usize, Error> {
     if is_ome_zarr(path) {
         return Ok(OmeZarr::open(path, None, 0)?.n_frames());
     }
     let files = volume_files(path)?;
-    Ok(declare_all(path, &files, Held::All, None)?
+    Ok(declare_all(path, &files, Held::One, None)?
         .iter()
         .map(|d| d.frames)
         .sum())
