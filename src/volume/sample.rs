@@ -319,14 +319,22 @@ pub fn sample_stream(
     }
     let mut sampling: Option<(FrameSampler, SampledSequence)> = None;
     for (frame, x) in positions.iter().enumerate() {
-        let (volume, _) = stream.next().expect("as many frames as declared")?;
+        // A stream read from before it came here has fewer frames left than it declares.
+        let Some(read) = stream.next() else {
+            return Err(in_volumes(VolumeError::FrameCount {
+                volumes: frame,
+                frames: positions.len(),
+            }));
+        };
+        let (volume, _) = read?;
         if sampling.is_none() {
             if let Some(source) = stream.voxel_size_source() {
                 on_event(StreamEvent::VoxelSize(source));
             }
             let sampler = FrameSampler::new(&volume, options, mesh.n_vertices(), n_frames)
                 .map_err(in_volumes)?;
-            sampling = Some((sampler.clone(), sampler.empty(n_frames)));
+            let sequence = sampler.empty(n_frames);
+            sampling = Some((sampler, sequence));
         }
         let (sampler, sequence) = sampling.as_mut().expect("made above");
         sequence.push(
