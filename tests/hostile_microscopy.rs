@@ -633,3 +633,68 @@ fn sample_streams_a_recording_larger_than_the_memory_limit() {
         ],
     );
 }
+
+/// `sample` writes the image and its no-data mask together: where the mask cannot be written
+/// (a directory stands at its path), the image already there is left as it was, not replaced
+/// beside an old mask.
+#[test]
+fn the_image_and_its_mask_are_replaced_together_or_not_at_all() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, seq) = surface(dir.path());
+    // A speckled recording, so that smoothing changes what is sampled.
+    let vols = dir.path().join("speckled.npy");
+    let speckle: Vec<f32> = (0..2 * 24 * 24 * 24)
+        .map(|i| ((i * 7919) % 101) as f32)
+        .collect();
+    write_npy(&vols, &[2, 24, 24, 24], &speckle);
+    let out = dir.path().join("image.npy");
+    let sample = |smooth: &str| {
+        let args = [
+            "sample",
+            path(&vols),
+            path(&seq),
+            ORIGIN,
+            "--smooth",
+            smooth,
+            "--out",
+            path(&out),
+        ];
+        args.map(String::from)
+    };
+    let run = |args: [String; 8]| meshflow(&args.each_ref().map(String::as_str));
+    assert!(run(sample("0")).status.success());
+    let before = std::fs::read(&out).unwrap();
+    let unchanged = |smooth: &str| {
+        let other = dir.path().join(format!("other_{smooth}.npy"));
+        let mut args = sample(smooth);
+        args[7] = path(&other).to_string();
+        assert!(run(args).status.success());
+        std::fs::read(other).unwrap() == before
+    };
+    assert!(!unchanged("1"), "smoothing changes the image");
+    let mask = dir.path().join("image_no_data.npy");
+    std::fs::remove_file(&mask).unwrap();
+    std::fs::create_dir(&mask).unwrap();
+    std::fs::write(mask.join("keep"), b"x").unwrap();
+    let again = sample("1");
+    fails(
+        &again.each_ref().map(String::as_str),
+        &["image_no_data.npy", "Is a directory"],
+    );
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        before,
+        "the image was replaced alone"
+    );
+    let partial = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .file_name()
+                .to_string_lossy()
+                .ends_with(".partial")
+        })
+        .count();
+    assert_eq!(partial, 0, "temporary files are removed");
+}

@@ -54,19 +54,50 @@ pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
 ) -> Result<(), IoError> {
-    let temporary = temporary_beside(path)?;
-    let result = File::create(&temporary).and_then(|file| {
-        let mut writer = BufWriter::new(file);
-        write(&mut writer)?;
-        writer.flush()?;
-        writer.get_ref().sync_all()?;
-        drop(writer);
-        std::fs::rename(&temporary, path)
-    });
-    result.map_err(|source| {
-        let _ = std::fs::remove_file(&temporary);
-        IoError::file(path, source)
-    })
+    write_all_atomically(vec![(path, Box::new(write))])
+}
+
+/// What fills one file of [`write_all_atomically`].
+pub type FileContents<'a> = Box<dyn FnOnce(&mut BufWriter<File>) -> std::io::Result<()> + 'a>;
+
+/// Writes files that belong together (an image and its mask) as [`write_atomically`] writes
+/// one, renaming none before every one is filled and synced and no directory stands at any
+/// path: an error while filling any leaves all of them as they were. Only the renames
+/// themselves, back to back, stand between them.
+pub fn write_all_atomically(files: Vec<(&Path, FileContents<'_>)>) -> Result<(), IoError> {
+    let mut filled: Vec<(PathBuf, &Path)> = Vec::with_capacity(files.len());
+    let remove_all = |filled: &[(PathBuf, &Path)]| {
+        filled.iter().for_each(|(temporary, _)| {
+            let _ = std::fs::remove_file(temporary);
+        })
+    };
+    for (path, write) in files {
+        let temporary = temporary_beside(path).inspect_err(|_| remove_all(&filled))?;
+        let result = File::create(&temporary).and_then(|file| {
+            let mut writer = BufWriter::new(file);
+            write(&mut writer)?;
+            writer.flush()?;
+            writer.get_ref().sync_all()
+        });
+        filled.push((temporary, path));
+        if let Err(source) = result {
+            remove_all(&filled);
+            return Err(IoError::file(path, source));
+        }
+    }
+    // A rename fails where a directory stands at the path: found before any is renamed.
+    if let Some((_, path)) = filled.iter().find(|(_, path)| path.is_dir()) {
+        remove_all(&filled);
+        let source = std::io::Error::new(std::io::ErrorKind::IsADirectory, "Is a directory");
+        return Err(IoError::file(path, source));
+    }
+    for (at, (temporary, path)) in filled.iter().enumerate() {
+        if let Err(source) = std::fs::rename(temporary, path) {
+            remove_all(&filled[at..]);
+            return Err(IoError::file(path, source));
+        }
+    }
+    Ok(())
 }
 
 /// Where [`write_atomically`] fills `path` before renaming it: `.NAME.PID.partial` beside it.

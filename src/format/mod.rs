@@ -38,7 +38,9 @@ pub mod vtk;
 
 pub use error::IoError;
 pub(crate) use file::temporary_beside;
-pub use file::{open_regular, read_file, read_stream, write_atomically};
+pub use file::{
+    open_regular, read_file, read_stream, write_all_atomically, write_atomically, FileContents,
+};
 pub use frame_mesh::{grey_value, grey_values, FrameMesh, RawSequence, VertexValues};
 pub(crate) use frames::{directory_files, glob_files};
 pub use frames::{frame_files, natural_order};
@@ -46,13 +48,14 @@ pub use linked::resolve_linked;
 pub use mtl::{texture_colors, TextureCache};
 pub use mtx::{read_matrix_market, read_matrix_market_from, write_matrix_market};
 pub use npy::{
-    read_npy, read_npy_f32, read_npy_f32_rows, read_npy_float, read_npy_float_rows, read_npy_from,
-    read_npy_image, read_npy_image_rows, read_npy_indices, write_npy, write_npy_vectors, KeepRows,
-    NpyArray, NpyRows,
+    npy_contents, read_npy, read_npy_f32, read_npy_f32_rows, read_npy_float, read_npy_float_rows,
+    read_npy_from, read_npy_image, read_npy_image_rows, read_npy_indices, write_npy,
+    write_npy_vectors, KeepRows, NpyArray, NpyRows,
 };
 pub use npy_sequence::{
-    no_data_file, read_intensity_array, read_npy_sequence, write_intensity_array, write_no_data,
-    write_npy_sequence, FACES, INTENSITY, NO_DATA, POSITIONS, TIMES,
+    no_data_file, read_intensity_array, read_npy_sequence, write_image_and_no_data,
+    write_intensity_array, write_no_data, write_npy_sequence, FACES, INTENSITY, NO_DATA, POSITIONS,
+    TIMES,
 };
 pub(crate) use npy_sequence::{read_intensity_rows, VertexCount};
 pub use number::format_number;

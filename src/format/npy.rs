@@ -1,6 +1,6 @@
 //! NumPy `.npy` arrays through npyz: float64 (or float32) data, integer index arrays.
 
-use super::{write_atomically, IoError};
+use super::{write_all_atomically, FileContents, IoError};
 use crate::format::temporary_beside;
 use npyz::WriterBuilder;
 use std::fs::File;
@@ -21,6 +21,16 @@ pub fn write_npy<T: npyz::AutoSerialize + Copy>(
     shape: &[u64],
     data: &[T],
 ) -> Result<(), IoError> {
+    write_all_atomically(vec![(path, npy_contents(path, shape, data)?)])
+}
+
+/// What [`write_npy`] writes to `path`, for [`write_all_atomically`]: `data` in C order as an
+/// array of `shape`, which must hold as many values.
+pub fn npy_contents<'a, T: npyz::AutoSerialize + Copy>(
+    path: &Path,
+    shape: &'a [u64],
+    data: &'a [T],
+) -> Result<FileContents<'a>, IoError> {
     let expected: u64 = shape.iter().product();
     if expected != data.len() as u64 {
         return Err(IoError::format(
@@ -31,7 +41,7 @@ pub fn write_npy<T: npyz::AutoSerialize + Copy>(
             ),
         ));
     }
-    write_atomically(path, |w| {
+    Ok(Box::new(move |w| {
         let mut writer = npyz::WriteOptions::new()
             .default_dtype()
             .shape(shape)
@@ -39,7 +49,7 @@ pub fn write_npy<T: npyz::AutoSerialize + Copy>(
             .begin_nd()?;
         writer.extend(data.iter().copied())?;
         writer.finish()
-    })
+    }))
 }
 
 /// A float64 `.npy` of a known shape written in pieces (slab by slab as the slabs arrive), as

@@ -12,8 +12,9 @@
 //! An intensity array named elsewhere (`--intensity`) has the same layout, with V the files'
 //! or the mesh's vertex count ([`read_intensity_array`]).
 
+use super::{npy_contents, write_all_atomically, write_npy, write_npy_vectors};
 use super::{read_npy_float_rows, read_npy_image_rows, read_npy_indices, write_atomically};
-use super::{write_npy, write_npy_vectors, IoError, KeepRows, RawSequence, VertexValues};
+use super::{IoError, KeepRows, RawSequence, VertexValues};
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
@@ -49,6 +50,32 @@ pub fn write_no_data(path: &Path, mask: &[Vec<bool>]) -> Result<(), IoError> {
     write_npy(path, &[mask.len() as u64, v as u64], &values)
 }
 
+/// A sampled image (as [`write_intensity_array`]) and its no-data mask (as [`write_no_data`])
+/// written together ([`write_all_atomically`]): a failure leaves both as they were, never a
+/// new image beside an old mask.
+pub fn write_image_and_no_data(
+    image_path: &Path,
+    image: &[Vec<Vec<f64>>],
+    mask_path: &Path,
+    mask: &[Vec<bool>],
+) -> Result<(), IoError> {
+    let (image_shape, image_values) = intensity_array(image);
+    let v = mask.first().map_or(0, Vec::len);
+    let mask_shape = [mask.len() as u64, v as u64];
+    let mask_values: Vec<u8> = mask.iter().flatten().map(|&m| m as u8).collect();
+    let files = vec![
+        (
+            image_path,
+            npy_contents(image_path, &image_shape, &image_values)?,
+        ),
+        (
+            mask_path,
+            npy_contents(mask_path, &mask_shape, &mask_values)?,
+        ),
+    ];
+    write_all_atomically(files)
+}
+
 /// Writes a sequence as the NPY directory that `meshflow solve` reads: `positions.npy`
 /// (K, V, 3) float64, `faces.npy` (F, 3) int64, `intensity.npy` (K, V) float64 when given, and
 /// `times.txt` (one time per line).
@@ -76,6 +103,12 @@ pub fn write_npy_sequence(
 /// layout [`read_intensity_array`] reads: (K, V) float64 for one channel, (K, V, C) for
 /// several.
 pub fn write_intensity_array(path: &Path, image: &[Vec<Vec<f64>>]) -> Result<(), IoError> {
+    let (shape, values) = intensity_array(image);
+    write_npy(path, &shape, &values)
+}
+
+/// The shape and values of an image `[k][c][i]`: (K, V), or (K, V, C) for several channels.
+fn intensity_array(image: &[Vec<Vec<f64>>]) -> (Vec<u64>, Vec<f64>) {
     let k = image.len();
     let c = image.first().map_or(1, Vec::len);
     let v = image.first().and_then(|f| f.first()).map_or(0, Vec::len);
@@ -86,7 +119,7 @@ pub fn write_intensity_array(path: &Path, image: &[Vec<Vec<f64>>]) -> Result<(),
         1 => vec![k as u64, v as u64],
         _ => vec![k as u64, v as u64, c as u64],
     };
-    write_npy(path, &shape, &values)
+    (shape, values)
 }
 
 /// The frames `keep` of an NPY directory (see the module documentation; the other rows of its

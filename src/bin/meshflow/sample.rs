@@ -7,7 +7,7 @@ use crate::args::{MeshArgs, VolumePlacement};
 use crate::progress::{count_progress, during};
 use crate::usage;
 use meshflow::format::{
-    no_data_file, write_atomically, write_intensity_array, write_no_data, INTENSITY, NO_DATA,
+    no_data_file, write_atomically, write_image_and_no_data, INTENSITY, NO_DATA,
 };
 use meshflow::load::{count_frames, load_geometry, LoadOptions};
 use meshflow::mesh::Mesh;
@@ -46,11 +46,11 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
     let image: Vec<Vec<Vec<f64>>> = (sampled.values.iter())
         .map(|frame| vec![map.file_rows(frame, 0.0)])
         .collect();
-    write_intensity_array(&out, &image)?;
     let no_data: Vec<Vec<bool>> = (sampled.no_data.iter())
         .map(|frame| map.file_rows(frame, false))
         .collect();
-    write_no_data(&no_data_file(&out), &no_data)?;
+    // Together: a failure leaves the earlier image and its mask, never one beside the other.
+    write_image_and_no_data(&out, &image, &no_data_file(&out), &no_data)?;
     if replaces_intensity(&request, &out) {
         register_in_manifest(request.sequence)?;
     }
