@@ -460,7 +460,7 @@ fn track_reference(
         let (frame, alignment) = match &previous {
             Some(before) => align_to(
                 k,
-                &frame,
+                frame,
                 before,
                 options.alignment,
                 &mut run.report.warnings,
@@ -519,7 +519,7 @@ fn reference_surface(first: &TrackFrame, options: &TrackOptions) -> Result<Surfa
 /// measured without alignment, and a frame it would bring much closer is reported.
 fn align_to(
     k: usize,
-    frame: &TrackFrame,
+    frame: TrackFrame,
     target: &FrameSurface,
     alignment: Alignment,
     warnings: &mut Vec<String>,
@@ -546,10 +546,10 @@ fn align_to(
         ));
     }
     let aligned = match alignment {
-        Alignment::None => frame.clone(),
+        Alignment::None => frame,
         _ => TrackFrame {
             positions: frame.positions.iter().map(|x| motion.apply(x)).collect(),
-            ..frame.clone()
+            ..frame
         },
     };
     (aligned, Some(report))
