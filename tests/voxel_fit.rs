@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{meshflow_error, meshflow_ok, write_npy};
+use common::{meshflow_error, meshflow_ok, write_npy, write_ome_zarr_f32};
 use meshflow::surface::{
     fit_surface_weighted, foreground_points, FitOptions, IsosurfaceOptions, Resolution, Shape,
 };
@@ -151,6 +151,21 @@ fn the_command_fits_volumes_and_reports_their_voxels() {
         first["foreground_voxels"].as_u64().unwrap() > 1000,
         "{first}"
     );
+    // The same frames as an OME-Zarr image are volumes without any flag, and fit the same.
+    let image = dir.path().join("volumes.zarr");
+    write_ome_zarr_f32(&image, [N, N, N], &[cap.values(), cap.values()]);
+    let from_zarr = dir.path().join("surf_zarr");
+    let args = [
+        "surface",
+        &name(&image),
+        "--vertices",
+        "2000",
+        "--out",
+        &name(&from_zarr),
+    ];
+    meshflow_ok(&args);
+    let positions = |d: &Path| std::fs::read(d.join("positions.npy")).unwrap();
+    assert_eq!(positions(&from_zarr), positions(&out));
     let flat = dir.path().join("flat.npy");
     write_npy(&flat, &[2, 4, 4, 4], &[1.0f32; 128]);
     meshflow_error(

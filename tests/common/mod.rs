@@ -393,3 +393,34 @@ pub fn noisy_volume(
     }
     meshflow::volume::Volume::new([n; 3], values, Vector3::repeat(1.0), Vector3::zeros()).unwrap()
 }
+
+/// `frames` (each `shape` = (Z, Y, X), C order) as an NGFF 0.5 OME-Zarr image (Zarr v3,
+/// uncompressed little-endian float32, one chunk per frame, unit voxels, no translation).
+pub fn write_ome_zarr_f32(image: &Path, shape: [usize; 3], frames: &[&[f32]]) {
+    let [z, y, x] = shape;
+    let axes: Vec<serde_json::Value> =
+        std::iter::once(serde_json::json!({"name": "t", "type": "time"}))
+            .chain(
+                "zyx"
+                    .chars()
+                    .map(|n| serde_json::json!({"name": n.to_string(), "type": "space"})),
+            )
+            .collect();
+    let group = serde_json::json!({"zarr_format": 3, "node_type": "group", "attributes": {"ome": {
+        "version": "0.5", "multiscales": [{"version": "0.5", "axes": axes, "datasets": [{"path": "s0",
+        "coordinateTransformations": [{"type": "scale", "scale": [1.0, 1.0, 1.0, 1.0]}]}]}]}}});
+    let array = serde_json::json!({"zarr_format": 3, "node_type": "array",
+        "shape": [frames.len(), z, y, x], "data_type": "float32",
+        "chunk_grid": {"name": "regular", "configuration": {"chunk_shape": [1, z, y, x]}},
+        "chunk_key_encoding": {"name": "default", "configuration": {"separator": "/"}},
+        "fill_value": 0.0, "codecs": [{"name": "bytes", "configuration": {"endian": "little"}}]});
+    std::fs::create_dir_all(image.join("s0")).unwrap();
+    std::fs::write(image.join("zarr.json"), group.to_string()).unwrap();
+    std::fs::write(image.join("s0/zarr.json"), array.to_string()).unwrap();
+    for (t, values) in frames.iter().enumerate() {
+        let chunk = image.join(format!("s0/c/{t}/0/0/0"));
+        std::fs::create_dir_all(chunk.parent().unwrap()).unwrap();
+        let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+        std::fs::write(chunk, bytes).unwrap();
+    }
+}

@@ -246,7 +246,8 @@ fn describe(
 #[derive(clap::Args)]
 pub(crate) struct SampleArgs {
     /// Volumes, one per frame: a .npy (Z, Y, X) or (K, Z, Y, X), a .tif/.tiff stack (pages =
-    /// z), or a directory or quoted glob of them (natural order)
+    /// z) or ImageJ hyperstack (frames in one file), an OME-Zarr image, or a directory or
+    /// quoted glob of .npy/.tif files (natural order)
     pub(crate) volumes: PathBuf,
     /// The moving surface: any sequence `solve` reads (an image is not needed), e.g. the
     /// output of `meshflow surface` or `meshflow track`

@@ -476,9 +476,10 @@ pub(crate) enum ShapeArg {
 pub(crate) struct SurfaceArgs {
     /// Points per frame: a directory or quoted glob of (N, 3) .npy or .csv files (natural
     /// order), or one (frames, N, 3) .npy (NaN rows dropped). Or volumes: a (Z, Y, X) or
-    /// (K, Z, Y, X) .npy, TIFF stacks, or a directory or quoted glob of them; with --shape
-    /// closed, or with TIFF input or a volume flag (--voxel-size, --origin, --level, --smooth)
-    /// the spline is fitted through their bright voxels
+    /// (K, Z, Y, X) .npy, TIFF stacks or ImageJ hyperstacks, an OME-Zarr image, or a directory
+    /// or quoted glob of .npy/.tif files; with --shape closed, or with TIFF or OME-Zarr input or
+    /// a volume flag (--voxel-size, --origin, --level, --smooth, --channel,
+    /// --resolution-level) the spline is fitted through their bright voxels
     pub(crate) points: PathBuf,
     /// Output directory (an NPY sequence)
     #[arg(long)]
@@ -563,10 +564,13 @@ impl SurfaceArgs {
             self.smooth.is_some(),
             self.placement.voxel_size.is_some(),
             self.placement.origin.is_some(),
+            self.placement.channel.is_some(),
+            self.placement.resolution_level > 0,
         ];
         let extension = (self.points.extension()).map(|e| e.to_string_lossy().to_lowercase());
         let tiff = matches!(extension.as_deref(), Some("tif" | "tiff"));
-        let volumes = (tiff || volume_flags.contains(&true)).then(|| -> Result<_, Error> {
+        let image = tiff || meshflow::volume::is_ome_zarr(&self.points);
+        let volumes = (image || volume_flags.contains(&true)).then(|| -> Result<_, Error> {
             let finding = IsosurfaceOptions {
                 smoothing: self.smooth,
                 level: self.level.unwrap_or(Level::Otsu),
