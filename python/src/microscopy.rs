@@ -386,35 +386,16 @@ pub(crate) fn read_volumes<'py>(
     let read = py
         .detach(|| -> Result<_, Error> {
             let mut stream = VolumeStream::open(&path, &placement)?;
-            let n_frames = stream.n_frames();
-            let wanted: Vec<usize> = frames.clone().unwrap_or_else(|| (0..n_frames).collect());
-            if let Some(&k) = wanted.iter().find(|&&k| k >= n_frames) {
-                let message = format!("frame {k}: the recording has frames 0 … {}", n_frames - 1);
-                return Err(meshflow::format::IoError::format(&path, message).into());
-            }
+            let wanted: Vec<usize> = frames
+                .clone()
+                .unwrap_or_else(|| (0..stream.n_frames()).collect());
+            let volumes = stream.read_frames(&wanted)?;
             let [z, y, x] = stream.shape();
-            let voxels = (wanted.len() as u64).saturating_mul((z * y * x) as u64);
-            let what = format!("{} volume frames of {z} × {y} × {x} voxels", wanted.len());
-            meshflow::limits::check_declared(what, voxels.saturating_mul(4))
-                .map_err(|e| meshflow::format::IoError::too_large(&path, e))?;
-            // Each wanted frame read once, in file order, then placed in the asked order.
-            let mut order: Vec<usize> = wanted.clone();
-            order.sort_unstable();
-            order.dedup();
-            let mut held: Vec<(usize, Vec<f32>)> = Vec::with_capacity(order.len());
-            let mut next = 0;
-            for &k in &order {
-                (next..k).for_each(|_| stream.skip_frame());
-                let (volume, _) = stream.next().expect("k < n_frames")?;
-                held.push((k, volume.values().to_vec()));
-                next = k + 1;
+            // One array; each volume dropped once copied in.
+            let mut values = Vec::with_capacity(volumes.len() * z * y * x);
+            for volume in volumes {
+                values.extend_from_slice(volume.values());
             }
-            let values: Vec<f32> = (wanted.iter())
-                .flat_map(|k| {
-                    let at = order.binary_search(k).expect("held");
-                    held[at].1.iter().copied()
-                })
-                .collect();
             let source = stream.voxel_size_source().cloned();
             Ok((
                 values,

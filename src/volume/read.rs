@@ -245,6 +245,48 @@ impl VolumeStream {
         Ok((volume, file))
     }
 
+    /// Frames `wanted`, in that order, from a stream not read from yet: the frames held are
+    /// checked against the memory limit first, each is read once (the others passed over
+    /// unread, [`VolumeStream::skip_frame`]), and one asked twice is copied.
+    pub fn read_frames(&mut self, wanted: &[usize]) -> Result<Vec<Volume>, Error> {
+        let n_frames = self.n_frames();
+        if let Some(&k) = wanted.iter().find(|&&k| k >= n_frames) {
+            let message = format!("frame {k}: the recording has frames 0 … {}", n_frames - 1);
+            return Err(IoError::format(&self.path, message).into());
+        }
+        if (self.file, self.in_file) != (0, 0) {
+            let message = "frames are read from a stream not read from yet";
+            return Err(IoError::format(&self.path, message).into());
+        }
+        let shape = self.shape();
+        let frames = wanted.len() as u64;
+        let voxels = frames.saturating_mul(shape.iter().product::<usize>() as u64);
+        limits::check_declared(volume_frames(frames, shape), voxels.saturating_mul(4))
+            .map_err(|e| IoError::too_large(&self.path, e))?;
+        let mut order = wanted.to_vec();
+        order.sort_unstable();
+        order.dedup();
+        let mut held: Vec<Option<Volume>> = Vec::with_capacity(order.len());
+        let mut next = 0;
+        for &k in &order {
+            (next..k).for_each(|_| self.skip_frame());
+            let read = self.next().expect("k < n_frames, read in order");
+            held.push(Some(read?.0));
+            next = k + 1;
+        }
+        // Each frame moves out at its last place in `wanted`, and is copied for any earlier.
+        let mut out = Vec::with_capacity(wanted.len());
+        for (at, k) in wanted.iter().enumerate() {
+            let slot = &mut held[order.binary_search(k).expect("held")];
+            let again = wanted[at + 1..].contains(k);
+            out.push(match again {
+                true => slot.clone().expect("not moved before its last use"),
+                false => slot.take().expect("moved once"),
+            });
+        }
+        Ok(out)
+    }
+
     /// Passes over the next frame without reading it (nothing is decoded or held): a frame of
     /// a `(K, Z, Y, X)` `.npy`, a hyperstack or an OME-Zarr image is read by seeking.
     pub fn skip_frame(&mut self) {
@@ -318,18 +360,9 @@ pub fn count_volume_frames(path: &Path) -> Result<usize, Error> {
 /// An OME-Zarr image's frames, all held: each frame's size was checked when the image was
 /// opened, all of them here.
 fn read_ome_zarr(path: &Path, options: &VolumeOptions) -> Result<VolumeFrames, Error> {
-    let stream = VolumeStream::open(path, options)?;
-    let [z, y, x] = stream.declared[0].shape;
-    let frames = stream.n_frames() as u64;
-    let voxels = frames.saturating_mul((z * y * x) as u64);
-    let what = volume_frames(frames, [z, y, x]);
-    limits::check_declared(what, voxels.saturating_mul(4))
-        .map_err(|e| IoError::too_large(path, e))?;
-    let mut volumes = Vec::new();
-    let mut stream = stream;
-    for read in stream.by_ref() {
-        volumes.push(read?.0);
-    }
+    let mut stream = VolumeStream::open(path, options)?;
+    let all: Vec<usize> = (0..stream.n_frames()).collect();
+    let volumes = stream.read_frames(&all)?;
     Ok(VolumeFrames {
         files: vec![path.to_path_buf(); volumes.len()],
         volumes,
