@@ -14,7 +14,7 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 /// A borrowed sparse matrix, CSC with `usize` indices (meshflow's `fem::SparseMatrixRef`).
-type SparseMatrixRef<'a> = SparseColMatRef<'a, usize, f64>;
+pub(crate) type SparseMatrixRef<'a> = SparseColMatRef<'a, usize, f64>;
 use faer::{Conj, MatMut, Par, Side};
 use std::sync::Arc;
 
@@ -237,6 +237,22 @@ impl<T: Precision> CholeskyFactor<T> {
             MemStack::new(&mut scratch),
         );
         x.iter_mut().zip(&rhs).for_each(|(x, r)| *x = r.to_f64());
+    }
+
+    /// A factor with the given values of `L` (tests that compare solves).
+    #[cfg(test)]
+    pub(crate) fn from_parts(symbolic: Arc<SymbolicCholesky<usize>>, values: Vec<T>) -> Self {
+        Self { symbolic, values }
+    }
+
+    /// The symbolic analysis this factor was computed with.
+    pub fn symbolic(&self) -> &Arc<SymbolicCholesky<usize>> {
+        &self.symbolic
+    }
+
+    /// The values of `L` in faer's layout for [`Self::symbolic`].
+    pub fn values(&self) -> &[T] {
+        &self.values
     }
 
     /// Stored entries of `L`, and how many of them are subnormal numbers (none once the

@@ -4,4 +4,6 @@
 //! solver, the presmoothing of the images, the tracker's relaxation, the Hodge decomposition
 //! and the surface fit alike. It depends on faer and METIS only.
 
+pub(crate) mod bfloat;
 pub(crate) mod cholesky;
+pub(crate) mod factor;

@@ -36,9 +36,9 @@ use super::{factorization_error, Solution, SolveObserver, SolverMethod};
 use super::{gauss_seidel_verdict, PROBE_ITERATIONS, SWITCH_ITERATIONS};
 use crate::flow::system::{dot, SystemWindow};
 use crate::flow::{FlowError, FlowParams, LinkMatrix, SolverChoice, SpaceTimeSystem};
-use crate::linalg::cholesky::{analyze, CholeskyFactor, FactorEntries, Precision};
+use crate::linalg::cholesky::{analyze, CholeskyFactor, FactorEntries};
+use crate::linalg::factor::SlabFactor;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
-use faer::Par;
 use nalgebra::Matrix2;
 use rayon::prelude::*;
 use std::borrow::Cow;
@@ -142,9 +142,9 @@ impl LevelPlan<'_> {
 
 /// A [`LevelPlan`] with the slab sweeps of its window and its share of the seconds their
 /// factorization took.
-struct Level<'a, T: Precision> {
+struct Level<'a, F: SlabFactor> {
     plan: LevelPlan<'a>,
-    sweeps: SlabSweeps<T>,
+    sweeps: SlabSweeps<F>,
     factor_seconds: f64,
 }
 
@@ -226,15 +226,15 @@ impl Surroundings for LevelView<'_> {
 
 /// A rank's levels and the other ranks: the symmetric odd–even Gauss–Seidel sweep (one level
 /// in all) or one V-cycle of multigrid in time.
-struct WindowPreconditioner<'a, 'w, T: Precision> {
-    levels: &'a [Level<'w, T>],
+struct WindowPreconditioner<'a, 'w, F: SlabFactor> {
+    levels: &'a [Level<'w, F>],
     /// Levels of the whole hierarchy (this rank may hold fewer: it falls idle below them;
     /// 1: the sweeps alone).
     n_levels_in_all: usize,
     ranks: &'a dyn TimeRanks,
 }
 
-impl<T: Precision> WindowPreconditioner<'_, '_, T> {
+impl<F: SlabFactor> WindowPreconditioner<'_, '_, F> {
     fn view(&self, l: usize) -> LevelView<'_> {
         self.levels[l].plan.view(self.ranks)
     }
@@ -242,7 +242,7 @@ impl<T: Precision> WindowPreconditioner<'_, '_, T> {
 
 /// The V-cycle's levels on a rank ([`super::multigrid`]): the pairs that straddle two windows
 /// are restricted and prolonged across the ranks.
-impl<T: Precision> CycleLevels<T> for WindowPreconditioner<'_, '_, T> {
+impl<F: SlabFactor> CycleLevels<F> for WindowPreconditioner<'_, '_, F> {
     fn n_levels(&self) -> usize {
         self.n_levels_in_all
     }
@@ -255,7 +255,7 @@ impl<T: Precision> CycleLevels<T> for WindowPreconditioner<'_, '_, T> {
         &self.levels[l].plan.window.system
     }
 
-    fn sweeps(&self, l: usize) -> &SlabSweeps<T> {
+    fn sweeps(&self, l: usize) -> &SlabSweeps<F> {
         &self.levels[l].sweeps
     }
 
@@ -307,7 +307,7 @@ impl<T: Precision> CycleLevels<T> for WindowPreconditioner<'_, '_, T> {
     }
 }
 
-impl<T: Precision> Preconditioner for WindowPreconditioner<'_, '_, T> {
+impl<F: SlabFactor> Preconditioner for WindowPreconditioner<'_, '_, F> {
     fn apply(&self, r: &[f64], z: &mut [f64]) {
         match self.n_levels_in_all > 1 {
             true => v_cycle(self, 0, r, z),
@@ -381,10 +381,11 @@ fn solve_window_flushed(
     if job.fine_plan().view(ranks).dot(b, b) == 0.0 {
         return Ok(Solution::zero(b.len()));
     }
-    // Single-precision factors suffice for a preconditioner; f64 if a block of any level is
-    // too ill-conditioned (on any rank: the failure is summed).
-    match job.run::<f32>() {
-        Err(FlowError::Factorization { .. }) => job.run::<f64>(),
+    // Single-precision factors (bfloat16 for multigrid's levels, as in one process) suffice for
+    // a preconditioner; f64 if a block of any level is too ill-conditioned (on any rank: the
+    // failure is summed).
+    match job.run::<CholeskyFactor<f32>>() {
+        Err(FlowError::Factorization { .. }) => job.run::<CholeskyFactor<f64>>(),
         other => other,
     }
 }
@@ -413,9 +414,9 @@ impl<'a> WindowJob<'a> {
     /// The fine level's factors; CG with the sweeps or the probe of `auto`; the coarse levels
     /// and their factors only when multigrid is asked for or the probe finds the sweeps too
     /// slow (as one process does).
-    fn run<T: Precision>(&self) -> Result<Solution, FlowError> {
+    fn run<F: SlabFactor>(&self) -> Result<Solution, FlowError> {
         let symbolic = analyze(self.window.system.block(0).symbolic(), 2);
-        let mut levels = factor_levels::<T>(vec![self.fine_plan()], &symbolic, self.ranks)?;
+        let mut levels = factor_levels::<F>(vec![self.fine_plan()], &symbolic, self.ranks)?;
         let b = self.window.system.rhs();
         let stop = pcg::Stop {
             tolerance: self.params.tolerance,
@@ -450,10 +451,11 @@ impl<'a> WindowJob<'a> {
         let factored = levels.pop().expect("the fine level");
         let fine = Level {
             plan: plans.next().expect("the fine level"),
-            ..factored
+            sweeps: factored.sweeps.compress(),
+            factor_seconds: factored.factor_seconds,
         };
-        let coarse = factor_levels::<T>(plans.collect(), &symbolic, self.ranks)?;
-        let levels: Vec<Level<'_, T>> = std::iter::once(fine).chain(coarse).collect();
+        let coarse = factor_levels::<F::Compressed>(plans.collect(), &symbolic, self.ranks)?;
+        let levels: Vec<Level<'_, F::Compressed>> = std::iter::once(fine).chain(coarse).collect();
         let stop = pcg::Stop { done, ..stop };
         let outcome = self.pcg(&levels, n_levels_in_all, x, stop)?;
         let method = SolverMethod::PcgTimeMultigrid;
@@ -462,9 +464,9 @@ impl<'a> WindowJob<'a> {
 
     /// CG from `x` on the whole system, preconditioned by multigrid in time over `levels`
     /// (the sweeps alone for one level).
-    fn pcg<T: Precision>(
+    fn pcg<F: SlabFactor>(
         &self,
-        levels: &[Level<'_, T>],
+        levels: &[Level<'_, F>],
         n_levels_in_all: usize,
         x: Vec<f64>,
         stop: pcg::Stop,
@@ -480,12 +482,12 @@ impl<'a> WindowJob<'a> {
     }
 
     /// The [`Solution`] of a CG run, its residual recomputed from `u` over all ranks.
-    fn finish<T: Precision>(
+    fn finish<F: SlabFactor>(
         &self,
         outcome: pcg::CgOutcome,
         method: SolverMethod,
         reason: String,
-        levels: &[Level<'_, T>],
+        levels: &[Level<'_, F>],
         time_levels: usize,
     ) -> Result<Solution, FlowError> {
         let own: FactorEntries = levels.iter().map(|l| l.sweeps.entries()).sum();
@@ -601,11 +603,11 @@ fn build_levels<'a>(
 
 /// The levels of `plans` with their slab factors in precision `T`; an error on any rank fails
 /// them on all (so that all ranks retry in double precision together).
-fn factor_levels<'a, T: Precision>(
+fn factor_levels<'a, F: SlabFactor>(
     plans: Vec<LevelPlan<'a>>,
     symbolic: &Arc<SymbolicCholesky<usize>>,
     ranks: &dyn TimeRanks,
-) -> Result<Vec<Level<'a, T>>, FlowError> {
+) -> Result<Vec<Level<'a, F>>, FlowError> {
     let start = Instant::now();
     let slabs: Vec<(usize, usize)> = (plans.iter().enumerate())
         .flat_map(|(l, p)| (0..p.window.system.n_slabs()).map(move |s| (l, s)))
@@ -619,8 +621,7 @@ fn factor_levels<'a, T: Precision>(
                 Cow::Borrowed(_) => format!("slab {slab}"),
                 Cow::Owned(_) => format!("merged slab {slab} of a coarse time level"),
             };
-            CholeskyFactor::new(symbolic, window.system.block(s), Par::Seq)
-                .map_err(factorization_error(what))
+            F::factor(symbolic, window.system.block(s)).map_err(factorization_error(what))
         })
         .collect::<Result<Vec<_>, _>>();
     let mut failed = [f64::from(u8::from(factors.is_err()))];

@@ -196,7 +196,9 @@ mod precondition;
 
 use super::system::SpaceTimeSystem;
 use super::{FlowError, FlowParams, SolverChoice};
-use crate::linalg::cholesky::{analyze, CholeskyFactor, FactorEntries, Precision};
+use crate::linalg::bfloat::Bf16Factor;
+use crate::linalg::cholesky::{analyze, CholeskyFactor, FactorEntries};
+use crate::linalg::factor::SlabFactor;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
 use multigrid::{TimeHierarchy, TimeMultigrid};
@@ -499,32 +501,43 @@ fn slab_pcg(
 ) -> Result<Solution, FlowError> {
     let start = Instant::now();
     let symbolic = analyze(system.block(0).symbolic(), 2);
-    let plan = FactorPlan::new(system, &symbolic, params);
-    if plan.slabs_per_factor > system.n_slabs() {
-        let outcome = run_pcg(system, None, &Jacobi::new(system), params, 0, observer)?;
-        return Solution::iterated(outcome, SolverMethod::PcgJacobi, plan.describe())
-            .converged(params);
-    }
-    observer.notify(SolveEvent::Factorizing {
-        slabs: system.n_slabs(),
-    })?;
-    let job = SlabJob {
+    // Single precision (f32 or bfloat16) suffices for a preconditioner; double precision if a
+    // block of any level (the fine slabs, or the coarse levels multigrid adds later) is too
+    // ill-conditioned for single. Each level's factors get half the budget.
+    let half_budget = params.factor_memory_limit / 2;
+    let single = FactorPlan::new::<CholeskyFactor<f32>>(system, &symbolic, half_budget);
+    let compressed = FactorPlan::new::<Bf16Factor>(system, &symbolic, half_budget);
+    let double = FactorPlan::new::<CholeskyFactor<f64>>(system, &symbolic, 2 * half_budget);
+    let job = |plan| SlabJob {
         system,
         params,
         preconditioning,
-        plan: &plan,
+        plan,
         start,
         observer,
     };
-    // Single-precision factors suffice for a preconditioner; f64 if a block of any level
-    // (the fine slabs, or the coarse levels multigrid adds later) is too ill-conditioned.
-    let single = plan
-        .factor::<f32>(&[system])
-        .and_then(|sweeps| slab_pcg_with(job, sweeps));
-    match single {
-        Err(FlowError::Factorization { .. }) => slab_pcg_with(job, plan.factor::<f64>(&[system])?),
+    let outcome = match single.slabs_per_factor {
+        1 => slab_pcg_in::<CholeskyFactor<f32>>(job(&single)),
+        _ => slab_pcg_in::<Bf16Factor>(job(&compressed)),
+    };
+    match outcome {
+        Err(FlowError::Factorization { .. }) => slab_pcg_in::<CholeskyFactor<f64>>(job(&double)),
         other => other,
     }
+}
+
+/// [`slab_pcg`] with factors of type `F` (or Jacobi, when not even one fits the budget).
+fn slab_pcg_in<F: SlabFactor>(job: SlabJob<'_>) -> Result<Solution, FlowError> {
+    let (system, params, plan) = (job.system, job.params, job.plan);
+    if plan.slabs_per_factor > system.n_slabs() {
+        let outcome = run_pcg(system, None, &Jacobi::new(system), params, 0, job.observer)?;
+        return Solution::iterated(outcome, SolverMethod::PcgJacobi, plan.describe())
+            .converged(params);
+    }
+    job.observer.notify(SolveEvent::Factorizing {
+        slabs: system.n_slabs(),
+    })?;
+    slab_pcg_with(job, plan.factor::<F>(&[system])?)
 }
 
 /// What [`slab_pcg_with`] needs besides the factors (factored since `start`).
@@ -538,9 +551,9 @@ struct SlabJob<'a> {
     observer: &'a dyn SolveObserver,
 }
 
-fn slab_pcg_with<T: Precision>(
+fn slab_pcg_with<F: SlabFactor>(
     job: SlabJob<'_>,
-    mut fine: Vec<SlabSweeps<T>>,
+    mut fine: Vec<SlabSweeps<F>>,
 ) -> Result<Solution, FlowError> {
     let SlabJob {
         system,
@@ -589,8 +602,8 @@ fn slab_pcg_with<T: Precision>(
     observer.notify(SolveEvent::Factorizing {
         slabs: coarse.iter().map(|c| c.n_slabs()).sum(),
     })?;
-    let mut sweeps = vec![fine];
-    sweeps.extend(plan.factor::<T>(&coarse)?);
+    let mut sweeps = vec![fine.compress()];
+    sweeps.extend(plan.factor::<F::Compressed>(&coarse)?);
     factor_seconds += coarse_start.elapsed().as_secs_f64();
     factor_entries = sweeps.iter().map(SlabSweeps::entries).sum();
     let levels = sweeps.len();
@@ -609,21 +622,23 @@ fn slab_pcg_with<T: Precision>(
 struct FactorPlan<'a> {
     symbolic: &'a Arc<SymbolicCholesky<usize>>,
     slabs_per_factor: usize,
-    /// Bytes of one factor in double precision (the budget's unit: the worst case of the
-    /// single-precision factors' fallback).
+    /// Bytes of one factor of the type planned for.
     factor_bytes: usize,
+    /// How that type stores its entries ([`SlabFactor::NAME`]).
+    precision: &'static str,
     budget: usize,
     n_slabs: usize,
 }
 
 impl<'a> FactorPlan<'a> {
-    fn new(
+    /// The plan for factors of type `F`.
+    fn new<F: SlabFactor>(
         system: &SpaceTimeSystem,
         symbolic: &'a Arc<SymbolicCholesky<usize>>,
-        params: &FlowParams,
+        budget: usize,
     ) -> Self {
-        let factor_bytes = symbolic.len_val() * std::mem::size_of::<f64>();
-        let fitting = params.factor_memory_limit / factor_bytes.max(1);
+        let factor_bytes = symbolic.len_val() * F::ENTRY_BYTES;
+        let fitting = budget / factor_bytes.max(1);
         let slabs_per_factor = match fitting {
             0 => system.n_slabs() + 1,
             f => system.n_slabs().div_ceil(f).max(1),
@@ -632,7 +647,8 @@ impl<'a> FactorPlan<'a> {
             symbolic,
             slabs_per_factor,
             factor_bytes,
-            budget: params.factor_memory_limit,
+            precision: F::NAME,
+            budget,
             n_slabs: system.n_slabs(),
         }
     }
@@ -641,13 +657,15 @@ impl<'a> FactorPlan<'a> {
         let gb = |b: usize| b as f64 / 1e9;
         match self.slabs_per_factor {
             1 => format!(
-                "one factor per slab ({:.2} GB each at most, budget {:.1} GB)",
+                "one factor per slab in {} ({:.2} GB each at most, budget {:.1} GB a level)",
+                self.precision,
                 gb(self.factor_bytes),
                 gb(self.budget)
             ),
             n if n <= self.n_slabs => format!(
-                "one slab factor takes up to {:.2} GB: {n} neighbouring slabs share the \
-                 factor of their mean to stay within the {:.1} GB budget",
+                "one slab factor in {} takes up to {:.2} GB: {n} neighbouring slabs share the \
+                 factor of their mean to stay within the {:.1} GB budget a level",
+                self.precision,
                 gb(self.factor_bytes),
                 gb(self.budget)
             ),
@@ -661,10 +679,10 @@ impl<'a> FactorPlan<'a> {
     }
 
     /// One [`SlabSweeps`] per system, all factors computed in one parallel pass.
-    fn factor<T: Precision>(
+    fn factor<F: SlabFactor>(
         &self,
         levels: &[&SpaceTimeSystem],
-    ) -> Result<Vec<SlabSweeps<T>>, FlowError> {
+    ) -> Result<Vec<SlabSweeps<F>>, FlowError> {
         let g = self.slabs_per_factor;
         let groups: Vec<(usize, usize)> = (0..levels.len())
             .flat_map(|l| (0..levels[l].n_slabs().div_ceil(g)).map(move |k| (l, k)))
@@ -684,8 +702,7 @@ impl<'a> FactorPlan<'a> {
                     Some(values) => system.pattern().view(values),
                     None => system.block(slabs.start),
                 };
-                CholeskyFactor::new(self.symbolic, block, Par::Seq)
-                    .map_err(factorization_error(what))
+                F::factor(self.symbolic, block).map_err(factorization_error(what))
             })
             .collect::<Result<Vec<_>, _>>()?
             .into_iter();

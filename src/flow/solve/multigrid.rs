@@ -19,7 +19,7 @@
 use super::pcg::{Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings, Whole};
 use crate::flow::system::SpaceTimeSystem;
-use crate::linalg::cholesky::Precision;
+use crate::linalg::factor::SlabFactor;
 use nalgebra::{Matrix2, Vector2};
 use rayon::prelude::*;
 
@@ -60,18 +60,18 @@ impl TimeHierarchy {
 }
 
 /// The V-cycle preconditioner over a [`TimeHierarchy`] with one [`SlabSweeps`] per level.
-pub struct TimeMultigrid<'a, T: Precision> {
+pub struct TimeMultigrid<'a, F: SlabFactor> {
     fine: &'a SpaceTimeSystem,
     hierarchy: TimeHierarchy,
     /// `sweeps[l]` factors the blocks of level `l`.
-    sweeps: Vec<SlabSweeps<T>>,
+    sweeps: Vec<SlabSweeps<F>>,
 }
 
-impl<'a, T: Precision> TimeMultigrid<'a, T> {
+impl<'a, F: SlabFactor> TimeMultigrid<'a, F> {
     pub fn new(
         fine: &'a SpaceTimeSystem,
         hierarchy: TimeHierarchy,
-        sweeps: Vec<SlabSweeps<T>>,
+        sweeps: Vec<SlabSweeps<F>>,
     ) -> Self {
         assert_eq!(
             sweeps.len(),
@@ -90,13 +90,13 @@ impl<'a, T: Precision> TimeMultigrid<'a, T> {
 /// transfers between levels `l` and `l + 1`. A whole hierarchy in one process is one
 /// ([`TimeMultigrid`]); a rank's windows of it, whose pairs may straddle two ranks, the other
 /// (`super::distributed`).
-pub(super) trait CycleLevels<T: Precision> {
+pub(super) trait CycleLevels<F: SlabFactor> {
     /// Levels of the whole hierarchy (the last has one slab).
     fn n_levels(&self) -> usize;
     /// Whether this process holds level `l` (a rank falls idle below its last).
     fn holds(&self, l: usize) -> bool;
     fn system(&self, l: usize) -> &SpaceTimeSystem;
-    fn sweeps(&self, l: usize) -> &SlabSweeps<T>;
+    fn sweeps(&self, l: usize) -> &SlabSweeps<F>;
     /// Calls `f` with level `l` as an operator (for residuals) and as the sweeps' surroundings.
     fn with_view<R>(&self, l: usize, f: impl FnOnce(&dyn Operator, &dyn Surroundings) -> R) -> R;
     /// `Pᵀ r` from level `l` to `l + 1`.
@@ -107,8 +107,8 @@ pub(super) trait CycleLevels<T: Precision> {
 
 /// `z ≈ A_l⁻¹ r` by one V-cycle from level `l`: forward sweep, coarse correction, backward
 /// sweep on the residual.
-pub(super) fn v_cycle<T: Precision>(
-    levels: &impl CycleLevels<T>,
+pub(super) fn v_cycle<F: SlabFactor>(
+    levels: &impl CycleLevels<F>,
     l: usize,
     r: &[f64],
     z: &mut [f64],
@@ -133,7 +133,7 @@ pub(super) fn v_cycle<T: Precision>(
     })
 }
 
-impl<T: Precision> CycleLevels<T> for TimeMultigrid<'_, T> {
+impl<F: SlabFactor> CycleLevels<F> for TimeMultigrid<'_, F> {
     fn n_levels(&self) -> usize {
         self.sweeps.len()
     }
@@ -149,7 +149,7 @@ impl<T: Precision> CycleLevels<T> for TimeMultigrid<'_, T> {
         }
     }
 
-    fn sweeps(&self, l: usize) -> &SlabSweeps<T> {
+    fn sweeps(&self, l: usize) -> &SlabSweeps<F> {
         &self.sweeps[l]
     }
 
@@ -171,7 +171,7 @@ impl<T: Precision> CycleLevels<T> for TimeMultigrid<'_, T> {
     }
 }
 
-impl<T: Precision> Preconditioner for TimeMultigrid<'_, T> {
+impl<F: SlabFactor> Preconditioner for TimeMultigrid<'_, F> {
     fn apply(&self, r: &[f64], z: &mut [f64]) {
         v_cycle(self, 0, r, z);
     }

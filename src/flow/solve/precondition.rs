@@ -2,8 +2,8 @@
 
 use super::pcg::Preconditioner;
 use crate::flow::system::SpaceTimeSystem;
-use crate::linalg::cholesky::{CholeskyFactor, FactorEntries, Precision};
-use faer::Par;
+use crate::linalg::cholesky::FactorEntries;
+use crate::linalg::factor::SlabFactor;
 use rayon::prelude::*;
 
 /// `z = r / diag(A)`: no setup, no memory, iteration counts grow with refinement.
@@ -55,8 +55,8 @@ impl Preconditioner for Jacobi {
 /// neighbouring slabs share the factor of their mean block: `D_s` is then replaced by a
 /// neighbour average, still symmetric positive definite, so the sweeps remain a valid
 /// preconditioner (a weaker one, as the slabs differ).
-pub struct SlabSweeps<T: Precision> {
-    factors: Vec<CholeskyFactor<T>>,
+pub struct SlabSweeps<F: SlabFactor> {
+    factors: Vec<F>,
     slabs_per_factor: usize,
 }
 
@@ -67,11 +67,11 @@ enum Parity {
     Odd = 1,
 }
 
-impl<T: Precision> SlabSweeps<T> {
+impl<F: SlabFactor> SlabSweeps<F> {
     /// `factors[g]` must factor the mean of blocks `g·slabs_per_factor ..` (up to
     /// `slabs_per_factor` of them) of the `n_slabs` slabs of the system the sweeps are applied
     /// to.
-    pub fn new(factors: Vec<CholeskyFactor<T>>, slabs_per_factor: usize, n_slabs: usize) -> Self {
+    pub fn new(factors: Vec<F>, slabs_per_factor: usize, n_slabs: usize) -> Self {
         assert_eq!(
             factors.len(),
             n_slabs.div_ceil(slabs_per_factor),
@@ -83,13 +83,21 @@ impl<T: Precision> SlabSweeps<T> {
         }
     }
 
-    fn factor(&self, slab: usize) -> &CholeskyFactor<T> {
+    fn factor(&self, slab: usize) -> &F {
         &self.factors[slab / self.slabs_per_factor]
+    }
+
+    /// The same sweeps with the factors multigrid's levels use ([`SlabFactor::Compressed`]).
+    pub fn compress(self) -> SlabSweeps<F::Compressed> {
+        SlabSweeps {
+            factors: self.factors.into_par_iter().map(F::compress).collect(),
+            slabs_per_factor: self.slabs_per_factor,
+        }
     }
 
     /// Entries of all factors.
     pub fn entries(&self) -> FactorEntries {
-        self.factors.iter().map(CholeskyFactor::entries).sum()
+        self.factors.iter().map(F::entries).sum()
     }
 
     /// `z ← (D + L)⁻¹ z`: even slabs, then odd slabs with their even neighbours' values.
@@ -121,7 +129,7 @@ impl<T: Precision> SlabSweeps<T> {
         (slabs.into_par_iter())
             .zip(coupled)
             .for_each(|((s, zs), mut c)| {
-                self.factor(s).solve_in_place(&mut c, Par::Seq);
+                self.factor(s).solve(&mut c);
                 subtract(zs, &c);
             });
     }
@@ -143,7 +151,7 @@ impl<T: Precision> SlabSweeps<T> {
             if let Some(terms) = &terms {
                 subtract(zs, &terms[k]);
             }
-            self.factor(s).solve_in_place(zs, Par::Seq);
+            self.factor(s).solve(zs);
         });
     }
 
@@ -232,18 +240,18 @@ fn subtract(z: &mut [f64], c: &[f64]) {
 
 /// Symmetric block Gauss–Seidel in time, `P = (D + L) D⁻¹ (D + Lᵀ)`: one [`SlabSweeps`]
 /// forward and back.
-pub struct SlabGaussSeidel<'a, T: Precision> {
+pub struct SlabGaussSeidel<'a, F: SlabFactor> {
     system: &'a SpaceTimeSystem,
-    sweeps: &'a SlabSweeps<T>,
+    sweeps: &'a SlabSweeps<F>,
 }
 
-impl<'a, T: Precision> SlabGaussSeidel<'a, T> {
-    pub fn new(system: &'a SpaceTimeSystem, sweeps: &'a SlabSweeps<T>) -> Self {
+impl<'a, F: SlabFactor> SlabGaussSeidel<'a, F> {
+    pub fn new(system: &'a SpaceTimeSystem, sweeps: &'a SlabSweeps<F>) -> Self {
         Self { system, sweeps }
     }
 }
 
-impl<T: Precision> Preconditioner for SlabGaussSeidel<'_, T> {
+impl<F: SlabFactor> Preconditioner for SlabGaussSeidel<'_, F> {
     fn apply(&self, r: &[f64], z: &mut [f64]) {
         z.copy_from_slice(r);
         self.sweeps.symmetric(self.system, z, &Whole);

@@ -1,0 +1,119 @@
+//! The factors a preconditioner's slab solves use, by the precision they are stored in:
+//! [`SlabFactor`] over faer's `f64` and `f32` factors and the bfloat16 ones of
+//! [`super::bfloat`].
+//!
+//! A slab sweep solves with every factor once per half sweep, one thread per solve, and its
+//! time is what the factors' bytes take to stream from memory. `f32` factors are exact enough
+//! that slab Gauss–Seidel converges as with `f64`; bfloat16 reads half as much and leaves
+//! multigrid in time's iterations as they were, but costs slab Gauss–Seidel iterations where the
+//! slab solves alone almost solve the system (large `α`): its rounding, about `2⁻⁹` per entry,
+//! is then what the iterations reduce. So each kind of factor says which one multigrid uses
+//! ([`SlabFactor::Compressed`]).
+
+use super::bfloat::Bf16Factor;
+use super::cholesky::{CholeskyFactor, FactorEntries, SparseMatrixRef};
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
+use faer::Par;
+use std::cell::RefCell;
+use std::sync::Arc;
+
+/// A factor that a preconditioner solves with, one thread per solve.
+pub trait SlabFactor: Sized + Send + Sync {
+    /// Bytes each stored entry of `L` takes (the memory budget's unit).
+    const ENTRY_BYTES: usize;
+    /// How the entries are stored, for the solver's reasons.
+    const NAME: &'static str;
+    /// The factor multigrid's levels use when slab Gauss–Seidel started with this one.
+    type Compressed: SlabFactor;
+    /// Factors `matrix`, single-threaded; `Err` carries the reason it is not numerically
+    /// positive definite.
+    fn factor(
+        symbolic: &Arc<SymbolicCholesky<usize>>,
+        matrix: SparseMatrixRef<'_>,
+    ) -> Result<Self, String>;
+    /// `x ← A⁻¹ x`, single-threaded.
+    fn solve(&self, x: &mut [f64]);
+    fn entries(&self) -> FactorEntries;
+    fn compress(self) -> Self::Compressed;
+}
+
+impl SlabFactor for CholeskyFactor<f64> {
+    const ENTRY_BYTES: usize = 8;
+    const NAME: &'static str = "double precision";
+    type Compressed = Self;
+
+    fn factor(
+        symbolic: &Arc<SymbolicCholesky<usize>>,
+        matrix: SparseMatrixRef<'_>,
+    ) -> Result<Self, String> {
+        Self::new(symbolic, matrix, Par::Seq)
+    }
+
+    fn solve(&self, x: &mut [f64]) {
+        self.solve_in_place(x, Par::Seq)
+    }
+
+    fn entries(&self) -> FactorEntries {
+        CholeskyFactor::entries(self)
+    }
+
+    /// Double precision is the fallback for blocks too ill-conditioned for single: kept.
+    fn compress(self) -> Self {
+        self
+    }
+}
+
+impl SlabFactor for CholeskyFactor<f32> {
+    const ENTRY_BYTES: usize = 4;
+    const NAME: &'static str = "single precision";
+    type Compressed = Bf16Factor;
+
+    fn factor(
+        symbolic: &Arc<SymbolicCholesky<usize>>,
+        matrix: SparseMatrixRef<'_>,
+    ) -> Result<Self, String> {
+        Self::new(symbolic, matrix, Par::Seq)
+    }
+
+    fn solve(&self, x: &mut [f64]) {
+        self.solve_in_place(x, Par::Seq)
+    }
+
+    fn entries(&self) -> FactorEntries {
+        CholeskyFactor::entries(self)
+    }
+
+    fn compress(self) -> Bf16Factor {
+        Bf16Factor::new(&self)
+    }
+}
+
+impl SlabFactor for Bf16Factor {
+    const ENTRY_BYTES: usize = 2;
+    const NAME: &'static str = "bfloat16";
+    type Compressed = Self;
+
+    /// Factors in `f32` (faer), then rounds.
+    fn factor(
+        symbolic: &Arc<SymbolicCholesky<usize>>,
+        matrix: SparseMatrixRef<'_>,
+    ) -> Result<Self, String> {
+        CholeskyFactor::<f32>::new(symbolic, matrix, Par::Seq).map(|f| Self::new(&f))
+    }
+
+    /// With one scratch buffer per thread: a fresh one per solve would be fresh pages.
+    fn solve(&self, x: &mut [f64]) {
+        thread_local! {
+            static WORK: RefCell<Vec<f32>> = const { RefCell::new(Vec::new()) };
+        }
+        WORK.with_borrow_mut(|work| self.solve_in_place(x, work));
+    }
+
+    fn entries(&self) -> FactorEntries {
+        Bf16Factor::entries(self)
+    }
+
+    fn compress(self) -> Self {
+        self
+    }
+}
