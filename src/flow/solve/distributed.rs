@@ -494,7 +494,11 @@ impl<'a> WindowJob<'a> {
         let mut entries = [own.stored as f64, own.subnormal as f64];
         self.ranks.sum(&mut entries);
         let factor_seconds = levels.iter().map(|l| l.factor_seconds).sum();
-        let mut solution = Solution::iterated(outcome, method, format!("{reason}; over ranks"));
+        let mut solution = Solution::iterated(
+            outcome,
+            method,
+            format!("{reason}; factors in {}; over ranks", F::NAME),
+        );
         solution = solution.converged(self.params)?;
         let operator = levels[0].plan.view(self.ranks);
         let b = self.window.system.rhs();

@@ -29,6 +29,26 @@
 //!   coarse levels hold as many blocks again) and the coarse blocks need factors too.
 //! - **PCG with Jacobi**: no factors; only when not even one slab factor fits the budget.
 //!
+//! **Factor precision** ([`crate::linalg::factor`]). Slab Gauss–Seidel solves with `f32`
+//! factors while those of all slabs fit half of `FlowParams::factor_memory_limit`, and with
+//! bfloat16 factors ([`crate::linalg::bfloat`]: 2 bytes an entry, solved by meshflow's own
+//! supernodal kernels) beyond that, so that long sequences keep one factor per slab instead of
+//! sharing one between neighbours. Multigrid's levels always use bfloat16: the fine factors are
+//! rounded when `auto` switches, the coarse ones right after their `f32` factorization. A slab
+//! solve streams its factor twice and is bound by memory bandwidth, so bfloat16 solves take
+//! 1.4–1.9 ms against `f32`'s 2.4–2.9 ms (12,160-vertex grid block, one solve on each of the 2
+//! cores; `cargo test --release --lib bfloat::tests::timing -- --ignored --nocapture`).
+//! Rounding `L` to 8 significant bits leaves multigrid's iterations as they were (the table
+//! below: the same counts, one more at `α = 0.001`), because where multigrid is needed the
+//! coarse levels, not the slab solves, limit its rate. Where the slab solves nearly solve the
+//! system (large `α`), the rounding is what the iterations must remove: slab Gauss–Seidel at
+//! `α = 10`, `γ = 1` took 7 iterations with bfloat16 against 3 with `f32`, and 21 against 19 at
+//! `α = 1` (`γ = 0.01`: 5 against 2, 8 against 8), which is why it keeps `f32` while that fits.
+//! Double precision remains the fallback when a block is too ill-conditioned for `f32`.
+//! Measured at 200 frames × 48,450 vertices (`bench_paper_torus -- 255 190 200`, 2 cores,
+//! 8.8 GB budget): one bfloat16 factor per slab instead of one `f32` factor per two slabs,
+//! 7 iterations instead of 11, solve 34.1 → 28.2 s with the same peak memory (8.18 GB).
+//!
 //! Every method runs with subnormal numbers flushed to zero ([`crate::subnormals`]): at
 //! mid-range `α` up to 4 % of the single-precision factors' entries are subnormal otherwise
 //! (`bench_solver`'s `subnormal` column with `SUBNORMALS=keep`), which made the factorization 5×
@@ -184,7 +204,13 @@
 //! reads. `t(α = 0.01) / t(α = 1) ≤ 2.5` at `γ = 0.01` (1.9 s for the solve) would need at most 7
 //! V-cycles, or a cycle that reads half as much; every candidate above that reads less (reduction
 //! to the even slabs, skipping levels, operator-dependent levels) loses flatness in `α`, in the
-//! number of frames or in the mesh size.
+//! number of frames or in the mesh size. Bfloat16 factors are such a cycle, and they keep the
+//! iterations: under `auto` (4 Gauss–Seidel iterations, then multigrid) `α = 0.01`, `γ = 0.01`
+//! now takes 15 iterations and 2.47 s with the factorizations (0.79 s), about 0.13 s a V-cycle,
+//! and `γ = 1` 13 iterations, 2.05–2.28 s (before: 3.44 s and 2.72 s, the same iterations).
+//! `t(α = 0.01) / t(α = 1)` is 1.1–1.5 at `γ = 1` and 3.1 at `γ = 0.01` (target 2.5: still
+//! missed there; `α = 1` takes 0.71–0.80 s in 8 Gauss–Seidel iterations, while the coarse levels'
+//! factorizations and the probe alone take about 0.7 s at `α = 0.01`).
 //!
 //! Results agree with the direct solver to 1e-9 relative (`tests/solver.rs`), for lumped and
 //! consistent coupling, Neumann and Dirichlet boundaries, even and odd slab counts.
@@ -503,11 +529,13 @@ fn slab_pcg(
     let symbolic = analyze(system.block(0).symbolic(), 2);
     // Single precision (f32 or bfloat16) suffices for a preconditioner; double precision if a
     // block of any level (the fine slabs, or the coarse levels multigrid adds later) is too
-    // ill-conditioned for single. Each level's factors get half the budget.
+    // ill-conditioned for single, within the whole budget as before. Single-precision factors
+    // get half the budget per level: multigrid adds about as many coarse factors again.
     let half_budget = params.factor_memory_limit / 2;
     let single = FactorPlan::new::<CholeskyFactor<f32>>(system, &symbolic, half_budget);
     let compressed = FactorPlan::new::<Bf16Factor>(system, &symbolic, half_budget);
-    let double = FactorPlan::new::<CholeskyFactor<f64>>(system, &symbolic, 2 * half_budget);
+    let budget = params.factor_memory_limit;
+    let double = FactorPlan::new::<CholeskyFactor<f64>>(system, &symbolic, budget);
     let job = |plan| SlabJob {
         system,
         params,
@@ -609,6 +637,7 @@ fn slab_pcg_with<F: SlabFactor>(
     let levels = sweeps.len();
     let multigrid = TimeMultigrid::new(system, hierarchy, sweeps);
     let outcome = run_pcg(system, x, &multigrid, params, done, observer)?;
+    let reason = format!("{reason}; the levels' factors in {}", F::Compressed::NAME);
     let mut solution = Solution::iterated(outcome, SolverMethod::PcgTimeMultigrid, reason);
     solution.factor_seconds = factor_seconds;
     solution.factor_entries = factor_entries;
