@@ -11,7 +11,7 @@
 //! ([`SlabFactor::Compressed`]).
 
 use super::bfloat::Bf16Factor;
-use super::cholesky::{CholeskyFactor, FactorEntries, SparseMatrixRef};
+use super::cholesky::{CholeskyFactor, FactorEntries, Precision, SparseMatrixRef};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
 use std::cell::RefCell;
@@ -37,36 +37,36 @@ pub trait SlabFactor: Sized + Send + Sync {
     fn compress(self) -> Self::Compressed;
 }
 
-impl SlabFactor for CholeskyFactor<f64> {
-    const ENTRY_BYTES: usize = 8;
+/// What a precision of faer's factors becomes for multigrid's levels.
+pub trait Compressible: Precision + Send + Sync {
+    type Compressed: SlabFactor;
+    const NAME: &'static str;
+    fn compress(factor: CholeskyFactor<Self>) -> Self::Compressed;
+}
+
+impl Compressible for f64 {
+    type Compressed = CholeskyFactor<f64>;
     const NAME: &'static str = "double precision";
-    type Compressed = Self;
-
-    fn factor(
-        symbolic: &Arc<SymbolicCholesky<usize>>,
-        matrix: SparseMatrixRef<'_>,
-    ) -> Result<Self, String> {
-        Self::new(symbolic, matrix, Par::Seq)
-    }
-
-    fn solve(&self, x: &mut [f64]) {
-        self.solve_in_place(x, Par::Seq)
-    }
-
-    fn entries(&self) -> FactorEntries {
-        CholeskyFactor::entries(self)
-    }
 
     /// Double precision is the fallback for blocks too ill-conditioned for single: kept.
-    fn compress(self) -> Self {
-        self
+    fn compress(factor: CholeskyFactor<f64>) -> Self::Compressed {
+        factor
     }
 }
 
-impl SlabFactor for CholeskyFactor<f32> {
-    const ENTRY_BYTES: usize = 4;
-    const NAME: &'static str = "single precision";
+impl Compressible for f32 {
     type Compressed = Bf16Factor;
+    const NAME: &'static str = "single precision";
+
+    fn compress(factor: CholeskyFactor<f32>) -> Bf16Factor {
+        Bf16Factor::new(&factor)
+    }
+}
+
+impl<T: Compressible> SlabFactor for CholeskyFactor<T> {
+    const ENTRY_BYTES: usize = std::mem::size_of::<T>();
+    const NAME: &'static str = T::NAME;
+    type Compressed = T::Compressed;
 
     fn factor(
         symbolic: &Arc<SymbolicCholesky<usize>>,
@@ -83,8 +83,8 @@ impl SlabFactor for CholeskyFactor<f32> {
         CholeskyFactor::entries(self)
     }
 
-    fn compress(self) -> Bf16Factor {
-        Bf16Factor::new(&self)
+    fn compress(self) -> T::Compressed {
+        T::compress(self)
     }
 }
 
