@@ -11,8 +11,9 @@
 //! `L̃ L̃ᵀ` with the rounded `L̃` is symmetric positive definite whatever the rounding (its
 //! diagonal stays positive), so it is a valid block of a CG preconditioner; it only differs
 //! from the block by about `2⁻⁹` relative per entry of `L`. Measured on the 128×95×20 torus
-//! (`bench_solver`): iterations unchanged for `α ≤ 0.1` and at `γ = 0.01`, 19 → 21 for slab
-//! Gauss–Seidel at `α = γ = 1`.
+//! (`bench_solver`): multigrid's iterations unchanged (one more at `α = 0.001`, `γ = 1`); slab
+//! Gauss–Seidel 19 → 21 at `α = γ = 1` and 3 → 7 at `α = 10`, which is why the sweeps keep `f32`
+//! while it fits the budget (`flow::solve`, "Factor precision").
 //!
 //! Why written by hand: faer's triangular solves are generic over faer's scalar types, and
 //! bfloat16 is not one (nor does any sparse crate solve with a compressed factor). The kernels

@@ -2,7 +2,8 @@
 //! Cholesky factors (`cholesky`: METIS ordering, one symbolic analysis shared by many numeric
 //! factorizations, single or double precision, faer's symbolic/numeric split) serve the flow
 //! solver, the presmoothing of the images, the tracker's relaxation, the Hodge decomposition
-//! and the surface fit alike. It depends on faer and METIS only.
+//! and the surface fit alike; `factor` and `bfloat` hold the factors the flow's slab sweeps solve with, in
+//! double, single or bfloat16 precision. It depends on faer and METIS only.
 
 pub(crate) mod bfloat;
 pub(crate) mod cholesky;
