@@ -70,7 +70,7 @@ impl Bf16Factor {
     /// of `x` and the supernodes' scratch (reused across solves).
     pub fn solve_in_place(&self, x: &mut [f64], work: &mut Vec<f32>) {
         let n = x.len();
-        work.clear();
+        // No clearing: `y` is written whole below and each supernode sets its scratch first.
         work.resize(2 * n, 0.0);
         let (y, scratch) = work.split_at_mut(n);
         match self.symbolic.perm() {
