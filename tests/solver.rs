@@ -40,6 +40,12 @@ fn multigrid_in_time_agrees_with_the_direct_solver() {
                 let direct = solve(&sequence, params(SolverChoice::Direct));
                 let multigrid = solve(&sequence, params(SolverChoice::PcgTimeMultigrid));
                 assert_eq!(multigrid.method, SolverMethod::PcgTimeMultigrid);
+                // A few MB of factors in all: the levels keep single precision.
+                assert!(
+                    (multigrid.solver_reason).ends_with("the levels' factors in single precision"),
+                    "{}",
+                    multigrid.solver_reason
+                );
                 // 5 slabs: 5, 3, 2, 1; 8 slabs: 8, 4, 2, 1.
                 assert_eq!(multigrid.time_levels, 4, "{n_frames} frames");
                 assert!(
@@ -190,6 +196,16 @@ fn slabs_share_factors_beyond_the_memory_budget() {
     );
     assert_eq!(compressed.factor_entries, all.factor_entries);
     assert_same_intrinsic_flow(&direct, &compressed);
+    // Multigrid over bfloat16 fine factors keeps its levels in bfloat16.
+    let levels = with_budget(2 * 8 * 3 * one_factor, SolverChoice::PcgTimeMultigrid);
+    assert!(
+        levels
+            .solver_reason
+            .ends_with("the levels' factors in bfloat16"),
+        "{}",
+        levels.solver_reason
+    );
+    assert_same_intrinsic_flow(&direct, &levels);
     // 3.5 bfloat16 factors in half the budget: runs of 3 slabs share one.
     let shared = with_budget(2 * 7 * one_factor, SolverChoice::PcgSlabGaussSeidel);
     assert!(
@@ -219,10 +235,11 @@ fn forced_iterative_solvers_on_uncoupled_slabs_are_exact_slab_solves() {
     };
     let slabwise = solve(&sequence, params(SolverChoice::Auto));
     assert_eq!(slabwise.method, SolverMethod::SlabwiseDirect);
-    // Multigrid's bfloat16 factors solve a slab to about 2⁻⁹ (not to single precision as the
-    // sweeps' factors do): a few more iterations to 1e-12.
+    // Factors this small keep single precision on every level (bfloat16 levels, which solve a
+    // slab to about 2⁻⁹, took up to 6 iterations here): single-precision slab solves, refined
+    // to 1e-12 in a few iterations.
     for (solver, most) in [
-        (SolverChoice::PcgTimeMultigrid, 6),
+        (SolverChoice::PcgTimeMultigrid, 3),
         (SolverChoice::PcgSlabGaussSeidel, 3),
     ] {
         let iterative = solve(&sequence, params(solver));

@@ -29,11 +29,11 @@
 //! sends cannot deadlock. How the ranks talk is the caller's ([`TimeRanks`]): MPI on a cluster
 //! (`MpiRanks`, feature `mpi`), threads in the tests.
 
-use super::multigrid::{prolong_add, restrict, v_cycle, CycleLevels};
+use super::multigrid::{level_slab_counts, prolong_add, restrict, v_cycle, CycleLevels};
 use super::pcg::{self, Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings};
 use super::{factorization_error, Solution, SolveObserver, SolverMethod};
-use super::{gauss_seidel_verdict, PROBE_ITERATIONS, SWITCH_ITERATIONS};
+use super::{gauss_seidel_verdict, levels_keep_precision, PROBE_ITERATIONS, SWITCH_ITERATIONS};
 use crate::flow::system::{dot, SystemWindow};
 use crate::flow::{FlowError, FlowParams, LinkMatrix, SolverChoice, SpaceTimeSystem};
 use crate::linalg::cholesky::{analyze, CholeskyFactor, FactorEntries};
@@ -390,6 +390,14 @@ fn solve_window_flushed(
     }
 }
 
+/// Where multigrid continues the sweeps' run: its iterate, its stop (iterations so far) and
+/// why it switched.
+struct Continuation {
+    x: Vec<f64>,
+    stop: pcg::Stop,
+    reason: String,
+}
+
 /// What a rank's solve needs, whatever the factors' precision.
 struct WindowJob<'a> {
     window: &'a SystemWindow,
@@ -446,17 +454,38 @@ impl<'a> WindowJob<'a> {
                 (outcome.x, outcome.iterations, verdict)
             }
         };
+        let factored = levels.pop().expect("the fine level");
+        let start = Continuation {
+            x,
+            stop: pcg::Stop { done, ..stop },
+            reason,
+        };
+        let seconds = factored.factor_seconds;
+        match levels_keep_precision::<F>(&symbolic, self.window.n_slabs_in_all) {
+            true => self.multigrid(factored.sweeps, seconds, &symbolic, start),
+            false => self.multigrid(factored.sweeps.compress(), seconds, &symbolic, start),
+        }
+    }
+
+    /// CG with multigrid in time from `start`, the fine level's sweeps given (factored in
+    /// `fine_seconds`) and the coarse levels factored as type `F`.
+    fn multigrid<F: SlabFactor>(
+        &self,
+        fine: SlabSweeps<F>,
+        fine_seconds: f64,
+        symbolic: &Arc<SymbolicCholesky<usize>>,
+        start: Continuation,
+    ) -> Result<Solution, FlowError> {
         let (plans, n_levels_in_all) = build_levels(self.window, self.windows, self.ranks);
         let mut plans = plans.into_iter();
-        let factored = levels.pop().expect("the fine level");
         let fine = Level {
             plan: plans.next().expect("the fine level"),
-            sweeps: factored.sweeps.compress(),
-            factor_seconds: factored.factor_seconds,
+            sweeps: fine,
+            factor_seconds: fine_seconds,
         };
-        let coarse = factor_levels::<F::Compressed>(plans.collect(), &symbolic, self.ranks)?;
-        let levels: Vec<Level<'_, F::Compressed>> = std::iter::once(fine).chain(coarse).collect();
-        let stop = pcg::Stop { done, ..stop };
+        let coarse = factor_levels::<F>(plans.collect(), symbolic, self.ranks)?;
+        let levels: Vec<Level<'_, F>> = std::iter::once(fine).chain(coarse).collect();
+        let Continuation { x, stop, reason } = start;
         let outcome = self.pcg(&levels, n_levels_in_all, x, stop)?;
         let method = SolverMethod::PcgTimeMultigrid;
         self.finish(outcome, method, reason, &levels, n_levels_in_all)
@@ -550,12 +579,10 @@ fn build_levels<'a>(
         ranks,
     };
     let coupled = view.coupled(&fine.system);
-    let mut n_levels_in_all = 1;
-    let mut slabs = fine.n_slabs_in_all;
-    while coupled && slabs > 1 {
-        slabs = slabs.div_ceil(2);
-        n_levels_in_all += 1;
-    }
+    let n_levels_in_all = match coupled {
+        true => level_slab_counts(fine.n_slabs_in_all).len(),
+        false => 1,
+    };
     let mut levels = Vec::new();
     let (mut window, mut windows) = (Cow::Borrowed(fine), windows.to_vec());
     for l in 0..n_levels_in_all {

@@ -33,8 +33,10 @@
 //! factors while those of all slabs fit half of `FlowParams::factor_memory_limit`, and with
 //! bfloat16 factors ([`crate::linalg::bfloat`]: 2 bytes an entry, solved by meshflow's own
 //! supernodal kernels) beyond that, so that long sequences keep one factor per slab instead of
-//! sharing one between neighbours. Multigrid's levels always use bfloat16: the fine factors are
-//! rounded when `auto` switches, the coarse ones right after their `f32` factorization. A slab
+//! sharing one between neighbours. Multigrid's levels use bfloat16 unless all their `f32`
+//! factors together fit [`CACHED_LEVELS_BYTES`] (64 MiB: then they are read largely from the
+//! caches, and rounding would only cost iterations): the fine factors are rounded when `auto`
+//! switches, the coarse ones right after their `f32` factorization. A slab
 //! solve streams its factor twice and is bound by memory bandwidth, so bfloat16 solves take
 //! 1.4–1.9 ms against `f32`'s 2.4–2.9 ms (12,160-vertex grid block, one solve on each of the 2
 //! cores; `cargo test --release --lib bfloat::tests::timing -- --ignored --nocapture`).
@@ -49,9 +51,10 @@
 //! 8.8 GB budget): one bfloat16 factor per slab instead of one `f32` factor per two slabs,
 //! 7 iterations instead of 11, solve 34.1 → 28.2 s with the same peak memory (8.18 GB).
 //! Where a cycle is nearly exact the rounding shows: on the zebrafish recording (2 slabs) with
-//! `--large-motion --regularizer strain`, 98 iterations in 8 solves instead of 76 (3.4 s against
-//! 3.2 s; 81 since `auto` leaves a probe without progress early, below); its default solve
-//! keeps 9 (4 + 5) and multigrid alone 6.
+//! `--large-motion --regularizer strain`, bfloat16 levels took 98 iterations in 8 solves
+//! instead of 76 (3.4 s against 3.2 s; 81 once `auto` left a probe without progress early,
+//! below). Its 3 factors take 29 MB in `f32`, so its levels now stay in `f32`: 54 iterations,
+//! 3.3–3.7 s (bfloat16: 3.4–3.7 s); the default solve keeps 9 (4 + 5) and multigrid alone 6.
 //!
 //! Every method runs with subnormal numbers flushed to zero ([`crate::subnormals`]): at
 //! mid-range `α` up to 4 % of the single-precision factors' entries are subnormal otherwise
@@ -66,7 +69,8 @@
 //! first iteration leaves 1.5–3.6 times the starting residual, and multigrid needs as many
 //! iterations after one Gauss–Seidel iteration as after four (13 → 10 at `α = 0.01`, `γ = 1`;
 //! 15 → 12 at `γ = 0.01`; the warped strain solve of the zebrafish recording 98 → 81 in 8
-//! solves; its default solve, whose first iteration halves the residual, keeps 9). It keeps
+//! solves with bfloat16 levels; its default solve, whose first iteration halves the residual,
+//! keeps 9). It keeps
 //! watching after the probe because the first iterations drop faster than
 //! the rest: on a 48,450-vertex torus × 40 frames with default weights (`meshflow solve` on
 //! NPY arrays), slab Gauss–Seidel fell by 0.53 per iteration over iterations 1–4 (29.7
@@ -608,8 +612,8 @@ fn slab_pcg_with<F: SlabFactor>(
     let fine = fine.remove(0);
     // The factorizations' workspaces, before CG's vectors.
     crate::limits::release_free_memory();
-    let mut factor_seconds = start.elapsed().as_secs_f64();
-    let mut factor_entries = fine.entries();
+    let factor_seconds = start.elapsed().as_secs_f64();
+    let factor_entries = fine.entries();
     let (x, done, reason) = match preconditioning {
         Preconditioning::Multigrid => (None, 0, format!("asked for; {}", plan.describe())),
         _ => {
@@ -638,25 +642,83 @@ fn slab_pcg_with<F: SlabFactor>(
             (Some(outcome.x), outcome.iterations, reason)
         }
     };
-    let coarse_start = Instant::now();
+    let switch = Switch {
+        x,
+        done,
+        reason,
+        factor_seconds,
+        coarse_start: Instant::now(),
+    };
+    match levels_keep_precision::<F>(plan.symbolic, system.n_slabs()) {
+        true => time_multigrid(job, fine, switch),
+        false => time_multigrid(job, fine.compress(), switch),
+    }
+}
+
+/// Where multigrid in time starts: from `x` after `done` Gauss–Seidel iterations (`None`: from
+/// zero), why, and the fine factors' seconds.
+struct Switch {
+    x: Option<Vec<f64>>,
+    done: usize,
+    reason: String,
+    factor_seconds: f64,
+    coarse_start: Instant,
+}
+
+/// PCG with multigrid in time whose levels have factors of type `F`, the fine ones given.
+fn time_multigrid<F: SlabFactor>(
+    job: SlabJob<'_>,
+    fine: SlabSweeps<F>,
+    switch: Switch,
+) -> Result<Solution, FlowError> {
+    let (system, observer) = (job.system, job.observer);
     let hierarchy = TimeHierarchy::new(system);
     let coarse: Vec<&SpaceTimeSystem> = hierarchy.coarse_systems().iter().collect();
     observer.notify(SolveEvent::Factorizing {
         slabs: coarse.iter().map(|c| c.n_slabs()).sum(),
     })?;
-    let mut sweeps = vec![fine.compress()];
-    sweeps.extend(plan.factor::<F::Compressed>(&coarse)?);
-    factor_seconds += coarse_start.elapsed().as_secs_f64();
-    factor_entries = sweeps.iter().map(SlabSweeps::entries).sum();
+    let mut sweeps = vec![fine];
+    sweeps.extend(job.plan.factor::<F>(&coarse)?);
+    let factor_seconds = switch.factor_seconds + switch.coarse_start.elapsed().as_secs_f64();
+    let factor_entries = sweeps.iter().map(SlabSweeps::entries).sum();
     let levels = sweeps.len();
     let multigrid = TimeMultigrid::new(system, hierarchy, sweeps);
-    let outcome = run_pcg(system, x, &multigrid, params, done, observer)?;
-    let reason = format!("{reason}; the levels' factors in {}", F::Compressed::NAME);
+    let outcome = run_pcg(
+        system,
+        switch.x,
+        &multigrid,
+        job.params,
+        switch.done,
+        observer,
+    )?;
+    let reason = format!("{}; the levels' factors in {}", switch.reason, F::NAME);
     let mut solution = Solution::iterated(outcome, SolverMethod::PcgTimeMultigrid, reason);
     solution.factor_seconds = factor_seconds;
     solution.factor_entries = factor_entries;
     solution.time_levels = levels;
-    solution.converged(params)
+    solution.converged(job.params)
+}
+
+/// All multigrid levels' factors together, in bytes, up to which they keep the fine factors'
+/// precision (`f32`) instead of bfloat16 ([`SlabFactor::Compressed`]).
+///
+/// Bfloat16 pays by reading half as much memory per cycle; factors this small are read largely
+/// from the processor's caches, while the rounding costs iterations where the cycle is nearly
+/// exact. Measured (2 cores, 32 MB last-level cache): the zebrafish recording (2 slabs, 3
+/// factors of 29 MB in all) with `--large-motion --regularizer strain` took 54 iterations in
+/// 8 solves with `f32` levels against 81 with bfloat16, 3.3–3.7 s against 3.4–3.7 s; the
+/// 128×95×20 torus (41 factors, 0.72 GB) keeps its iterations with bfloat16 and saves about
+/// a quarter of each V-cycle.
+pub const CACHED_LEVELS_BYTES: usize = 64 << 20;
+
+/// Whether the levels over `n_slabs` fine slabs keep factors of type `F`
+/// ([`CACHED_LEVELS_BYTES`]); the same on every rank of a distributed solve.
+fn levels_keep_precision<F: SlabFactor>(
+    symbolic: &SymbolicCholesky<usize>,
+    n_slabs: usize,
+) -> bool {
+    let factors: usize = multigrid::level_slab_counts(n_slabs).iter().sum();
+    factors * symbolic.len_val() * F::ENTRY_BYTES <= CACHED_LEVELS_BYTES
 }
 
 /// How many slab factors to keep: all of them if they fit `params.factor_memory_limit`,

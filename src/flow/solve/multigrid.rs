@@ -59,6 +59,16 @@ impl TimeHierarchy {
     }
 }
 
+/// Slabs per level over `n` fine slabs coupled in time, finest first: halved, rounded up, until
+/// one is left, as [`TimeHierarchy::new`] and a distributed solve's levels build them.
+pub fn level_slab_counts(n: usize) -> Vec<usize> {
+    let mut counts = vec![n];
+    while counts[counts.len() - 1] > 1 {
+        counts.push(counts[counts.len() - 1].div_ceil(2));
+    }
+    counts
+}
+
 /// The V-cycle preconditioner over a [`TimeHierarchy`] with one [`SlabSweeps`] per level.
 pub struct TimeMultigrid<'a, F: SlabFactor> {
     fine: &'a SpaceTimeSystem,
@@ -257,6 +267,23 @@ mod tests {
             p.column_mut(j).copy_from_slice(&column);
         }
         p
+    }
+
+    /// The counts a distributed solve and the factor precision rule plan with are the slabs of
+    /// the hierarchy built: 1, 2, 3, 5 and 6 fine slabs.
+    #[test]
+    fn level_slab_counts_are_those_of_the_hierarchy() {
+        for frames in [2, 3, 4, 6, 7] {
+            let sequence = crate::synth::paper_torus(8, 6, frames).unwrap();
+            let problem = FlowProblem::new(&sequence, &FlowParams::paper(0.3, 0.0, 1.0)).unwrap();
+            let fine = problem.system();
+            let hierarchy = TimeHierarchy::new(fine);
+            let built: Vec<usize> = std::iter::once(fine.n_slabs())
+                .chain(hierarchy.coarse_systems().iter().map(|c| c.n_slabs()))
+                .collect();
+            assert_eq!(level_slab_counts(fine.n_slabs()), built, "{frames} frames");
+        }
+        assert_eq!(level_slab_counts(20), [20, 10, 5, 3, 2, 1]);
     }
 
     /// Every level of the hierarchy is `Pᵀ A P` of the one above, formed densely, less the
