@@ -324,3 +324,49 @@ fn multigrid_converges_where_the_image_is_dark() {
         }
     }
 }
+
+/// Where the time coupling dominates, slab Gauss–Seidel's first iteration leaves more than
+/// the starting residual (the paper's torus, grey values in [0, 1], `α = 0.01`: about 4×):
+/// `auto` leaves it there instead of probing 3 more, and multigrid from that iterate needs at
+/// most one iteration more than multigrid alone.
+#[test]
+fn auto_leaves_gauss_seidel_after_an_iteration_without_progress() {
+    let (n1, n2, frames) = (32, 24, 6);
+    let raw = meshflow::synth::paper_torus(n1, n2, frames).unwrap();
+    let max = (0..frames)
+        .flat_map(|k| raw.intensities(k).iter().copied())
+        .fold(0.0, f64::max);
+    let sequence = MeshSequence::new(
+        raw.mesh().clone(),
+        (0..frames)
+            .map(|k| raw.positions(k).unwrap().to_vec())
+            .collect(),
+        (0..frames)
+            .map(|k| raw.intensities(k).iter().map(|v| v / max).collect())
+            .collect(),
+        None,
+    )
+    .unwrap();
+    let params = |solver| FlowParams {
+        solver,
+        direct_limit: 0,
+        ..FlowParams::paper(0.01, 0.0, 1.0)
+    };
+    let auto = solve(&sequence, params(SolverChoice::Auto));
+    let multigrid = solve(&sequence, params(SolverChoice::PcgTimeMultigrid));
+    let direct = solve(&sequence, params(SolverChoice::Direct));
+    assert_eq!(auto.method, SolverMethod::PcgTimeMultigrid);
+    assert!(
+        auto.solver_reason
+            .contains("times the starting residual after 1 iteration, no progress"),
+        "{}",
+        auto.solver_reason
+    );
+    println!(
+        "auto {} iterations (1 of Gauss-Seidel), multigrid alone {}",
+        auto.iterations, multigrid.iterations
+    );
+    assert!(auto.iterations <= multigrid.iterations + 1);
+    let difference = flow_difference(&direct, &auto);
+    assert!(difference < 1e-6, "relative difference {difference:e}");
+}

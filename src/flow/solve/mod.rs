@@ -523,15 +523,28 @@ fn gauss_seidel_verdict(outcome: &pcg::CgOutcome) -> String {
              further iterations after the first {PROBE_ITERATIONS})",
             SWITCH_ITERATIONS - PROBE_ITERATIONS as f64
         ),
-        Some(projection) => format!(
-            "slab Gauss-Seidel reached {:.1e} in {} iterations, reducing the residual by only \
-             {:.2} per iteration (about {:.0} more projected), too slow: the time coupling \
-             dominates",
+        Some(projection) if projection.rate >= 1.0 => format!(
+            "slab Gauss-Seidel left {:.1e} times the starting residual after {}, no progress: \
+             the time coupling dominates",
             outcome.relative_residual,
-            outcome.iterations,
+            iterations(outcome.iterations)
+        ),
+        Some(projection) => format!(
+            "slab Gauss-Seidel reached {:.1e} in {}, reducing the residual by only {:.2} per \
+             iteration (about {:.0} more projected), too slow: the time coupling dominates",
+            outcome.relative_residual,
+            iterations(outcome.iterations),
             projection.rate,
             projection.remaining.min(1e6)
         ),
+    }
+}
+
+/// "1 iteration", "4 iterations".
+fn iterations(n: usize) -> String {
+    match n {
+        1 => "1 iteration".into(),
+        n => format!("{n} iterations"),
     }
 }
 
