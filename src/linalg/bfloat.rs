@@ -73,15 +73,8 @@ impl Bf16Factor {
         // No clearing: `y` is written whole below and each supernode sets its scratch first.
         work.resize(2 * n, 0.0);
         let (y, scratch) = work.split_at_mut(n);
-        match self.symbolic.perm() {
-            Some(perm) => {
-                let forward = perm.arrays().0;
-                y.iter_mut()
-                    .zip(forward)
-                    .for_each(|(y, &old)| *y = x[old] as f32);
-            }
-            None => y.iter_mut().zip(x.iter()).for_each(|(y, &x)| *y = x as f32),
-        }
+        let perm = self.symbolic.perm().map(|p| p.arrays());
+        gather(y, x, perm.map(|(forward, _)| forward), |v| v as f32);
         match self.symbolic.raw() {
             SymbolicCholeskyRaw::Supernodal(s) => {
                 let structure = Supernodes::of(s);
@@ -94,15 +87,16 @@ impl Bf16Factor {
                 simplicial_upper_solve(columns, rows, &self.values, y);
             }
         }
-        match self.symbolic.perm() {
-            Some(perm) => {
-                let inverse = perm.arrays().1;
-                x.iter_mut()
-                    .zip(inverse)
-                    .for_each(|(x, &new)| *x = y[new] as f64);
-            }
-            None => x.iter_mut().zip(y.iter()).for_each(|(x, &y)| *x = y as f64),
-        }
+        gather(x, y, perm.map(|(_, inverse)| inverse), f64::from);
+    }
+}
+
+/// `to[i] = convert(from[index[i]])`, or `convert(from[i])` without an index: the permutation
+/// into the factor's ordering and back out of it.
+fn gather<S: Copy, T>(to: &mut [T], from: &[S], index: Option<&[usize]>, convert: impl Fn(S) -> T) {
+    match index {
+        Some(index) => (to.iter_mut().zip(index)).for_each(|(t, &i)| *t = convert(from[i])),
+        None => (to.iter_mut().zip(from)).for_each(|(t, &f)| *t = convert(f)),
     }
 }
 
