@@ -106,6 +106,29 @@ impl<F: SlabFactor> SlabSweeps<F> {
         self.half_sweep(system, z, Parity::Odd, true, around);
     }
 
+    /// `r − A z` for `z = (D + L)⁻¹ r`, the forward sweep's result: `(D + L) z = r` leaves
+    /// `−U z`, which is `−(X_{s−1} z_{s−1} + X_sᵀ z_{s+1})` on the even slabs and zero on the
+    /// odd ones. The links alone, no block products: half a product with `A` (the same
+    /// identity [`Self::symmetric`] rests on; exact up to the factors' rounding).
+    pub fn forward_residual(
+        &self,
+        system: &SpaceTimeSystem,
+        z: &[f64],
+        around: &dyn Surroundings,
+    ) -> Vec<f64> {
+        let mut residual = vec![0.0; z.len()];
+        if !around.coupled(system) {
+            return residual;
+        }
+        let coupled = self.neighbour_terms(system, z, Parity::Even, around);
+        let n = system.slab_dimension();
+        let slabs = slabs_of(&mut residual, n, Parity::Even, around.first_slab());
+        (slabs.into_par_iter())
+            .zip(coupled)
+            .for_each(|((_, rs), c)| subtract(rs, &c));
+        residual
+    }
+
     /// `z ← (D + U)⁻¹ z`: odd slabs, then even slabs with their odd neighbours' values.
     pub fn backward(&self, system: &SpaceTimeSystem, z: &mut [f64], around: &dyn Surroundings) {
         self.half_sweep(system, z, Parity::Odd, false, around);
@@ -255,5 +278,58 @@ impl<F: SlabFactor> Preconditioner for SlabGaussSeidel<'_, F> {
     fn apply(&self, r: &[f64], z: &mut [f64]) {
         z.copy_from_slice(r);
         self.sweeps.symmetric(self.system, z, &Whole);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::flow::{FlowParams, FlowProblem, TimeCoupling};
+    use crate::linalg::cholesky::{analyze, CholeskyFactor};
+
+    /// After the forward sweep with exact (double-precision) slab factors, the links alone give
+    /// `r − A z`: zero on the odd slabs, equal to the full product on the even ones, for even
+    /// and odd slab counts and lumped and consistent coupling.
+    #[test]
+    fn forward_residual_is_the_full_residual_after_the_forward_sweep() {
+        for (frames, coupling) in [(5, TimeCoupling::Lumped), (6, TimeCoupling::Consistent)] {
+            let sequence = crate::synth::paper_torus(8, 6, frames).unwrap();
+            let params = FlowParams {
+                time_coupling: coupling,
+                ..FlowParams::paper(0.3, 0.0, 1.0)
+            };
+            let problem = FlowProblem::new(&sequence, &params).unwrap();
+            let system = problem.system();
+            let symbolic = analyze(system.block(0).symbolic(), 2);
+            let factors = (0..system.n_slabs())
+                .map(|s| CholeskyFactor::<f64>::factor(&symbolic, system.block(s)).unwrap())
+                .collect();
+            let sweeps = SlabSweeps::new(factors, 1, system.n_slabs());
+            let r: Vec<f64> = (0..system.dimension())
+                .map(|i| (0.7 * i as f64).cos())
+                .collect();
+            let mut z = r.clone();
+            sweeps.forward(system, &mut z, &Whole);
+            let mut expected = vec![0.0; r.len()];
+            system.apply(&z, &mut expected);
+            expected.iter_mut().zip(&r).for_each(|(e, r)| *e = r - *e);
+            let residual = sweeps.forward_residual(system, &z, &Whole);
+            let n = system.slab_dimension();
+            let scale = expected.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+            for (s, (got, want)) in residual.chunks(n).zip(expected.chunks(n)).enumerate() {
+                let error = got
+                    .iter()
+                    .zip(want)
+                    .fold(0.0f64, |m, (g, w)| m.max((g - w).abs()));
+                assert!(
+                    error < 1e-12 * scale,
+                    "{frames} frames, slab {s}: {error:e}"
+                );
+                if s % 2 == 1 {
+                    assert!(got.iter().all(|&g| g == 0.0), "odd slab {s} not zero");
+                }
+            }
+            assert!(scale > 1e-3, "a residual to compare: {scale:e}");
+        }
     }
 }
