@@ -9,7 +9,6 @@ use super::{DataScales, EnergyTerms, FlowError, FlowParams, MeshSequence, Slab};
 use super::{SolveObserver, SolverMethod, SpaceTimeSystem, Weights};
 use crate::connection::{push_forward, vertex_frames_in_r3};
 use nalgebra::{Vector2, Vector3};
-use rayon::prelude::*;
 use std::borrow::Cow;
 use std::time::Instant;
 
@@ -137,7 +136,9 @@ impl FlowResult {
 
 /// Slab geometry and connection kept after assembly up to this many bytes (an estimate: about
 /// 200 bytes per face and slab); beyond it they are rebuilt for the energy terms and the
-/// push-forward (each slab three more times), which bounds the memory per frame.
+/// push-forward, in one pass that builds each slab about once more (it was three times: on
+/// the 200-frame torus that pass took 8.8 s, 19× the 20-frame one), which bounds the memory
+/// per frame.
 pub const KEEP_SLABS_BYTES: usize = 1 << 30;
 
 /// A sequence with parameters, assembled: the energy and its linear system, ready to solve.
@@ -316,9 +317,8 @@ impl<'a> FlowProblem<'a> {
         let start = Instant::now();
         let solution = solve::solve(&self.system, &self.params, observer)?;
         let solve_seconds = start.elapsed().as_secs_f64();
-        let energy_terms = self.energy_terms(&solution.u);
         let intrinsic = intrinsic_fields(&solution.u, self.system.slab_dimension());
-        let vectors = self.push_forward(&intrinsic);
+        let (energy_terms, vectors) = self.energy_and_vectors(&solution.u, &intrinsic);
         let timings = Timings {
             assembly: self.assembly_seconds,
             factorization: solution.factor_seconds,
@@ -335,22 +335,28 @@ impl<'a> FlowProblem<'a> {
         ))
     }
 
-    /// The flow of slab `s` in R^3 on frame `s`, for embedded sequences.
-    fn push_forward(&self, intrinsic: &[Vec<Vector2<f64>>]) -> Option<Vec<Vec<Vector3<f64>>>> {
+    /// The energy terms at `u` and, for embedded sequences, the flow `intrinsic` of slab `s` in
+    /// R^3 on frame `s`: one pass over the slabs, so that a long sequence, which rebuilds them,
+    /// builds each about once ([`energy::energy_terms_visiting`]).
+    fn energy_and_vectors(
+        &self,
+        u: &[f64],
+        intrinsic: &[Vec<Vector2<f64>>],
+    ) -> (EnergyTerms, Option<Vec<Vec<Vector3<f64>>>>) {
         let mesh = self.sequence.mesh();
-        self.sequence.positions(0)?;
-        intrinsic
-            .par_iter()
-            .enumerate()
-            .map(|(s, u)| {
-                Some(slab_vectors(
-                    mesh,
-                    &self.slab(s),
-                    self.sequence.positions(s)?,
-                    u,
-                ))
-            })
-            .collect::<Option<Vec<_>>>()
+        let embedded = self.sequence.positions(0).is_some();
+        let (terms, vectors) = energy::energy_terms_visiting(
+            mesh,
+            &|s| self.slab(s),
+            (&self.params, &self.weights),
+            u,
+            intrinsic.len(),
+            &|s, slab| {
+                let positions = self.sequence.positions(s).filter(|_| embedded)?;
+                Some(slab_vectors(mesh, slab, positions, &intrinsic[s]))
+            },
+        );
+        (terms, vectors.into_iter().collect())
     }
 }
 
