@@ -318,7 +318,10 @@ impl<'a> FlowProblem<'a> {
         let solution = solve::solve(&self.system, &self.params, observer)?;
         let solve_seconds = start.elapsed().as_secs_f64();
         let intrinsic = intrinsic_fields(&solution.u, self.system.slab_dimension());
-        let (energy_terms, vectors) = self.energy_and_vectors(&solution.u, &intrinsic);
+        let weighting = (&self.params, &self.weights);
+        let slab = |s| self.slab(s);
+        let (energy_terms, vectors) =
+            energy_and_vectors(self.sequence, &slab, 0, weighting, &solution.u, &intrinsic);
         let timings = Timings {
             assembly: self.assembly_seconds,
             factorization: solution.factor_seconds,
@@ -334,30 +337,6 @@ impl<'a> FlowProblem<'a> {
             timings,
         ))
     }
-
-    /// The energy terms at `u` and, for embedded sequences, the flow `intrinsic` of slab `s` in
-    /// R^3 on frame `s`: one pass over the slabs, so that a long sequence, which rebuilds them,
-    /// builds each about once ([`energy::energy_terms_visiting`]).
-    fn energy_and_vectors(
-        &self,
-        u: &[f64],
-        intrinsic: &[Vec<Vector2<f64>>],
-    ) -> (EnergyTerms, Option<Vec<Vec<Vector3<f64>>>>) {
-        let mesh = self.sequence.mesh();
-        let embedded = self.sequence.positions(0).is_some();
-        let (terms, vectors) = energy::energy_terms_visiting(
-            mesh,
-            &|s| self.slab(s),
-            (&self.params, &self.weights),
-            u,
-            intrinsic.len(),
-            &|s, slab| {
-                let positions = self.sequence.positions(s).filter(|_| embedded)?;
-                Some(slab_vectors(mesh, slab, positions, &intrinsic[s]))
-            },
-        );
-        (terms, vectors.into_iter().collect())
-    }
 }
 
 /// The per-slab fields of slab-major unknowns `u` (`slab_dimension = 2V` values per slab, two
@@ -366,6 +345,29 @@ pub(super) fn intrinsic_fields(u: &[f64], slab_dimension: usize) -> Vec<Vec<Vect
     (u.chunks(slab_dimension))
         .map(|us| us.chunks(2).map(|c| Vector2::new(c[0], c[1])).collect())
         .collect()
+}
+
+/// The energy terms at `u` of the slabs `0..intrinsic.len()` (and their links to the next slab
+/// where `u` has it) and, for embedded sequences, their flows `intrinsic` in R^3, slab `s` on
+/// `frames`' frame `first + s`, with `slab(s)` kept or rebuilt: one pass over the slabs, so
+/// that a long sequence, which rebuilds them, builds each about once
+/// ([`energy::energy_terms_visiting`]).
+pub(super) fn energy_and_vectors<'a>(
+    frames: &MeshSequence,
+    slab: &(dyn Fn(usize) -> Cow<'a, Slab> + Sync),
+    first: usize,
+    weighting: (&FlowParams, &Weights),
+    u: &[f64],
+    intrinsic: &[Vec<Vector2<f64>>],
+) -> (EnergyTerms, Option<Vec<Vec<Vector3<f64>>>>) {
+    let mesh = frames.mesh();
+    let embedded = frames.positions(first).is_some();
+    let (terms, vectors) =
+        energy::energy_terms_visiting(mesh, slab, weighting, u, intrinsic.len(), &|s, slab| {
+            let positions = frames.positions(first + s).filter(|_| embedded)?;
+            Some(slab_vectors(mesh, slab, positions, &intrinsic[s]))
+        });
+    (terms, vectors.into_iter().collect())
 }
 
 /// The flow `u` of `slab` in R^3 on the slab's first frame, at `positions`.

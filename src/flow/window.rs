@@ -20,9 +20,8 @@
 //! each checks its own slabs and links and the parts that couple all slabs are summed.
 
 use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, TimeRanks};
-use super::energy::energy_terms;
 use super::outer::{OuterStart, SlabSolver};
-use super::problem::{intrinsic_fields, slab_vectors, FlowResult, Timings, KEEP_SLABS_BYTES};
+use super::problem::{energy_and_vectors, intrinsic_fields, FlowResult, Timings, KEEP_SLABS_BYTES};
 use super::robust::reweighted;
 use super::slab::{build_slabs, complete_slabs, time_links, Slab};
 use super::system::SystemWindow;
@@ -32,7 +31,6 @@ use super::Weights;
 use super::{DataScales, FlowError, FlowParams, MeshSequence, ScaleSums, SpaceTimeSystem};
 use super::{EnergyTerms, SolveObserver};
 use nalgebra::{Vector2, Vector3};
-use rayon::prelude::*;
 use std::borrow::Cow;
 use std::ops::Range;
 use std::time::Instant;
@@ -177,35 +175,18 @@ impl WindowSlabs {
 
 impl WindowSlabs {
     /// The energy terms of the window's slabs and of their links to the next slab, for the
-    /// window's unknowns `u` followed by the next slab's where there is one.
-    fn energy_terms(
+    /// window's unknowns `u` followed by the next slab's where there is one, and the window's
+    /// flow `intrinsic` in R^3 (`None` for an intrinsic sequence), in one pass.
+    fn energy_and_vectors(
         &self,
         frames: &MeshSequence,
-        params: &FlowParams,
-        weights: &Weights,
+        weighting: (&FlowParams, &Weights),
         u: &[f64],
-    ) -> EnergyTerms {
-        let first = self.window.slabs.start - self.offset;
-        let slab = |s: usize| self.slab(frames, params, first + s);
-        let counted = self.window.slabs.len();
-        energy_terms(frames.mesh(), &slab, (params, weights), u, counted)
-    }
-
-    /// The window's flow in R^3 (`None` for an intrinsic sequence).
-    fn vectors(
-        &self,
-        frames: &MeshSequence,
-        params: &FlowParams,
         intrinsic: &[Vec<Vector2<f64>>],
-    ) -> Option<Vec<Vec<Vector3<f64>>>> {
+    ) -> (EnergyTerms, Option<Vec<Vec<Vector3<f64>>>>) {
         let first = self.window.slabs.start - self.offset;
-        (intrinsic.par_iter().enumerate())
-            .map(|(s, u)| {
-                let positions = frames.positions(first + s)?;
-                let slab = self.slab(frames, params, first + s);
-                Some(slab_vectors(frames.mesh(), &slab, positions, u))
-            })
-            .collect()
+        let slab = |s: usize| self.slab(frames, weighting.0, first + s);
+        energy_and_vectors(frames, &slab, first, weighting, u, intrinsic)
     }
 
     /// Drops the slabs when they take more than [`KEEP_SLABS_BYTES`] (as [`super::FlowProblem`]
@@ -362,7 +343,8 @@ impl RankWindow<'_> {
         let mut u = solution.u.clone();
         u.extend(next_rank_first_slab(ranks, &u[..n]).unwrap_or_default());
         let weights = params.weights(&self.scales)?;
-        let terms = slabs.energy_terms(frames, params, &weights, &u);
+        let intrinsic = intrinsic_fields(&solution.u, n);
+        let (terms, vectors) = slabs.energy_and_vectors(frames, (params, &weights), &u, &intrinsic);
         let mut energies = [
             terms.data,
             terms.speed,
@@ -378,8 +360,6 @@ impl RankWindow<'_> {
             spatial,
             temporal,
         };
-        let intrinsic = intrinsic_fields(&solution.u, n);
-        let vectors = slabs.vectors(frames, params, &intrinsic);
         let timings = Timings {
             assembly,
             factorization: solution.factor_seconds,
