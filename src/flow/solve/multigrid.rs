@@ -7,7 +7,7 @@
 //! coupling energy of its links, so that the coarse time coupling is that of the doubled time
 //! step (`c / 2`) rather than the fine one (see `LinkMatrix::halve`). One application is
 //! a V-cycle: forward sweep `(D + L)⁻¹`, restrict the residual (which the sweep leaves on the
-//! links alone when the factors are single precision: [`SlabSweeps::forward_residual`]), cycle
+//! links alone over single- or double-precision factors: [`SlabSweeps::forward_residual`]), cycle
 //! on the coarse level, prolong and add, backward sweep `(D + Lᵀ)⁻¹`. Pre- and post-smoother
 //! are transposes of each other, so the cycle is a symmetric positive definite preconditioner
 //! for CG (up to the factors' rounding, which the links' residual leaves out).
