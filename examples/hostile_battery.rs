@@ -567,7 +567,7 @@ fn glb_declaring(bytes: u64) -> Vec<u8> {
     })
     .to_string();
     let mut json = json.into_bytes();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let mut glb = b"glTF".to_vec();

@@ -316,7 +316,7 @@ impl HandMade {
     }
 
     fn view(&mut self, bytes: &[u8]) -> usize {
-        while self.bytes.len() % 4 != 0 {
+        while !self.bytes.len().is_multiple_of(4) {
             self.bytes.push(0);
         }
         self.views.push(json!({

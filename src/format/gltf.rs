@@ -533,7 +533,7 @@ impl PrimitiveReader<'_, '_> {
     /// The triangles, from the indices or, without them, consecutive vertex triples.
     fn faces(&self, vertex_count: usize) -> Result<Vec<[u32; 3]>, IoError> {
         let Some(accessor) = self.primitive.indices() else {
-            if vertex_count % 3 != 0 {
+            if !vertex_count.is_multiple_of(3) {
                 return Err(self.error(format!(
                     "{vertex_count} vertices without indices do not form triangles"
                 )));

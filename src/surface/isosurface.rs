@@ -323,7 +323,7 @@ fn to_layer_middle(
     let layers: Vec<Option<(f64, f64)>> = (positions.par_iter().zip(&normals))
         .map(|(p, n)| {
             let at = |t: f64| bright(p - t * n);
-            let enter = first_crossing(0.0, reach, step, |t| at(t))?;
+            let enter = first_crossing(0.0, reach, step, at)?;
             let leave = first_crossing(enter, reach, step, |t| !at(t))?;
             Some((0.5 * (enter + leave), leave - enter))
         })
@@ -701,14 +701,14 @@ fn solid_box(solid: &[bool], [_, ny, nx]: [usize; 3]) -> Option<([usize; 3], [us
     (low[0] != usize::MAX).then_some((low, high))
 }
 
+/// A piece of a surface: its positions, its triangles over them, and its mesh.
+type Piece = (Vec<Vector3<f64>>, Vec<[u32; 3]>, Mesh);
+
 /// The largest connected piece of the triangles, made manifold and oriented outward (positive
 /// enclosed volume), with only the vertices it uses, and its mesh; `None` where nothing valid
 /// is left. The pieces are found by joining each face's vertices, so the mesh is built once,
 /// for the piece kept.
-fn largest_manifold_piece(
-    positions: Vec<Vector3<f64>>,
-    faces: &[[u32; 3]],
-) -> Option<(Vec<Vector3<f64>>, Vec<[u32; 3]>, Mesh)> {
+fn largest_manifold_piece(positions: Vec<Vector3<f64>>, faces: &[[u32; 3]]) -> Option<Piece> {
     let repaired = repair(positions.len(), faces);
     let positions: Vec<Vector3<f64>> = (repaired.vertex_origin.iter())
         .map(|&v| positions[v as usize])

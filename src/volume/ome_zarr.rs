@@ -237,13 +237,12 @@ fn others(names: &[&str]) -> usize {
     names.iter().filter(|&&n| n == "t" || n == "c").count()
 }
 
+/// Voxel size and translation along x, y, z, and the spatial unit.
+type Placement = (Vector3<f64>, Vector3<f64>, Option<String>);
+
 /// Voxel size and translation of `dataset` along x, y, z (the multiscale's transformations
 /// applied after the dataset's), and the spatial unit.
-fn placement(
-    multiscale: &Value,
-    dataset: &Value,
-    axes: &Axes,
-) -> Result<(Vector3<f64>, Vector3<f64>, Option<String>), String> {
+fn placement(multiscale: &Value, dataset: &Value, axes: &Axes) -> Result<Placement, String> {
     let n = axes.count();
     let (mut scale, mut translation) = (vec![1.0; n], vec![0.0; n]);
     for transforms in [dataset, multiscale].map(|v| v.get("coordinateTransformations")) {

@@ -562,7 +562,8 @@ fn read_file(file: &Path, declared: &Declared) -> Result<(Vec<Vec<f32>>, Metadat
         let mut frames = Vec::with_capacity(declared.frames);
         for k in 0..declared.frames {
             let (values, said) = tiff_frame(file, declared, k, &mut reader)?;
-            (frames.push(values), metadata = said);
+            frames.push(values);
+            metadata = said;
         }
         return Ok((frames, metadata));
     }

@@ -213,7 +213,7 @@ mod tests {
     /// The filter applied to one line at a time, straight from its definition.
     fn by_lines(values: &[f32], length: usize, stride: usize, filter: &AxisFilter) -> Vec<f32> {
         let mut out = values.to_vec();
-        let starts = (0..values.len()).filter(|&at| (at / stride) % length == 0);
+        let starts = (0..values.len()).filter(|&at| (at / stride).is_multiple_of(length));
         for start in starts {
             let line: Vec<f32> = (0..length).map(|n| values[start + n * stride]).collect();
             let mut filtered = vec![0.0; length];

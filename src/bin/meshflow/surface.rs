@@ -49,11 +49,11 @@ impl FitInput {
                 voxels: None,
             });
         };
-        let mut stream = VolumeStream::open(request.points, placement)?;
+        let stream = VolumeStream::open(request.points, placement)?;
         let bar =
             crate::progress::count_progress(stream.n_frames() as u64, "finding the bright voxels");
         let (mut frames, mut weights, mut reports, mut length) = (vec![], vec![], vec![], 0.0);
-        while let Some(read) = stream.next() {
+        for read in stream {
             let (volume, _) = read?;
             length = voxel_spacing(&volume);
             let frame = frames.len();
