@@ -361,10 +361,9 @@ pub(super) fn energy_and_vectors<'a>(
     intrinsic: &[Vec<Vector2<f64>>],
 ) -> (EnergyTerms, Option<Vec<Vec<Vector3<f64>>>>) {
     let mesh = frames.mesh();
-    let embedded = frames.positions(first).is_some();
     let (terms, vectors) =
         energy::energy_terms_visiting(mesh, slab, weighting, u, intrinsic.len(), &|s, slab| {
-            let positions = frames.positions(first + s).filter(|_| embedded)?;
+            let positions = frames.positions(first + s)?;
             Some(slab_vectors(mesh, slab, positions, &intrinsic[s]))
         });
     (terms, vectors.into_iter().collect())

@@ -70,8 +70,7 @@
 //! iterations after one Gauss–Seidel iteration as after four (13 → 10 at `α = 0.01`, `γ = 1`;
 //! 15 → 12 at `γ = 0.01`; the warped strain solve of the zebrafish recording 98 → 81 in 8
 //! solves with bfloat16 levels; its default solve, whose first iteration halves the residual,
-//! keeps 9). It keeps
-//! watching after the probe because the first iterations drop faster than
+//! keeps 9). It keeps watching after the probe because the first iterations drop faster than
 //! the rest: on a 48,450-vertex torus × 40 frames with default weights (`meshflow solve` on
 //! NPY arrays), slab Gauss–Seidel fell by 0.53 per iteration over iterations 1–4 (29.7
 //! projected in all, within the limit) and by 0.87 over 5–8; `auto` ran it to the end, 72
