@@ -277,6 +277,27 @@ fn gltf_unknown_animation_path_is_an_error() {
     );
 }
 
+/// Found by tests/fuzz_readers.rs: `gltf` panicked reading an animation channel whose target
+/// node does not exist.
+#[test]
+fn gltf_animation_target_node_out_of_range_is_an_error() {
+    let dir = low_limit();
+    let json = r#"{"asset":{"version":"2.0"},"nodes":[{"mesh":0}],
+"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],
+"buffers":[{"byteLength":44,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}],
+"bufferViews":[{"buffer":0,"byteLength":36}],
+"accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}],
+"animations":[{"samplers":[{"input":0,"output":0}],"channels":[{"sampler":0,"target":{"node":7,"path":"translation"}}]}]}"#;
+    let path = file(&dir, "bad.gltf", json.as_bytes());
+    let options = meshflow::format::gltf::AnimationOptions::default();
+    let result = meshflow::io::gltf_read::read_gltf_animation(&path, &options);
+    let text = message(result, &path);
+    assert!(
+        text.contains("animation 0, channel 0: target node 7 does not exist (1 nodes)"),
+        "{text}"
+    );
+}
+
 /// A glTF of one triangle list: `vertices` float positions (a fan of points on a line, as
 /// data need not be a good mesh to be read) in `data.bin`, and `extra` JSON members.
 fn gltf_with(dir: &tempfile::TempDir, vertices: usize, mesh: &str, extra: &str) -> PathBuf {

@@ -54,7 +54,7 @@ impl<'p> GltfFile<'p> {
             ))
         })?;
         check_position_indices(&raw).map_err(error)?;
-        check_animation_paths(&raw).map_err(error)?;
+        check_animation_targets(&raw).map_err(error)?;
         let document = gltf::Gltf::from_slice(json)
             .map_err(|e| error(format!("not valid glTF 2.0: {e}")))?
             .document;
@@ -460,14 +460,23 @@ fn check_position_indices(raw: &Value) -> Result<(), String> {
     Ok(())
 }
 
-/// `gltf` 1.4 accepts an unknown animation target path while validating and panics when it is
-/// read (`Checked::unwrap`): reject it first. Found by tests/fuzz_readers.rs.
-fn check_animation_paths(raw: &Value) -> Result<(), String> {
+/// `gltf` 1.4 validates an animation's samplers and its channels' sampler indices but not the
+/// channels' targets, and panics reading an unknown target path (`Checked::unwrap`) or a
+/// target node that does not exist (`Target::node`): reject both first. Both found by
+/// tests/fuzz_readers.rs.
+fn check_animation_targets(raw: &Value) -> Result<(), String> {
     const PATHS: [&str; 4] = ["translation", "rotation", "scale", "weights"];
+    let nodes = raw["nodes"].as_array().map_or(0, Vec::len);
     let animations = raw["animations"].as_array().into_iter().flatten();
     for (a, animation) in animations.enumerate() {
         let channels = animation["channels"].as_array().into_iter().flatten();
         for (c, channel) in channels.enumerate() {
+            let node = channel["target"]["node"].as_u64();
+            if let Some(node) = node.filter(|&n| n >= nodes as u64) {
+                return Err(format!(
+                    "animation {a}, channel {c}: target node {node} does not exist ({nodes} nodes)"
+                ));
+            }
             let path = &channel["target"]["path"];
             if !path.as_str().is_some_and(|p| PATHS.contains(&p)) {
                 let shown: String = path.to_string().chars().take(40).collect();
