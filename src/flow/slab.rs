@@ -271,7 +271,7 @@ pub struct LinkElements {
 /// The links between neighbouring slabs (none for frame-by-frame flow, `α = ∞`).
 pub fn time_links(slabs: &[Slab], weights: &Weights) -> Vec<TimeLink> {
     match weights.is_coupled() {
-        true => (slabs.windows(2))
+        true => (slabs.par_windows(2))
             .map(|w| TimeLink::new(&w[0], &w[1], weights))
             .collect(),
         false => Vec::new(),
