@@ -48,8 +48,11 @@ impl ConsistentLink {
 
 #[derive(Clone, Debug)]
 pub struct SpaceTimeSystem {
+    /// The vertex pattern of the consistent links.
     pattern: VertexPattern,
-    /// Values of the diagonal blocks on `pattern`.
+    /// Its blocks `i ≥ j` ([`VertexPattern::lower`]): the diagonal blocks are symmetric.
+    lower: VertexPattern,
+    /// Values of the diagonal blocks on `lower`.
     blocks: Vec<Vec<f64>>,
     links: Vec<LinkMatrix>,
     rhs: Vec<f64>,
@@ -116,6 +119,7 @@ impl SpaceTimeSystem {
     ) -> Self {
         let coupling = params.time_coupling;
         let pattern = VertexPattern::new(mesh, 2);
+        let lower = VertexPattern::lower(mesh, 2);
         let n_slabs = slabs.len();
         let diagonal: Vec<(Vec<f64>, Vec<f64>, f64)> = (0..n_slabs)
             .into_par_iter()
@@ -124,7 +128,7 @@ impl SpaceTimeSystem {
                 let link_before = (coupled && s > 0).then(|| (&links[s - 1], &slabs[s - 1]));
                 let link_after = (coupled && s + 1 < n_slabs).then(|| (&links[s], &slabs[s + 1]));
                 let links = (link_before, link_after);
-                assemble_slab(mesh, &pattern, &slabs[s], links, params, weights)
+                assemble_slab(mesh, &lower, &slabs[s], links, params, weights)
             })
             .collect();
         let links = (0..links.len())
@@ -144,6 +148,7 @@ impl SpaceTimeSystem {
         let (blocks, rhs): (Vec<_>, Vec<_>) = diagonal.into_iter().map(|(a, b, _)| (a, b)).unzip();
         let mut system = Self {
             pattern,
+            lower,
             blocks,
             links,
             rhs: rhs.concat(),
@@ -176,15 +181,22 @@ impl SpaceTimeSystem {
         &self.pattern
     }
 
-    /// Diagonal block `s`.
-    pub fn block(&self, s: usize) -> SparseMatrixRef<'_> {
-        self.pattern.view(&self.blocks[s])
+    /// The pattern of the diagonal blocks: [`Self::pattern`]'s blocks `i ≥ j`.
+    pub fn block_pattern(&self) -> &VertexPattern {
+        &self.lower
     }
 
-    /// The values of the mean of the diagonal blocks `slabs` (on [`Self::pattern`]).
+    /// Diagonal block `s`, by its vertex blocks `i ≥ j` ([`Self::block_pattern`]): its lower
+    /// triangle, which is what a Cholesky factorization reads, and one entry above the diagonal
+    /// per vertex.
+    pub fn block(&self, s: usize) -> SparseMatrixRef<'_> {
+        self.lower.view(&self.blocks[s])
+    }
+
+    /// The values of the mean of the diagonal blocks `slabs` (on [`Self::block_pattern`]).
     pub fn mean_block(&self, slabs: std::ops::Range<usize>) -> Vec<f64> {
         let weight = 1.0 / slabs.len() as f64;
-        let mut mean = vec![0.0; self.pattern.nnz()];
+        let mut mean = vec![0.0; self.lower.nnz()];
         for s in slabs {
             mean.iter_mut()
                 .zip(&self.blocks[s])
@@ -234,6 +246,7 @@ impl SpaceTimeSystem {
         SystemWindow {
             system: SpaceTimeSystem {
                 pattern: self.pattern,
+                lower: self.lower,
                 blocks: self.blocks.drain(slabs.clone()).collect(),
                 links: inner_links,
                 rhs: self.rhs[a * n..b * n].to_vec(),
@@ -299,6 +312,18 @@ impl SpaceTimeSystem {
     pub fn to_sparse(&self) -> SparseMatrix {
         let n = self.slab_dimension();
         let mut triplets = Vec::new();
+        for (s, block) in self.blocks.iter().enumerate() {
+            for (i, j, slots) in vertex_blocks(&self.lower) {
+                for (k, &p) in slots.iter().enumerate() {
+                    let (r, c) = (2 * i + k / 2, 2 * j + k % 2);
+                    let at = |r, c| faer::sparse::Triplet::new(s * n + r, s * n + c, block[p]);
+                    triplets.push(at(r, c));
+                    if i != j {
+                        triplets.push(at(c, r));
+                    }
+                }
+            }
+        }
         let mut push = |m: SparseMatrixRef<'_>, row0: usize, col0: usize, transpose: bool| {
             for_each_column(m, |j, rows, values| {
                 for (&i, &v) in rows.iter().zip(values) {
@@ -307,9 +332,6 @@ impl SpaceTimeSystem {
                 }
             })
         };
-        for s in 0..self.n_slabs() {
-            push(self.block(s), s * n, s * n, false);
-        }
         for (s, link) in self.links.iter().enumerate() {
             let lumped;
             let m = match link {
@@ -331,7 +353,7 @@ impl SpaceTimeSystem {
     fn fix_dofs(&mut self, fixed: &[bool]) {
         let n = self.slab_dimension();
         for block in &mut self.blocks {
-            mask(&self.pattern, block, fixed, true);
+            mask(&self.lower, block, fixed, true);
         }
         for link in &mut self.links {
             match link {
@@ -442,10 +464,20 @@ fn add_block_diagonal_mul(blocks: &[Matrix2<f64>], transpose: bool, x: &[f64], y
     }
 }
 
-/// `y = A x` for symmetric `A` stored in full: `y_j` is column `j` dotted with `x`.
+/// `y = A x` for symmetric `A` given by its 2×2 vertex blocks `i ≥ j` (on a lower
+/// [`VertexPattern`]): an entry `a_rc` adds `a_rc x_c` to `y_r` and, outside the diagonal
+/// blocks (which are stored whole), its mirror `a_rc x_r` to `y_c`.
 fn symmetric_mul(a: SparseMatrixRef<'_>, x: &[f64], y: &mut [f64]) {
-    for_each_column(a, |j, rows, values| {
-        y[j] = rows.iter().zip(values).map(|(&i, &v)| v * x[i]).sum();
+    y.fill(0.0);
+    for_each_column(a, |c, rows, values| {
+        let mut mirrored = 0.0;
+        for (&r, &v) in rows.iter().zip(values) {
+            y[r] += v * x[c];
+            if r / 2 != c / 2 {
+                mirrored += v * x[r];
+            }
+        }
+        y[c] += mirrored;
     });
 }
 
@@ -557,6 +589,7 @@ impl SpaceTimeSystem {
             .collect();
         let mut coarse = SpaceTimeSystem {
             pattern: self.pattern.clone(),
+            lower: self.lower.clone(),
             blocks,
             links,
             rhs: Vec::new(),
@@ -572,19 +605,20 @@ impl SpaceTimeSystem {
         for (s, link) in self.links.iter_mut().enumerate() {
             link.halve();
             let shares = link.shares();
-            subtract_share(&self.pattern, &mut self.blocks[s], &shares.before);
-            subtract_share(&self.pattern, &mut self.blocks[s + 1], &shares.after);
+            let patterns = (&self.lower, &self.pattern);
+            subtract_share(patterns, &mut self.blocks[s], &shares.before);
+            subtract_share(patterns, &mut self.blocks[s + 1], &shares.after);
         }
     }
 
     /// `D_s −= share`.
     fn subtract_share(&mut self, s: usize, share: &DiagonalShare) {
-        subtract_share(&self.pattern, &mut self.blocks[s], share);
+        subtract_share((&self.lower, &self.pattern), &mut self.blocks[s], share);
     }
 
     /// `D_{2k} + Tᵀ D_{2k+1} T + Tᵀ X_{2k} + X_{2k}ᵀ T`.
     fn merged_block(&self, k: usize, t: &[Matrix2<f64>]) -> Vec<f64> {
-        let mut merged = map_vertex_blocks(&self.pattern, &self.blocks[2 * k + 1], |i, j, d| {
+        let mut merged = map_vertex_blocks(&self.lower, &self.blocks[2 * k + 1], |i, j, d| {
             t[i].transpose() * d * t[j]
         });
         merged
@@ -592,7 +626,7 @@ impl SpaceTimeSystem {
             .zip(&self.blocks[2 * k])
             .for_each(|(m, d)| *m += d);
         match &self.links[2 * k] {
-            LinkMatrix::Lumped(x) => update_vertex_diagonal(&self.pattern, &mut merged, |i, m| {
+            LinkMatrix::Lumped(x) => update_vertex_diagonal(&self.lower, &mut merged, |i, m| {
                 let coupling = t[i].transpose() * x[i];
                 m + coupling + coupling.transpose()
             }),
@@ -600,10 +634,10 @@ impl SpaceTimeSystem {
                 let tx =
                     map_vertex_blocks(&self.pattern, &link.cross, |i, _, x| t[i].transpose() * x);
                 let txt = transposed_values(&self.pattern, &tx);
-                merged
-                    .iter_mut()
-                    .zip(tx.iter().zip(&txt))
-                    .for_each(|(m, (a, b))| *m += a + b);
+                let sum: Vec<f64> = tx.iter().zip(&txt).map(|(a, b)| a + b).collect();
+                (merged.iter_mut())
+                    .zip(self.lower.lower_part_of(&self.pattern, &sum))
+                    .for_each(|(m, v)| *m += v);
             }
         }
         merged
@@ -628,13 +662,18 @@ struct LinkShares<'a> {
     after: DiagonalShare<'a>,
 }
 
-/// `D −= share` for a diagonal block's values `block`.
-fn subtract_share(pattern: &VertexPattern, block: &mut [f64], share: &DiagonalShare) {
+/// `D −= share` for a diagonal block's values `block` on `lower`, the blocks `i ≥ j` of `full`
+/// (on which a consistent link's parts lie).
+fn subtract_share(
+    (lower, full): (&VertexPattern, &VertexPattern),
+    block: &mut [f64],
+    share: &DiagonalShare,
+) {
     match share {
-        DiagonalShare::Vertex(blocks) => {
-            update_vertex_diagonal(pattern, block, |i, d| d - blocks[i])
-        }
-        DiagonalShare::Pattern(values) => block.iter_mut().zip(*values).for_each(|(d, v)| *d -= v),
+        DiagonalShare::Vertex(blocks) => update_vertex_diagonal(lower, block, |i, d| d - blocks[i]),
+        DiagonalShare::Pattern(values) => (block.iter_mut())
+            .zip(lower.lower_part_of(full, values))
+            .for_each(|(d, v)| *d -= v),
     }
 }
 
@@ -792,7 +831,7 @@ impl SystemWindow {
         let mut links = own.links.get(lent..).unwrap_or_default().to_vec();
         let mut link_after = self.link_after.clone();
         if let Some(message) = borrowed {
-            let (block, link) = message.split_at(own.pattern.nnz());
+            let (block, link) = message.split_at(own.lower.nnz());
             blocks.push(block.to_vec());
             links.extend(link_after.take());
             link_after = LinkMatrix::from_message(link);
@@ -800,6 +839,7 @@ impl SystemWindow {
         let start = self.slabs.start + lent;
         let paired = SpaceTimeSystem {
             pattern: own.pattern.clone(),
+            lower: own.lower.clone(),
             blocks,
             links,
             rhs: Vec::new(),
@@ -919,4 +959,63 @@ fn transposed_values(pattern: &VertexPattern, values: &[f64]) -> Vec<f64> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::flow::{slab, FlowProblem};
+
+    /// The diagonal blocks kept by their vertex blocks `i ≥ j` are the full assembly's lower
+    /// blocks exactly, the full assembly is symmetric (so the mirror loses nothing), and the
+    /// product from the kept blocks is the full matrix's: for both time couplings.
+    #[test]
+    fn lower_blocks_are_the_symmetric_full_assembly_halved() {
+        let sequence = crate::synth::paper_torus(12, 9, 4).unwrap();
+        let mesh = sequence.mesh();
+        let full = VertexPattern::new(mesh, 2);
+        for coupling in [TimeCoupling::Lumped, TimeCoupling::Consistent] {
+            let params = FlowParams {
+                time_coupling: coupling,
+                ..FlowParams::paper(0.5, 0.0, 1.0)
+            };
+            let problem = FlowProblem::new(&sequence, &params).unwrap();
+            let (system, slabs, weights) = (problem.system(), problem.slabs(), problem.weights());
+            assert_eq!(
+                7 * system.lower.nnz(),
+                4 * full.nnz(),
+                "a torus: 4 of 7 blocks"
+            );
+            let links = slab::time_links(&slabs, weights);
+            for s in 0..system.n_slabs() {
+                let before = s.checked_sub(1).map(|p| (&links[p], &slabs[p]));
+                let after = links.get(s).map(|link| (link, &slabs[s + 1]));
+                let (values, _, _) =
+                    assemble_slab(mesh, &full, &slabs[s], (before, after), &params, weights);
+                let largest = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                let transposed = transposed_values(&full, &values);
+                let asymmetry =
+                    (values.iter().zip(&transposed)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                assert!(
+                    asymmetry <= 1e-14 * largest,
+                    "{coupling:?} slab {s}: {asymmetry:e}"
+                );
+                assert_eq!(system.lower.lower_part_of(&full, &values), system.blocks[s]);
+                let x: Vec<f64> = (0..full.dimension())
+                    .map(|k| (0.7 * k as f64).sin())
+                    .collect();
+                let mut whole = vec![0.0; x.len()];
+                for_each_column(full.view(&values), |j, rows, column| {
+                    rows.iter()
+                        .zip(column)
+                        .for_each(|(&i, &v)| whole[i] += v * x[j]);
+                });
+                let mut halved = vec![1.0; x.len()];
+                symmetric_mul(system.block(s), &x, &mut halved);
+                let error =
+                    (whole.iter().zip(&halved)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                assert!(error <= 1e-13 * largest, "{coupling:?} slab {s}: {error:e}");
+            }
+        }
+    }
 }

@@ -423,7 +423,7 @@ impl<'a> WindowJob<'a> {
     /// and their factors only when multigrid is asked for or the probe finds the sweeps too
     /// slow (as one process does).
     fn run<F: SlabFactor>(&self) -> Result<Solution, FlowError> {
-        let symbolic = analyze(self.window.system.block(0).symbolic(), 2);
+        let symbolic = analyze(self.window.system.pattern().symbolic().as_ref(), 2);
         let mut levels = factor_levels::<F>(vec![self.fine_plan()], &symbolic, self.ranks)?;
         let b = self.window.system.rhs();
         let stop = pcg::Stop {

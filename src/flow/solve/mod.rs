@@ -556,7 +556,7 @@ fn slab_pcg(
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     let start = Instant::now();
-    let symbolic = analyze(system.block(0).symbolic(), 2);
+    let symbolic = analyze(system.pattern().symbolic().as_ref(), 2);
     // Single precision (f32 or bfloat16) suffices for a preconditioner; double precision if a
     // block of any level (the fine slabs, or the coarse levels multigrid adds later) is too
     // ill-conditioned for single, within the whole budget as before. Single-precision factors
@@ -816,7 +816,7 @@ impl<'a> FactorPlan<'a> {
                 };
                 let mean = (g > 1).then(|| system.mean_block(slabs.clone()));
                 let block = match &mean {
-                    Some(values) => system.pattern().view(values),
+                    Some(values) => system.block_pattern().view(values),
                     None => system.block(slabs.start),
                 };
                 F::factor(self.symbolic, block).map_err(factorization_error(what))
@@ -865,7 +865,7 @@ fn slabwise_direct(
         slabs: system.n_slabs(),
     })?;
     let start = Instant::now();
-    let symbolic = analyze(system.block(0).symbolic(), 2);
+    let symbolic = analyze(system.pattern().symbolic().as_ref(), 2);
     let n = system.slab_dimension();
     let mut u = system.rhs().to_vec();
     let entries: Vec<FactorEntries> = u

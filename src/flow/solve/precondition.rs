@@ -300,7 +300,7 @@ mod tests {
             };
             let problem = FlowProblem::new(&sequence, &params).unwrap();
             let system = problem.system();
-            let symbolic = analyze(system.block(0).symbolic(), 2);
+            let symbolic = analyze(system.pattern().symbolic().as_ref(), 2);
             let factors = (0..system.n_slabs())
                 .map(|s| CholeskyFactor::<f64>::factor(&symbolic, system.block(s)).unwrap())
                 .collect();
