@@ -2,10 +2,10 @@
 //!
 //! With block size `B` (1 for scalar fields, 2 for tangent fields) the matrix is `BV × BV`; the
 //! block `(i, j)` is stored when `i = j` or `i`, `j` share an edge (a lower pattern keeps only
-//! the blocks with `i ≥ j`, for symmetric operators: [`VertexPattern::lower`]). The pattern is column-major
-//! (CSC) with sorted row indices, the layout faer's sparse Cholesky takes, and every face knows
-//! where its 3×3 blocks land, so assembling new values (another slab, another parameter) is a
-//! scatter with no search and no allocation but the value array.
+//! the blocks with `i ≥ j`, for symmetric operators: [`VertexPattern::lower`]). The pattern is
+//! column-major (CSC) with sorted row indices, the layout faer's sparse Cholesky takes, and every
+//! face knows where its 3×3 blocks land, so assembling new values (another slab, another
+//! parameter) is a scatter with no search and no allocation but the value array.
 
 use super::{SparseMatrix, SparseMatrixRef};
 use crate::mesh::{Mesh, VertexNeighbours};
