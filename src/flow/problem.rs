@@ -382,8 +382,9 @@ pub(super) fn slab_vectors(
 }
 
 /// Bytes per unknown that the space-time system takes besides the slab factors (blocks,
-/// links, CG's vectors): a lower bound from the 200-frame torus of `docs/scaling.md`, 11.4 GB
-/// peak with 8.6 GB of factors over 19.3 M unknowns (≈ 145 B).
+/// links, CG's vectors): a lower bound from the 200-frame torus of `docs/scaling.md`, 7.24 GB
+/// peak with 4.08 GB of factors over 19.3 M unknowns (≈ 164 B, of which the diagonal blocks'
+/// vertex blocks `i ≥ j` take 64 B).
 const SYSTEM_BYTES_PER_UNKNOWN: u64 = 140;
 
 /// Refuses, before anything is assembled, a sequence whose system cannot fit the memory limit
