@@ -467,21 +467,34 @@ fn add_block_diagonal_mul(blocks: &[Matrix2<f64>], transpose: bool, x: &[f64], y
     }
 }
 
-/// `y = A x` for symmetric `A` given by its 2×2 vertex blocks `i ≥ j` (on a lower
-/// [`VertexPattern`]): an entry `a_rc` adds `a_rc x_c` to `y_r` and, outside the diagonal
-/// blocks (which are stored whole), its mirror `a_rc x_r` to `y_c`.
+/// `y = A x` for symmetric `A` given by its 2×2 vertex blocks `B = A_ij`, `i ≥ j` (on a lower
+/// [`VertexPattern`], where columns `2j` and `2j + 1` list the same rows in pairs): each adds
+/// `B x_j` to `y_i` and, off the diagonal, `Bᵀ x_i` to `y_j`. Block by block, so that each pair
+/// of rows reads one row index.
 fn symmetric_mul(a: SparseMatrixRef<'_>, x: &[f64], y: &mut [f64]) {
+    let (symbolic, values) = a.parts();
+    let (col_ptr, row_idx) = (symbolic.col_ptr(), symbolic.row_idx());
     y.fill(0.0);
-    for_each_column(a, |c, rows, values| {
-        let mut mirrored = 0.0;
-        for (&r, &v) in rows.iter().zip(values) {
-            y[r] += v * x[c];
-            if r / 2 != c / 2 {
-                mirrored += v * x[r];
+    for j in 0..col_ptr.len() / 2 {
+        let (first, second) = (col_ptr[2 * j], col_ptr[2 * j + 1]);
+        let (left, right) = (&values[first..second], &values[second..2 * second - first]);
+        let xj = [x[2 * j], x[2 * j + 1]];
+        let mut mirrored = [0.0; 2];
+        for ((rows, b0), b1) in (row_idx[first..second].chunks_exact(2))
+            .zip(left.chunks_exact(2))
+            .zip(right.chunks_exact(2))
+        {
+            let i = rows[0];
+            y[i] += b0[0] * xj[0] + b1[0] * xj[1];
+            y[i + 1] += b0[1] * xj[0] + b1[1] * xj[1];
+            if i != 2 * j {
+                mirrored[0] += b0[0] * x[i] + b0[1] * x[i + 1];
+                mirrored[1] += b1[0] * x[i] + b1[1] * x[i + 1];
             }
         }
-        y[c] += mirrored;
-    });
+        y[2 * j] += mirrored[0];
+        y[2 * j + 1] += mirrored[1];
+    }
 }
 
 /// Calls `f(j, row indices, values)` for every column `j`.
