@@ -180,6 +180,8 @@ impl SpaceTimeSystem {
         self.n_slabs() * self.slab_dimension()
     }
 
+    /// The full vertex pattern: the consistent links' (products with [`LinkMatrix::mul`]), and
+    /// the one to order the slab factors by (a fill-reducing ordering needs both triangles).
     pub fn pattern(&self) -> &VertexPattern {
         &self.pattern
     }
