@@ -1,0 +1,37 @@
+//! Writes the space-time system `A u = b` of `bench_solver`'s torus for experiments outside
+//! meshflow (`examples/scipy/time_multigrid.py` prototypes coarsenings in time on it):
+//! `A.mtx` (MatrixMarket, both triangles, slab-major unknowns), `b.npy` and
+//! `slab_dimension.txt` (`2V`, unknowns per slab) in `OUT_DIR`.
+//!
+//! `cargo run --release --example space_time_system -- N1 N2 FRAMES ALPHA GAMMA OUT_DIR`
+//! (the `N1 × N2` periodic torus grid, grey values in [0, 1], one frame per second, `β = 0`).
+
+use meshflow::flow::{FlowParams, FlowProblem};
+use meshflow::format::{write_matrix_market, write_npy};
+use std::path::PathBuf;
+
+#[path = "common/torus.rs"]
+mod torus;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let [n1, n2, frames, alpha, gamma, out] = args.as_slice() else {
+        return Err("usage: space_time_system N1 N2 FRAMES ALPHA GAMMA OUT_DIR".into());
+    };
+    let sequence = torus::unit_grey_torus(n1.parse()?, n2.parse()?, frames.parse()?, 1.0)?;
+    let params = FlowParams::paper(alpha.parse()?, 0.0, gamma.parse()?);
+    let problem = FlowProblem::new(&sequence, &params)?;
+    let system = problem.system();
+    let out = PathBuf::from(out);
+    std::fs::create_dir_all(&out)?;
+    write_matrix_market(&out.join("A.mtx"), &system.to_sparse())?;
+    write_npy(&out.join("b.npy"), &[system.dimension() as u64], system.rhs())?;
+    std::fs::write(out.join("slab_dimension.txt"), system.slab_dimension().to_string())?;
+    println!(
+        "{}: {} slabs × {} unknowns",
+        out.display(),
+        system.n_slabs(),
+        system.slab_dimension()
+    );
+    Ok(())
+}
