@@ -25,8 +25,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = PathBuf::from(out);
     std::fs::create_dir_all(&out)?;
     write_matrix_market(&out.join("A.mtx"), &system.to_sparse())?;
-    write_npy(&out.join("b.npy"), &[system.dimension() as u64], system.rhs())?;
-    std::fs::write(out.join("slab_dimension.txt"), system.slab_dimension().to_string())?;
+    write_npy(
+        &out.join("b.npy"),
+        &[system.dimension() as u64],
+        system.rhs(),
+    )?;
+    std::fs::write(
+        out.join("slab_dimension.txt"),
+        system.slab_dimension().to_string(),
+    )?;
     println!(
         "{}: {} slabs × {} unknowns",
         out.display(),
