@@ -92,10 +92,7 @@ impl Bf16Factor {
             SymbolicCholeskyRaw::Supernodal(s) => {
                 let structure = Supernodes::of(s);
                 match &self.split {
-                    Some(split) => {
-                        split.lower_solve(&structure, &self.values, y, scratch);
-                        split.upper_solve(&structure, &self.values, y, scratch);
-                    }
+                    Some(split) => split.solve(&structure, &self.values, y, scratch),
                     None => {
                         structure.lower_solve(&self.values, y, scratch);
                         structure.upper_solve(&self.values, y, scratch);
@@ -328,16 +325,42 @@ impl TreeSplit {
         (10 * smaller >= entries(0..n)).then_some(split)
     }
 
-    /// [`Supernodes::lower_solve`] on two threads (`scratch`: at least `4n` values).
-    fn lower_solve(
+    /// `y ← (L Lᵀ)⁻¹ y` (`scratch`: at least `4n` values).
+    fn solve(
         &self,
         supernodes: &Supernodes<'_>,
         values: &[u16],
         y: &mut [f32],
         scratch: &mut [f32],
     ) {
-        let [a, b] = [self.second.start, self.top.start].map(|s| supernodes.begin[s]);
-        let n = y.len();
+        let [second, top] = [self.second.start, self.top.start].map(|s| supernodes.begin[s]);
+        let solve = SplitSolve {
+            split: self,
+            supernodes,
+            values,
+            second,
+            top,
+        };
+        solve.lower(y, scratch);
+        solve.upper(y, scratch);
+    }
+}
+
+/// One factor's solve over a [`TreeSplit`]: its supernodes and values, and the first columns
+/// of the second subtree and of the top.
+struct SplitSolve<'a> {
+    split: &'a TreeSplit,
+    supernodes: &'a Supernodes<'a>,
+    values: &'a [u16],
+    second: usize,
+    top: usize,
+}
+
+impl SplitSolve<'_> {
+    /// [`Supernodes::lower_solve`] on two threads.
+    fn lower(&self, y: &mut [f32], scratch: &mut [f32]) {
+        let (supernodes, values, split) = (self.supernodes, self.values, self.split);
+        let (a, b, n) = (self.second, self.top, y.len());
         let (scratch_first, rest) = scratch.split_at_mut(n);
         let (scratch_second, sums) = rest.split_at_mut(n);
         let (sums_first, sums_second) = sums[..2 * (n - b)].split_at_mut(n - b);
@@ -354,12 +377,17 @@ impl TreeSplit {
         rayon::join(
             || {
                 let mut columns = part(first, 0, sums_first);
-                supernodes.lower_solve_part(self.first.clone(), values, &mut columns, scratch_first)
+                supernodes.lower_solve_part(
+                    split.first.clone(),
+                    values,
+                    &mut columns,
+                    scratch_first,
+                )
             },
             || {
                 let mut columns = part(second, a, sums_second);
                 supernodes.lower_solve_part(
-                    self.second.clone(),
+                    split.second.clone(),
                     values,
                     &mut columns,
                     scratch_second,
@@ -370,20 +398,14 @@ impl TreeSplit {
             .zip(sums_first.iter().zip(sums_second.iter()))
             .for_each(|(y, (p, q))| *y -= p + q);
         let mut columns = Columns::all(y);
-        supernodes.lower_solve_part(self.top.clone(), values, &mut columns, scratch_first);
+        supernodes.lower_solve_part(split.top.clone(), values, &mut columns, scratch_first);
     }
 
     /// [`Supernodes::upper_solve`]: the top alone, then the two subtrees on two threads.
-    fn upper_solve(
-        &self,
-        supernodes: &Supernodes<'_>,
-        values: &[u16],
-        y: &mut [f32],
-        scratch: &mut [f32],
-    ) {
-        let [a, b] = [self.second.start, self.top.start].map(|s| supernodes.begin[s]);
-        let n = y.len();
-        supernodes.upper_solve_part(self.top.clone(), values, (y, 0), (&[], n), scratch);
+    fn upper(&self, y: &mut [f32], scratch: &mut [f32]) {
+        let (supernodes, values, split) = (self.supernodes, self.values, self.split);
+        let (a, b, n) = (self.second, self.top, y.len());
+        supernodes.upper_solve_part(split.top.clone(), values, (y, 0), (&[], n), scratch);
         let (scratch_first, rest) = scratch.split_at_mut(n);
         let scratch_second = &mut rest[..n];
         let (below, top) = y.split_at_mut(b);
@@ -392,11 +414,11 @@ impl TreeSplit {
         // Each subtree's rows below lie in it or in the top, never in the other subtree.
         rayon::join(
             || {
-                let (own, part) = ((first, 0), self.first.clone());
+                let (own, part) = ((first, 0), split.first.clone());
                 supernodes.upper_solve_part(part, values, own, (top, b), scratch_first)
             },
             || {
-                let (own, part) = ((second, a), self.second.clone());
+                let (own, part) = ((second, a), split.second.clone());
                 supernodes.upper_solve_part(part, values, own, (top, b), scratch_second)
             },
         );
