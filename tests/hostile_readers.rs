@@ -257,20 +257,27 @@ fn times_file_non_finite_values_name_their_line() {
     assert_eq!(meshflow::io::read_times_file(&path).unwrap(), None);
 }
 
-/// Found by tests/fuzz_readers.rs: `gltf` panicked reading an unknown animation target path.
-#[test]
-fn gltf_unknown_animation_path_is_an_error() {
+/// The error reading a one-triangle glTF whose only animation channel has `target` (JSON).
+fn animation_channel_error(target: &str) -> String {
     let dir = low_limit();
-    let json = r#"{"asset":{"version":"2.0"},"nodes":[{"mesh":0}],
-"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],
-"buffers":[{"byteLength":44,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}],
-"bufferViews":[{"buffer":0,"byteLength":36}],
-"accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}],
-"animations":[{"samplers":[{"input":0,"output":0}],"channels":[{"sampler":0,"target":{"node":0,"path":"weighus"}}]}]}"#;
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"nodes":[{{"mesh":0}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+"buffers":[{{"byteLength":44,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}}],
+"bufferViews":[{{"buffer":0,"byteLength":36}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}],
+"animations":[{{"samplers":[{{"input":0,"output":0}}],"channels":[{{"sampler":0,"target":{target}}}]}}]}}"#
+    );
     let path = file(&dir, "bad.gltf", json.as_bytes());
     let options = meshflow::format::gltf::AnimationOptions::default();
     let result = meshflow::io::gltf_read::read_gltf_animation(&path, &options);
-    let text = message(result, &path);
+    message(result, &path)
+}
+
+/// Found by tests/fuzz_readers.rs: `gltf` panicked reading an unknown animation target path.
+#[test]
+fn gltf_unknown_animation_path_is_an_error() {
+    let text = animation_channel_error(r#"{"node":0,"path":"weighus"}"#);
     assert!(
         text.contains("animation 0, channel 0: target path \"weighus\" is not translation"),
         "{text}"
@@ -281,17 +288,7 @@ fn gltf_unknown_animation_path_is_an_error() {
 /// node does not exist.
 #[test]
 fn gltf_animation_target_node_out_of_range_is_an_error() {
-    let dir = low_limit();
-    let json = r#"{"asset":{"version":"2.0"},"nodes":[{"mesh":0}],
-"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],
-"buffers":[{"byteLength":44,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}],
-"bufferViews":[{"buffer":0,"byteLength":36}],
-"accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}],
-"animations":[{"samplers":[{"input":0,"output":0}],"channels":[{"sampler":0,"target":{"node":7,"path":"translation"}}]}]}"#;
-    let path = file(&dir, "bad.gltf", json.as_bytes());
-    let options = meshflow::format::gltf::AnimationOptions::default();
-    let result = meshflow::io::gltf_read::read_gltf_animation(&path, &options);
-    let text = message(result, &path);
+    let text = animation_channel_error(r#"{"node":7,"path":"translation"}"#);
     assert!(
         text.contains("animation 0, channel 0: target node 7 does not exist (1 nodes)"),
         "{text}"
