@@ -8,7 +8,9 @@
 //! step (`c / 2`) rather than the fine one (see `LinkMatrix::halve`). One application is
 //! a V-cycle: forward sweep `(D + L)⁻¹`, restrict the residual (which the sweep leaves on the
 //! links alone over single- or double-precision factors: [`SlabSweeps::forward_residual`]), cycle
-//! on the coarse level, prolong and add, backward sweep `(D + Lᵀ)⁻¹`. Pre- and post-smoother
+//! on the coarse level, prolong and add, backward sweep `(D + Lᵀ)⁻¹` on the new residual (over
+//! single- or double-precision factors in place, again from the links alone:
+//! [`SlabSweeps::backward_from`]). Pre- and post-smoother
 //! are transposes of each other, so the cycle is a symmetric positive definite preconditioner
 //! for CG (up to the factors' rounding, which the links' residual leaves out).
 //!
@@ -143,9 +145,14 @@ pub(super) fn v_cycle<F: SlabFactor>(
             v_cycle(levels, l + 1, &coarse_r, &mut coarse_z);
         }
         levels.prolong_add(l, &coarse_z, z);
-        let mut correction = residual(operator, r, z);
-        sweeps.backward(system, &mut correction, around);
-        add(z, &correction);
+        match links_give_the_residual::<F>() {
+            true => sweeps.backward_from(system, r, z, around),
+            false => {
+                let mut correction = residual(operator, r, z);
+                sweeps.backward(system, &mut correction, around);
+                add(z, &correction);
+            }
+        }
     })
 }
 
@@ -194,7 +201,8 @@ impl<F: SlabFactor> Preconditioner for TimeMultigrid<'_, F> {
 }
 
 /// Whether the V-cycle takes the residual after its forward sweep from the links alone
-/// ([`SlabSweeps::forward_residual`]), which holds up to the slab factors' rounding: with
+/// ([`SlabSweeps::forward_residual`]) and sweeps back in place ([`SlabSweeps::backward_from`])
+/// instead of forming `r − A z` twice, which holds up to the slab factors' rounding: with
 /// single or double precision factors. Bfloat16's rounding (2⁻⁹) is not negligible where the
 /// time coupling dominates the blocks (`D ≈ 2cM`, `X ≈ −cM`, the residual a small difference of
 /// large terms): on the 128×95×20 torus at `α = 0.001` it cost one iteration (9 → 10 at

@@ -135,6 +135,28 @@ impl<F: SlabFactor> SlabSweeps<F> {
         self.half_sweep(system, z, Parity::Even, true, around);
     }
 
+    /// `z ← z + (D + U)⁻¹ (r − A z)`, the backward sweep on the residual, without a product
+    /// with `A`: the odd slabs become `D_s⁻¹ (r_s − (X z)_s)` from the even ones, then the even
+    /// slabs the same from the new odd ones (the slab blocks cancel: exact up to the factors'
+    /// rounding, as [`Self::forward_residual`]).
+    pub fn backward_from(
+        &self,
+        system: &SpaceTimeSystem,
+        r: &[f64],
+        z: &mut [f64],
+        around: &dyn Surroundings,
+    ) {
+        for parity in [Parity::Odd, Parity::Even] {
+            let n = system.slab_dimension();
+            let first = around.first_slab();
+            let rhs = r.chunks(n).enumerate();
+            (z.chunks_mut(n).zip(rhs))
+                .filter(|(_, (s, _))| (first + s) % 2 == parity as usize)
+                .for_each(|(zs, (_, rs))| zs.copy_from_slice(rs));
+            self.half_sweep(system, z, parity, true, around);
+        }
+    }
+
     /// `z ← (D + U)⁻¹ D (D + L)⁻¹ z`, the symmetric Gauss–Seidel sweep: the forward sweep, then
     /// `z_s ← z_s − D_s⁻¹ (X z)_s` for the even slabs (the odd ones keep their values).
     pub fn symmetric(&self, system: &SpaceTimeSystem, z: &mut [f64], around: &dyn Surroundings) {
@@ -287,11 +309,9 @@ mod tests {
     use crate::flow::{FlowParams, FlowProblem, TimeCoupling};
     use crate::linalg::cholesky::{analyze, CholeskyFactor};
 
-    /// After the forward sweep with exact (double-precision) slab factors, the links alone give
-    /// `r − A z`: zero on the odd slabs, equal to the full product on the even ones, for even
-    /// and odd slab counts and lumped and consistent coupling.
-    #[test]
-    fn forward_residual_is_the_full_residual_after_the_forward_sweep() {
+    /// Calls `check` with the system and exact (double-precision) slab sweeps of a small torus,
+    /// for even and odd slab counts and lumped and consistent coupling.
+    fn with_exact_sweeps(check: impl Fn(&SpaceTimeSystem, &SlabSweeps<CholeskyFactor<f64>>)) {
         for (frames, coupling) in [(5, TimeCoupling::Lumped), (6, TimeCoupling::Consistent)] {
             let sequence = crate::synth::paper_torus(8, 6, frames).unwrap();
             let params = FlowParams {
@@ -304,32 +324,72 @@ mod tests {
             let factors = (0..system.n_slabs())
                 .map(|s| CholeskyFactor::<f64>::factor(&symbolic, system.block(s)).unwrap())
                 .collect();
-            let sweeps = SlabSweeps::new(factors, 1, system.n_slabs());
-            let r: Vec<f64> = (0..system.dimension())
-                .map(|i| (0.7 * i as f64).cos())
-                .collect();
+            check(system, &SlabSweeps::new(factors, 1, system.n_slabs()));
+        }
+    }
+
+    /// `cos(k i)` for `i < n`.
+    fn wave(n: usize, k: f64) -> Vec<f64> {
+        (0..n).map(|i| (k * i as f64).cos()).collect()
+    }
+
+    /// `r − A z`.
+    fn full_residual(system: &SpaceTimeSystem, r: &[f64], z: &[f64]) -> Vec<f64> {
+        let mut residual = vec![0.0; r.len()];
+        system.apply(z, &mut residual);
+        residual.iter_mut().zip(r).for_each(|(e, r)| *e = r - *e);
+        residual
+    }
+
+    /// `max |a − b|` and `max |b|`.
+    fn max_difference(a: &[f64], b: &[f64]) -> (f64, f64) {
+        let error = a
+            .iter()
+            .zip(b)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        (error, b.iter().fold(0.0f64, |m, b| m.max(b.abs())))
+    }
+
+    /// After the forward sweep with exact slab factors, the links alone give `r − A z`: zero on
+    /// the odd slabs, equal to the full product on the even ones.
+    #[test]
+    fn forward_residual_is_the_full_residual_after_the_forward_sweep() {
+        with_exact_sweeps(|system, sweeps| {
+            let r = wave(system.dimension(), 0.7);
             let mut z = r.clone();
             sweeps.forward(system, &mut z, &Whole);
-            let mut expected = vec![0.0; r.len()];
-            system.apply(&z, &mut expected);
-            expected.iter_mut().zip(&r).for_each(|(e, r)| *e = r - *e);
+            let expected = full_residual(system, &r, &z);
             let residual = sweeps.forward_residual(system, &z, &Whole);
+            let (_, scale) = max_difference(&expected, &expected);
+            assert!(scale > 1e-3, "a residual to compare: {scale:e}");
             let n = system.slab_dimension();
-            let scale = expected.iter().fold(0.0f64, |m, e| m.max(e.abs()));
-            for (s, (got, want)) in residual.chunks(n).zip(expected.chunks(n)).enumerate() {
-                let error = got
-                    .iter()
-                    .zip(want)
-                    .fold(0.0f64, |m, (g, w)| m.max((g - w).abs()));
-                assert!(
-                    error < 1e-12 * scale,
-                    "{frames} frames, slab {s}: {error:e}"
-                );
+            let slabs = residual.chunks(n).zip(expected.chunks(n));
+            for (s, (got, want)) in slabs.enumerate() {
+                let (error, _) = max_difference(got, want);
+                assert!(error < 1e-12 * scale, "slab {s}: {error:e}");
                 if s % 2 == 1 {
                     assert!(got.iter().all(|&g| g == 0.0), "odd slab {s} not zero");
                 }
             }
-            assert!(scale > 1e-3, "a residual to compare: {scale:e}");
-        }
+        });
+    }
+
+    /// The backward sweep in place from the links alone equals the backward sweep on the full
+    /// residual, `z + (D + U)⁻¹ (r − A z)`, for a `z` that is no sweep's result.
+    #[test]
+    fn backward_from_is_the_backward_sweep_on_the_residual() {
+        with_exact_sweeps(|system, sweeps| {
+            let r = wave(system.dimension(), 0.7);
+            let z = wave(system.dimension(), 0.31);
+            let mut expected = full_residual(system, &r, &z);
+            sweeps.backward(system, &mut expected, &Whole);
+            add(&mut expected, &z);
+            let mut got = z.clone();
+            sweeps.backward_from(system, &r, &mut got, &Whole);
+            let (error, scale) = max_difference(&got, &expected);
+            assert!(error < 1e-11 * scale, "{error:e} of {scale:e}");
+            let (change, _) = max_difference(&z, &expected);
+            assert!(change > 0.1 * scale, "the sweep changes z: {change:e}");
+        });
     }
 }
