@@ -176,21 +176,27 @@ def v_cycle(levels, prolongations, l, r):
     return z + level.sweep(r - level.a @ z, 1, 0)
 
 
-def pcg_iterations(a, b, preconditioner, tolerance=1e-8, limit=300):
+def pcg(apply, b, preconditioner, tolerance=1e-8, limit=300):
+    """CG on the operator `apply` from zero to a relative residual of `tolerance`: the solution
+    and the iterations taken (`limit` if it did not get there)."""
     x, r = np.zeros_like(b), b.copy()
     z = preconditioner(r)
     p, rz, norm = z.copy(), r @ z, np.linalg.norm(b)
     for iteration in range(1, limit + 1):
-        ap = a @ p
+        ap = apply(p)
         step = rz / (p @ ap)
         x += step * p
         r -= step * ap
         if np.linalg.norm(r) / norm < tolerance:
-            return iteration
+            return x, iteration
         z = preconditioner(r)
         rz, previous = r @ z, rz
         p = z + (rz / previous) * p
-    return limit
+    return x, limit
+
+
+def pcg_iterations(a, b, preconditioner, tolerance=1e-8, limit=300):
+    return pcg(lambda v: a @ v, b, preconditioner, tolerance, limit)[1]
 
 
 def main():
