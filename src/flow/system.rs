@@ -618,15 +618,22 @@ impl SpaceTimeSystem {
     }
 
     /// Halves the coupling energy of every link ([`LinkMatrix::halve`]): the coarse level's
-    /// time step is twice the fine one's, and its weight `γ / (α² h)` half.
+    /// time step is twice the fine one's, and its weight `γ / (α² h)` half. Parallel over the
+    /// blocks: block `s` takes the share after link `s − 1` and the share before link `s`.
     fn halve_time_coupling(&mut self) {
-        for (s, link) in self.links.iter_mut().enumerate() {
-            link.halve();
-            let shares = link.shares();
-            let patterns = (&self.lower, &self.pattern);
-            subtract_share(patterns, &mut self.blocks[s], &shares.before);
-            subtract_share(patterns, &mut self.blocks[s + 1], &shares.after);
-        }
+        self.links.par_iter_mut().for_each(LinkMatrix::halve);
+        let (links, patterns) = (&self.links, (&self.lower, &self.pattern));
+        self.blocks
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(s, block)| {
+                if let Some(link) = s.checked_sub(1).and_then(|k| links.get(k)) {
+                    subtract_share(patterns, block, &link.share(Side::After));
+                }
+                if let Some(link) = links.get(s) {
+                    subtract_share(patterns, block, &link.share(Side::Before));
+                }
+            });
     }
 
     /// `D_s −= share`.
@@ -674,10 +681,11 @@ enum DiagonalShare<'a> {
     Pattern(&'a [f64]),
 }
 
-/// A link's shares of the diagonal blocks of the slabs before and after it.
-struct LinkShares<'a> {
-    before: DiagonalShare<'a>,
-    after: DiagonalShare<'a>,
+/// Which of the two diagonal blocks a link joins: the slab's before it or after it.
+#[derive(Clone, Copy)]
+enum Side {
+    Before,
+    After,
 }
 
 /// `D −= share` for a diagonal block's values `block` on `lower`, the blocks `i ≥ j` of `full`
@@ -697,7 +705,7 @@ fn subtract_share(
 
 impl LinkMatrix {
     /// Halves the link's coupling energy: `X ← X / 2`; the caller then subtracts the halved
-    /// link's shares of the diagonal blocks ([`Self::shares`]) from the blocks of the slabs
+    /// link's shares of the diagonal blocks ([`Self::share`]) from the blocks of the slabs
     /// before and after the link.
     ///
     /// Why: the Galerkin product `Pᵀ A P` of the piecewise-constant prolongation keeps the
@@ -718,28 +726,29 @@ impl LinkMatrix {
         }
     }
 
-    /// The link's shares of the diagonal blocks, for [`Self::halve`]: a consistent link's own
-    /// parts `(B, A)`; for a lumped one, `(|X|, |Xᵀ|)` per vertex (`|X| = (XᵀX)^½`), since a
-    /// lumped link does not keep its parts. `E(u_a, u_b) = u_aᵀ|X|u_a + u_bᵀ|Xᵀ|u_b + 2 u_bᵀ X
-    /// u_a` is positive semidefinite (with the polar decomposition `X = U |X|`, `E = ‖|X|^½
-    /// (u_a + Uᵀ u_b)‖²`), and the lumped link's true part `c m_i I` dominates `|X|` (`X_ii`
-    /// is `−c m_i` times a mean of rotations).
-    fn shares(&self) -> LinkShares<'_> {
-        match self {
-            LinkMatrix::Lumped(blocks) => {
-                let absolute = |f: fn(&Matrix2<f64>) -> Matrix2<f64>| {
-                    let blocks = blocks.iter().map(|x| spd_sqrt(&f(x)));
-                    DiagonalShare::Vertex(blocks.collect())
-                };
-                LinkShares {
-                    before: absolute(|x| x.transpose() * x),
-                    after: absolute(|x| x * x.transpose()),
-                }
-            }
-            LinkMatrix::Consistent(link) => LinkShares {
-                before: DiagonalShare::Pattern(&link.before),
-                after: DiagonalShare::Pattern(&link.after),
-            },
+    /// The link's share of the diagonal block on `side`, for [`Self::halve`]: a consistent
+    /// link's own part (`B` before, `A` after); for a lumped one, `|X|` before and `|Xᵀ|` after
+    /// per vertex (`|X| = (XᵀX)^½`), since a lumped link does not keep its parts.
+    /// `E(u_a, u_b) = u_aᵀ|X|u_a + u_bᵀ|Xᵀ|u_b + 2 u_bᵀ X u_a` is positive semidefinite (with
+    /// the polar decomposition `X = U |X|`, `E = ‖|X|^½ (u_a + Uᵀ u_b)‖²`), and the lumped
+    /// link's true part `c m_i I` dominates `|X|` (`X_ii` is `−c m_i` times a mean of
+    /// rotations).
+    fn share(&self, side: Side) -> DiagonalShare<'_> {
+        match (self, side) {
+            (LinkMatrix::Lumped(blocks), Side::Before) => DiagonalShare::Vertex(
+                blocks
+                    .iter()
+                    .map(|x| spd_sqrt(&(x.transpose() * x)))
+                    .collect(),
+            ),
+            (LinkMatrix::Lumped(blocks), Side::After) => DiagonalShare::Vertex(
+                blocks
+                    .iter()
+                    .map(|x| spd_sqrt(&(x * x.transpose())))
+                    .collect(),
+            ),
+            (LinkMatrix::Consistent(link), Side::Before) => DiagonalShare::Pattern(&link.before),
+            (LinkMatrix::Consistent(link), Side::After) => DiagonalShare::Pattern(&link.after),
         }
     }
 
@@ -820,7 +829,7 @@ impl SystemWindow {
     /// block, as [`SpaceTimeSystem::merge_slab_pairs`] does inside a whole system.
     pub(crate) fn set_coarse_link_before(&mut self, link: Option<LinkMatrix>) {
         if let Some(link) = &link {
-            self.system.subtract_share(0, &link.shares().after);
+            self.system.subtract_share(0, &link.share(Side::After));
         }
         self.link_before = link;
     }
@@ -872,7 +881,7 @@ impl SystemWindow {
             (Some(link), Some(t)) => {
                 let mut link = link.right_multiplied(&own.pattern, t);
                 link.halve();
-                system.subtract_share(system.n_slabs() - 1, &link.shares().before);
+                system.subtract_share(system.n_slabs() - 1, &link.share(Side::Before));
                 Some(link)
             }
             _ => None,
