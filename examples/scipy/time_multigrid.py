@@ -176,22 +176,25 @@ def v_cycle(levels, prolongations, l, r):
     return z + level.sweep(r - level.a @ z, 1, 0)
 
 
-def pcg(apply, b, preconditioner, tolerance=1e-8, limit=300):
+def pcg(apply, b, preconditioner, tolerance=1e-8, limit=300, flexible=False):
     """CG on the operator `apply` from zero to a relative residual of `tolerance`: the solution
-    and the iterations taken (`limit` if it did not get there)."""
+    and the iterations taken (`limit` if it did not get there). `flexible`: Notay's flexible CG
+    with one direction kept (step (p, r) / (p, Ap), next direction A-orthogonal to the last), for
+    a preconditioner that is not symmetric; the same as CG for one that is."""
     x, r = np.zeros_like(b), b.copy()
     z = preconditioner(r)
     p, rz, norm = z.copy(), r @ z, np.linalg.norm(b)
     for iteration in range(1, limit + 1):
         ap = apply(p)
-        step = rz / (p @ ap)
+        curvature = p @ ap
+        step = (p @ r if flexible else rz) / curvature
         x += step * p
         r -= step * ap
         if np.linalg.norm(r) / norm < tolerance:
             return x, iteration
         z = preconditioner(r)
         rz, previous = r @ z, rz
-        p = z + (rz / previous) * p
+        p = z + (-(z @ ap) / curvature if flexible else rz / previous) * p
     return x, limit
 
 
