@@ -586,6 +586,45 @@ mod tests {
         );
     }
 
+    /// Slab solves from a parallel loop, each splitting its tree over two threads
+    /// (`rayon::join`): a thread waiting for its other half runs another slab's solve, which
+    /// must not find the thread's scratch buffer borrowed ("RefCell already borrowed" on 16
+    /// threads before the buffer was taken out for the solve). Each result equals the lone
+    /// solve's exactly.
+    #[test]
+    fn nested_solves_on_one_thread_share_no_scratch() {
+        use crate::linalg::factor::SlabFactor;
+        use rayon::prelude::*;
+        let factor = Bf16Factor::new(&grid_factor(64, 48));
+        assert!(factor.split.is_some(), "the solve splits its tree");
+        let n = factor.symbolic.nrows();
+        let b = |k: usize| -> Vec<f64> { (0..n).map(|i| (0.37 * (i + k) as f64).sin()).collect() };
+        let lone: Vec<Vec<f64>> = (0..64)
+            .map(|k| {
+                let mut x = b(k);
+                factor.solve_in_place(&mut x, &mut Vec::new());
+                x
+            })
+            .collect();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(8)
+            .build()
+            .unwrap();
+        for _ in 0..20 {
+            let solved: Vec<Vec<f64>> = pool.install(|| {
+                (0..64)
+                    .into_par_iter()
+                    .map(|k| {
+                        let mut x = b(k);
+                        SlabFactor::solve(&factor, &mut x);
+                        x
+                    })
+                    .collect()
+            });
+            assert_eq!(solved, lone);
+        }
+    }
+
     /// Rounding to bfloat16 is to nearest, ties to even, on the top 16 bits.
     #[test]
     fn rounds_to_nearest_even() {

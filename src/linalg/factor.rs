@@ -14,7 +14,7 @@ use super::bfloat::Bf16Factor;
 use super::cholesky::{CholeskyFactor, FactorEntries, Precision, SparseMatrixRef};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
-use std::cell::RefCell;
+use std::cell::Cell;
 use std::sync::Arc;
 
 /// A factor that a preconditioner solves with, one thread per solve.
@@ -101,12 +101,17 @@ impl SlabFactor for Bf16Factor {
         CholeskyFactor::<f32>::new(symbolic, matrix, Par::Seq).map(|f| Self::new(&f))
     }
 
-    /// With one scratch buffer per thread: a fresh one per solve would be fresh pages.
+    /// With one scratch buffer per thread: a fresh one per solve would be fresh pages. The
+    /// buffer is taken out of the thread for the solve, not borrowed: a solve that splits its
+    /// tree over two threads (`rayon::join`) may run another slab's solve on this thread while
+    /// it waits, and that one then starts a buffer of its own.
     fn solve(&self, x: &mut [f64]) {
         thread_local! {
-            static WORK: RefCell<Vec<f32>> = const { RefCell::new(Vec::new()) };
+            static WORK: Cell<Vec<f32>> = const { Cell::new(Vec::new()) };
         }
-        WORK.with_borrow_mut(|work| self.solve_in_place(x, work));
+        let mut work = WORK.take();
+        self.solve_in_place(x, &mut work);
+        WORK.set(work);
     }
 
     fn entries(&self) -> FactorEntries {
