@@ -5,12 +5,14 @@
 //!
 //! `cargo run --release --example bench_solver [-- N1 N2 FRAMES [SOLVER]]` (default 128 95 20
 //! auto). It ends with the time ratio `t(α = 0.01) / t(α = 1)` per `γ` (solve seconds, with
-//! the factorization): subnormal numbers in the single-precision slab factors slow mid-range
+//! the factorization; also end to end, with assembly), of the medians of the table's run and
+//! two more alternating runs of each of its cells: subnormal numbers in the single-precision slab factors slow mid-range
 //! `α` on some processors ([`meshflow::subnormals`]). With `SUBNORMALS=keep` in the
 //! environment the solver runs without flushing them, to measure what they cost; the column
 //! `subnormal` is the share of the factors' entries that are subnormal.
 
 use meshflow::flow::{FlowParams, FlowProblem, SolverChoice};
+use std::collections::HashMap;
 use std::time::Instant;
 
 #[path = "common/cells.rs"]
@@ -23,7 +25,7 @@ use memory::peak_memory_bytes;
 mod torus;
 use torus::unit_grey_torus;
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if let Some(cell) = cell_args(&args) {
         return run_cell(cell);
@@ -54,16 +56,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     cells.push(["default", "default", "30"]);
-    let mut seconds = std::collections::HashMap::new();
-    for [alpha, gamma, fps] in cells {
+    let mut seconds: HashMap<(&str, &str), Vec<CellSeconds>> = HashMap::new();
+    let mut run = |[alpha, gamma, fps]: [&'static str; 3], print_line: bool| -> Result<()> {
         let (n1, n2, frames) = (&size[0], &size[1], &size[2]);
         match run_cell_process(&[n1, n2, frames, &solver, alpha, gamma, fps])? {
             Ok(line) => {
-                print!("{line}");
-                let columns: Vec<&str> = line.split_whitespace().collect();
-                let number = |k: usize| columns.get(k).and_then(|c| c.parse::<f64>().ok());
-                if let (Some(factor), Some(solve)) = (number(4), number(5)) {
-                    seconds.insert((alpha, gamma), (factor, solve));
+                if print_line {
+                    print!("{line}");
+                }
+                if let Some(cell) = CellSeconds::of(&line) {
+                    seconds.entry((alpha, gamma)).or_default().push(cell);
                 }
             }
             Err(error) => println!(
@@ -71,22 +73,86 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 error.replace('\n', " ")
             ),
         }
+        Ok(())
+    };
+    for cell in cells {
+        run(cell, true)?;
     }
+    for _ in 0..RATIO_REPEATS {
+        for gamma in ["1", "0.01"] {
+            for alpha in ["1", "0.01"] {
+                run([alpha, gamma, "1"], false)?;
+            }
+        }
+    }
+    println!(
+        "t(α = 0.01) / t(α = 1), medians of {} alternating runs of each cell:",
+        RATIO_REPEATS + 1
+    );
     for gamma in ["1", "0.01"] {
-        if let (Some(mid), Some(one)) = (seconds.get(&("0.01", gamma)), seconds.get(&("1", gamma)))
-        {
+        let median = |alpha| {
+            seconds
+                .get(&(alpha, gamma))
+                .map(|runs| CellSeconds::median(runs))
+        };
+        if let (Some(mid), Some(one)) = (median("0.01"), median("1")) {
             println!(
-                "γ = {gamma}: t(α = 0.01) / t(α = 1) = {:.2} (solve {:.2} / {:.2} s, \
-                 factorization {:.2} / {:.2} s)",
-                mid.1 / one.1,
-                mid.1,
-                one.1,
-                mid.0,
-                one.0
+                "γ = {gamma}: {:.2} (solve {:.2} / {:.2} s, factorization {:.2} / {:.2} s); \
+                 with assembly {:.2} ({:.2} / {:.2} s)",
+                mid.solve / one.solve,
+                mid.solve,
+                one.solve,
+                mid.factor,
+                one.factor,
+                mid.total / one.total,
+                mid.total,
+                one.total
             );
         }
     }
     Ok(())
+}
+
+/// Further runs of the ratio's four cells after the table, alternating, so that each ratio
+/// is of medians rather than of single runs on a machine whose timings vary by 10–30 %.
+const RATIO_REPEATS: usize = 2;
+
+type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
+
+/// A cell's seconds: factorization, solve (with it) and end to end (with assembly).
+#[derive(Clone, Copy)]
+struct CellSeconds {
+    factor: f64,
+    solve: f64,
+    total: f64,
+}
+
+impl CellSeconds {
+    /// From a cell's line ([`run_cell`]).
+    fn of(line: &str) -> Option<Self> {
+        let columns: Vec<&str> = line.split_whitespace().collect();
+        let number = |k: usize| columns.get(k)?.trim_start_matches('(').parse::<f64>().ok();
+        let total = columns.iter().position(|c| *c == "with")?.checked_sub(2)?;
+        Some(Self {
+            factor: number(4)?,
+            solve: number(5)?,
+            total: number(total)?,
+        })
+    }
+
+    /// Each field's median over `runs` (the upper one of an even count).
+    fn median(runs: &[Self]) -> Self {
+        let median = |field: fn(&Self) -> f64| {
+            let mut values: Vec<f64> = runs.iter().map(field).collect();
+            values.sort_by(f64::total_cmp);
+            values[values.len() / 2]
+        };
+        Self {
+            factor: median(|c| c.factor),
+            solve: median(|c| c.solve),
+            total: median(|c| c.total),
+        }
+    }
 }
 
 /// `SUBNORMALS=keep`: the solver leaves subnormal numbers as they are.
@@ -101,7 +167,7 @@ fn subnormal_mode() -> &'static str {
 }
 
 /// `--cell N1 N2 FRAMES SOLVER ALPHA GAMMA FPS`: one solve, one line.
-fn run_cell(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
+fn run_cell(args: &[String]) -> Result<()> {
     let [n1, n2, frames]: [usize; 3] = std::array::from_fn(|i| args[i].parse().expect("a size"));
     let solver: SolverChoice = args[3].parse()?;
     let (alpha, gamma, fps) = (&args[4], &args[5], args[6].parse::<f64>()?);
@@ -117,7 +183,7 @@ fn run_cell(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
     let result = problem.solve(&|_| {})?;
     let total = start.elapsed().as_secs_f64();
     println!(
-        "{alpha:>8} {gamma:>6} {fps:>6} {:>11} {:>9.2} {:>9.2} {:>8.2} {:>10.1e}  {}, {} levels ({:.1} s with assembly)",
+        "{alpha:>8} {gamma:>6} {fps:>6} {:>11} {:>9.2} {:>9.2} {:>8.2} {:>10.1e}  {}, {} levels ({:.2} s with assembly)",
         result.iterations,
         result.timings.factorization,
         result.timings.solve,
