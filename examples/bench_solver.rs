@@ -6,10 +6,10 @@
 //! `cargo run --release --example bench_solver [-- N1 N2 FRAMES [SOLVER]]` (default 128 95 20
 //! auto). It ends with the time ratio `t(α = 0.01) / t(α = 1)` per `γ` (solve seconds, with
 //! the factorization; also end to end, with assembly), of the medians of the table's run and
-//! two more alternating runs of each of its cells: subnormal numbers in the single-precision slab factors slow mid-range
-//! `α` on some processors ([`meshflow::subnormals`]). With `SUBNORMALS=keep` in the
-//! environment the solver runs without flushing them, to measure what they cost; the column
-//! `subnormal` is the share of the factors' entries that are subnormal.
+//! two more alternating runs of each of its cells: subnormal numbers in the single-precision
+//! slab factors slow mid-range `α` on some processors ([`meshflow::subnormals`]). With
+//! `SUBNORMALS=keep` in the environment the solver runs without flushing them, to measure what
+//! they cost; the column `subnormal` is the share of the factors' entries that are subnormal.
 
 use meshflow::flow::{FlowParams, FlowProblem, SolverChoice};
 use std::collections::HashMap;

@@ -49,7 +49,8 @@ class Counted:
 
 
 def coarsest_correction(fine):
-    """`r -> P B⁻¹ Pᵀ r` onto the one slab that merges all of `fine`'s (Galerkin `B = Pᵀ A P`)."""
+    """`r -> P B⁻¹ Pᵀ r` onto the one slab that merges all of `fine`'s slabs (Galerkin
+    `B = Pᵀ A P`)."""
     chained, level = None, fine
     while level.slabs > 1:
         p = pairs_prolongation(level)

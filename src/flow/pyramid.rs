@@ -155,8 +155,8 @@ const LENGTH_STEPS: usize = 4;
 
 /// `values` (each one per vertex) smoothed on frame `frame`'s surface over the length `length`
 /// (physical units): heat flow to time `t = length² / 2`, about a Gaussian of standard
-/// deviation `length` along the surface, in a few implicit steps (`LENGTH_STEPS`). Mass is kept:
-/// the mean over the surface does not change. `length = 0` returns the values.
+/// deviation `length` along the surface, in a few implicit steps (`LENGTH_STEPS`). Mass is
+/// kept: the mean over the surface does not change. `length = 0` returns the values.
 pub fn smoothed_over_length(
     sequence: &MeshSequence,
     frame: usize,

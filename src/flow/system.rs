@@ -735,18 +735,13 @@ impl LinkMatrix {
     /// rotations).
     fn share(&self, side: Side) -> DiagonalShare<'_> {
         match (self, side) {
-            (LinkMatrix::Lumped(blocks), Side::Before) => DiagonalShare::Vertex(
-                blocks
-                    .iter()
-                    .map(|x| spd_sqrt(&(x.transpose() * x)))
-                    .collect(),
-            ),
-            (LinkMatrix::Lumped(blocks), Side::After) => DiagonalShare::Vertex(
-                blocks
-                    .iter()
-                    .map(|x| spd_sqrt(&(x * x.transpose())))
-                    .collect(),
-            ),
+            (LinkMatrix::Lumped(blocks), side) => {
+                let square = |x: &Matrix2<f64>| match side {
+                    Side::Before => x.transpose() * x,
+                    Side::After => x * x.transpose(),
+                };
+                DiagonalShare::Vertex(blocks.iter().map(|x| spd_sqrt(&square(x))).collect())
+            }
             (LinkMatrix::Consistent(link), Side::Before) => DiagonalShare::Pattern(&link.before),
             (LinkMatrix::Consistent(link), Side::After) => DiagonalShare::Pattern(&link.after),
         }
