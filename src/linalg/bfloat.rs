@@ -521,6 +521,11 @@ mod tests {
         CholeskyFactor::<f32>::new(&symbolic, block.as_ref(), Par::Seq).unwrap()
     }
 
+    /// `sin(0.37 (i + shift))` for `i < n`: a right-hand side with every column's share.
+    fn sines(n: usize, shift: usize) -> Vec<f64> {
+        (0..n).map(|i| (0.37 * (i + shift) as f64).sin()).collect()
+    }
+
     /// The bfloat16 solve equals faer's `f32` solve with the same (rounded) entries, up to
     /// `f32` rounding, for the supernodal and the simplicial layout.
     #[test]
@@ -533,9 +538,7 @@ mod tests {
             let compressed = Bf16Factor::new(&factor);
             let rounded: Vec<f32> = compressed.values.iter().map(|&h| widen(h)).collect();
             let reference = CholeskyFactor::from_parts(factor.symbolic().clone(), rounded);
-            let b: Vec<f64> = (0..factor.symbolic().nrows())
-                .map(|i| (0.37 * i as f64).sin())
-                .collect();
+            let b = sines(factor.symbolic().nrows(), 0);
             let (mut x, mut y) = (b.clone(), b.clone());
             compressed.solve_in_place(&mut x, &mut Vec::new());
             reference.solve_in_place(&mut y, Par::Seq);
@@ -572,9 +575,7 @@ mod tests {
             split: None,
             ..Bf16Factor::new(&factor)
         };
-        let b: Vec<f64> = (0..factor.symbolic().nrows())
-            .map(|i| (0.37 * i as f64).sin())
-            .collect();
+        let b = sines(factor.symbolic().nrows(), 0);
         let (mut x, mut y) = (b.clone(), b);
         split.solve_in_place(&mut x, &mut Vec::new());
         sequential.solve_in_place(&mut y, &mut Vec::new());
@@ -598,10 +599,9 @@ mod tests {
         let factor = Bf16Factor::new(&grid_factor(64, 48));
         assert!(factor.split.is_some(), "the solve splits its tree");
         let n = factor.symbolic.nrows();
-        let b = |k: usize| -> Vec<f64> { (0..n).map(|i| (0.37 * (i + k) as f64).sin()).collect() };
         let lone: Vec<Vec<f64>> = (0..64)
             .map(|k| {
-                let mut x = b(k);
+                let mut x = sines(n, k);
                 factor.solve_in_place(&mut x, &mut Vec::new());
                 x
             })
@@ -615,7 +615,7 @@ mod tests {
                 (0..64)
                     .into_par_iter()
                     .map(|k| {
-                        let mut x = b(k);
+                        let mut x = sines(n, k);
                         SlabFactor::solve(&factor, &mut x);
                         x
                     })
@@ -655,7 +655,7 @@ mod tests {
         for round in 0..3 {
             let start = std::time::Instant::now();
             (0..2).into_par_iter().for_each(|_| {
-                let mut x: Vec<f64> = (0..n).map(|i| (0.37 * i as f64).sin()).collect();
+                let mut x = sines(n, 0);
                 let mut work = factor.workspace(Par::Seq);
                 for f in copies.iter().cycle().take(100) {
                     f.solve_with(&mut x, &mut work, Par::Seq);
@@ -664,7 +664,7 @@ mod tests {
             let f32_ms = start.elapsed().as_secs_f64() * 10.0;
             let start = std::time::Instant::now();
             (0..2).into_par_iter().for_each(|_| {
-                let mut x: Vec<f64> = (0..n).map(|i| (0.37 * i as f64).sin()).collect();
+                let mut x = sines(n, 0);
                 let mut work = Vec::new();
                 for f in compressed.iter().cycle().take(100) {
                     f.solve_in_place(&mut x, &mut work);

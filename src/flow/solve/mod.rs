@@ -228,8 +228,8 @@
 //! and about 0.16 s off the solve. `auto`'s iterations now, `α` = 10 / 1 / 0.1 / 0.01 / 0.001:
 //! 3 / 19 / 10 / 10 / 9 at `γ = 1`, 2 / 8 / 11 / 12 / 8 at `γ = 0.01`, default weights at
 //! 30 fps 12 (bench_solver, 2026-11-27). Since then (the post-smoother in place, the levels
-//! built in parallel) the ratio is 1.36 at `γ = 1` and 2.55 at `γ = 0.01` (1.94 / 0.76 s) on a
-//! quiet machine of two cores; cheaper cycles that would close the rest (a V(0,1) cycle under
+//! built in parallel) the ratio is 1.25–1.36 at `γ = 1` and 2.55–2.63 at `γ = 0.01` on two
+//! cores (a quiet table's single runs and `bench_solver`'s medians); cheaper cycles that would close the rest (a V(0,1) cycle under
 //! flexible CG, shared coarse factors, links' residuals on bfloat16 levels) lost iterations
 //! where they saved work (docs/scaling.md, "Cheaper cycles").
 //!
