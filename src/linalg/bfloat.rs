@@ -15,6 +15,22 @@
 //! Gauss–Seidel 19 → 21 at `α = γ = 1` and 3 → 7 at `α = 10`, which is why the sweeps keep `f32`
 //! while it fits the budget (`flow::solve`, "Factor precision").
 //!
+//! **Small rows dropped.** A row of a supernode's panel (the rows of `L` below its dense
+//! triangle) is not stored when all its entries there are below [`DROP_TOLERANCE`] (`2⁻¹⁰`)
+//! times the row's pivot `L_rr`, which each such entry perturbs less than rounding `L_rr` itself
+//! does. `L̃ L̃ᵀ` stays symmetric positive definite (`L̃` is still triangular with a positive
+//! diagonal), so it remains a valid preconditioner block; one bit per panel row says which rows
+//! are kept, and the solves skip the rest. Where the time coupling dominates a slab block
+//! (`D ≈ 2cM` at small `α`), `L` decays fast away from the diagonal: on the 128×95×20 torus at
+//! `α = 0.01` the multigrid levels keep 36–47 % of their entries (`α = 1`: 84–89 %), with the
+//! same iterations over `bench_solver`'s table. Solve with factorization at `α = γ = 0.01`:
+//! 2.12 → 1.81 s (`bench_solver`'s medians), 2.58 → 2.40 s (medians of 5 alternating runs, a
+//! noisier hour), 2.61 → 2.11 s on the 16-core Xeon limited to 2 cores. At 200 frames
+//! (`bench_paper_torus -- 255 190 200`, bfloat16 slab Gauss–Seidel at `α = 1`): 7 iterations
+//! either way, solve 37.9 → 31.9 s, peak 7.24 → 7.21 GB. The solves do not speed up in
+//! proportion to what they read: most supernodes of a nested-dissection order are one vertex
+//! wide, and their per-row work (gathering, scattering) stays.
+//!
 //! A solve runs the two halves of the elimination tree under its top separators on two threads
 //! when another is free ([`TreeSplit`]): multigrid's coarse levels have fewer slabs than cores,
 //! and a lone slab solve then reads its factor at both cores' bandwidth (`bench_solver`,
@@ -23,7 +39,7 @@
 //! Why written by hand: faer's triangular solves are generic over faer's scalar types, and
 //! bfloat16 is not one (nor does any sparse crate solve with a compressed factor). The kernels
 //! below walk faer's own symbolic structure, supernodal or simplicial, so the ordering and fill
-//! are those of the `f32` factor.
+//! are those of the `f32` factor, less the dropped rows.
 
 use super::cholesky::{CholeskyFactor, FactorEntries};
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
@@ -32,13 +48,26 @@ use std::ops::Range;
 use std::sync::Arc;
 
 /// `L Lᵀ ≈ A` with `L` in bfloat16 (the `f32` factor's entries rounded to nearest, ties to
-/// even).
+/// even, its small rows dropped: [`DROP_TOLERANCE`]).
 pub struct Bf16Factor {
     symbolic: Arc<SymbolicCholesky<usize>>,
     values: Vec<u16>,
+    /// The rows kept below each supernode (supernodal layout only).
+    kept: Option<KeptRows>,
     /// The elimination tree's two largest independent parts, solved on two threads.
     split: Option<TreeSplit>,
 }
+
+/// A row of `L` below a supernode's triangle is dropped when all its entries there are below
+/// this fraction of the row's pivot `L_rr`: each such entry then changes the row by less than
+/// rounding the pivot itself to bfloat16 may (`2⁻⁹ L_rr`).
+///
+/// Where the time coupling dominates a slab block (`D ≈ 2cM` at small `α`), `L` decays fast
+/// away from the diagonal and most of the fill is below it: on the 128×95×20 torus at
+/// `α = 0.01` 53–64 % of each level's entries (`α = 1`: 11–16 %). Multigrid's iterations over
+/// the `bench_solver` table were the same with `2⁻¹⁰`, `10⁻³`, `2·10⁻³` and `10⁻⁴`; `4·10⁻³`
+/// cost up to 3 (`α = 0.001`, `γ = 1`: 9 → 12).
+pub const DROP_TOLERANCE: f32 = 1.0 / 1024.0;
 
 /// `x` rounded to bfloat16, to nearest with ties to even (no NaN reaches here: a factor
 /// holds finite numbers).
@@ -54,15 +83,30 @@ fn widen(h: u16) -> f32 {
 }
 
 impl Bf16Factor {
-    /// Rounds an `f32` factor's entries; its symbolic analysis is shared.
+    /// Rounds an `f32` factor's entries and drops the rows below [`DROP_TOLERANCE`]; its
+    /// symbolic analysis is shared.
     pub fn new(factor: &CholeskyFactor<f32>) -> Self {
-        let split = match factor.symbolic().raw() {
-            SymbolicCholeskyRaw::Supernodal(s) => TreeSplit::of(&Supernodes::of(s)),
-            SymbolicCholeskyRaw::Simplicial(_) => None,
+        Self::dropping(factor, DROP_TOLERANCE)
+    }
+
+    /// [`Self::new`] with rows dropped below `tolerance` times their pivot (none at 0).
+    fn dropping(factor: &CholeskyFactor<f32>, tolerance: f32) -> Self {
+        let (values, kept, split) = match factor.symbolic().raw() {
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                let (kept, values) = KeptRows::rounding(s, factor.values(), tolerance);
+                let split = TreeSplit::of(&Supernodes::of(s, &kept));
+                (values, Some(kept), split)
+            }
+            SymbolicCholeskyRaw::Simplicial(_) => (
+                factor.values().iter().map(|&v| to_bf16(v)).collect(),
+                None,
+                None,
+            ),
         };
         Self {
             symbolic: factor.symbolic().clone(),
-            values: factor.values().iter().map(|&v| to_bf16(v)).collect(),
+            values,
+            kept,
             split,
         }
     }
@@ -90,7 +134,11 @@ impl Bf16Factor {
         gather(y, x, perm.map(|(forward, _)| forward), |v| v as f32);
         match self.symbolic.raw() {
             SymbolicCholeskyRaw::Supernodal(s) => {
-                let structure = Supernodes::of(s);
+                let kept = self
+                    .kept
+                    .as_ref()
+                    .expect("a supernodal factor keeps its rows");
+                let structure = Supernodes::of(s, kept);
                 match &self.split {
                     Some(split) => split.solve(&structure, &self.values, y, scratch),
                     None => {
@@ -125,16 +173,125 @@ struct Supernodes<'a> {
     symbolic: &'a SymbolicSupernodalCholesky<usize>,
     begin: &'a [usize],
     end: &'a [usize],
-    value_start: &'a [usize],
+    kept: &'a KeptRows,
+}
+
+/// Which rows of each supernode's pattern below its triangle a factor keeps (one bit per
+/// row, from word `word_start[s]`), and where the supernode's values start.
+struct KeptRows {
+    bits: Vec<u64>,
+    word_start: Vec<usize>,
+    value_start: Vec<usize>,
+}
+
+impl KeptRows {
+    /// Rounds `values` to bfloat16, keeping a row below a supernode's triangle only where one of
+    /// its entries is at least `tolerance` times the row's pivot.
+    fn rounding(
+        symbolic: &SymbolicSupernodalCholesky<usize>,
+        values: &[f32],
+        tolerance: f32,
+    ) -> (Self, Vec<u16>) {
+        let (begin, end, start) = (
+            symbolic.supernode_begin(),
+            symbolic.supernode_end(),
+            symbolic.col_ptr_for_val(),
+        );
+        let mut pivots = vec![0.0f32; symbolic.nrows()];
+        for s in 0..begin.len() {
+            let w = end[s] - begin[s];
+            let ld = (start[s + 1] - start[s]) / w;
+            for j in 0..w {
+                pivots[begin[s] + j] = values[start[s] + j * ld + j];
+            }
+        }
+        let mut kept = Self {
+            bits: Vec::new(),
+            word_start: vec![0],
+            value_start: vec![0],
+        };
+        let mut rounded = Vec::with_capacity(values.len());
+        let (mut rows, mut largest) = (Vec::new(), Vec::new());
+        for s in 0..begin.len() {
+            let below = symbolic.supernode(s).pattern();
+            let w = end[s] - begin[s];
+            let ld = w + below.len();
+            let l = &values[start[s]..start[s + 1]];
+            rows.clear();
+            let words = kept.bits.len();
+            kept.bits.resize(words + below.len().div_ceil(64), 0);
+            largest.clear();
+            largest.resize(below.len(), 0.0f32);
+            for column in l.chunks_exact(ld) {
+                (largest.iter_mut().zip(&column[w..])).for_each(|(m, v)| *m = m.max(v.abs()));
+            }
+            for (i, &r) in below.iter().enumerate() {
+                if largest[i] >= tolerance * pivots[r] {
+                    rows.push(i);
+                    kept.bits[words + i / 64] |= 1 << (i % 64);
+                }
+            }
+            for column in l.chunks_exact(ld) {
+                rounded.extend(column[..w].iter().map(|&v| to_bf16(v)));
+                rounded.extend(rows.iter().map(|&i| to_bf16(column[w + i])));
+            }
+            kept.word_start.push(kept.bits.len());
+            kept.value_start.push(rounded.len());
+        }
+        (kept, rounded)
+    }
+}
+
+/// The rows a supernode keeps below its triangle: its pattern, filtered by a bit per row.
+#[derive(Clone, Copy)]
+struct Below<'a> {
+    pattern: &'a [usize],
+    bits: &'a [u64],
+    len: usize,
+}
+
+impl<'a> Below<'a> {
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    /// `visit(k, r)` for the `k`-th kept row, `r`; a word whose rows are all kept is walked
+    /// without its bits (the common case where nothing is dropped).
+    #[inline(always)]
+    fn for_each(&self, mut visit: impl FnMut(usize, usize)) {
+        if self.len == self.pattern.len() {
+            self.pattern
+                .iter()
+                .enumerate()
+                .for_each(|(k, &r)| visit(k, r));
+            return;
+        }
+        let mut k = 0;
+        for (rows, &bits) in self.pattern.chunks(64).zip(self.bits) {
+            if bits.count_ones() as usize == rows.len() {
+                for &r in rows {
+                    visit(k, r);
+                    k += 1;
+                }
+            } else {
+                let mut bits = bits;
+                while bits != 0 {
+                    visit(k, rows[bits.trailing_zeros() as usize]);
+                    bits &= bits - 1;
+                    k += 1;
+                }
+            }
+        }
+    }
 }
 
 impl<'a> Supernodes<'a> {
-    fn of(symbolic: &'a SymbolicSupernodalCholesky<usize>) -> Self {
+    fn of(symbolic: &'a SymbolicSupernodalCholesky<usize>, kept: &'a KeptRows) -> Self {
         Self {
             symbolic,
             begin: symbolic.supernode_begin(),
             end: symbolic.supernode_end(),
-            value_start: symbolic.col_ptr_for_val(),
+            kept,
         }
     }
 
@@ -143,10 +300,15 @@ impl<'a> Supernodes<'a> {
     }
 
     /// `(first column, width, rows below, values)` of supernode `s`.
-    fn supernode<'v>(&self, s: usize, values: &'v [u16]) -> (usize, usize, &'a [usize], &'v [u16]) {
-        let below = self.symbolic.supernode(s).pattern();
-        let values = &values[self.value_start[s]..self.value_start[s + 1]];
-        (self.begin[s], self.end[s] - self.begin[s], below, values)
+    fn supernode<'v>(&self, s: usize, values: &'v [u16]) -> (usize, usize, Below<'a>, &'v [u16]) {
+        let (w, kept) = (self.end[s] - self.begin[s], self.kept);
+        let values = &values[kept.value_start[s]..kept.value_start[s + 1]];
+        let below = Below {
+            pattern: self.symbolic.supernode(s).pattern(),
+            bits: &kept.bits[kept.word_start[s]..kept.word_start[s + 1]],
+            len: values.len() / w - w,
+        };
+        (self.begin[s], w, below, values)
     }
 
     /// `y ← L⁻¹ y`: per supernode, the dense triangle, then its rows below take
@@ -179,9 +341,7 @@ impl<'a> Supernodes<'a> {
                 axpy(&mut y[first + j + 1..first + w], &column[j + 1..w], -yj);
                 axpy(update, &column[w..], yj);
             }
-            for (&r, u) in below.iter().zip(update.iter()) {
-                columns.take_off(r, *u);
-            }
+            below.for_each(|k, r| columns.take_off(r, update[k]));
         }
     }
 
@@ -208,8 +368,8 @@ impl<'a> Supernodes<'a> {
             let first = first - offset;
             let ld = w + below.len();
             let gathered = &mut scratch[..below.len()];
-            (gathered.iter_mut().zip(below)).for_each(|(g, &r)| {
-                *g = match r < end {
+            below.for_each(|k, r| {
+                gathered[k] = match r < end {
                     true => own[r - offset],
                     false => beyond[r - beyond_start],
                 }
@@ -301,8 +461,9 @@ impl TreeSplit {
         if roots != 1 || kids.len() < 2 || kids[kids.len() - 1] + 1 != top {
             return None;
         }
-        let entries =
-            |r: Range<usize>| supernodes.value_start[r.end] - supernodes.value_start[r.start];
+        let entries = |r: Range<usize>| {
+            supernodes.kept.value_start[r.end] - supernodes.kept.value_start[r.start]
+        };
         let below = entries(0..top);
         let cut = kids[..kids.len() - 1]
             .iter()
@@ -491,15 +652,16 @@ mod tests {
     use faer::Par;
 
     /// A connection Laplacian plus mass on an `n1 × n2` periodic grid (two DOFs per vertex,
-    /// each edge's block a rotation, as for tangent fields): symmetric positive definite.
-    fn grid_block(n1: usize, n2: usize) -> SparseColMat<usize, f64> {
+    /// each edge's block a rotation, as for tangent fields), `diagonal` on the diagonal
+    /// (`4 + mass`): symmetric positive definite.
+    fn grid_block(n1: usize, n2: usize, diagonal: f64) -> SparseColMat<usize, f64> {
         let vertex = |i: usize, j: usize| (i % n1) * n2 + j % n2;
         let mut triplets = Vec::new();
         for i in 0..n1 {
             for j in 0..n2 {
                 let v = vertex(i, j);
                 for d in 0..2 {
-                    triplets.push(Triplet::new(2 * v + d, 2 * v + d, 4.1));
+                    triplets.push(Triplet::new(2 * v + d, 2 * v + d, diagonal));
                 }
                 for (k, w) in [vertex(i + 1, j), vertex(i, j + 1)].into_iter().enumerate() {
                     let angle = 0.3 * (v + k) as f64;
@@ -514,9 +676,14 @@ mod tests {
         SparseColMat::try_new_from_triplets(2 * n1 * n2, 2 * n1 * n2, &triplets).unwrap()
     }
 
-    /// The `f32` factor of [`grid_block`].
+    /// The `f32` factor of [`grid_block`] with a small mass (diagonal 4.1): `L` decays slowly.
     fn grid_factor(n1: usize, n2: usize) -> CholeskyFactor<f32> {
-        let block = grid_block(n1, n2);
+        mass_factor(n1, n2, 4.1)
+    }
+
+    /// The `f32` factor of [`grid_block`].
+    fn mass_factor(n1: usize, n2: usize, diagonal: f64) -> CholeskyFactor<f32> {
+        let block = grid_block(n1, n2, diagonal);
         let symbolic = analyze(block.symbolic(), 2);
         CholeskyFactor::<f32>::new(&symbolic, block.as_ref(), Par::Seq).unwrap()
     }
@@ -526,28 +693,109 @@ mod tests {
         (0..n).map(|i| (0.37 * (i + shift) as f64).sin()).collect()
     }
 
-    /// The bfloat16 solve equals faer's `f32` solve with the same (rounded) entries, up to
-    /// `f32` rounding, for the supernodal and the simplicial layout.
+    /// `‖x − y‖ / ‖y‖`.
+    fn relative_difference(x: &[f64], y: &[f64]) -> f64 {
+        let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|v| v * v).sum::<f64>().sqrt();
+        norm(&mut x.iter().zip(y).map(|(x, y)| x - y)) / norm(&mut y.iter().copied())
+    }
+
+    /// `factor`'s entries with every row below a supernode's triangle zeroed where all its
+    /// entries there are below `tolerance` times the row's pivot, and how many were zeroed:
+    /// the dropping rule, entry by entry in faer's own layout.
+    fn zero_small_rows(factor: &CholeskyFactor<f32>, tolerance: f32) -> (Vec<f32>, usize) {
+        let mut values = factor.values().to_vec();
+        let SymbolicCholeskyRaw::Supernodal(symbolic) = factor.symbolic().raw() else {
+            return (values, 0);
+        };
+        let start = symbolic.col_ptr_for_val();
+        let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
+        let ld = |s: usize| end[s] - begin[s] + symbolic.supernode(s).pattern().len();
+        let pivot = |c: usize| {
+            let s = end.partition_point(|&e| e <= c);
+            let j = c - begin[s];
+            factor.values()[start[s] + j * ld(s) + j]
+        };
+        let mut zeroed = 0;
+        for s in 0..begin.len() {
+            let w = end[s] - begin[s];
+            for (i, &r) in symbolic.supernode(s).pattern().iter().enumerate() {
+                let at = |j: usize| start[s] + j * ld(s) + w + i;
+                if (0..w).all(|j| values[at(j)].abs() < tolerance * pivot(r)) {
+                    (0..w).for_each(|j| values[at(j)] = 0.0);
+                    zeroed += w;
+                }
+            }
+        }
+        (values, zeroed)
+    }
+
+    /// The bfloat16 solve equals faer's `f32` solve with the same entries (rounded, the small
+    /// rows zeroed), up to `f32` rounding, for the supernodal and the simplicial layout, with
+    /// and without dropping. A large mass (diagonal 40) makes `L` decay fast, and most of it
+    /// drops; the stored entries are exactly those not dropped.
     #[test]
     fn solves_as_faer_does_with_the_rounded_entries() {
         for (n1, n2, supernodal) in [(64, 48, true), (8, 6, false)] {
-            let factor = grid_factor(n1, n2);
-            let is_supernodal =
-                matches!(factor.symbolic().raw(), SymbolicCholeskyRaw::Supernodal(_));
-            assert_eq!(is_supernodal, supernodal, "{n1}×{n2}: layout");
-            let compressed = Bf16Factor::new(&factor);
-            let rounded: Vec<f32> = compressed.values.iter().map(|&h| widen(h)).collect();
-            let reference = CholeskyFactor::from_parts(factor.symbolic().clone(), rounded);
-            let b = sines(factor.symbolic().nrows(), 0);
-            let (mut x, mut y) = (b.clone(), b.clone());
-            compressed.solve_in_place(&mut x, &mut Vec::new());
-            reference.solve_in_place(&mut y, Par::Seq);
-            let norm = |v: &[f64]| v.iter().map(|v| v * v).sum::<f64>().sqrt();
-            let difference: Vec<f64> = x.iter().zip(&y).map(|(x, y)| x - y).collect();
-            let relative = norm(&difference) / norm(&y);
+            for (diagonal, tolerance) in [(4.1, 0.0), (4.1, DROP_TOLERANCE), (40.0, DROP_TOLERANCE)]
+            {
+                let case = format!("{n1}×{n2}, diagonal {diagonal}, tolerance {tolerance}");
+                let factor = mass_factor(n1, n2, diagonal);
+                let is_supernodal =
+                    matches!(factor.symbolic().raw(), SymbolicCholeskyRaw::Supernodal(_));
+                assert_eq!(is_supernodal, supernodal, "{case}: layout");
+                let compressed = Bf16Factor::dropping(&factor, tolerance);
+                let (kept, zeroed) = zero_small_rows(&factor, tolerance);
+                assert_eq!(
+                    compressed.values.len(),
+                    kept.len() - zeroed,
+                    "{case}: stored"
+                );
+                if diagonal > 10.0 && supernodal {
+                    assert!(
+                        2 * zeroed > kept.len(),
+                        "{case}: {zeroed} of {} dropped",
+                        kept.len()
+                    );
+                }
+                let rounded = kept.iter().map(|&v| widen(to_bf16(v))).collect();
+                let reference = CholeskyFactor::from_parts(factor.symbolic().clone(), rounded);
+                let b = sines(factor.symbolic().nrows(), 0);
+                let (mut x, mut y) = (b.clone(), b.clone());
+                compressed.solve_in_place(&mut x, &mut Vec::new());
+                reference.solve_in_place(&mut y, Par::Seq);
+                let relative = relative_difference(&x, &y);
+                assert!(relative < 1e-5, "{case}: differs from faer by {relative:e}");
+            }
+        }
+    }
+
+    /// Dropping below [`DROP_TOLERANCE`] moves a solve no further from the exact `f32` one
+    /// than rounding to bfloat16 does, where it drops most of `L` (diagonal 40) and where it
+    /// drops little (4.1).
+    #[test]
+    fn dropping_costs_no_more_than_rounding() {
+        for diagonal in [4.1, 40.0] {
+            let factor = mass_factor(64, 48, diagonal);
+            let b = sines(factor.symbolic().nrows(), 3);
+            let solve = |tolerance: Option<f32>| {
+                let mut x = b.clone();
+                match tolerance {
+                    Some(t) => {
+                        Bf16Factor::dropping(&factor, t).solve_in_place(&mut x, &mut Vec::new())
+                    }
+                    None => factor.solve_in_place(&mut x, Par::Seq),
+                }
+                x
+            };
+            let exact = solve(None);
+            let rounding = relative_difference(&solve(Some(0.0)), &exact);
+            let dropping = relative_difference(&solve(Some(DROP_TOLERANCE)), &exact);
+            println!(
+                "diagonal {diagonal}: rounding {rounding:e}, rounding and dropping {dropping:e}"
+            );
             assert!(
-                relative < 1e-5,
-                "{n1}×{n2}: differs from faer by {relative:e}"
+                dropping <= 2.0 * rounding,
+                "diagonal {diagonal}: {dropping:e} against {rounding:e}"
             );
         }
     }
@@ -638,13 +886,20 @@ mod tests {
     }
 
     /// Timing of slab solves, bfloat16 against faer's `f32`: 20 copies of a factor (more than
-    /// the last-level cache holds), solved in turn on each of two threads (`cargo test
-    /// --release bfloat::tests::timing -- --ignored --nocapture`).
+    /// the last-level cache holds), solved in turn on each of two threads, for a block whose
+    /// `L` decays slowly (diagonal 4.1: little drops) and one whose `L` decays fast (40)
+    /// (`cargo test --release bfloat::tests::timing -- --ignored --nocapture`).
     #[test]
     #[ignore]
     fn timing() {
+        for diagonal in [4.1, 40.0] {
+            println!("diagonal {diagonal}");
+            time_solves(&mass_factor(128, 95, diagonal));
+        }
+    }
+
+    fn time_solves(factor: &CholeskyFactor<f32>) {
         use rayon::prelude::*;
-        let factor = grid_factor(128, 95);
         let n = factor.symbolic().nrows();
         let copies: Vec<CholeskyFactor<f32>> = (0..20)
             .map(|_| {
@@ -673,8 +928,9 @@ mod tests {
             let bf16_ms = start.elapsed().as_secs_f64() * 10.0;
             println!(
                 "round {round}: per solve on each of 2 threads: f32 {f32_ms:.3} ms, bf16 \
-                 {bf16_ms:.3} ms ({} entries)",
-                factor.values().len()
+                 {bf16_ms:.3} ms ({} entries, {} kept)",
+                factor.values().len(),
+                compressed[0].values.len()
             );
         }
     }

@@ -55,6 +55,12 @@
 //! instead of 76 (3.4 s against 3.2 s; 81 once `auto` left a probe without progress early,
 //! below). Its 3 factors take 29 MB in `f32`, so its levels now stay in `f32`: 54 iterations,
 //! 3.3–3.7 s (bfloat16: 3.4–3.7 s); the default solve keeps 9 (4 + 5) and multigrid alone 6.
+//! Bfloat16 factors also leave out the rows of `L` below a supernode whose entries are all
+//! under `2⁻¹⁰` of their pivot ([`crate::linalg::bfloat::DROP_TOLERANCE`]): where the time
+//! coupling dominates the blocks (small `α`, exactly where multigrid runs) `L` decays fast and
+//! more than half of it drops, so a V-cycle reads about half as much, with the same iterations
+//! (the iterations' time falls by 22–30 %, less than the bytes: the many one-vertex supernodes'
+//! per-row work and the residual products stay).
 //!
 //! Every method runs with subnormal numbers flushed to zero ([`crate::subnormals`]): at
 //! mid-range `α` up to 4 % of the single-precision factors' entries are subnormal otherwise
@@ -228,10 +234,14 @@
 //! and about 0.16 s off the solve. `auto`'s iterations now, `α` = 10 / 1 / 0.1 / 0.01 / 0.001:
 //! 3 / 19 / 10 / 10 / 9 at `γ = 1`, 2 / 8 / 11 / 12 / 8 at `γ = 0.01`, default weights at
 //! 30 fps 12 (bench_solver, 2026-11-27). Since then (the post-smoother in place, the levels
-//! built in parallel) the ratio is 1.25–1.36 at `γ = 1` and 2.55–2.63 at `γ = 0.01` on two
-//! cores (a quiet table's single runs and `bench_solver`'s medians); cheaper cycles that would close the rest (a V(0,1) cycle under
-//! flexible CG, shared coarse factors, links' residuals on bfloat16 levels) lost iterations
-//! where they saved work (docs/scaling.md, "Cheaper cycles").
+//! built in parallel) the ratio was 1.25–1.36 at `γ = 1` and 2.55–2.63 at `γ = 0.01` on two
+//! cores; cheaper cycles (a V(0,1) cycle under flexible CG, shared coarse factors, links'
+//! residuals on bfloat16 levels) lost iterations where they saved work (docs/scaling.md,
+//! "Cheaper cycles"). Dropping the bfloat16 factors' small rows (above) keeps every iteration
+//! count and takes it to 1.24 at `γ = 1` and 2.21 at `γ = 0.01` (`bench_solver`'s medians;
+//! 2.47 against 2.66 before in five alternating runs of a noisier hour), and to 1.14 and 2.07
+//! on the 16-core Xeon limited to 2 cores (2.87 before, the same hour; docs/scaling.md,
+//! "Small rows dropped").
 //!
 //! Results agree with the direct solver to 1e-9 relative (`tests/solver.rs`), for lumped and
 //! consistent coupling, Neumann and Dirichlet boundaries, even and odd slab counts.
