@@ -238,6 +238,8 @@ impl KeptRows {
             kept.word_start.push(kept.bits.len());
             kept.value_start.push(rounded.len());
         }
+        // Most of the capacity may be unused where much drops; it would stay reserved.
+        rounded.shrink_to_fit();
         (kept, rounded)
     }
 }
