@@ -238,10 +238,10 @@
 //! cores; cheaper cycles (a V(0,1) cycle under flexible CG, shared coarse factors, links'
 //! residuals on bfloat16 levels) lost iterations where they saved work (docs/scaling.md,
 //! "Cheaper cycles"). Dropping the bfloat16 factors' small rows (above) keeps every iteration
-//! count and takes it to 1.24 at `γ = 1` and 2.21 at `γ = 0.01` (`bench_solver`'s medians;
-//! 2.47 against 2.66 before in five alternating runs of a noisier hour), and to 1.14 and 2.07
-//! on the 16-core Xeon limited to 2 cores (2.87 before, the same hour; docs/scaling.md,
-//! "Small rows dropped").
+//! count and takes it to 1.09–1.24 at `γ = 1` and 2.21 at `γ = 0.01` (`bench_solver`'s
+//! medians; 2.20 against 2.65 before in alternating runs of a quiet hour, 2.47 against 2.66 in a
+//! noisy one), and to 1.14 and 2.07 on the 16-core Xeon limited to 2 cores (2.87 before, the
+//! same hour; docs/scaling.md, "Small rows dropped").
 //!
 //! Results agree with the direct solver to 1e-9 relative (`tests/solver.rs`), for lumped and
 //! consistent coupling, Neumann and Dirichlet boundaries, even and odd slab counts.
