@@ -197,14 +197,7 @@ impl KeptRows {
             symbolic.supernode_end(),
             symbolic.col_ptr_for_val(),
         );
-        let mut pivots = vec![0.0f32; symbolic.nrows()];
-        for s in 0..begin.len() {
-            let w = end[s] - begin[s];
-            let ld = (start[s + 1] - start[s]) / w;
-            for j in 0..w {
-                pivots[begin[s] + j] = values[start[s] + j * ld + j];
-            }
-        }
+        let pivots = Self::pivots(symbolic, values);
         let mut kept = Self {
             bits: Vec::new(),
             word_start: vec![0],
@@ -241,6 +234,21 @@ impl KeptRows {
         // Most of the capacity may be unused where much drops; it would stay reserved.
         rounded.shrink_to_fit();
         (kept, rounded)
+    }
+
+    /// `L_cc` for every column `c` (the diagonal of each supernode's triangle).
+    fn pivots(symbolic: &SymbolicSupernodalCholesky<usize>, values: &[f32]) -> Vec<f32> {
+        let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
+        let start = symbolic.col_ptr_for_val();
+        let mut pivots = vec![0.0f32; symbolic.nrows()];
+        for s in 0..begin.len() {
+            let w = end[s] - begin[s];
+            let ld = (start[s + 1] - start[s]) / w;
+            for j in 0..w {
+                pivots[begin[s] + j] = values[start[s] + j * ld + j];
+            }
+        }
+        pivots
     }
 }
 
