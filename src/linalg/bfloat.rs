@@ -111,6 +111,22 @@ impl Bf16Factor {
         }
     }
 
+    /// Bytes a factor of `symbolic`'s pattern takes at most: every entry kept, and which rows
+    /// are (a bit per panel row, two offsets per supernode).
+    pub fn bytes_at_most(symbolic: &SymbolicCholesky<usize>) -> usize {
+        let bookkeeping = match symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                let supernodes = s.supernode_begin().len();
+                let words: usize = (0..supernodes)
+                    .map(|k| s.supernode(k).pattern().len().div_ceil(64))
+                    .sum();
+                8 * words + 16 * (supernodes + 1)
+            }
+            SymbolicCholeskyRaw::Simplicial(_) => 0,
+        };
+        2 * symbolic.len_val() + bookkeeping
+    }
+
     /// Stored entries of `L` (bfloat16 has no subnormals left once `f32`'s were flushed).
     pub fn entries(&self) -> FactorEntries {
         FactorEntries {
@@ -775,6 +791,32 @@ mod tests {
                 reference.solve_in_place(&mut y, Par::Seq);
                 let relative = relative_difference(&x, &y);
                 assert!(relative < 1e-5, "{case}: differs from faer by {relative:e}");
+            }
+        }
+    }
+
+    /// Bytes `factor` holds (its entries and which rows it keeps).
+    fn held_bytes(factor: &Bf16Factor) -> usize {
+        let kept = factor.kept.as_ref().map_or(0, |k| {
+            8 * (k.bits.len() + k.word_start.len() + k.value_start.len())
+        });
+        2 * factor.values.len() + kept
+    }
+
+    /// A factor's bytes stay within [`Bf16Factor::bytes_at_most`], the memory budget's count,
+    /// with nothing dropped (equal then) and with most rows dropped (about half of it).
+    #[test]
+    fn bytes_stay_within_the_budget_count() {
+        for (diagonal, tolerance) in [(4.1, 0.0), (40.0, DROP_TOLERANCE)] {
+            let factor = mass_factor(64, 48, diagonal);
+            let bound = Bf16Factor::bytes_at_most(factor.symbolic());
+            let bytes = held_bytes(&Bf16Factor::dropping(&factor, tolerance));
+            match tolerance == 0.0 {
+                true => assert_eq!(bytes, bound, "diagonal {diagonal}"),
+                false => assert!(
+                    3 * bytes < 2 * bound,
+                    "diagonal {diagonal}: {bytes} of {bound}"
+                ),
             }
         }
     }

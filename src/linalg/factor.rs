@@ -19,8 +19,12 @@ use std::sync::Arc;
 
 /// A factor that a preconditioner solves with, one thread per solve.
 pub trait SlabFactor: Sized + Send + Sync {
-    /// Bytes each stored entry of `L` takes (the memory budget's unit).
+    /// Bytes each stored entry of `L` takes.
     const ENTRY_BYTES: usize;
+    /// Bytes one factor of the analysed pattern takes at most (the memory budget's unit).
+    fn bytes_at_most(symbolic: &SymbolicCholesky<usize>) -> usize {
+        symbolic.len_val() * Self::ENTRY_BYTES
+    }
     /// How the entries are stored, for the solver's reasons.
     const NAME: &'static str;
     /// The factor multigrid's levels use when slab Gauss–Seidel started with this one.
@@ -92,6 +96,10 @@ impl SlabFactor for Bf16Factor {
     const ENTRY_BYTES: usize = 2;
     const NAME: &'static str = "bfloat16";
     type Compressed = Self;
+
+    fn bytes_at_most(symbolic: &SymbolicCholesky<usize>) -> usize {
+        Bf16Factor::bytes_at_most(symbolic)
+    }
 
     /// Factors in `f32` (faer), then rounds.
     fn factor(

@@ -768,7 +768,7 @@ impl<'a> FactorPlan<'a> {
         symbolic: &'a Arc<SymbolicCholesky<usize>>,
         budget: usize,
     ) -> Self {
-        let factor_bytes = symbolic.len_val() * F::ENTRY_BYTES;
+        let factor_bytes = F::bytes_at_most(symbolic);
         let fitting = budget / factor_bytes.max(1);
         let slabs_per_factor = match fitting {
             0 => system.n_slabs() + 1,
