@@ -24,8 +24,8 @@
 //! (`D ≈ 2cM` at small `α`), `L` decays fast away from the diagonal: on the 128×95×20 torus at
 //! `α = 0.01` the multigrid levels keep 36–47 % of their entries (`α = 1`: 84–89 %), with the
 //! same iterations over `bench_solver`'s table. Solve with factorization at `α = γ = 0.01`:
-//! 2.12 → 1.81 s (`bench_solver`'s medians), 2.58 → 2.40 s (medians of 5 alternating runs, a
-//! noisier hour), 2.61 → 2.11 s on the 16-core Xeon limited to 2 cores. At 200 frames
+//! 2.00 → 1.66 s (medians of 3 alternating runs, a quiet hour; 2.58 → 2.40 s in a noisy one),
+//! 2.61 → 2.11 s on the 16-core Xeon limited to 2 cores. At 200 frames
 //! (`bench_paper_torus -- 255 190 200`, bfloat16 slab Gauss–Seidel at `α = 1`): 7 iterations
 //! either way, solve 37.9 → 31.9 s, peak 7.24 → 7.21 GB. The solves do not speed up in
 //! proportion to what they read: most supernodes of a nested-dissection order are one vertex
