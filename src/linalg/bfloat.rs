@@ -182,9 +182,10 @@ fn gather<S: Copy, T>(to: &mut [T], from: &[S], index: Option<&[usize]>, convert
     }
 }
 
-/// faer's supernodal layout: supernode `s` holds columns `begin[s]..end[s]`, its values
-/// column-major with `w + m` rows (`w` its columns: the dense lower triangle on top; `m` the
-/// rows of its pattern below) from `value_start[s]`.
+/// faer's supernodal layout, less the dropped rows: supernode `s` holds columns
+/// `begin[s]..end[s]`, its values column-major with `w + m` rows (`w` its columns: the dense
+/// lower triangle on top; `m` the rows of its pattern below that the factor keeps) from
+/// `kept.value_start[s]`.
 struct Supernodes<'a> {
     symbolic: &'a SymbolicSupernodalCholesky<usize>,
     begin: &'a [usize],
@@ -721,8 +722,8 @@ mod tests {
 
     /// `‖x − y‖ / ‖y‖`.
     fn relative_difference(x: &[f64], y: &[f64]) -> f64 {
-        let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|v| v * v).sum::<f64>().sqrt();
-        norm(&mut x.iter().zip(y).map(|(x, y)| x - y)) / norm(&mut y.iter().copied())
+        let squared: f64 = x.iter().zip(y).map(|(x, y)| (x - y) * (x - y)).sum();
+        (squared / y.iter().map(|y| y * y).sum::<f64>()).sqrt()
     }
 
     /// `factor`'s entries with every row below a supernode's triangle zeroed where all its
