@@ -157,6 +157,7 @@ impl Precision for f32 {
 
 /// `L Lᵀ = A` for one symmetric positive definite matrix with the analysed pattern, stored in
 /// precision `T` (`f32` halves the memory and the memory traffic of a preconditioner's solves).
+#[derive(Clone)]
 pub struct CholeskyFactor<T = f64> {
     symbolic: Arc<SymbolicCholesky<usize>>,
     values: Vec<T>,
@@ -237,6 +238,11 @@ impl<T: Precision> CholeskyFactor<T> {
             MemStack::new(&mut scratch),
         );
         x.iter_mut().zip(&rhs).for_each(|(x, r)| *x = r.to_f64());
+    }
+
+    /// The symbolic analysis and the values of `L`, the factor given up.
+    pub fn into_parts(self) -> (Arc<SymbolicCholesky<usize>>, Vec<T>) {
+        (self.symbolic, self.values)
     }
 
     /// A factor with the given values of `L` (tests that compare solves).

@@ -1,30 +1,29 @@
 //! The factors a preconditioner's slab solves use, by the precision they are stored in:
-//! [`SlabFactor`] over faer's `f64` and `f32` factors and the bfloat16 ones of
-//! [`super::bfloat`].
+//! [`SlabFactor`] over faer's `f64` factors and the packed `f32` and bfloat16 ones of
+//! [`super::packed`].
 //!
-//! A slab sweep solves with every factor once per half sweep, one thread per solve, and its
-//! time is what the factors' bytes take to stream from memory. `f32` factors are exact enough
-//! that slab Gauss–Seidel converges as with `f64`; bfloat16 reads half as much and leaves
-//! multigrid in time's iterations as they were, but costs slab Gauss–Seidel iterations where the
-//! slab solves alone almost solve the system (large `α`): its rounding, about `2⁻⁹` per entry,
-//! is then what the iterations reduce. So each kind of factor says which one multigrid uses
+//! A slab sweep solves with every factor once per half sweep, one thread per solve (two where
+//! another is free and the tree splits). `f32` factors are exact enough that slab Gauss–Seidel
+//! converges as with `f64`; bfloat16 reads half as much and leaves multigrid in time's
+//! iterations as they were, but costs slab Gauss–Seidel iterations where the slab solves
+//! alone almost solve the system (large `α`): its rounding, about `2⁻⁹` per entry, is then what
+//! the iterations reduce. So each kind of factor says which one multigrid uses
 //! ([`SlabFactor::Compressed`]).
 
-use super::bfloat::Bf16Factor;
-use super::cholesky::{CholeskyFactor, FactorEntries, Precision, SparseMatrixRef};
+use super::bfloat::{Bf16, Bf16Factor, DROP_TOLERANCE};
+use super::cholesky::{CholeskyFactor, FactorEntries, SparseMatrixRef};
+use super::packed::{Entry, Halves, PackedFactor};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
 use std::cell::Cell;
 use std::sync::Arc;
 
-/// A factor that a preconditioner solves with, one thread per solve.
+/// A factor that a preconditioner solves with.
 pub trait SlabFactor: Sized + Send + Sync {
     /// Bytes each stored entry of `L` takes.
     const ENTRY_BYTES: usize;
     /// Bytes one factor of the analysed pattern takes at most (the memory budget's unit).
-    fn bytes_at_most(symbolic: &SymbolicCholesky<usize>) -> usize {
-        symbolic.len_val() * Self::ENTRY_BYTES
-    }
+    fn bytes_at_most(symbolic: &SymbolicCholesky<usize>) -> usize;
     /// How the entries are stored, for the solver's reasons.
     const NAME: &'static str;
     /// The factor multigrid's levels use when slab Gauss–Seidel started with this one.
@@ -35,42 +34,22 @@ pub trait SlabFactor: Sized + Send + Sync {
         symbolic: &Arc<SymbolicCholesky<usize>>,
         matrix: SparseMatrixRef<'_>,
     ) -> Result<Self, String>;
-    /// `x ← A⁻¹ x`, single-threaded.
-    fn solve(&self, x: &mut [f64]);
+    /// `x ← A⁻¹ x`, on two threads where `halves` says so and the factor can.
+    fn solve(&self, x: &mut [f64], halves: Halves);
     fn entries(&self) -> FactorEntries;
     fn compress(self) -> Self::Compressed;
 }
 
-/// What a precision of faer's factors becomes for multigrid's levels.
-pub trait Compressible: Precision + Send + Sync {
-    type Compressed: SlabFactor;
-    const NAME: &'static str;
-    fn compress(factor: CholeskyFactor<Self>) -> Self::Compressed;
-}
-
-impl Compressible for f64 {
-    type Compressed = CholeskyFactor<f64>;
+/// Double precision, the fallback for blocks too ill-conditioned for single: faer's factor
+/// and solve, kept as it is on multigrid's levels.
+impl SlabFactor for CholeskyFactor<f64> {
+    const ENTRY_BYTES: usize = 8;
     const NAME: &'static str = "double precision";
+    type Compressed = Self;
 
-    /// Double precision is the fallback for blocks too ill-conditioned for single: kept.
-    fn compress(factor: CholeskyFactor<f64>) -> Self::Compressed {
-        factor
+    fn bytes_at_most(symbolic: &SymbolicCholesky<usize>) -> usize {
+        symbolic.len_val() * Self::ENTRY_BYTES
     }
-}
-
-impl Compressible for f32 {
-    type Compressed = Bf16Factor;
-    const NAME: &'static str = "single precision";
-
-    fn compress(factor: CholeskyFactor<f32>) -> Bf16Factor {
-        Bf16Factor::new(&factor)
-    }
-}
-
-impl<T: Compressible> SlabFactor for CholeskyFactor<T> {
-    const ENTRY_BYTES: usize = std::mem::size_of::<T>();
-    const NAME: &'static str = T::NAME;
-    type Compressed = T::Compressed;
 
     fn factor(
         symbolic: &Arc<SymbolicCholesky<usize>>,
@@ -79,7 +58,7 @@ impl<T: Compressible> SlabFactor for CholeskyFactor<T> {
         Self::new(symbolic, matrix, Par::Seq)
     }
 
-    fn solve(&self, x: &mut [f64]) {
+    fn solve(&self, x: &mut [f64], _: Halves) {
         self.solve_in_place(x, Par::Seq)
     }
 
@@ -87,46 +66,81 @@ impl<T: Compressible> SlabFactor for CholeskyFactor<T> {
         CholeskyFactor::entries(self)
     }
 
-    fn compress(self) -> T::Compressed {
-        T::compress(self)
+    fn compress(self) -> Self {
+        self
     }
 }
 
-impl SlabFactor for Bf16Factor {
-    const ENTRY_BYTES: usize = 2;
-    const NAME: &'static str = "bfloat16";
-    type Compressed = Self;
+/// What a packed factor's entries make of faer's `f32` factor, and what multigrid's levels
+/// make of it.
+pub trait PackedEntry: Entry {
+    const NAME: &'static str;
+    type Compressed: SlabFactor;
+    fn pack(factor: CholeskyFactor<f32>) -> PackedFactor<Self>;
+    fn compress(factor: PackedFactor<Self>) -> Self::Compressed;
+}
 
-    fn bytes_at_most(symbolic: &SymbolicCholesky<usize>) -> usize {
-        Bf16Factor::bytes_at_most(symbolic)
+impl PackedEntry for f32 {
+    const NAME: &'static str = "single precision";
+    type Compressed = Bf16Factor;
+
+    fn pack(factor: CholeskyFactor<f32>) -> PackedFactor<f32> {
+        PackedFactor::new(factor)
     }
 
-    /// Factors in `f32` (faer), then rounds.
+    fn compress(factor: PackedFactor<f32>) -> Bf16Factor {
+        Bf16Factor::rounding(&factor)
+    }
+}
+
+impl PackedEntry for Bf16 {
+    const NAME: &'static str = "bfloat16";
+    type Compressed = Bf16Factor;
+
+    fn pack(factor: CholeskyFactor<f32>) -> Bf16Factor {
+        Bf16Factor::packing(factor.symbolic(), factor.values(), DROP_TOLERANCE)
+    }
+
+    fn compress(factor: Bf16Factor) -> Bf16Factor {
+        factor
+    }
+}
+
+impl<E: PackedEntry> SlabFactor for PackedFactor<E> {
+    const ENTRY_BYTES: usize = E::BYTES;
+    const NAME: &'static str = E::NAME;
+    type Compressed = E::Compressed;
+
+    fn bytes_at_most(symbolic: &SymbolicCholesky<usize>) -> usize {
+        PackedFactor::<E>::bytes_at_most(symbolic)
+    }
+
+    /// Factors in `f32` (faer), then packs.
     fn factor(
         symbolic: &Arc<SymbolicCholesky<usize>>,
         matrix: SparseMatrixRef<'_>,
     ) -> Result<Self, String> {
-        CholeskyFactor::<f32>::new(symbolic, matrix, Par::Seq).map(|f| Self::new(&f))
+        CholeskyFactor::<f32>::new(symbolic, matrix, Par::Seq).map(E::pack)
     }
 
     /// With one scratch buffer per thread: a fresh one per solve would be fresh pages. The
     /// buffer is taken out of the thread for the solve, not borrowed: a solve that splits its
     /// tree over two threads (`rayon::join`) may run another slab's solve on this thread while
     /// it waits, and that one then starts a buffer of its own.
-    fn solve(&self, x: &mut [f64]) {
+    fn solve(&self, x: &mut [f64], halves: Halves) {
         thread_local! {
             static WORK: Cell<Vec<f32>> = const { Cell::new(Vec::new()) };
         }
         let mut work = WORK.take();
-        self.solve_in_place(x, &mut work);
+        self.solve_in_place(x, &mut work, halves);
         WORK.set(work);
     }
 
     fn entries(&self) -> FactorEntries {
-        Bf16Factor::entries(self)
+        PackedFactor::entries(self)
     }
 
-    fn compress(self) -> Self {
-        self
+    fn compress(self) -> E::Compressed {
+        E::compress(self)
     }
 }

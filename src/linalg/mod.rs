@@ -8,3 +8,4 @@
 pub(crate) mod bfloat;
 pub(crate) mod cholesky;
 pub(crate) mod factor;
+pub(crate) mod packed;

@@ -38,6 +38,7 @@ use crate::flow::system::{dot, SystemWindow};
 use crate::flow::{FlowError, FlowParams, LinkMatrix, SolverChoice, SpaceTimeSystem};
 use crate::linalg::cholesky::{analyze, CholeskyFactor, FactorEntries};
 use crate::linalg::factor::SlabFactor;
+use crate::linalg::packed::PackedFactor;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use nalgebra::Matrix2;
 use rayon::prelude::*;
@@ -384,7 +385,7 @@ fn solve_window_flushed(
     // Single-precision factors (bfloat16 for multigrid's levels, as in one process) suffice for
     // a preconditioner; f64 if a block of any level is too ill-conditioned (on any rank: the
     // failure is summed).
-    match job.run::<CholeskyFactor<f32>>() {
+    match job.run::<PackedFactor<f32>>() {
         Err(FlowError::Factorization { .. }) => job.run::<CholeskyFactor<f64>>(),
         other => other,
     }

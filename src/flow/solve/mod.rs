@@ -256,6 +256,7 @@ use super::{FlowError, FlowParams, SolverChoice};
 use crate::linalg::bfloat::Bf16Factor;
 use crate::linalg::cholesky::{analyze, CholeskyFactor, FactorEntries};
 use crate::linalg::factor::SlabFactor;
+use crate::linalg::packed::PackedFactor;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
 use multigrid::{TimeHierarchy, TimeMultigrid};
@@ -576,7 +577,7 @@ fn slab_pcg(
     // ill-conditioned for single, within the whole budget as before. Single-precision factors
     // get half the budget per level: multigrid adds about as many coarse factors again.
     let half_budget = params.factor_memory_limit / 2;
-    let single = FactorPlan::new::<CholeskyFactor<f32>>(system, &symbolic, half_budget);
+    let single = FactorPlan::new::<PackedFactor<f32>>(system, &symbolic, half_budget);
     let compressed = FactorPlan::new::<Bf16Factor>(system, &symbolic, half_budget);
     let budget = params.factor_memory_limit;
     let double = FactorPlan::new::<CholeskyFactor<f64>>(system, &symbolic, budget);
@@ -589,7 +590,7 @@ fn slab_pcg(
         observer,
     };
     let outcome = match single.slabs_per_factor {
-        1 => slab_pcg_in::<CholeskyFactor<f32>>(job(&single)),
+        1 => slab_pcg_in::<PackedFactor<f32>>(job(&single)),
         _ => slab_pcg_in::<Bf16Factor>(job(&compressed)),
     };
     match outcome {

@@ -4,6 +4,7 @@ use super::pcg::Preconditioner;
 use crate::flow::system::SpaceTimeSystem;
 use crate::linalg::cholesky::FactorEntries;
 use crate::linalg::factor::SlabFactor;
+use crate::linalg::packed::Halves;
 use rayon::prelude::*;
 
 /// `z = r / diag(A)`: no setup, no memory, iteration counts grow with refinement.
@@ -170,10 +171,11 @@ impl<F: SlabFactor> SlabSweeps<F> {
             Parity::Even,
             around.first_slab(),
         );
+        let halves = Halves::for_solves(slabs.len());
         (slabs.into_par_iter())
             .zip(coupled)
             .for_each(|((s, zs), mut c)| {
-                self.factor(s).solve(&mut c);
+                self.factor(s).solve(&mut c, halves);
                 subtract(zs, &c);
             });
     }
@@ -191,11 +193,12 @@ impl<F: SlabFactor> SlabSweeps<F> {
         let terms = (coupled && around.coupled(system))
             .then(|| self.neighbour_terms(system, z, parity, around));
         let slabs = slabs_of(z, system.slab_dimension(), parity, around.first_slab());
+        let halves = Halves::for_solves(slabs.len());
         slabs.into_par_iter().enumerate().for_each(|(k, (s, zs))| {
             if let Some(terms) = &terms {
                 subtract(zs, &terms[k]);
             }
-            self.factor(s).solve(zs);
+            self.factor(s).solve(zs, halves);
         });
     }
 

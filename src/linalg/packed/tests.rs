@@ -1,0 +1,286 @@
+//! Tests of the packed factors' solves, and the test blocks the bfloat16 tests share.
+
+use super::*;
+use crate::linalg::bfloat::{Bf16Factor, DROP_TOLERANCE};
+use crate::linalg::cholesky::analyze;
+use crate::linalg::factor::SlabFactor;
+use faer::sparse::{SparseColMat, Triplet};
+use faer::Par;
+use rayon::prelude::*;
+
+/// A connection Laplacian plus mass on an `n1 × n2` periodic grid (two DOFs per vertex,
+/// each edge's block a rotation, as for tangent fields), `diagonal` on the diagonal
+/// (`4 + mass`): symmetric positive definite.
+pub(crate) fn grid_block(n1: usize, n2: usize, diagonal: f64) -> SparseColMat<usize, f64> {
+    let vertex = |i: usize, j: usize| (i % n1) * n2 + j % n2;
+    let mut triplets = Vec::new();
+    for i in 0..n1 {
+        for j in 0..n2 {
+            let v = vertex(i, j);
+            for d in 0..2 {
+                triplets.push(Triplet::new(2 * v + d, 2 * v + d, diagonal));
+            }
+            for (k, w) in [vertex(i + 1, j), vertex(i, j + 1)].into_iter().enumerate() {
+                let angle = 0.3 * (v + k) as f64;
+                let (c, s) = (angle.cos(), angle.sin());
+                for (a, b, x) in [(0, 0, c), (0, 1, -s), (1, 0, s), (1, 1, c)] {
+                    triplets.push(Triplet::new(2 * v + a, 2 * w + b, -x));
+                    triplets.push(Triplet::new(2 * w + b, 2 * v + a, -x));
+                }
+            }
+        }
+    }
+    SparseColMat::try_new_from_triplets(2 * n1 * n2, 2 * n1 * n2, &triplets).unwrap()
+}
+
+/// The `f32` factor of [`grid_block`] with a small mass (diagonal 4.1): `L` decays slowly.
+pub(crate) fn grid_factor(n1: usize, n2: usize) -> CholeskyFactor<f32> {
+    mass_factor(n1, n2, 4.1)
+}
+
+/// The `f32` factor of [`grid_block`].
+pub(crate) fn mass_factor(n1: usize, n2: usize, diagonal: f64) -> CholeskyFactor<f32> {
+    let block = grid_block(n1, n2, diagonal);
+    let symbolic = analyze(block.symbolic(), 2);
+    CholeskyFactor::<f32>::new(&symbolic, block.as_ref(), Par::Seq).unwrap()
+}
+
+/// `sin(0.37 (i + shift))` for `i < n`: a right-hand side with every column's share.
+pub(crate) fn sines(n: usize, shift: usize) -> Vec<f64> {
+    (0..n).map(|i| (0.37 * (i + shift) as f64).sin()).collect()
+}
+
+/// `‖x − y‖ / ‖y‖`.
+pub(crate) fn relative_difference(x: &[f64], y: &[f64]) -> f64 {
+    let squared: f64 = x.iter().zip(y).map(|(x, y)| (x - y) * (x - y)).sum();
+    (squared / y.iter().map(|y| y * y).sum::<f64>()).sqrt()
+}
+
+/// `factor`'s values widened to `f64`: the reference solves with the same `L`.
+fn widened(factor: &CholeskyFactor<f32>) -> CholeskyFactor<f64> {
+    let values = factor.values().iter().map(|&v| f64::from(v)).collect();
+    CholeskyFactor::from_parts(factor.symbolic().clone(), values)
+}
+
+/// The supernode widths of a factor (none for the simplicial layout).
+fn widths(factor: &CholeskyFactor<f32>) -> std::collections::BTreeSet<usize> {
+    match factor.symbolic().raw() {
+        SymbolicCholeskyRaw::Supernodal(s) => (s.supernode_begin().iter())
+            .zip(s.supernode_end())
+            .map(|(b, e)| e - b)
+            .collect(),
+        SymbolicCholeskyRaw::Simplicial(_) => Default::default(),
+    }
+}
+
+/// The packed `f32` solve equals the double-precision solve with the same `L`, up to `f32`
+/// rounding, with the portable kernels and with the processor's: on a grid block whose
+/// supernodes take every path (one to four columns, wider ones with a remainder after the
+/// blocks of four), and on a small simplicial one.
+#[test]
+fn f32_solves_as_the_same_factor_in_double_precision() {
+    for (n1, n2) in [(64, 48), (8, 6)] {
+        let factor = grid_factor(n1, n2);
+        let shapes = widths(&factor);
+        if n1 > 8 {
+            let remainder = shapes.iter().any(|&w| w > 4 && w % 4 != 0);
+            assert!(
+                (1..=5).all(|w| shapes.contains(&w)) && remainder,
+                "widths {shapes:?}"
+            );
+        } else {
+            assert!(shapes.is_empty(), "a simplicial factor");
+        }
+        let reference = widened(&factor);
+        let b = sines(factor.symbolic().nrows(), 0);
+        let mut expected = b.clone();
+        reference.solve_in_place(&mut expected, Par::Seq);
+        for kernels in [Kernels::Portable, Kernels::detect()] {
+            let packed = PackedFactor {
+                kernels,
+                ..PackedFactor::new(factor.clone())
+            };
+            let mut x = b.clone();
+            packed.solve_in_place(&mut x, &mut Vec::new(), Halves::Parallel);
+            let relative = relative_difference(&x, &expected);
+            assert!(relative < 1e-5, "{n1}×{n2}, {kernels:?}: {relative:e}");
+        }
+    }
+}
+
+/// Bytes `factor` holds (its entries and which rows it keeps).
+fn held_bytes<E: Entry>(factor: &PackedFactor<E>) -> usize {
+    let kept = factor.kept.as_ref().map_or(0, |k| {
+        8 * (k.bits.len() + k.word_start.len() + k.value_start.len())
+    });
+    E::BYTES * factor.values.len() + kept
+}
+
+/// A factor's bytes stay within [`PackedFactor::bytes_at_most`], the memory budget's count:
+/// in bfloat16 with nothing dropped (equal then) and with most rows dropped (about half of
+/// it), and in `f32` (all rows kept without their bits).
+#[test]
+fn bytes_stay_within_the_budget_count() {
+    for (diagonal, tolerance) in [(4.1, 0.0), (40.0, DROP_TOLERANCE)] {
+        let factor = mass_factor(64, 48, diagonal);
+        let bound = Bf16Factor::bytes_at_most(factor.symbolic());
+        let packed = Bf16Factor::packing(factor.symbolic(), factor.values(), tolerance);
+        let bytes = held_bytes(&packed);
+        match tolerance == 0.0 {
+            true => assert_eq!(bytes, bound, "diagonal {diagonal}"),
+            false => assert!(
+                3 * bytes < 2 * bound,
+                "diagonal {diagonal}: {bytes} of {bound}"
+            ),
+        }
+    }
+    let factor = grid_factor(64, 48);
+    let bound = PackedFactor::<f32>::bytes_at_most(factor.symbolic());
+    let bytes = held_bytes(&PackedFactor::new(factor.clone()));
+    let entries = 4 * factor.values().len();
+    assert!(
+        entries < bytes && bytes <= bound,
+        "{entries} < {bytes} ≤ {bound}"
+    );
+}
+
+/// On a nested-dissection order the elimination tree splits into two subtrees of at least
+/// a tenth of the entries each, and the solve over them on two threads equals the
+/// sequential one up to `f32` rounding (the subtrees' sums on the top's columns are added
+/// in another order).
+#[test]
+fn two_subtrees_solve_as_one() {
+    let factor = grid_factor(64, 48);
+    let split = PackedFactor::new(factor.clone());
+    let parts = split.split.clone().expect("a grid's tree splits in two");
+    let entries = |r: &Range<usize>| match factor.symbolic().raw() {
+        SymbolicCholeskyRaw::Supernodal(s) => {
+            s.col_ptr_for_val()[r.end] - s.col_ptr_for_val()[r.start]
+        }
+        _ => unreachable!(),
+    };
+    let all = split.values().len();
+    for part in [&parts.first, &parts.second] {
+        assert!(10 * entries(part) >= all, "{part:?} holds too few of {all}");
+    }
+    let b = sines(factor.symbolic().nrows(), 0);
+    let (mut x, mut y) = (b.clone(), b);
+    split.solve_in_place(&mut x, &mut Vec::new(), Halves::Parallel);
+    split.solve_in_place(&mut y, &mut Vec::new(), Halves::Sequential);
+    let largest = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let difference = (x.iter().zip(&y)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(
+        difference <= 1e-5 * largest,
+        "differs by {difference:e} of {largest:e}"
+    );
+}
+
+/// Slab solves from a parallel loop, each splitting its tree over two threads
+/// (`rayon::join`): a thread waiting for its other half runs another slab's solve, which
+/// must not find the thread's scratch buffer borrowed ("RefCell already borrowed" on 16
+/// threads before the buffer was taken out for the solve). Each result equals the lone
+/// solve's exactly.
+#[test]
+fn nested_solves_on_one_thread_share_no_scratch() {
+    let factor = Bf16Factor::rounding(&PackedFactor::new(grid_factor(64, 48)));
+    assert!(factor.split.is_some(), "the solve splits its tree");
+    let n = factor.symbolic.nrows();
+    let lone: Vec<Vec<f64>> = (0..64)
+        .map(|k| {
+            let mut x = sines(n, k);
+            factor.solve_in_place(&mut x, &mut Vec::new(), Halves::Parallel);
+            x
+        })
+        .collect();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(8)
+        .build()
+        .unwrap();
+    for _ in 0..20 {
+        let solved: Vec<Vec<f64>> = pool.install(|| {
+            (0..64)
+                .into_par_iter()
+                .map(|k| {
+                    let mut x = sines(n, k);
+                    SlabFactor::solve(&factor, &mut x, Halves::Parallel);
+                    x
+                })
+                .collect()
+        });
+        assert_eq!(solved, lone);
+    }
+}
+
+/// A timed solve: with copy `k` of a factor, on `x`, with `work`.
+type Solve<'a> = dyn Fn(usize, &mut [f64], &mut Vec<f32>) + Sync + 'a;
+
+/// Timing of slab solves on the paper-size slab block (255×190 torus, `α = γ = 1`): faer's
+/// `f32` solve against the packed `f32` factor's (the processor's kernels and the portable
+/// ones) and the bfloat16 factor's; 8 copies of each factor (more than the last-level cache
+/// holds) solved in turn on each of two threads, the fastest of 12 interleaved rounds
+/// (`cargo test --release --lib packed::tests::timing -- --ignored --nocapture`).
+#[test]
+#[ignore]
+fn timing() {
+    let sequence = crate::synth::paper_torus(255, 190, 3).unwrap();
+    let params = crate::flow::FlowParams::paper(1.0, 0.0, 1.0);
+    let problem = crate::flow::FlowProblem::new(&sequence, &params).unwrap();
+    let system = problem.system();
+    let symbolic = analyze(system.pattern().symbolic().as_ref(), 2);
+    let start = std::time::Instant::now();
+    let factor = CholeskyFactor::<f32>::new(&symbolic, system.block(1), Par::Seq).unwrap();
+    println!(
+        "factorization {:.1} ms",
+        start.elapsed().as_secs_f64() * 1e3
+    );
+    let n = symbolic.nrows();
+    let copies = || {
+        (0..8).map(|_| {
+            CholeskyFactor::from_parts(factor.symbolic().clone(), factor.values().to_vec())
+        })
+    };
+    let faer: Vec<CholeskyFactor<f32>> = copies().collect();
+    let packed: Vec<PackedFactor<f32>> = copies().map(PackedFactor::new).collect();
+    let portable: Vec<PackedFactor<f32>> = copies()
+        .map(|f| PackedFactor {
+            kernels: Kernels::Portable,
+            ..PackedFactor::new(f)
+        })
+        .collect();
+    let bf16: Vec<Bf16Factor> = packed.iter().map(Bf16Factor::rounding).collect();
+    let time = |solve: &Solve<'_>| {
+        let start = std::time::Instant::now();
+        (0..2).into_par_iter().for_each(|_| {
+            let (mut x, mut work) = (sines(n, 0), Vec::new());
+            (0..16).for_each(|k| solve(k % 8, &mut x, &mut work));
+        });
+        start.elapsed().as_secs_f64() * 1e3 / 16.0
+    };
+    let mut fastest = [f64::INFINITY; 5];
+    for _ in 0..12 {
+        let rounds = [
+            time(&|k, x, _| faer[k].solve_in_place(x, Par::Seq)),
+            time(&|k, x, work| packed[k].solve_in_place(x, work, Halves::Parallel)),
+            time(&|k, x, work| portable[k].solve_in_place(x, work, Halves::Parallel)),
+            time(&|k, x, work| bf16[k].solve_in_place(x, work, Halves::Sequential)),
+            time(&|k, x, work| packed[k].solve_in_place(x, work, Halves::Sequential)),
+        ];
+        (fastest.iter_mut().zip(rounds)).for_each(|(f, r)| *f = f.min(r));
+    }
+    println!(
+        "{} entries, {} supernodes; per solve on each of 2 threads: faer f32 {:.2} ms, packed \
+         f32 {:.2} ms ({:?}), portable {:.2} ms, bfloat16 {:.2} ms ({} entries kept), unsplit {:.2} ms",
+        factor.values().len(),
+        match factor.symbolic().raw() {
+            SymbolicCholeskyRaw::Supernodal(s) => s.supernode_begin().len(),
+            SymbolicCholeskyRaw::Simplicial(_) => 0,
+        },
+        fastest[0],
+        fastest[1],
+        Kernels::detect(),
+        fastest[2],
+        fastest[3],
+        bf16[0].values().len(),
+        fastest[4]
+    );
+}
