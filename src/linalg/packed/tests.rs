@@ -211,13 +211,12 @@ fn nested_solves_on_one_thread_share_no_scratch() {
     }
 }
 
-/// A timed solve: with copy `k` of a factor, on `x`, with `work`.
-type Solve<'a> = dyn Fn(usize, &mut [f64], &mut Vec<f32>) + Sync + 'a;
-
-/// Timing of slab solves on the paper-size slab block (255×190 torus, `α = γ = 1`): faer's
-/// `f32` solve against the packed `f32` factor's (the processor's kernels and the portable
-/// ones) and the bfloat16 factor's; 8 copies of each factor (more than the last-level cache
-/// holds) solved in turn on each of two threads, the fastest of 12 interleaved rounds
+/// Timing of slab solves: faer's `f32` solve against the packed `f32` factor's (the
+/// processor's kernels with the tree split and without, the portable kernels) and the bfloat16
+/// factor's (split and not), on the paper-size slab block (255×190 torus, `α = γ = 1`) and on
+/// grid blocks whose `L` decays slowly (diagonal 4.1: little drops) and fast (40). Copies of
+/// each factor (more than the last-level cache holds) are solved in turn on each of two
+/// threads; the fastest of 12 interleaved rounds
 /// (`cargo test --release --lib packed::tests::timing -- --ignored --nocapture`).
 #[test]
 #[ignore]
@@ -227,21 +226,22 @@ fn timing() {
     let problem = crate::flow::FlowProblem::new(&sequence, &params).unwrap();
     let system = problem.system();
     let symbolic = analyze(system.pattern().symbolic().as_ref(), 2);
-    let start = std::time::Instant::now();
     let factor = CholeskyFactor::<f32>::new(&symbolic, system.block(1), Par::Seq).unwrap();
-    println!(
-        "factorization {:.1} ms",
-        start.elapsed().as_secs_f64() * 1e3
-    );
-    let n = symbolic.nrows();
-    let copies = || {
-        (0..8).map(|_| {
-            CholeskyFactor::from_parts(factor.symbolic().clone(), factor.values().to_vec())
-        })
-    };
-    let faer: Vec<CholeskyFactor<f32>> = copies().collect();
-    let packed: Vec<PackedFactor<f32>> = copies().map(PackedFactor::new).collect();
-    let portable: Vec<PackedFactor<f32>> = copies()
+    time_solves("paper-size slab", &factor, 8);
+    for diagonal in [4.1, 40.0] {
+        let name = format!("128×95 grid, diagonal {diagonal}");
+        time_solves(&name, &mass_factor(128, 95, diagonal), 40);
+    }
+}
+
+/// A timed solve: with copy `k` of a factor, on `x`, with `work`.
+type Solve<'a> = dyn Fn(usize, &mut [f64], &mut Vec<f32>) + Sync + 'a;
+
+fn time_solves(name: &str, factor: &CholeskyFactor<f32>, copies: usize) {
+    let n = factor.symbolic().nrows();
+    let faer: Vec<CholeskyFactor<f32>> = vec![factor.clone(); copies];
+    let packed: Vec<PackedFactor<f32>> = faer.iter().cloned().map(PackedFactor::new).collect();
+    let portable: Vec<PackedFactor<f32>> = (faer.iter().cloned())
         .map(|f| PackedFactor {
             kernels: Kernels::Portable,
             ..PackedFactor::new(f)
@@ -252,35 +252,39 @@ fn timing() {
         let start = std::time::Instant::now();
         (0..2).into_par_iter().for_each(|_| {
             let (mut x, mut work) = (sines(n, 0), Vec::new());
-            (0..16).for_each(|k| solve(k % 8, &mut x, &mut work));
+            (0..2 * copies).for_each(|k| solve(k % copies, &mut x, &mut work));
         });
-        start.elapsed().as_secs_f64() * 1e3 / 16.0
+        start.elapsed().as_secs_f64() * 1e3 / (2 * copies) as f64
     };
-    let mut fastest = [f64::INFINITY; 5];
+    use Halves::{Parallel, Sequential};
+    let solves: [(&str, &Solve<'_>); 6] = [
+        ("faer f32", &|k, x, _| faer[k].solve_in_place(x, Par::Seq)),
+        ("packed f32", &|k, x, w| {
+            packed[k].solve_in_place(x, w, Sequential)
+        }),
+        ("split", &|k, x, w| packed[k].solve_in_place(x, w, Parallel)),
+        ("portable", &|k, x, w| {
+            portable[k].solve_in_place(x, w, Sequential)
+        }),
+        ("bfloat16", &|k, x, w| {
+            bf16[k].solve_in_place(x, w, Sequential)
+        }),
+        ("split", &|k, x, w| bf16[k].solve_in_place(x, w, Parallel)),
+    ];
+    let mut fastest = [f64::INFINITY; 6];
     for _ in 0..12 {
-        let rounds = [
-            time(&|k, x, _| faer[k].solve_in_place(x, Par::Seq)),
-            time(&|k, x, work| packed[k].solve_in_place(x, work, Halves::Parallel)),
-            time(&|k, x, work| portable[k].solve_in_place(x, work, Halves::Parallel)),
-            time(&|k, x, work| bf16[k].solve_in_place(x, work, Halves::Sequential)),
-            time(&|k, x, work| packed[k].solve_in_place(x, work, Halves::Sequential)),
-        ];
-        (fastest.iter_mut().zip(rounds)).for_each(|(f, r)| *f = f.min(r));
+        for (fastest, (_, solve)) in fastest.iter_mut().zip(&solves) {
+            *fastest = fastest.min(time(*solve));
+        }
     }
+    let times: Vec<String> = (solves.iter().zip(fastest))
+        .map(|((name, _), ms)| format!("{name} {ms:.2}"))
+        .collect();
     println!(
-        "{} entries, {} supernodes; per solve on each of 2 threads: faer f32 {:.2} ms, packed \
-         f32 {:.2} ms ({:?}), portable {:.2} ms, bfloat16 {:.2} ms ({} entries kept), unsplit {:.2} ms",
+        "{name}: {} entries ({} in bfloat16), {:?}; ms per solve on each of 2 threads: {}",
         factor.values().len(),
-        match factor.symbolic().raw() {
-            SymbolicCholeskyRaw::Supernodal(s) => s.supernode_begin().len(),
-            SymbolicCholeskyRaw::Simplicial(_) => 0,
-        },
-        fastest[0],
-        fastest[1],
-        Kernels::detect(),
-        fastest[2],
-        fastest[3],
         bf16[0].values().len(),
-        fastest[4]
+        Kernels::detect(),
+        times.join(", ")
     );
 }
