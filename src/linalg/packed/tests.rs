@@ -274,7 +274,7 @@ fn time_solves(name: &str, factor: &CholeskyFactor<f32>, copies: usize) {
     let mut fastest = [f64::INFINITY; 6];
     for _ in 0..12 {
         for (fastest, (_, solve)) in fastest.iter_mut().zip(&solves) {
-            *fastest = fastest.min(time(*solve));
+            *fastest = fastest.min(time(solve));
         }
     }
     let times: Vec<String> = (solves.iter().zip(fastest))
