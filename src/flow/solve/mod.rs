@@ -31,15 +31,17 @@
 //!
 //! **Factor precision** ([`crate::linalg::factor`]). Slab Gauss–Seidel solves with `f32`
 //! factors while those of all slabs fit half of `FlowParams::factor_memory_limit`, and with
-//! bfloat16 factors ([`crate::linalg::bfloat`]: 2 bytes an entry, solved by meshflow's own
-//! supernodal kernels) beyond that, so that long sequences keep one factor per slab instead of
-//! sharing one between neighbours. Multigrid's levels use bfloat16 unless all their `f32`
+//! bfloat16 factors ([`crate::linalg::bfloat`]: 2 bytes an entry) beyond that, so that long
+//! sequences keep one factor per slab instead of sharing one between neighbours. Both are
+//! solved by meshflow's own supernodal kernels ([`crate::linalg::packed`]: 20–45 % faster than
+//! faer's `f32` solve, AVX2 + FMA where the processor has them; double precision stays
+//! faer's). Multigrid's levels use bfloat16 unless all their `f32`
 //! factors together fit [`CACHED_LEVELS_BYTES`] (64 MiB: then they are read largely from the
 //! caches, and rounding would only cost iterations): the fine factors are rounded when `auto`
 //! switches, the coarse ones right after their `f32` factorization. A slab
-//! solve streams its factor twice and is bound by memory bandwidth, so bfloat16 solves take
-//! 1.4–1.9 ms against `f32`'s 2.4–2.9 ms (12,160-vertex grid block, one solve on each of the 2
-//! cores; `cargo test --release --lib bfloat::tests::timing -- --ignored --nocapture`).
+//! solve streams its factor twice, so bfloat16 solves take 0.8–1.0 ms against `f32`'s
+//! 1.3–1.5 ms (12,160-vertex grid block, one solve on each of the 2 cores; `cargo test
+//! --release --lib packed::tests::timing -- --ignored --nocapture`).
 //! Rounding `L` to 8 significant bits leaves multigrid's iterations as they were (the table
 //! below: the same counts, one more at `α = 0.001`), because where multigrid is needed the
 //! coarse levels, not the slab solves, limit its rate. Where the slab solves nearly solve the
@@ -217,8 +219,9 @@
 //! building the coarse levels 0.085 s (0.063 s since they are updated in place), their factors
 //! 0.3 s, 11 V-cycles of 0.165 s (85 % slab sweeps, 11 % residual products). A slab solve streams
 //! its single-precision factor twice (2.18 M entries, 17.5 MB) and takes 1.75 ms on one core
-//! alone and about twice that while the other core solves too: the sweeps are bound by memory
-//! bandwidth (~10 GB/s), not arithmetic, and a V-cycle, which solves 82 slab blocks (both sweeps
+//! alone and about twice that while the other core solves too: the sweeps were bound by memory
+//! bandwidth (~10 GB/s) there, not arithmetic (the paper size's larger factors are bound by the
+//! per-supernode work instead, [`crate::linalg::packed`]), and a V-cycle, which solves 82 slab blocks (both sweeps
 //! over the 20 fine and 21 coarse blocks) against a Gauss–Seidel iteration's 30, costs what it
 //! reads. `t(α = 0.01) / t(α = 1) ≤ 2.5` at `γ = 0.01` (1.9 s for the solve) would need at most 7
 //! V-cycles, or a cycle that reads half as much; every candidate above that reads less (reduction

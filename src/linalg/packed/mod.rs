@@ -16,14 +16,29 @@
 //! supernodes, 21,241 of them two columns wide with 18 rows below on average. The kernels here
 //! take those rows' products straight into their columns (no scratch, no call), block the
 //! wider panels four columns at a time, and run an AVX2 + FMA build where the processor has
-//! one. A solve with that block's `f32` factor takes 10.0–10.5 ms against faer's 13.3–14.2 ms
-//! (one solve on each of 2 cores, fastest of 12 interleaved rounds; `cargo test --release
-//! --lib packed::tests::timing -- --ignored --nocapture`).
+//! one ([`Kernels`]).
 //!
-//! A solve runs the two halves of the elimination tree under its top separators on two threads
-//! when another is free ([`TreeSplit`]): multigrid's coarse levels have fewer slabs than cores,
+//! These solves are bound by that per-supernode work and by latency, not by the memory's
+//! bandwidth: faer's solve with the paper-size slab's `f32` factor (41 MB) takes as long on one
+//! core alone as with the other core solving too (13–15 ms, about 6 GB/s per core, where this
+//! machine streams 25 GB/s on one core and 28 GB/s on two). Per solve on each of 2 cores (the
+//! fastest of 12 interleaved rounds, `cargo test --release --lib packed::tests::timing --
+//! --ignored --nocapture`, 2026-11-27):
+//!
+//! | block | faer `f32` | packed `f32` | portable build | bfloat16 |
+//! |---|---|---|---|---|
+//! | paper-size slab (10.2 M entries) | 13.6 ms | 10.6 ms | 12.9 ms | 6.6 ms (7.5 M kept) |
+//! | 128×95 grid, diagonal 4.1 (1.46 M) | 2.41 ms | 1.34 ms | 1.62 ms | 1.01 ms |
+//! | 128×95 grid, diagonal 40 (1.46 M) | 2.52 ms | 1.45 ms | 1.86 ms | 0.79 ms |
+//!
+//! (The bfloat16 kernels they replaced took 1.9 and 1.15–1.2 ms on the grid blocks.)
+//!
+//! A solve may run the two halves of the elimination tree under its top separators on two
+//! threads ([`TreeSplit`], [`Halves`]): multigrid's coarse levels have fewer slabs than cores,
 //! and a lone slab solve then uses both cores (`bench_solver`, `α = γ = 0.01`: solve
-//! 2.02–2.09 → 1.96–2.02 s, four alternating runs, with bfloat16 factors).
+//! 2.02–2.09 → 1.96–2.02 s, four alternating runs, with bfloat16 factors). Where every core
+//! has a solve of its own the split only costs (the paper-size slab: 11.8 ms split against
+//! 10.6), so a sweep splits only where its solves do not divide evenly among the threads.
 //!
 //! The kernels walk faer's own symbolic structure, supernodal or simplicial, so the ordering
 //! and fill are those of the `f32` factor faer computed, less the rows left out.
@@ -201,7 +216,7 @@ impl<E: Entry> PackedFactor<E> {
 
 /// Whether a solve runs the two halves of its elimination tree on two threads
 /// ([`TreeSplit`]). Worth it only where a thread would otherwise wait: on the paper-size slab
-/// block, with both cores busy solving, a split solve takes 11.1 ms against 10.2–10.5 ms
+/// block, with both cores busy solving, a split solve takes 11.1–11.8 ms against 10.2–10.6 ms
 /// (`tests::timing`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Halves {
