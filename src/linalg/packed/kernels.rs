@@ -55,11 +55,19 @@ impl Supernodes<'_> {
         columns: &mut Columns<'_>,
         scratch: &mut [f32],
     ) {
-        match self.kernels {
+        let whole = columns.offset == 0 && columns.beyond.is_empty();
+        match (self.kernels, whole) {
             // SAFETY: `Avx2Fma` comes only from `Kernels::detect`, which found both features.
             #[cfg(target_arch = "x86_64")]
-            Kernels::Avx2Fma => unsafe { self.lower_avx2(part, values, columns, scratch) },
-            _ => self.lower::<E, false>(part, values, columns, scratch),
+            (Kernels::Avx2Fma, true) => unsafe {
+                self.lower_avx2::<E, true>(part, values, columns, scratch)
+            },
+            #[cfg(target_arch = "x86_64")]
+            (Kernels::Avx2Fma, false) => unsafe {
+                self.lower_avx2::<E, false>(part, values, columns, scratch)
+            },
+            (_, true) => self.lower::<E, false, true>(part, values, columns, scratch),
+            (_, false) => self.lower::<E, false, false>(part, values, columns, scratch),
         }
     }
 
@@ -74,29 +82,37 @@ impl Supernodes<'_> {
         beyond: (&[f32], usize),
         scratch: &mut [f32],
     ) {
-        match self.kernels {
+        let whole = own.1 == 0 && beyond.0.is_empty();
+        match (self.kernels, whole) {
             // SAFETY: as in `lower_solve_part`.
             #[cfg(target_arch = "x86_64")]
-            Kernels::Avx2Fma => unsafe { self.upper_avx2(part, values, own, beyond, scratch) },
-            _ => self.upper::<E, false>(part, values, own, beyond, scratch),
+            (Kernels::Avx2Fma, true) => unsafe {
+                self.upper_avx2::<E, true>(part, values, own, beyond, scratch)
+            },
+            #[cfg(target_arch = "x86_64")]
+            (Kernels::Avx2Fma, false) => unsafe {
+                self.upper_avx2::<E, false>(part, values, own, beyond, scratch)
+            },
+            (_, true) => self.upper::<E, false, true>(part, values, own, beyond, scratch),
+            (_, false) => self.upper::<E, false, false>(part, values, own, beyond, scratch),
         }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn lower_avx2<E: Entry>(
+    unsafe fn lower_avx2<E: Entry, const WHOLE: bool>(
         &self,
         part: Range<usize>,
         values: &[E],
         columns: &mut Columns<'_>,
         scratch: &mut [f32],
     ) {
-        self.lower::<E, true>(part, values, columns, scratch)
+        self.lower::<E, true, WHOLE>(part, values, columns, scratch)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn upper_avx2<E: Entry>(
+    unsafe fn upper_avx2<E: Entry, const WHOLE: bool>(
         &self,
         part: Range<usize>,
         values: &[E],
@@ -104,11 +120,11 @@ impl Supernodes<'_> {
         beyond: (&[f32], usize),
         scratch: &mut [f32],
     ) {
-        self.upper::<E, true>(part, values, own, beyond, scratch)
+        self.upper::<E, true, WHOLE>(part, values, own, beyond, scratch)
     }
 
     #[inline(always)]
-    fn lower<E: Entry, const FMA: bool>(
+    fn lower<E: Entry, const FMA: bool, const WHOLE: bool>(
         &self,
         part: Range<usize>,
         values: &[E],
@@ -133,7 +149,7 @@ impl Supernodes<'_> {
             macro_rules! narrow {
                 ($w:literal) => {{
                     let solved: [f32; $w] = std::array::from_fn(|t| columns.own[first + t]);
-                    scatter::<E, $w, FMA>(std::array::from_fn(panel), solved, below, columns)
+                    scatter::<E, $w, FMA, WHOLE>(std::array::from_fn(panel), solved, below, columns)
                 }};
             }
             match w {
@@ -154,14 +170,14 @@ impl Supernodes<'_> {
                     for (j, &a) in solved.iter().enumerate().skip(4 * blocks) {
                         axpy::<E, FMA>(update, panel(j), a);
                     }
-                    below.for_each(|k, r| columns.take_off(r, update[k]));
+                    below.for_each(|k, r| columns.take_off::<WHOLE>(r, update[k]));
                 }
             }
         }
     }
 
     #[inline(always)]
-    fn upper<E: Entry, const FMA: bool>(
+    fn upper<E: Entry, const FMA: bool, const WHOLE: bool>(
         &self,
         part: Range<usize>,
         values: &[E],
@@ -176,9 +192,11 @@ impl Supernodes<'_> {
             let ld = w + below.len();
             let panel = |j: usize| &l[j * ld + w..(j + 1) * ld];
             if below.len() > 0 {
-                let solved = |r: usize| match r < end {
-                    true => own[r - offset],
-                    false => beyond[r - beyond_start],
+                // A whole solve's rows are all its own, from column 0.
+                let solved = |r: usize| match (WHOLE, r < end) {
+                    (true, _) => own[r],
+                    (false, true) => own[r - offset],
+                    (false, false) => beyond[r - beyond_start],
                 };
                 macro_rules! narrow {
                     ($w:literal) => {{
@@ -232,7 +250,7 @@ fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
 
 /// `y_r −= Σ_t panel_t[k] a_t` for the `k`-th kept row `r` below a supernode of `W` columns.
 #[inline(always)]
-fn scatter<E: Entry, const W: usize, const FMA: bool>(
+fn scatter<E: Entry, const W: usize, const FMA: bool, const WHOLE: bool>(
     panel: [&[E]; W],
     a: [f32; W],
     below: Below<'_>,
@@ -242,7 +260,7 @@ fn scatter<E: Entry, const W: usize, const FMA: bool>(
     let panel = panel.map(|p| &p[..below.len()]);
     let mut row = |k: usize, r: usize| {
         let sum = (0..W).fold(0.0, |sum, t| madd::<FMA>(panel[t][k].widen(), a[t], sum));
-        columns.take_off(r, sum);
+        columns.take_off::<WHOLE>(r, sum);
     };
     match below.all() {
         Some(rows) => (0..panel[0].len()).for_each(|k| row(k, rows[k])),

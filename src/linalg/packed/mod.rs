@@ -459,12 +459,13 @@ impl<'a> Columns<'a> {
         }
     }
 
-    /// `y_r −= u`.
+    /// `y_r −= u`; `WHOLE` when the columns are all the solve's (from 0, nothing beyond).
     #[inline(always)]
-    fn take_off(&mut self, r: usize, u: f32) {
-        match r < self.offset + self.own.len() {
-            true => self.own[r - self.offset] -= u,
-            false => self.beyond[r - self.beyond_start] += u,
+    fn take_off<const WHOLE: bool>(&mut self, r: usize, u: f32) {
+        match (WHOLE, r < self.offset + self.own.len()) {
+            (true, _) => self.own[r] -= u,
+            (false, true) => self.own[r - self.offset] -= u,
+            (false, false) => self.beyond[r - self.beyond_start] += u,
         }
     }
 }
