@@ -74,7 +74,8 @@ fn widths(factor: &CholeskyFactor<f32>) -> std::collections::BTreeSet<usize> {
 }
 
 /// The packed `f32` solve equals the double-precision solve with the same `L`, up to `f32`
-/// rounding, with the portable kernels and with the processor's: on a grid block whose
+/// rounding, with the portable kernels and with the processor's, the tree split over two
+/// threads and not: on a grid block whose
 /// supernodes take every path (one to four columns, wider ones with a remainder after the
 /// blocks of four), and on a small simplicial one.
 #[test]
@@ -100,10 +101,13 @@ fn f32_solves_as_the_same_factor_in_double_precision() {
                 kernels,
                 ..PackedFactor::new(factor.clone())
             };
-            let mut x = b.clone();
-            packed.solve_in_place(&mut x, &mut Vec::new(), Halves::Parallel);
-            let relative = relative_difference(&x, &expected);
-            assert!(relative < 1e-5, "{n1}×{n2}, {kernels:?}: {relative:e}");
+            for halves in [Halves::Parallel, Halves::Sequential] {
+                let mut x = b.clone();
+                packed.solve_in_place(&mut x, &mut Vec::new(), halves);
+                let relative = relative_difference(&x, &expected);
+                let case = format!("{n1}×{n2}, {kernels:?}, {halves:?}");
+                assert!(relative < 1e-5, "{case}: {relative:e}");
+            }
         }
     }
 }
