@@ -44,6 +44,23 @@ const LANES: usize = 16;
 /// Lanes per column where four columns are summed together: one AVX register each.
 const PANEL_LANES: usize = 8;
 
+/// `self.$avx2::<E, WHOLE>(args)` where the factor's kernels are AVX2 + FMA, otherwise the
+/// portable `self.$portable::<E, false, WHOLE>(args)`, with `WHOLE` the value of `$whole`.
+macro_rules! dispatch {
+    ($self:ident, $whole:expr, $avx2:ident, $portable:ident, ($($arg:expr),*)) => {
+        match ($self.kernels, $whole) {
+            // SAFETY: `Avx2Fma` comes only from `Kernels::detect`, which found both features.
+            #[cfg(target_arch = "x86_64")]
+            (Kernels::Avx2Fma, true) => unsafe { $self.$avx2::<E, true>($($arg),*) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            (Kernels::Avx2Fma, false) => unsafe { $self.$avx2::<E, false>($($arg),*) },
+            (_, true) => $self.$portable::<E, false, true>($($arg),*),
+            (_, false) => $self.$portable::<E, false, false>($($arg),*),
+        }
+    };
+}
+
 impl Supernodes<'_> {
     /// `L y = b` over the supernodes `part`, whose columns and descendants' are
     /// `columns.own`; what they take off their ancestors' columns is added to
@@ -56,19 +73,13 @@ impl Supernodes<'_> {
         scratch: &mut [f32],
     ) {
         let whole = columns.offset == 0 && columns.beyond.is_empty();
-        match (self.kernels, whole) {
-            // SAFETY: `Avx2Fma` comes only from `Kernels::detect`, which found both features.
-            #[cfg(target_arch = "x86_64")]
-            (Kernels::Avx2Fma, true) => unsafe {
-                self.lower_avx2::<E, true>(part, values, columns, scratch)
-            },
-            #[cfg(target_arch = "x86_64")]
-            (Kernels::Avx2Fma, false) => unsafe {
-                self.lower_avx2::<E, false>(part, values, columns, scratch)
-            },
-            (_, true) => self.lower::<E, false, true>(part, values, columns, scratch),
-            (_, false) => self.lower::<E, false, false>(part, values, columns, scratch),
-        }
+        dispatch!(
+            self,
+            whole,
+            lower_avx2,
+            lower,
+            (part, values, columns, scratch)
+        )
     }
 
     /// `Lᵀ x = y` over the supernodes `part`, whose columns and descendants' are `own` (from
@@ -83,19 +94,13 @@ impl Supernodes<'_> {
         scratch: &mut [f32],
     ) {
         let whole = own.1 == 0 && beyond.0.is_empty();
-        match (self.kernels, whole) {
-            // SAFETY: as in `lower_solve_part`.
-            #[cfg(target_arch = "x86_64")]
-            (Kernels::Avx2Fma, true) => unsafe {
-                self.upper_avx2::<E, true>(part, values, own, beyond, scratch)
-            },
-            #[cfg(target_arch = "x86_64")]
-            (Kernels::Avx2Fma, false) => unsafe {
-                self.upper_avx2::<E, false>(part, values, own, beyond, scratch)
-            },
-            (_, true) => self.upper::<E, false, true>(part, values, own, beyond, scratch),
-            (_, false) => self.upper::<E, false, false>(part, values, own, beyond, scratch),
-        }
+        dispatch!(
+            self,
+            whole,
+            upper_avx2,
+            upper,
+            (part, values, own, beyond, scratch)
+        )
     }
 
     #[cfg(target_arch = "x86_64")]
