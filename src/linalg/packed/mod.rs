@@ -27,9 +27,9 @@
 //!
 //! | block | faer `f32` | packed `f32` | portable build | bfloat16 |
 //! |---|---|---|---|---|
-//! | paper-size slab (10.2 M entries) | 13.6 ms | 10.6 ms | 12.9 ms | 6.6 ms (7.5 M kept) |
-//! | 128×95 grid, diagonal 4.1 (1.46 M) | 2.41 ms | 1.34 ms | 1.62 ms | 1.01 ms |
-//! | 128×95 grid, diagonal 40 (1.46 M) | 2.52 ms | 1.45 ms | 1.86 ms | 0.79 ms |
+//! | paper-size slab (10.2 M entries) | 13.7 ms | 10.2 ms | 12.5 ms | 6.7 ms (7.5 M kept) |
+//! | 128×95 grid, diagonal 4.1 (1.46 M) | 2.84 ms | 1.49 ms | 1.91 ms | 0.97 ms |
+//! | 128×95 grid, diagonal 40 (1.46 M) | 2.58 ms | 1.28 ms | 1.69 ms | 0.72 ms |
 //!
 //! (The bfloat16 kernels they replaced took 1.9 and 1.15–1.2 ms on the grid blocks.)
 //!
@@ -37,8 +37,8 @@
 //! threads ([`TreeSplit`], [`Halves`]): multigrid's coarse levels have fewer slabs than cores,
 //! and a lone slab solve then uses both cores (`bench_solver`, `α = γ = 0.01`: solve
 //! 2.02–2.09 → 1.96–2.02 s, four alternating runs, with bfloat16 factors). Where every core
-//! has a solve of its own the split only costs (the paper-size slab: 11.8 ms split against
-//! 10.6), so a sweep splits only where its solves do not divide evenly among the threads.
+//! has a solve of its own the split only costs (the paper-size slab: 11.7 ms split against
+//! 10.2), so a sweep splits only where its solves do not divide evenly among the threads.
 //!
 //! The kernels walk faer's own symbolic structure, supernodal or simplicial, so the ordering
 //! and fill are those of the `f32` factor faer computed, less the rows left out.
