@@ -220,10 +220,10 @@
 //! 0.3 s, 11 V-cycles of 0.165 s (85 % slab sweeps, 11 % residual products). A slab solve streams
 //! its single-precision factor twice (2.18 M entries, 17.5 MB) and takes 1.75 ms on one core
 //! alone and about twice that while the other core solves too: the sweeps were bound by memory
-//! bandwidth (~10 GB/s) there, not arithmetic (the paper size's larger factors are bound by the
-//! per-supernode work instead, [`crate::linalg::packed`]), and a V-cycle, which solves 82 slab blocks (both sweeps
-//! over the 20 fine and 21 coarse blocks) against a Gauss–Seidel iteration's 30, costs what it
-//! reads. `t(α = 0.01) / t(α = 1) ≤ 2.5` at `γ = 0.01` (1.9 s for the solve) would need at most 7
+//! bandwidth (~10 GB/s) there, not arithmetic (the paper size's larger factors are bound by
+//! the per-supernode work instead, [`crate::linalg::packed`]), and a V-cycle, which solves 82
+//! slab blocks (both sweeps over the 20 fine and 21 coarse blocks) against a Gauss–Seidel
+//! iteration's 30, costs what it reads. `t(α = 0.01) / t(α = 1) ≤ 2.5` at `γ = 0.01` (1.9 s for the solve) would need at most 7
 //! V-cycles, or a cycle that reads half as much; every candidate above that reads less (reduction
 //! to the even slabs, skipping levels, operator-dependent levels) loses flatness in `α`, in the
 //! number of frames or in the mesh size. Bfloat16 factors are such a cycle, and they keep the
