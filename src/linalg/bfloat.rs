@@ -32,6 +32,8 @@
 //! wide, and their per-row work (gathering, scattering) stays.
 
 use super::packed::{Entry, PackedFactor};
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
+use std::sync::Arc;
 
 /// A Cholesky factor in bfloat16, its small rows dropped.
 pub type Bf16Factor = PackedFactor<Bf16>;
@@ -69,9 +71,10 @@ impl Entry for Bf16 {
 pub const DROP_TOLERANCE: f32 = 1.0 / 1024.0;
 
 impl Bf16Factor {
-    /// An `f32` factor rounded to bfloat16, its rows below [`DROP_TOLERANCE`] dropped.
-    pub fn rounding(factor: &PackedFactor<f32>) -> Self {
-        Self::packing(factor.symbolic(), factor.values(), DROP_TOLERANCE)
+    /// An `f32` factor's entries `values` (faer's layout for `symbolic`) rounded to bfloat16,
+    /// its rows below [`DROP_TOLERANCE`] dropped.
+    pub fn rounding(symbolic: &Arc<SymbolicCholesky<usize>>, values: &[f32]) -> Self {
+        Self::packing(symbolic, values, DROP_TOLERANCE)
     }
 }
 

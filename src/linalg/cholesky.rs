@@ -118,12 +118,6 @@ fn nested_dissection(pattern: SymbolicSparseColMatRef<'_, usize>, b: usize) -> O
     })
 }
 
-/// Reusable buffers of triangular solves.
-pub struct SolveWork<T> {
-    rhs: Vec<T>,
-    scratch: MemBuffer,
-}
-
 /// A floating-point type the factors can be stored in; the system stays in `f64`.
 pub trait Precision: faer::traits::ComplexField + Copy {
     fn from_f64(x: f64) -> Self;
@@ -192,36 +186,9 @@ impl<T: Precision> CholeskyFactor<T> {
         })
     }
 
-    /// Overwrites `x` with `A⁻¹ x` (computed in precision `T`).
+    /// Overwrites `x` with `A⁻¹ x` (computed in precision `T`): one column.
     pub fn solve_in_place(&self, x: &mut [f64], par: Par) {
-        self.solve_with(x, &mut self.workspace(par), par);
-    }
-
-    /// Buffers for [`Self::solve_with`] (one per thread), so that repeated solves allocate
-    /// nothing: each large allocation is fresh pages, i.e. page faults, on every solve.
-    pub fn workspace(&self, par: Par) -> SolveWork<T> {
-        let scratch = self.symbolic.solve_in_place_scratch::<T>(1, par);
-        SolveWork {
-            rhs: Vec::with_capacity(self.symbolic.nrows()),
-            scratch: MemBuffer::new(scratch),
-        }
-    }
-
-    /// [`Self::solve_in_place`] with the buffers of `work` (from any factor with the same
-    /// symbolic analysis).
-    pub fn solve_with(&self, x: &mut [f64], work: &mut SolveWork<T>, par: Par) {
-        let n = x.len();
-        work.rhs.clear();
-        work.rhs.extend(x.iter().map(|&v| T::from_f64(v)));
-        LltRef::<'_, usize, T>::new(&self.symbolic, &self.values).solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(&mut work.rhs, n, 1),
-            par,
-            MemStack::new(&mut work.scratch),
-        );
-        x.iter_mut()
-            .zip(&work.rhs)
-            .for_each(|(x, r)| *x = r.to_f64());
+        self.solve_columns_in_place(x, par)
     }
 
     /// Overwrites the columns of `x` (column-major, `A`'s order each) with `A⁻¹ x`, in one

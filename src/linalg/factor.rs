@@ -10,7 +10,7 @@
 //! the iterations reduce. So each kind of factor says which one multigrid uses
 //! ([`SlabFactor::Compressed`]).
 
-use super::bfloat::{Bf16, Bf16Factor, DROP_TOLERANCE};
+use super::bfloat::{Bf16, Bf16Factor};
 use super::cholesky::{CholeskyFactor, FactorEntries, SparseMatrixRef};
 use super::packed::{Entry, Halves, PackedFactor};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
@@ -89,7 +89,7 @@ impl PackedEntry for f32 {
     }
 
     fn compress(factor: PackedFactor<f32>) -> Bf16Factor {
-        Bf16Factor::rounding(&factor)
+        Bf16Factor::rounding(factor.symbolic(), factor.values())
     }
 }
 
@@ -98,7 +98,7 @@ impl PackedEntry for Bf16 {
     type Compressed = Bf16Factor;
 
     fn pack(factor: CholeskyFactor<f32>) -> Bf16Factor {
-        Bf16Factor::packing(factor.symbolic(), factor.values(), DROP_TOLERANCE)
+        Bf16Factor::rounding(factor.symbolic(), factor.values())
     }
 
     fn compress(factor: Bf16Factor) -> Bf16Factor {

@@ -186,7 +186,8 @@ fn two_subtrees_solve_as_one() {
 /// solve's exactly.
 #[test]
 fn nested_solves_on_one_thread_share_no_scratch() {
-    let factor = Bf16Factor::rounding(&PackedFactor::new(grid_factor(64, 48)));
+    let grid = grid_factor(64, 48);
+    let factor = Bf16Factor::rounding(grid.symbolic(), grid.values());
     assert!(factor.split.is_some(), "the solve splits its tree");
     let n = factor.symbolic.nrows();
     let lone: Vec<Vec<f64>> = (0..64)
@@ -251,7 +252,10 @@ fn time_solves(name: &str, factor: &CholeskyFactor<f32>, copies: usize) {
             ..PackedFactor::new(f)
         })
         .collect();
-    let bf16: Vec<Bf16Factor> = packed.iter().map(Bf16Factor::rounding).collect();
+    let bf16: Vec<Bf16Factor> = packed
+        .iter()
+        .map(|f| Bf16Factor::rounding(f.symbolic(), f.values()))
+        .collect();
     let time = |solve: &Solve<'_>| {
         let start = std::time::Instant::now();
         (0..2).into_par_iter().for_each(|_| {
