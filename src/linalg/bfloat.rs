@@ -39,7 +39,7 @@ use std::sync::Arc;
 pub type Bf16Factor = PackedFactor<Bf16>;
 
 /// A bfloat16 number: the top 16 bits of an `f32`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[repr(transparent)]
 pub struct Bf16(u16);
 
@@ -139,7 +139,7 @@ mod tests {
                 let compressed = Bf16Factor::packing(factor.symbolic(), factor.values(), tolerance);
                 let (kept, zeroed) = zero_small_rows(&factor, tolerance);
                 assert_eq!(
-                    compressed.values().len(),
+                    compressed.column_major_values().len(),
                     kept.len() - zeroed,
                     "{case}: stored"
                 );

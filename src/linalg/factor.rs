@@ -89,7 +89,7 @@ impl PackedEntry for f32 {
     }
 
     fn compress(factor: PackedFactor<f32>) -> Bf16Factor {
-        Bf16Factor::rounding(factor.symbolic(), factor.values())
+        Bf16Factor::rounding(factor.symbolic(), &factor.column_major_values())
     }
 }
 

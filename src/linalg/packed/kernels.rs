@@ -15,6 +15,7 @@
 //! per factor ([`Kernels::detect`]). The two builds round differently (a fused multiply–add
 //! rounds once), so their solves differ in the last bits of `f32`.
 
+use super::layout::{self, TILE};
 use super::{Below, Columns, Entry, Supernodes};
 use std::ops::Range;
 
@@ -41,8 +42,6 @@ impl Kernels {
 
 /// Independent sums of a lone dot product or axpy, in `f32` lanes: two AVX registers.
 const LANES: usize = 16;
-/// Lanes per column where four columns are summed together: one AVX register each.
-const PANEL_LANES: usize = 8;
 
 /// `self.$avx2::<E, WHOLE>(args)` where the factor's kernels are AVX2 + FMA, otherwise the
 /// portable `self.$portable::<E, false, WHOLE>(args)`, with `WHOLE` the value of `$whole`.
@@ -139,6 +138,22 @@ impl Supernodes<'_> {
         for s in part {
             let (first, w, below, l) = self.supernode(s, values);
             let first = first - columns.offset;
+            if layout::is_wide(w) {
+                let update = &mut scratch[..below.len()];
+                update.fill(0.0);
+                let y = &mut columns.own[first..first + w];
+                for block in layout::blocks(w) {
+                    let parts = layout::block_parts(w, below.len(), block).map(|r| &l[r]);
+                    match block.1 {
+                        1 => lower_block::<E, 1, FMA>(y, block.0, parts, update),
+                        2 => lower_block::<E, 2, FMA>(y, block.0, parts, update),
+                        3 => lower_block::<E, 3, FMA>(y, block.0, parts, update),
+                        _ => lower_block::<E, 4, FMA>(y, block.0, parts, update),
+                    }
+                }
+                below.for_each(|k, r| columns.take_off::<WHOLE>(r, update[k]));
+                continue;
+            }
             let ld = w + below.len();
             let y = &mut columns.own[first..first + w];
             for j in 0..w {
@@ -161,22 +176,7 @@ impl Supernodes<'_> {
                 1 => narrow!(1),
                 2 => narrow!(2),
                 3 => narrow!(3),
-                4 => narrow!(4),
-                _ => {
-                    let (update, solved) = scratch.split_at_mut(below.len());
-                    let solved = &mut solved[..w];
-                    solved.copy_from_slice(&columns.own[first..first + w]);
-                    update.fill(0.0);
-                    let blocks = w / 4;
-                    for b in 0..blocks {
-                        let a = std::array::from_fn(|t| solved[4 * b + t]);
-                        panel_axpy::<E, FMA>(update, std::array::from_fn(|t| panel(4 * b + t)), a);
-                    }
-                    for (j, &a) in solved.iter().enumerate().skip(4 * blocks) {
-                        axpy::<E, FMA>(update, panel(j), a);
-                    }
-                    below.for_each(|k, r| columns.take_off::<WHOLE>(r, update[k]));
-                }
+                _ => narrow!(4),
             }
         }
     }
@@ -194,15 +194,30 @@ impl Supernodes<'_> {
         for s in part.rev() {
             let (first, w, below, l) = self.supernode(s, values);
             let first = first - offset;
+            // A whole solve's rows are all its own, from column 0.
+            let solved = |r: usize| match (WHOLE, r < end) {
+                (true, _) => own[r],
+                (false, true) => own[r - offset],
+                (false, false) => beyond[r - beyond_start],
+            };
+            if layout::is_wide(w) {
+                let gathered = &mut scratch[..below.len()];
+                below.for_each(|k, r| gathered[k] = solved(r));
+                let y = &mut own[first..first + w];
+                for block in layout::blocks(w).rev() {
+                    let parts = layout::block_parts(w, below.len(), block).map(|r| &l[r]);
+                    match block.1 {
+                        1 => upper_block::<E, 1, FMA>(y, block.0, parts, gathered),
+                        2 => upper_block::<E, 2, FMA>(y, block.0, parts, gathered),
+                        3 => upper_block::<E, 3, FMA>(y, block.0, parts, gathered),
+                        _ => upper_block::<E, 4, FMA>(y, block.0, parts, gathered),
+                    }
+                }
+                continue;
+            }
             let ld = w + below.len();
             let panel = |j: usize| &l[j * ld + w..(j + 1) * ld];
             if below.len() > 0 {
-                // A whole solve's rows are all its own, from column 0.
-                let solved = |r: usize| match (WHOLE, r < end) {
-                    (true, _) => own[r],
-                    (false, true) => own[r - offset],
-                    (false, false) => beyond[r - beyond_start],
-                };
                 macro_rules! narrow {
                     ($w:literal) => {{
                         let sums =
@@ -216,22 +231,7 @@ impl Supernodes<'_> {
                     1 => narrow!(1),
                     2 => narrow!(2),
                     3 => narrow!(3),
-                    4 => narrow!(4),
-                    _ => {
-                        let gathered = &mut scratch[..below.len()];
-                        below.for_each(|k, r| gathered[k] = solved(r));
-                        let blocks = w / 4;
-                        for b in 0..blocks {
-                            let columns = std::array::from_fn(|t| panel(4 * b + t));
-                            let sums = panel_dots::<E, FMA>(gathered, columns);
-                            (own[first + 4 * b..first + 4 * b + 4].iter_mut())
-                                .zip(sums)
-                                .for_each(|(y, s)| *y -= s);
-                        }
-                        for j in 4 * blocks..w {
-                            own[first + j] -= dot::<E, FMA>(panel(j), gathered);
-                        }
-                    }
+                    _ => narrow!(4),
                 }
             }
             let y = &mut own[first..first + w];
@@ -242,6 +242,104 @@ impl Supernodes<'_> {
             }
         }
     }
+}
+
+/// `L y = b` on block `(c₀, W)` of a wide supernode whose own columns are `y`: the block's
+/// triangle, then its rows inside the supernode's triangle straight into `y`, and its rows
+/// below added to `update` (the block's `[triangle, inside, below]`, [`layout::block_parts`]).
+#[inline(always)]
+fn lower_block<E: Entry, const W: usize, const FMA: bool>(
+    y: &mut [f32],
+    c0: usize,
+    [triangle, inside, below]: [&[E]; 3],
+    update: &mut [f32],
+) {
+    let (solved, later) = y[c0..].split_at_mut(W);
+    for j in 0..W {
+        let yj = solved[j] / triangle[j * W + j].widen();
+        solved[j] = yj;
+        for i in j + 1..W {
+            solved[i] = madd::<FMA>(triangle[j * W + i].widen(), -yj, solved[i]);
+        }
+    }
+    let a: [f32; W] = std::array::from_fn(|t| solved[t]);
+    tiled_axpy::<E, W, FMA>(later, inside, a.map(|a| -a));
+    tiled_axpy::<E, W, FMA>(update, below, a);
+}
+
+/// `Lᵀ x = y` on block `(c₀, W)` of a wide supernode whose own columns are `y` (the later
+/// blocks solved), with `gathered` its solved rows below: the dot products of the block's
+/// rows below and inside, then its triangle backwards.
+#[inline(always)]
+fn upper_block<E: Entry, const W: usize, const FMA: bool>(
+    y: &mut [f32],
+    c0: usize,
+    [triangle, inside, below]: [&[E]; 3],
+    gathered: &[f32],
+) {
+    let (own, later) = y[c0..].split_at_mut(W);
+    let (outer, inner) = (
+        tiled_dots::<E, W, FMA>(gathered, below),
+        tiled_dots::<E, W, FMA>(later, inside),
+    );
+    for j in (0..W).rev() {
+        let later = (j + 1..W).fold(outer[j] + inner[j], |sum, i| {
+            madd::<FMA>(triangle[j * W + i].widen(), own[i], sum)
+        });
+        own[j] = (own[j] - later) / triangle[j * W + j].widen();
+    }
+}
+
+/// `target += Σ_t region_t a_t` over a tiled range ([`layout::tiled`]) of `target.len()`
+/// rows and `W` columns.
+#[inline(always)]
+fn tiled_axpy<E: Entry, const W: usize, const FMA: bool>(
+    target: &mut [f32],
+    region: &[E],
+    a: [f32; W],
+) {
+    let whole = target.len() / TILE * TILE;
+    let (tiles, tail) = region.split_at(whole * W);
+    let (target, rest) = target.split_at_mut(whole);
+    for (y, tile) in target
+        .chunks_exact_mut(TILE)
+        .zip(tiles.chunks_exact(TILE * W))
+    {
+        for (t, column) in tile.chunks_exact(TILE).enumerate() {
+            for e in 0..TILE {
+                y[e] = madd::<FMA>(column[e].widen(), a[t], y[e]);
+            }
+        }
+    }
+    if !rest.is_empty() {
+        for (t, column) in tail.chunks_exact(rest.len()).enumerate() {
+            axpy::<E, FMA>(rest, column, a[t]);
+        }
+    }
+}
+
+/// `region_t · g` for each column `t` of a tiled range of `g.len()` rows and `W` columns,
+/// read backwards (the upper solve walks the factor from its end: one descending run for the
+/// prefetcher, where ascending runs taken in descending order make it start over at each).
+#[inline(always)]
+fn tiled_dots<E: Entry, const W: usize, const FMA: bool>(g: &[f32], region: &[E]) -> [f32; W] {
+    let whole = g.len() / TILE * TILE;
+    let (tiles, tail) = region.split_at(whole * W);
+    let (g, rest) = g.split_at(whole);
+    let tails: [f32; W] = std::array::from_fn(|t| {
+        let column = &tail[t * rest.len()..(t + 1) * rest.len()];
+        (column.iter().zip(rest)).fold(0.0, |sum, (x, g)| madd::<FMA>(x.widen(), *g, sum))
+    });
+    let mut lanes = [[0.0f32; TILE]; W];
+    for (g, tile) in (g.chunks_exact(TILE).zip(tiles.chunks_exact(TILE * W))).rev() {
+        for t in 0..W {
+            let column = &tile[t * TILE..(t + 1) * TILE];
+            for e in 0..TILE {
+                lanes[t][e] = madd::<FMA>(column[e].widen(), g[e], lanes[t][e]);
+            }
+        }
+    }
+    std::array::from_fn(|t| lanes[t].iter().sum::<f32>() + tails[t])
 }
 
 /// `a b + c`, fused where the build has FMA.
@@ -274,7 +372,8 @@ fn scatter<E: Entry, const W: usize, const FMA: bool, const WHOLE: bool>(
 }
 
 /// `Σ_k panel_t[k] y_r` over the kept rows `r` below a supernode of `W` columns, `y_r` from
-/// `solved`; where all rows are kept, two rows per step into separate sums.
+/// `solved`; where all rows are kept, two rows per step into separate sums, from the last
+/// (backwards, as [`tiled_dots`]).
 #[inline(always)]
 fn gathered_dots<E: Entry, const W: usize, const FMA: bool>(
     panel: [&[E]; W],
@@ -293,49 +392,17 @@ fn gathered_dots<E: Entry, const W: usize, const FMA: bool>(
             let rows = &rows[..panel[0].len()];
             let pairs = rows.chunks_exact(2);
             let last = pairs.remainder().first().map(|&r| (rows.len() - 1, r));
-            for (q, pair) in pairs.enumerate() {
-                add(&mut even, 2 * q, solved(pair[0]));
-                add(&mut odd, 2 * q + 1, solved(pair[1]));
-            }
             if let Some((k, r)) = last {
                 add(&mut even, k, solved(r));
+            }
+            for (q, pair) in pairs.enumerate().rev() {
+                add(&mut even, 2 * q, solved(pair[0]));
+                add(&mut odd, 2 * q + 1, solved(pair[1]));
             }
         }
         None => below.for_each(|k, r| add(&mut even, k, solved(r))),
     }
     std::array::from_fn(|t| even[t] + odd[t])
-}
-
-/// `update += Σ_t columns_t a_t`, four columns per pass.
-#[inline(always)]
-fn panel_axpy<E: Entry, const FMA: bool>(update: &mut [f32], columns: [&[E]; 4], a: [f32; 4]) {
-    let [c0, c1, c2, c3] = columns;
-    let rows = update.iter_mut().zip(c0).zip(c1).zip(c2).zip(c3);
-    for ((((u, x0), x1), x2), x3) in rows {
-        let sum = madd::<FMA>(x0.widen(), a[0], madd::<FMA>(x1.widen(), a[1], *u));
-        *u = madd::<FMA>(x2.widen(), a[2], madd::<FMA>(x3.widen(), a[3], sum));
-    }
-}
-
-/// `columns_t · g` for four columns, one register of lanes each.
-#[inline(always)]
-fn panel_dots<E: Entry, const FMA: bool>(g: &[f32], columns: [&[E]; 4]) -> [f32; 4] {
-    let mut lanes = [[0.0f32; PANEL_LANES]; 4];
-    let full = g.len() / PANEL_LANES * PANEL_LANES;
-    for (q, g) in g[..full].chunks_exact(PANEL_LANES).enumerate() {
-        let at = q * PANEL_LANES;
-        for (lanes, column) in lanes.iter_mut().zip(&columns) {
-            let column = &column[at..at + PANEL_LANES];
-            for e in 0..PANEL_LANES {
-                lanes[e] = madd::<FMA>(column[e].widen(), g[e], lanes[e]);
-            }
-        }
-    }
-    std::array::from_fn(|t| {
-        let tail = (columns[t][full..].iter().zip(&g[full..]))
-            .fold(0.0, |sum, (x, g)| madd::<FMA>(x.widen(), *g, sum));
-        lanes[t].iter().sum::<f32>() + tail
-    })
 }
 
 /// `update += l a`.

@@ -44,6 +44,7 @@
 //! and fill are those of the `f32` factor faer computed, less the rows left out.
 
 mod kernels;
+mod layout;
 
 use super::cholesky::{CholeskyFactor, FactorEntries};
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
@@ -53,7 +54,7 @@ use std::ops::Range;
 use std::sync::Arc;
 
 /// How a packed factor stores an entry of `L`.
-pub trait Entry: Copy + Send + Sync + 'static {
+pub trait Entry: Copy + Default + Send + Sync + 'static {
     /// Bytes per entry.
     const BYTES: usize;
     /// The entry nearest `x`.
@@ -119,11 +120,19 @@ impl<E: Entry> PackedFactor<E> {
         Self::with_layout(symbolic.clone(), values, kept)
     }
 
+    /// The factor with `values` in faer's layout less the rows `kept` leaves out, its wide
+    /// supernodes reordered into blocks ([`layout`]).
     fn with_layout(
         symbolic: Arc<SymbolicCholesky<usize>>,
-        values: Vec<E>,
-        kept: Option<KeptRows>,
+        mut values: Vec<E>,
+        mut kept: Option<KeptRows>,
     ) -> Self {
+        if let (SymbolicCholeskyRaw::Supernodal(s), Some(kept)) = (symbolic.raw(), &mut kept) {
+            let shapes = kept.shapes(s, |s, w| {
+                kept.value_start[s + 1] - kept.value_start[s] - w * w
+            });
+            layout::to_blocked(&mut values, &mut kept.value_start, |s| shapes[s]);
+        }
         let kernels = Kernels::detect();
         let split = match (symbolic.raw(), &kept) {
             (SymbolicCholeskyRaw::Supernodal(s), Some(kept)) => {
@@ -173,9 +182,18 @@ impl<E: Entry> PackedFactor<E> {
         &self.symbolic
     }
 
-    /// The stored entries: faer's layout less the rows left out.
-    pub fn values(&self) -> &[E] {
-        &self.values
+    /// The stored entries in faer's layout (less the rows left out), the unused upper halves
+    /// of the supernodes' triangles zero.
+    pub fn column_major_values(&self) -> Vec<E> {
+        match (self.symbolic.raw(), &self.kept) {
+            (SymbolicCholeskyRaw::Supernodal(s), Some(kept)) => {
+                let shapes = kept.shapes(s, |s, w| {
+                    kept.value_start[s + 1] - kept.value_start[s] - layout::triangle_entries(w)
+                });
+                layout::to_column_major(&self.values, &kept.value_start, |s| shapes[s])
+            }
+            _ => self.values.clone(),
+        }
     }
 
     /// Overwrites `x` with `(L Lᵀ)⁻¹ x`, in `f32` arithmetic; `work` holds one permuted copy
@@ -327,6 +345,22 @@ impl KeptRows {
         (kept, rounded)
     }
 
+    /// `(w, m)` of every supernode: its columns and its kept rows below, with `w m` the
+    /// entries `below(s, w)` that are not its triangle's.
+    fn shapes(
+        &self,
+        symbolic: &SymbolicSupernodalCholesky<usize>,
+        below: impl Fn(usize, usize) -> usize,
+    ) -> Vec<(usize, usize)> {
+        let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
+        (0..begin.len())
+            .map(|s| {
+                let w = end[s] - begin[s];
+                (w, below(s, w) / w)
+            })
+            .collect()
+    }
+
     /// `L_cc` for every column `c` (the diagonal of each supernode's triangle).
     fn pivots(symbolic: &SymbolicSupernodalCholesky<usize>, values: &[f32]) -> Vec<f32> {
         let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
@@ -416,7 +450,7 @@ impl<'a> Supernodes<'a> {
         let below = Below {
             pattern: self.symbolic.supernode(s).pattern(),
             bits: &kept.bits[kept.word_start[s]..kept.word_start[s + 1]],
-            len: values.len() / w - w,
+            len: (values.len() - layout::triangle_entries(w)) / w,
         };
         (self.begin[s], w, below, values)
     }
