@@ -35,6 +35,7 @@ use crate::load::{LoadWarning, LoadedSequence, VertexMap};
 use crate::render::color_wheel::robust_max;
 use crate::render::{screen_flow_colors, Camera, View};
 use nalgebra::{Vector2, Vector3};
+use rayon::prelude::*;
 use std::borrow::Cow;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -125,14 +126,25 @@ fn write_all(
     let mesh = (&loaded.vertex_map, sequence.mesh().faces());
     let mut files = SlabFiles::create(dir, mesh, formats, sequence.n_slabs(), embedded)?;
     let no_data = loaded.slab_no_data();
-    for s in 0..sequence.n_slabs() {
-        let slab = SlabOutput {
+    let slabs: Vec<SlabOutput> = (0..sequence.n_slabs())
+        .map(|s| SlabOutput {
             no_data: no_data.as_ref().map(|mask| Cow::Borrowed(&mask[s][..])),
             ..SlabOutput::of_result(sequence, s, result, s, errors)
-        };
-        files.add(s, &slab)?;
-    }
-    let max_speed = files.finish()?;
+        })
+        .collect();
+    // The binary glTF beside the slabs' files, on the other threads.
+    let glb = embedded && formats.contains(&OutputFormat::Glb);
+    let mut glb_written = Ok(());
+    let max_speed = rayon::in_place_scope(|scope| {
+        if glb {
+            let glb_written = &mut glb_written;
+            scope.spawn(move |_| {
+                *glb_written = write_flow_glb(&dir.join("flow.glb"), sequence, result, view)
+            });
+        }
+        files.add_all(&slabs).and_then(|()| files.finish())
+    })?;
+    glb_written?;
     if let (true, Some(no_data)) = (formats.contains(&OutputFormat::Npy), &no_data) {
         let rows: Vec<Vec<bool>> = no_data
             .iter()
@@ -146,9 +158,6 @@ fn write_all(
     if let Some(tracks) = scores.tracks {
         let vtu = formats.contains(&OutputFormat::Vtu);
         super::write_track_errors(dir, &tracks.scores, vtu)?;
-    }
-    if embedded && formats.contains(&OutputFormat::Glb) {
-        write_flow_glb(&dir.join("flow.glb"), sequence, result, view)?;
     }
     let facts = SequenceFacts::of(sequence, &loaded.warnings, max_speed);
     write_summary(
@@ -335,6 +344,29 @@ impl<'a> SlabFiles<'a> {
 
     /// Slab `s`, the one after the last added.
     pub fn add(&mut self, s: usize, slab: &SlabOutput) -> Result<(), IoError> {
+        self.add_rows(slab)?;
+        if let Some(dataset) = self.vtu.then(|| slab_vtu(self.dir, self.faces, s, slab)) {
+            self.datasets.extend(dataset?);
+        }
+        Ok(())
+    }
+
+    /// All slabs, from the first: their NPY rows in order, their VTU files in parallel (one
+    /// file per slab, each on its own thread; the paper-size torus writes 19 of 13 MB).
+    pub fn add_all(&mut self, slabs: &[SlabOutput]) -> Result<(), IoError> {
+        slabs.iter().try_for_each(|slab| self.add_rows(slab))?;
+        if self.vtu {
+            let (dir, faces) = (self.dir, self.faces);
+            let datasets: Vec<Option<(f64, String)>> = (slabs.par_iter().enumerate())
+                .map(|(s, slab)| slab_vtu(dir, faces, s, slab))
+                .collect::<Result<_, _>>()?;
+            self.datasets.extend(datasets.into_iter().flatten());
+        }
+        Ok(())
+    }
+
+    /// The slab's rows of the NPY arrays, and its speed.
+    fn add_rows(&mut self, slab: &SlabOutput) -> Result<(), IoError> {
         self.max_speed = self.max_speed.max(slab.max_speed());
         let map = self.map;
         if let Some((intrinsic, vectors)) = &mut self.npy {
@@ -346,13 +378,6 @@ impl<'a> SlabFiles<'a> {
                     file.extend(rows.iter().flat_map(|u| [u.x, u.y, u.z]))?;
                 }
             }
-        }
-        if let (true, Some(positions), Some(u), Some(v)) =
-            (self.vtu, &slab.positions, &slab.vectors, &slab.velocity)
-        {
-            let arrays = slab.vtu_arrays(u, v);
-            let file = write_slab_vtu(self.dir, "flow", s, positions, self.faces, &arrays, &[])?;
-            self.datasets.push((slab.time, file));
         }
         Ok(())
     }
@@ -374,6 +399,24 @@ impl<'a> SlabFiles<'a> {
             write_pvd(&self.dir.join("flow.pvd"), &self.datasets)?;
         }
         Ok(self.max_speed)
+    }
+}
+
+/// `flow_SSSS.vtu` of slab `s` in `dir`, where the slab has positions and vectors: its time
+/// and file name for the PVD.
+fn slab_vtu(
+    dir: &Path,
+    faces: &[[u32; 3]],
+    s: usize,
+    slab: &SlabOutput,
+) -> Result<Option<(f64, String)>, IoError> {
+    match (&slab.positions, &slab.vectors, &slab.velocity) {
+        (Some(positions), Some(u), Some(v)) => {
+            let arrays = slab.vtu_arrays(u, v);
+            let file = write_slab_vtu(dir, "flow", s, positions, faces, &arrays, &[])?;
+            Ok(Some((slab.time, file)))
+        }
+        _ => Ok(None),
     }
 }
 

@@ -290,7 +290,7 @@ fn upper_block<E: Entry, const W: usize, const FMA: bool>(
     }
 }
 
-/// `target += Σ_t region_t a_t` over a tiled range ([`layout::tiled`]) of `target.len()`
+/// `target += Σ_t region_t a_t` over a tiled range ([`layout`]) of `target.len()`
 /// rows and `W` columns.
 #[inline(always)]
 fn tiled_axpy<E: Entry, const W: usize, const FMA: bool>(

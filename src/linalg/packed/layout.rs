@@ -65,38 +65,46 @@ pub fn block_parts(w: usize, m: usize, (c0, bw): (usize, usize)) -> [Range<usize
     [start..inside, inside..below, below..below + bw * m]
 }
 
-/// The position of row `i`, column `t` of a tiled range of `rows` rows and `bw` columns.
-#[inline(always)]
-pub fn tiled(i: usize, t: usize, rows: usize, bw: usize) -> usize {
+/// `visit(column-major start, blocked start, length)` for the runs of consecutive entries a
+/// tiled range (`rows` rows and `bw` columns, from `to` in the block) takes from column-major
+/// columns (`ld` apart, the range's first row at `from`): eight rows per column and tile, then
+/// the rows past the last whole tile.
+fn tiled_runs(
+    (from, to): (usize, usize),
+    (rows, bw, ld): (usize, usize, usize),
+    visit: &mut impl FnMut(usize, usize, usize),
+) {
     let whole = rows / TILE * TILE;
-    match i < whole {
-        true => (i / TILE) * TILE * bw + t * TILE + i % TILE,
-        false => whole * bw + t * (rows - whole) + (i - whole),
+    for q in 0..rows / TILE {
+        for t in 0..bw {
+            visit(from + t * ld + q * TILE, to + (q * bw + t) * TILE, TILE);
+        }
+    }
+    let rest = rows - whole;
+    if rest > 0 {
+        for t in 0..bw {
+            visit(from + t * ld + whole, to + whole * bw + t * rest, rest);
+        }
     }
 }
 
-/// `visit(column-major position, blocked position)` for every entry a wide supernode stores
-/// (`w` columns, `m` rows below; column-major with `w + m` rows, as faer's).
-fn for_each_entry(w: usize, m: usize, mut visit: impl FnMut(usize, usize)) {
+/// `visit(column-major start, blocked start, length)` for every run of entries a wide
+/// supernode stores (`w` columns, `m` rows below; column-major with `w + m` rows, as faer's).
+fn for_each_run(w: usize, m: usize, mut visit: impl FnMut(usize, usize, usize)) {
     let ld = w + m;
     for (c0, bw) in blocks(w) {
         let [triangle, inside, below] = block_parts(w, m, (c0, bw));
-        let inner_rows = w - c0 - bw;
+        let first = c0 * ld;
         for t in 0..bw {
-            let column = (c0 + t) * ld;
-            for i in t..bw {
-                visit(column + c0 + i, triangle.start + t * bw + i);
-            }
-            for i in 0..inner_rows {
-                visit(
-                    column + c0 + bw + i,
-                    inside.start + tiled(i, t, inner_rows, bw),
-                );
-            }
-            for i in 0..m {
-                visit(column + w + i, below.start + tiled(i, t, m, bw));
-            }
+            visit(first + t * ld + c0 + t, triangle.start + t * bw + t, bw - t);
         }
+        let inner_rows = w - c0 - bw;
+        tiled_runs(
+            (first + c0 + bw, inside.start),
+            (inner_rows, bw, ld),
+            &mut visit,
+        );
+        tiled_runs((first + w, below.start), (m, bw, ld), &mut visit);
     }
 }
 
@@ -121,7 +129,9 @@ pub fn to_blocked<E: Copy + Default>(
             scratch.clear();
             scratch.extend_from_slice(&values[old]);
             let out = &mut values[write..write + count];
-            for_each_entry(w, m, |from, to| out[to] = scratch[from]);
+            for_each_run(w, m, |from, to, n| {
+                out[to..to + n].copy_from_slice(&scratch[from..from + n])
+            });
         } else {
             values.copy_within(old, write);
         }
@@ -148,7 +158,10 @@ pub fn to_column_major<E: Copy + Default>(
         let first = out.len();
         if is_wide(w) {
             out.resize(first + w * (w + m), E::default());
-            for_each_entry(w, m, |to, from| out[first + to] = stored[from]);
+            let column_major = &mut out[first..];
+            for_each_run(w, m, |to, from, n| {
+                column_major[to..to + n].copy_from_slice(&stored[from..from + n])
+            });
         } else {
             out.extend_from_slice(stored);
         }
@@ -167,7 +180,9 @@ mod tests {
         for (w, m) in [(5, 0), (5, 9), (8, 16), (11, 7), (13, 30), (64, 3)] {
             let count = triangle_entries(w) + w * m;
             let mut seen = vec![0; count];
-            for_each_entry(w, m, |_, to| seen[to] += 1);
+            for_each_run(w, m, |_, to, n| {
+                seen[to..to + n].iter_mut().for_each(|s| *s += 1)
+            });
             let upper_halves: usize = blocks(w).map(|(_, bw)| bw * (bw - 1) / 2).sum();
             assert!(seen.iter().all(|&n| n <= 1), "{w} × {m}: {seen:?}");
             assert_eq!(seen.iter().filter(|&&n| n == 0).count(), upper_halves);
