@@ -40,7 +40,7 @@ mod push_forward;
 mod time_transport;
 
 pub use push_forward::{push_forward, vertex_frames_in_r3, vertex_normals};
-pub use time_transport::polar_rotation_angles;
+pub use time_transport::polar_rotations;
 
 use crate::geometry::{IntrinsicGeometry, SurfacePoint};
 use crate::mesh::{Corner, Mesh};

@@ -7,6 +7,7 @@ use crate::mesh::Mesh;
 use crate::statistics::channel_mean;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use nalgebra::{Matrix3x2, Vector3};
+use rayon::prelude::*;
 use std::sync::{Arc, OnceLock};
 
 /// The image on a sequence: `C ≥ 1` channels (grey, RGB, any stack of stains), one value per
@@ -118,10 +119,16 @@ impl MeshSequence {
         if n_frames < 2 {
             return Err(FlowError::TooFewFrames(n_frames));
         }
-        for (frame, lengths) in edge_lengths.iter().enumerate() {
-            IntrinsicGeometry::new(&mesh, lengths.clone())
-                .map_err(|source| FlowError::Frame { frame, source })?;
-        }
+        // In parallel; the first bad frame's error, whatever the timing.
+        let checked: Vec<Result<(), FlowError>> = (edge_lengths.par_iter().enumerate())
+            .map(
+                |(frame, lengths)| match IntrinsicGeometry::new(&mesh, lengths.clone()) {
+                    Ok(_) => Ok(()),
+                    Err(source) => Err(FlowError::Frame { frame, source }),
+                },
+            )
+            .collect();
+        checked.into_iter().collect::<Result<(), _>>()?;
         check_images(&mesh, &images, n_frames)?;
         let times = times.unwrap_or_else(|| (0..n_frames).map(|k| k as f64).collect());
         check_times(&times, n_frames)?;

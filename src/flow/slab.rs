@@ -3,7 +3,7 @@
 
 use super::anisotropy::{time_entries, SpaceTimeStructure};
 use super::{FlowError, FlowParams, MeshSequence, Regularizer, TimeCoupling, Weights};
-use crate::connection::{polar_rotation_angles, vertex_frames_in_r3, Connection};
+use crate::connection::{polar_rotations, vertex_frames_in_r3, Connection};
 use crate::fem::element::{self, DataElement};
 use crate::geometry::{IntrinsicGeometry, Triangle};
 use nalgebra::{Matrix2, Matrix3, Matrix3x2, Matrix6, Vector2};
@@ -297,14 +297,10 @@ pub fn complete_slabs(
 impl TimeLink {
     pub fn new(before: &Slab, after: &Slab, weights: &Weights) -> Self {
         let h = 0.5 * (before.dt + after.dt);
-        let polar_angles = polar_rotation_angles(&before.geometry, &after.geometry);
         Self {
             weight: weights.gamma / (weights.alpha * weights.alpha * h),
             face_weights: time_entries(before, after, weights.alpha),
-            polar: polar_angles
-                .iter()
-                .map(|q| Vector2::new(q.cos(), q.sin()))
-                .collect(),
+            polar: polar_rotations(&before.geometry, &after.geometry),
         }
     }
 
