@@ -6,7 +6,7 @@ use super::{FlowError, FlowParams, MeshSequence, Regularizer, TimeCoupling, Weig
 use crate::connection::{polar_rotations, vertex_frames_in_r3, Connection};
 use crate::fem::element::{self, DataElement};
 use crate::geometry::{IntrinsicGeometry, Triangle};
-use nalgebra::{Matrix2, Matrix3, Matrix3x2, Matrix6, Vector2};
+use nalgebra::{Matrix2, Matrix3, Matrix3x2, Matrix6, Vector2, Vector6};
 use rayon::prelude::*;
 
 /// One image channel `c` on a slab: `I_mid = (I_s + I_{s+1}) / 2`, `τ = (I_{s+1} − I_s) / Δt_s`
@@ -121,7 +121,7 @@ impl Slab {
 
     /// The data element of face `f`: `Σ_c w_c` times channel `c`'s [`element::data_element`],
     /// each rate shifted by the linearization (if any).
-    fn data_element(&self, face: &[u32; 3], f: usize) -> DataElement {
+    pub(super) fn data_element(&self, face: &[u32; 3], f: usize) -> DataElement {
         let triangle = self.geometry.triangle(f);
         let rotations = self.connection.face_rotations(f);
         let at = |values: &[f64]| face.map(|v| values[v as usize]);
@@ -156,9 +156,20 @@ impl Slab {
         FaceElements {
             data: self.data_element(face, f),
             mass: element::vector_element(&element::consistent_mass(triangle), rotations),
-            stiffness: self.regularizer_element(face, f, regularizer)
-                * self.smoothness_weights.as_ref().map_or(1.0, |w| w[f]),
+            stiffness: self.smoothness_element(face, f, regularizer),
         }
+    }
+
+    /// The smoothness term's element of face `f`: `regularizer`'s, times the face's robust
+    /// weight (if any).
+    pub fn smoothness_element(
+        &self,
+        face: &[u32; 3],
+        f: usize,
+        regularizer: &Regularizer,
+    ) -> Matrix6<f64> {
+        self.regularizer_element(face, f, regularizer)
+            * self.smoothness_weights.as_ref().map_or(1.0, |w| w[f])
     }
 
     /// `regularizer`'s element of face `f` on this slab (its frames and tensor, if set),
@@ -380,6 +391,28 @@ impl TimeLink {
         );
         let q = self.polar_rotation(f);
         std::array::from_fn(|a| -(r1[a].transpose() * q * r0[a]) * weight)
+    }
+
+    /// Face `f`'s share of the temporal term at `x0` (slab before) and `x1` (slab after),
+    /// `c D_tt Σ_ab m̄_ab w_a·w_b` with `w_a = R¹_a x1_a − Q R⁰_a x0_a`: what
+    /// [`Self::face_elements`] give as `x0ᵀ B x0 + x1ᵀ A x1 + 2 x1ᵀ X x0`, without forming them.
+    pub fn face_energy(
+        &self,
+        (before, after): (&Slab, &Slab),
+        f: usize,
+        coupling: TimeCoupling,
+        (x0, x1): (&Vector6<f64>, &Vector6<f64>),
+    ) -> f64 {
+        let scalar = self.scalar_element(before, after, f, coupling);
+        let (r0, r1) = (
+            before.connection.face_rotations(f),
+            after.connection.face_rotations(f),
+        );
+        let q = self.polar_rotation(f);
+        let w: [Vector2<f64>; 3] = std::array::from_fn(|a| {
+            r1[a] * x1.fixed_rows::<2>(2 * a) - q * (r0[a] * x0.fixed_rows::<2>(2 * a))
+        });
+        element::scalar_form(&scalar, &w, &w)
     }
 
     /// All three blocks of face `f`.
