@@ -1,15 +1,20 @@
 //! The loops of a packed factor's triangular solves, over a run of supernodes.
 //!
-//! Per supernode of `w` columns and `m` kept rows below (values column-major, `ld = w + m`):
+//! Per supernode of `w` columns and `m` kept rows below:
 //!
-//! - `L y = b`: the triangle by columns (`y_j /= L_jj`, then an axpy on the later columns), then
-//!   `y_r −= Σ_j L_rj y_j` for each row `r` below. Up to four columns wide, each row's sum is
-//!   taken straight into `y_r`; wider panels are summed into scratch four columns at a time
-//!   (one pass over the scratch per four columns), then scattered.
-//! - `Lᵀ x = y`, in reverse: each column's dot product with the solved rows below (gathered
-//!   straight from `y` up to four columns wide, two rows per step so that two sums are in
-//!   flight; wider panels gather once and take four columns per pass), then the triangle
-//!   backwards, each column's dot product with the later columns.
+//! - `L y = b`: up to four columns wide (column-major, `ld = w + m`), the triangle by columns
+//!   (`y_j /= L_jj`, then an axpy on the later columns), then `y_r −= Σ_j L_rj y_j` for each
+//!   row `r` below, each row's sum taken straight into `y_r`. Wider, block by block of four
+//!   columns ([`layout`]): the block's triangle, then its tiles of rows inside the supernode's
+//!   triangle straight into `y`, and its tiles of rows below summed into scratch, which is
+//!   scattered once per supernode.
+//! - `Lᵀ x = y`, in reverse: up to four columns wide, each column's dot product with the
+//!   solved rows below (gathered straight from `y`, two rows per step so that two sums are in
+//!   flight), then the triangle backwards. Wider, the rows below gathered once, then block by
+//!   block from the last: the tiles' dot products with the gathered rows and with the later
+//!   columns, then the block's triangle backwards. The tiles are read from the last, so that
+//!   the upper solve reads the factor in one backward run as the lower one reads it in one
+//!   forward run.
 //!
 //! Each loop is compiled twice: portable, and with AVX2 and fused multiply–add, chosen once
 //! per factor ([`Kernels::detect`]). The two builds round differently (a fused multiply–add

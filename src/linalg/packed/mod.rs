@@ -1,6 +1,7 @@
 //! Cholesky factors packed for the preconditioners' slab solves, and the triangular solves
-//! with them: `L` stored as `f32` or bfloat16 entries ([`Entry`]), in faer's supernodal layout
-//! less the rows a factor leaves out ([`KeptRows`]), solved by meshflow's own kernels
+//! with them: `L` stored as `f32` or bfloat16 entries ([`Entry`]), faer's supernodal factor
+//! less the rows a factor leaves out ([`KeptRows`]) with its wide supernodes reordered into
+//! the order their solves read them ([`layout`]), solved by meshflow's own kernels
 //! ([`kernels`]).
 //!
 //! A slab solve `x ← (L Lᵀ)⁻¹ x` runs `L y = b` supernode by supernode (its dense triangle,
@@ -14,31 +15,38 @@
 //! faer's dispatch), and a nested-dissection order of a surface mesh makes most supernodes
 //! one vertex (two columns) wide: the paper-size slab block (48,450 vertices) has 27,130
 //! supernodes, 21,241 of them two columns wide with 18 rows below on average. The kernels here
-//! take those rows' products straight into their columns (no scratch, no call), block the
-//! wider panels four columns at a time, and run an AVX2 + FMA build where the processor has
-//! one ([`Kernels`]).
+//! take those rows' products straight into their columns (no scratch, no call), take the
+//! wider supernodes four columns at a time, and run an AVX2 + FMA build where the processor
+//! has one ([`Kernels`]).
 //!
-//! These solves are bound by that per-supernode work and by latency, not by the memory's
-//! bandwidth: faer's solve with the paper-size slab's `f32` factor (41 MB) takes as long on one
-//! core alone as with the other core solving too (13–15 ms, about 6 GB/s per core, where this
-//! machine streams 25 GB/s on one core and 28 GB/s on two). Per solve on each of 2 cores (the
-//! fastest of 12 interleaved rounds, `cargo test --release --lib packed::tests::timing --
-//! --ignored --nocapture`, 2026-11-27):
+//! **Read in one run.** Most entries are in the wide supernodes (on the paper-size slab, 7.7 M
+//! of 9.0 M). faer stores them column-major, so a pass over four columns reads four short runs
+//! and the upper solve, which walks the supernodes backwards, starts each run anew: the
+//! processor's prefetcher, which follows one run forwards or backwards, kept restarting. Stored
+//! in blocks of four columns, tiles of eight rows ([`layout`]), and read forwards by the lower
+//! solve and backwards by the upper one, a solve is two long runs over the factor, and the
+//! solves are now bound by the memory's bandwidth: with both cores solving, the lower solve
+//! alone takes 3.1 ms and the upper alone 3.4 ms on the paper-size slab (36 MB: together
+//! about 23 GB/s, where this machine streams 28 GB/s on two cores). Only reading less makes
+//! them faster now. Per solve on each of 2 cores (the fastest of 12 interleaved rounds, `cargo
+//! test --release --lib packed::tests::timing -- --ignored --nocapture`, 2026-11-28):
 //!
 //! | block | faer `f32` | packed `f32` | portable build | bfloat16 |
 //! |---|---|---|---|---|
-//! | paper-size slab (10.2 M entries) | 13.7 ms | 10.2 ms | 12.5 ms | 6.7 ms (7.5 M kept) |
-//! | 128×95 grid, diagonal 4.1 (1.46 M) | 2.84 ms | 1.49 ms | 1.91 ms | 0.97 ms |
-//! | 128×95 grid, diagonal 40 (1.46 M) | 2.58 ms | 1.28 ms | 1.69 ms | 0.72 ms |
+//! | paper-size slab (9.0 M entries stored) | 13.1 ms | 5.6 ms | 7.8 ms | 5.4 ms (6.2 M kept) |
+//! | 128×95 grid, diagonal 4.1 (1.23 M) | 2.38 ms | 0.93 ms | 1.49 ms | 0.88 ms |
+//! | 128×95 grid, diagonal 40 (1.23 M) | 2.47 ms | 0.95 ms | 1.70 ms | 0.70 ms |
 //!
-//! (The bfloat16 kernels they replaced took 1.9 and 1.15–1.2 ms on the grid blocks.)
+//! (In faer's layout the same kernels took 10.2, 1.49 and 1.28 ms. The bfloat16 factors, whose
+//! left-out rows are walked by their bits, gain less: they are bound by that work, not by the
+//! bytes.)
 //!
 //! A solve may run the two halves of the elimination tree under its top separators on two
 //! threads ([`TreeSplit`], [`Halves`]): multigrid's coarse levels have fewer slabs than cores,
 //! and a lone slab solve then uses both cores (`bench_solver`, `α = γ = 0.01`: solve
 //! 2.02–2.09 → 1.96–2.02 s, four alternating runs, with bfloat16 factors). Where every core
-//! has a solve of its own the split only costs (the paper-size slab: 11.7 ms split against
-//! 10.2), so a sweep splits only where its solves do not divide evenly among the threads.
+//! has a solve of its own the split only costs (the paper-size slab: 6.3 ms split against
+//! 5.6), so a sweep splits only where its solves do not divide evenly among the threads.
 //!
 //! The kernels walk faer's own symbolic structure, supernodal or simplicial, so the ordering
 //! and fill are those of the `f32` factor faer computed, less the rows left out.
@@ -234,7 +242,7 @@ impl<E: Entry> PackedFactor<E> {
 
 /// Whether a solve runs the two halves of its elimination tree on two threads
 /// ([`TreeSplit`]). Worth it only where a thread would otherwise wait: on the paper-size slab
-/// block, with both cores busy solving, a split solve takes 11.1–11.8 ms against 10.2–10.6 ms
+/// block, with both cores busy solving, a split solve takes 6.3 ms against 5.6 ms
 /// (`tests::timing`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Halves {
@@ -262,10 +270,10 @@ fn gather<S: Copy, T>(to: &mut [T], from: &[S], index: Option<&[usize]>, convert
     }
 }
 
-/// faer's supernodal layout, less the rows left out: supernode `s` holds columns
-/// `begin[s]..end[s]`, its values column-major with `w + m` rows (`w` its columns: the dense
-/// lower triangle on top; `m` the rows of its pattern below that the factor keeps) from
-/// `kept.value_start[s]`.
+/// faer's supernodal structure, less the rows left out: supernode `s` holds columns
+/// `begin[s]..end[s]` (`w` of them) and the `m` rows of its pattern below that the factor
+/// keeps, its values from `kept.value_start[s]`: column-major with `w + m` rows (the dense
+/// lower triangle on top) where narrow, in blocks where wide ([`layout`]).
 struct Supernodes<'a> {
     symbolic: &'a SymbolicSupernodalCholesky<usize>,
     begin: &'a [usize],
