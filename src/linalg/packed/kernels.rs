@@ -316,10 +316,9 @@ fn tiled_axpy<E: Entry, const W: usize, const FMA: bool>(
             }
         }
     }
-    if !rest.is_empty() {
-        for (t, column) in tail.chunks_exact(rest.len()).enumerate() {
-            axpy::<E, FMA>(rest, column, a[t]);
-        }
+    let n = rest.len();
+    for (t, &a) in a.iter().enumerate() {
+        axpy::<E, FMA>(rest, &tail[t * n..(t + 1) * n], a);
     }
 }
 

@@ -136,10 +136,10 @@ impl<E: Entry> PackedFactor<E> {
         mut kept: Option<KeptRows>,
     ) -> Self {
         if let (SymbolicCholeskyRaw::Supernodal(s), Some(kept)) = (symbolic.raw(), &mut kept) {
-            let shapes = kept.shapes(s, |s, w| {
-                kept.value_start[s + 1] - kept.value_start[s] - w * w
-            });
-            layout::to_blocked(&mut values, &mut kept.value_start, |s| shapes[s]);
+            let widths = Supernodes::widths(s);
+            let rows = &kept.rows;
+            let shape = |s: usize| (widths[s], rows[s] as usize);
+            layout::to_blocked(&mut values, &mut kept.value_start, shape);
         }
         let kernels = Kernels::detect();
         let split = match (symbolic.raw(), &kept) {
@@ -158,7 +158,7 @@ impl<E: Entry> PackedFactor<E> {
     }
 
     /// Bytes a factor of `symbolic`'s pattern takes at most: every entry kept, and which rows
-    /// are (a bit per panel row, two offsets per supernode).
+    /// are (a bit per panel row, two offsets and a count per supernode).
     pub fn bytes_at_most(symbolic: &SymbolicCholesky<usize>) -> usize {
         let bookkeeping = match symbolic.raw() {
             SymbolicCholeskyRaw::Supernodal(s) => {
@@ -166,7 +166,7 @@ impl<E: Entry> PackedFactor<E> {
                 let words: usize = (0..supernodes)
                     .map(|k| s.supernode(k).pattern().len().div_ceil(64))
                     .sum();
-                8 * words + 16 * (supernodes + 1)
+                8 * words + 20 * (supernodes + 1)
             }
             SymbolicCholeskyRaw::Simplicial(_) => 0,
         };
@@ -195,10 +195,9 @@ impl<E: Entry> PackedFactor<E> {
     pub fn column_major_values(&self) -> Vec<E> {
         match (self.symbolic.raw(), &self.kept) {
             (SymbolicCholeskyRaw::Supernodal(s), Some(kept)) => {
-                let shapes = kept.shapes(s, |s, w| {
-                    kept.value_start[s + 1] - kept.value_start[s] - layout::triangle_entries(w)
-                });
-                layout::to_column_major(&self.values, &kept.value_start, |s| shapes[s])
+                let widths = Supernodes::widths(s);
+                let shape = |s: usize| (widths[s], kept.rows[s] as usize);
+                layout::to_column_major(&self.values, &kept.value_start, shape)
             }
             _ => self.values.clone(),
         }
@@ -283,11 +282,13 @@ struct Supernodes<'a> {
 }
 
 /// Which rows of each supernode's pattern below its triangle a factor keeps (one bit per
-/// row, from word `word_start[s]`; no words for a supernode that keeps them all), and where
-/// the supernode's values start.
+/// row, from word `word_start[s]`; no words for a supernode that keeps them all), how many
+/// (`rows[s]`: the solves need the count per supernode, and a division to get it from the
+/// values' extent was on their path), and where the supernode's values start.
 struct KeptRows {
     bits: Vec<u64>,
     word_start: Vec<usize>,
+    rows: Vec<u32>,
     value_start: Vec<usize>,
 }
 
@@ -295,9 +296,13 @@ impl KeptRows {
     /// Every row kept: faer's layout as it is.
     fn all(symbolic: &SymbolicSupernodalCholesky<usize>) -> Self {
         let value_start = symbolic.col_ptr_for_val().to_vec();
+        let supernodes = symbolic.supernode_begin().len();
         Self {
             bits: Vec::new(),
             word_start: vec![0; value_start.len()],
+            rows: (0..supernodes)
+                .map(|s| symbolic.supernode(s).pattern().len() as u32)
+                .collect(),
             value_start,
         }
     }
@@ -318,6 +323,7 @@ impl KeptRows {
         let mut kept = Self {
             bits: Vec::new(),
             word_start: vec![0],
+            rows: Vec::with_capacity(begin.len()),
             value_start: vec![0],
         };
         let mut rounded = Vec::with_capacity(values.len());
@@ -346,27 +352,12 @@ impl KeptRows {
                 rounded.extend(rows.iter().map(|&i| E::narrow(column[w + i])));
             }
             kept.word_start.push(kept.bits.len());
+            kept.rows.push(rows.len() as u32);
             kept.value_start.push(rounded.len());
         }
         // Most of the capacity may be unused where much drops; it would stay reserved.
         rounded.shrink_to_fit();
         (kept, rounded)
-    }
-
-    /// `(w, m)` of every supernode: its columns and its kept rows below, with `w m` the
-    /// entries `below(s, w)` that are not its triangle's.
-    fn shapes(
-        &self,
-        symbolic: &SymbolicSupernodalCholesky<usize>,
-        below: impl Fn(usize, usize) -> usize,
-    ) -> Vec<(usize, usize)> {
-        let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
-        (0..begin.len())
-            .map(|s| {
-                let w = end[s] - begin[s];
-                (w, below(s, w) / w)
-            })
-            .collect()
     }
 
     /// `L_cc` for every column `c` (the diagonal of each supernode's triangle).
@@ -450,6 +441,12 @@ impl<'a> Supernodes<'a> {
         self.begin.len()
     }
 
+    /// The width of every supernode.
+    fn widths(symbolic: &SymbolicSupernodalCholesky<usize>) -> Vec<usize> {
+        let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
+        begin.iter().zip(end).map(|(b, e)| e - b).collect()
+    }
+
     /// `(first column, width, rows below, values)` of supernode `s`.
     #[inline(always)]
     fn supernode<'v, E>(&self, s: usize, values: &'v [E]) -> (usize, usize, Below<'a>, &'v [E]) {
@@ -458,7 +455,7 @@ impl<'a> Supernodes<'a> {
         let below = Below {
             pattern: self.symbolic.supernode(s).pattern(),
             bits: &kept.bits[kept.word_start[s]..kept.word_start[s + 1]],
-            len: (values.len() - layout::triangle_entries(w)) / w,
+            len: kept.rows[s] as usize,
         };
         (self.begin[s], w, below, values)
     }

@@ -119,7 +119,7 @@ fn f32_solves_as_the_same_factor_in_double_precision() {
 /// Bytes `factor` holds (its entries and which rows it keeps).
 fn held_bytes<E: Entry>(factor: &PackedFactor<E>) -> usize {
     let kept = factor.kept.as_ref().map_or(0, |k| {
-        8 * (k.bits.len() + k.word_start.len() + k.value_start.len())
+        8 * (k.bits.len() + k.word_start.len() + k.value_start.len()) + 4 * k.rows.len()
     });
     E::BYTES * factor.values.len() + kept
 }
