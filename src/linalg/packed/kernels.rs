@@ -65,6 +65,19 @@ macro_rules! dispatch {
     };
 }
 
+/// `$block::<E, W, FMA>(args)` with `W` the width of `block = (c₀, W)`, a wide supernode's
+/// block (four columns, or one to three in the last).
+macro_rules! by_width {
+    ($block:ident, $b:expr, ($($arg:expr),*)) => {
+        match $b.1 {
+            1 => $block::<E, 1, FMA>($($arg),*),
+            2 => $block::<E, 2, FMA>($($arg),*),
+            3 => $block::<E, 3, FMA>($($arg),*),
+            _ => $block::<E, 4, FMA>($($arg),*),
+        }
+    };
+}
+
 impl Supernodes<'_> {
     /// `L y = b` over the supernodes `part`, whose columns and descendants' are
     /// `columns.own`; what they take off their ancestors' columns is added to
@@ -149,12 +162,7 @@ impl Supernodes<'_> {
                 let y = &mut columns.own[first..first + w];
                 for block in layout::blocks(w) {
                     let parts = layout::block_parts(w, below.len(), block).map(|r| &l[r]);
-                    match block.1 {
-                        1 => lower_block::<E, 1, FMA>(y, block.0, parts, update),
-                        2 => lower_block::<E, 2, FMA>(y, block.0, parts, update),
-                        3 => lower_block::<E, 3, FMA>(y, block.0, parts, update),
-                        _ => lower_block::<E, 4, FMA>(y, block.0, parts, update),
-                    }
+                    by_width!(lower_block, block, (y, block.0, parts, update));
                 }
                 below.for_each(|k, r| columns.take_off::<WHOLE>(r, update[k]));
                 continue;
@@ -211,12 +219,7 @@ impl Supernodes<'_> {
                 let y = &mut own[first..first + w];
                 for block in layout::blocks(w).rev() {
                     let parts = layout::block_parts(w, below.len(), block).map(|r| &l[r]);
-                    match block.1 {
-                        1 => upper_block::<E, 1, FMA>(y, block.0, parts, gathered),
-                        2 => upper_block::<E, 2, FMA>(y, block.0, parts, gathered),
-                        3 => upper_block::<E, 3, FMA>(y, block.0, parts, gathered),
-                        _ => upper_block::<E, 4, FMA>(y, block.0, parts, gathered),
-                    }
+                    by_width!(upper_block, block, (y, block.0, parts, gathered));
                 }
                 continue;
             }
