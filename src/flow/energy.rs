@@ -1,5 +1,8 @@
-//! The energy at a given flow, term by term, evaluated face by face from the element matrices
-//! (independently of the assembled global system, which it therefore checks).
+//! The energy at a given flow, term by term, evaluated face by face: the data and smoothness
+//! terms from their element matrices, the speed and temporal terms as the forms those matrices
+//! stand for, taken in the face frames ([`crate::fem::element::vector_form`],
+//! [`TimeLink::face_energy`]). Independent of the assembled global system, which it therefore
+//! checks.
 
 use super::slab::{Slab, TimeLink};
 use super::{FlowParams, Weights};
