@@ -271,14 +271,6 @@ pub struct TimeLink {
     polar: Vec<Vector2<f64>>,
 }
 
-/// The three blocks one face contributes to the coupling of two slabs: `w_a = R¹_a u¹_a −
-/// Q R⁰_a u⁰_a` gives `c Σ_ab m̄_ab w_a·w_b = u⁰ᵀ B u⁰ + u¹ᵀ A u¹ + 2 u¹ᵀ X u⁰`.
-pub struct LinkElements {
-    pub before: Matrix6<f64>,
-    pub after: Matrix6<f64>,
-    pub cross: Matrix6<f64>,
-}
-
 /// The links between neighbouring slabs (none for frame-by-frame flow, `α = ∞`).
 pub fn time_links(slabs: &[Slab], weights: &Weights) -> Vec<TimeLink> {
     match weights.is_coupled() {
@@ -394,8 +386,10 @@ impl TimeLink {
     }
 
     /// Face `f`'s share of the temporal term at `x0` (slab before) and `x1` (slab after),
-    /// `c D_tt Σ_ab m̄_ab w_a·w_b` with `w_a = R¹_a x1_a − Q R⁰_a x0_a`: what
-    /// [`Self::face_elements`] give as `x0ᵀ B x0 + x1ᵀ A x1 + 2 x1ᵀ X x0`, without forming them.
+    /// `c D_tt Σ_ab m̄_ab w_a·w_b` with `w_a = R¹_a x1_a − Q R⁰_a x0_a`: what the blocks the
+    /// system is assembled from give as `x0ᵀ B x0 + x1ᵀ A x1 + 2 x1ᵀ X x0` (`B`, `A`:
+    /// [`Self::diagonal_element`] on either slab; `X`: [`Self::cross_element`]), without forming
+    /// them.
     pub fn face_energy(
         &self,
         (before, after): (&Slab, &Slab),
@@ -413,20 +407,5 @@ impl TimeLink {
             r1[a] * x1.fixed_rows::<2>(2 * a) - q * (r0[a] * x0.fixed_rows::<2>(2 * a))
         });
         element::scalar_form(&scalar, &w, &w)
-    }
-
-    /// All three blocks of face `f`.
-    pub fn face_elements(
-        &self,
-        before: &Slab,
-        after: &Slab,
-        f: usize,
-        coupling: TimeCoupling,
-    ) -> LinkElements {
-        LinkElements {
-            before: self.diagonal_element(before, after, before, f, coupling),
-            after: self.diagonal_element(before, after, after, f, coupling),
-            cross: self.cross_element(before, after, f, coupling),
-        }
     }
 }
