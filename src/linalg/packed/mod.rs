@@ -136,10 +136,7 @@ impl<E: Entry> PackedFactor<E> {
         mut kept: Option<KeptRows>,
     ) -> Self {
         if let (SymbolicCholeskyRaw::Supernodal(s), Some(kept)) = (symbolic.raw(), &mut kept) {
-            let widths = Supernodes::widths(s);
-            let rows = &kept.rows;
-            let shape = |s: usize| (widths[s], rows[s] as usize);
-            layout::to_blocked(&mut values, &mut kept.value_start, shape);
+            layout::to_blocked(&mut values, &mut kept.value_start, shapes(s, &kept.rows));
         }
         let kernels = Kernels::detect();
         let split = match (symbolic.raw(), &kept) {
@@ -195,9 +192,7 @@ impl<E: Entry> PackedFactor<E> {
     pub fn column_major_values(&self) -> Vec<E> {
         match (self.symbolic.raw(), &self.kept) {
             (SymbolicCholeskyRaw::Supernodal(s), Some(kept)) => {
-                let widths = Supernodes::widths(s);
-                let shape = |s: usize| (widths[s], kept.rows[s] as usize);
-                layout::to_column_major(&self.values, &kept.value_start, shape)
+                layout::to_column_major(&self.values, &kept.value_start, shapes(s, &kept.rows))
             }
             _ => self.values.clone(),
         }
@@ -258,6 +253,16 @@ impl Halves {
             _ => Self::Parallel,
         }
     }
+}
+
+/// `s ↦ (w, m)`: supernode `s`'s columns and the rows below it that a factor keeps (`rows`,
+/// [`KeptRows`]), the shapes [`layout`] orders values by.
+fn shapes<'a>(
+    symbolic: &'a SymbolicSupernodalCholesky<usize>,
+    rows: &'a [u32],
+) -> impl Fn(usize) -> (usize, usize) + 'a {
+    let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
+    move |s| (end[s] - begin[s], rows[s] as usize)
 }
 
 /// `to[i] = convert(from[index[i]])`, or `convert(from[i])` without an index: the permutation
@@ -439,12 +444,6 @@ impl<'a> Supernodes<'a> {
 
     fn len(&self) -> usize {
         self.begin.len()
-    }
-
-    /// The width of every supernode.
-    fn widths(symbolic: &SymbolicSupernodalCholesky<usize>) -> Vec<usize> {
-        let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
-        begin.iter().zip(end).map(|(b, e)| e - b).collect()
     }
 
     /// `(first column, width, rows below, values)` of supernode `s`.
