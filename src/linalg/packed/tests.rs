@@ -233,25 +233,34 @@ fn nested_solves_on_one_thread_share_no_scratch() {
 
 /// Timing of slab solves: faer's `f32` solve against the packed `f32` factor's (the
 /// processor's kernels with the tree split and without, the portable kernels) and the bfloat16
-/// factor's (split and not), on the paper-size slab block (255×190 torus, `α = γ = 1`) and on
-/// grid blocks whose `L` decays slowly (diagonal 4.1: little drops) and fast (40). Copies of
+/// factor's (split and not), on the paper-size slab block (255×190 torus, `α = γ = 1`), on the
+/// 128×95 torus's block at `α = γ = 0.01` (the blocks of multigrid's levels, whose bfloat16
+/// factors keep a third of their entries) and on grid blocks whose `L` decays slowly (diagonal
+/// 4.1: little drops) and fast (40). Copies of
 /// each factor (more than the last-level cache holds) are solved in turn on each of two
 /// threads; the fastest of 12 interleaved rounds
 /// (`cargo test --release --lib packed::tests::timing -- --ignored --nocapture`).
 #[test]
 #[ignore]
 fn timing() {
-    let sequence = crate::synth::paper_torus(255, 190, 3).unwrap();
-    let params = crate::flow::FlowParams::paper(1.0, 0.0, 1.0);
-    let problem = crate::flow::FlowProblem::new(&sequence, &params).unwrap();
-    let system = problem.system();
-    let symbolic = analyze(system.pattern().symbolic().as_ref(), 2);
-    let factor = CholeskyFactor::<f32>::new(&symbolic, system.block(1), Par::Seq).unwrap();
-    time_solves("paper-size slab", &factor, 8);
+    let paper = torus_slab_factor(255, 190, crate::flow::FlowParams::paper(1.0, 0.0, 1.0));
+    time_solves("paper-size slab", &paper, 8);
+    // The coarse levels' kind of block: multigrid streams 41 such factors per cycle.
+    let small = torus_slab_factor(128, 95, crate::flow::FlowParams::paper(0.01, 0.0, 0.01));
+    time_solves("128×95 torus slab, α = γ = 0.01, 40 copies", &small, 40);
     for diagonal in [4.1, 40.0] {
         let name = format!("128×95 grid, diagonal {diagonal}");
         time_solves(&name, &mass_factor(128, 95, diagonal), 40);
     }
+}
+
+/// The `f32` factor of the second slab block of the paper's torus (`n1 × n2`, three frames).
+fn torus_slab_factor(n1: usize, n2: usize, params: crate::flow::FlowParams) -> CholeskyFactor<f32> {
+    let sequence = crate::synth::paper_torus(n1, n2, 3).unwrap();
+    let problem = crate::flow::FlowProblem::new(&sequence, &params).unwrap();
+    let system = problem.system();
+    let symbolic = analyze(system.pattern().symbolic().as_ref(), 2);
+    CholeskyFactor::<f32>::new(&symbolic, system.block(1), Par::Seq).unwrap()
 }
 
 /// A timed solve: with copy `k` of a factor, on `x`, with `work`.
