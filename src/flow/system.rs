@@ -13,11 +13,15 @@
 //! The energy is `E(u) = uᵀAu − 2bᵀu + c`.
 
 use super::slab::{Slab, TimeLink};
+use super::solve::factors_slabs;
 use super::{Boundary, FlowParams, TimeCoupling, Weights};
 use crate::fem::{SparseMatrix, SparseMatrixRef, VertexPattern};
+use crate::linalg::cholesky::analyze;
 use crate::mesh::Mesh;
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use nalgebra::{Matrix2, Matrix6};
 use rayon::prelude::*;
+use std::sync::{Arc, OnceLock};
 
 /// The coupling block `X_s` between slab `s` and `s + 1`.
 #[derive(Clone, Debug, PartialEq)]
@@ -61,6 +65,9 @@ pub struct SpaceTimeSystem {
     rhs: Vec<f64>,
     /// Each slab's part of the energy constant `c` (empty for a coarse level).
     slab_constants: Vec<f64>,
+    /// The symbolic analysis of the slab blocks' pattern ([`Self::slab_symbolic`]), shared by
+    /// every system on the same pattern (windows, coarse levels).
+    slab_analysis: OnceLock<Arc<SymbolicCholesky<usize>>>,
 }
 
 impl LinkMatrix {
@@ -124,29 +131,45 @@ impl SpaceTimeSystem {
         let pattern = VertexPattern::new(mesh, 2);
         let lower = VertexPattern::lower(mesh, 2);
         let n_slabs = slabs.len();
-        let diagonal: Vec<(Vec<f64>, Vec<f64>, f64)> = (0..n_slabs)
-            .into_par_iter()
-            .map(|s| {
-                let coupled = !links.is_empty();
-                let link_before = (coupled && s > 0).then(|| (&links[s - 1], &slabs[s - 1]));
-                let link_after = (coupled && s + 1 < n_slabs).then(|| (&links[s], &slabs[s + 1]));
-                let links = (link_before, link_after);
-                assemble_slab(mesh, &lower, &slabs[s], links, params, weights)
-            })
-            .collect();
-        let links = (0..links.len())
-            .into_par_iter()
-            .map(|s| {
-                assemble_link(
-                    mesh,
-                    &pattern,
-                    &links[s],
-                    &slabs[s],
-                    &slabs[s + 1],
-                    coupling,
-                )
-            })
-            .collect();
+        let assembly = || {
+            let diagonal: Vec<(Vec<f64>, Vec<f64>, f64)> = (0..n_slabs)
+                .into_par_iter()
+                .map(|s| {
+                    let coupled = !links.is_empty();
+                    let link_before = (coupled && s > 0).then(|| (&links[s - 1], &slabs[s - 1]));
+                    let link_after =
+                        (coupled && s + 1 < n_slabs).then(|| (&links[s], &slabs[s + 1]));
+                    let links = (link_before, link_after);
+                    assemble_slab(mesh, &lower, &slabs[s], links, params, weights)
+                })
+                .collect();
+            let links: Vec<LinkMatrix> = (0..links.len())
+                .into_par_iter()
+                .map(|s| {
+                    assemble_link(
+                        mesh,
+                        &pattern,
+                        &links[s],
+                        &slabs[s],
+                        &slabs[s + 1],
+                        coupling,
+                    )
+                })
+                .collect();
+            (diagonal, links)
+        };
+        // The ordering (METIS, on one thread) needs only the pattern: where the solve will
+        // factor the slabs, it runs beside the assembly instead of after it, alone on one core.
+        let dimension = n_slabs * pattern.dimension();
+        let (analysis, (diagonal, links)) =
+            match factors_slabs(params, dimension, !links.is_empty()) {
+                true => {
+                    let (analysis, assembled) =
+                        rayon::join(|| analyze(pattern.symbolic().as_ref(), 2), assembly);
+                    (OnceLock::from(analysis), assembled)
+                }
+                false => (OnceLock::new(), assembly()),
+            };
         let slab_constants = diagonal.iter().map(|d| d.2).collect();
         let (blocks, rhs): (Vec<_>, Vec<_>) = diagonal.into_iter().map(|(a, b, _)| (a, b)).unzip();
         let mut system = Self {
@@ -156,6 +179,7 @@ impl SpaceTimeSystem {
             links,
             rhs: rhs.concat(),
             slab_constants,
+            slab_analysis: analysis,
         };
         if params.boundary == Boundary::Dirichlet {
             let fixed: Vec<bool> = (0..mesh.n_vertices())
@@ -184,6 +208,14 @@ impl SpaceTimeSystem {
     /// the one to order the slab factors by (a fill-reducing ordering needs both triangles).
     pub fn pattern(&self) -> &VertexPattern {
         &self.pattern
+    }
+
+    /// The symbolic Cholesky analysis of the slab blocks (a fill-reducing order of
+    /// [`Self::pattern`], two DOFs per vertex: [`analyze`]), which every slab factor of the
+    /// system and of its coarse levels and windows uses; made once, beside the assembly.
+    pub fn slab_symbolic(&self) -> &Arc<SymbolicCholesky<usize>> {
+        self.slab_analysis
+            .get_or_init(|| analyze(self.pattern.symbolic().as_ref(), 2))
     }
 
     /// The pattern of the diagonal blocks: [`Self::pattern`]'s blocks `i ≥ j`.
@@ -256,6 +288,7 @@ impl SpaceTimeSystem {
                 links: inner_links,
                 rhs: self.rhs[a * n..b * n].to_vec(),
                 slab_constants: self.slab_constants[slabs.clone()].to_vec(),
+                slab_analysis: self.slab_analysis,
             },
             slabs,
             n_slabs_in_all: n_slabs,
@@ -612,6 +645,7 @@ impl SpaceTimeSystem {
             links,
             rhs: Vec::new(),
             slab_constants: Vec::new(),
+            slab_analysis: self.slab_analysis.clone(),
         };
         coarse.halve_time_coupling();
         coarse
@@ -866,6 +900,7 @@ impl SystemWindow {
             links,
             rhs: Vec::new(),
             slab_constants: Vec::new(),
+            slab_analysis: own.slab_analysis.clone(),
         };
         let transports = paired.pair_transports();
         let mut system = match paired.n_slabs() {

@@ -36,7 +36,7 @@ use super::{factorization_error, Solution, SolveObserver, SolverMethod};
 use super::{gauss_seidel_verdict, levels_keep_precision, PROBE_ITERATIONS, SWITCH_ITERATIONS};
 use crate::flow::system::{dot, SystemWindow};
 use crate::flow::{FlowError, FlowParams, LinkMatrix, SolverChoice, SpaceTimeSystem};
-use crate::linalg::cholesky::{analyze, CholeskyFactor, FactorEntries};
+use crate::linalg::cholesky::{CholeskyFactor, FactorEntries};
 use crate::linalg::factor::SlabFactor;
 use crate::linalg::packed::PackedFactor;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
@@ -424,8 +424,8 @@ impl<'a> WindowJob<'a> {
     /// and their factors only when multigrid is asked for or the probe finds the sweeps too
     /// slow (as one process does).
     fn run<F: SlabFactor>(&self) -> Result<Solution, FlowError> {
-        let symbolic = analyze(self.window.system.pattern().symbolic().as_ref(), 2);
-        let mut levels = factor_levels::<F>(vec![self.fine_plan()], &symbolic, self.ranks)?;
+        let symbolic = self.window.system.slab_symbolic();
+        let mut levels = factor_levels::<F>(vec![self.fine_plan()], symbolic, self.ranks)?;
         let b = self.window.system.rhs();
         let stop = pcg::Stop {
             tolerance: self.params.tolerance,
@@ -462,9 +462,9 @@ impl<'a> WindowJob<'a> {
             reason,
         };
         let seconds = factored.factor_seconds;
-        match levels_keep_precision::<F>(&symbolic, self.window.n_slabs_in_all) {
-            true => self.multigrid(factored.sweeps, seconds, &symbolic, start),
-            false => self.multigrid(factored.sweeps.compress(), seconds, &symbolic, start),
+        match levels_keep_precision::<F>(symbolic, self.window.n_slabs_in_all) {
+            true => self.multigrid(factored.sweeps, seconds, symbolic, start),
+            false => self.multigrid(factored.sweeps.compress(), seconds, symbolic, start),
         }
     }
 

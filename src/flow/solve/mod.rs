@@ -372,6 +372,17 @@ pub fn solve(
     solution
 }
 
+/// Whether the solve of a system of `dimension` unknowns (`coupled`: linked in time) factors
+/// its slab blocks, as [`solve_flushed`] chooses: then the blocks' symbolic analysis is made
+/// beside the assembly ([`SpaceTimeSystem::slab_symbolic`]; otherwise on first use).
+pub(crate) fn factors_slabs(params: &FlowParams, dimension: usize, coupled: bool) -> bool {
+    match params.solver {
+        SolverChoice::Auto => !coupled || dimension > params.direct_limit,
+        SolverChoice::PcgSlabGaussSeidel | SolverChoice::PcgTimeMultigrid => true,
+        SolverChoice::Direct | SolverChoice::PcgJacobi => false,
+    }
+}
+
 fn solve_flushed(
     system: &SpaceTimeSystem,
     params: &FlowParams,
@@ -574,16 +585,16 @@ fn slab_pcg(
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     let start = Instant::now();
-    let symbolic = analyze(system.pattern().symbolic().as_ref(), 2);
+    let symbolic = system.slab_symbolic();
     // Single precision (f32 or bfloat16) suffices for a preconditioner; double precision if a
     // block of any level (the fine slabs, or the coarse levels multigrid adds later) is too
     // ill-conditioned for single, within the whole budget as before. Single-precision factors
     // get half the budget per level: multigrid adds about as many coarse factors again.
     let half_budget = params.factor_memory_limit / 2;
-    let single = FactorPlan::new::<PackedFactor<f32>>(system, &symbolic, half_budget);
-    let compressed = FactorPlan::new::<Bf16Factor>(system, &symbolic, half_budget);
+    let single = FactorPlan::new::<PackedFactor<f32>>(system, symbolic, half_budget);
+    let compressed = FactorPlan::new::<Bf16Factor>(system, symbolic, half_budget);
     let budget = params.factor_memory_limit;
-    let double = FactorPlan::new::<CholeskyFactor<f64>>(system, &symbolic, budget);
+    let double = FactorPlan::new::<CholeskyFactor<f64>>(system, symbolic, budget);
     let job = |plan| SlabJob {
         system,
         params,
@@ -883,14 +894,14 @@ fn slabwise_direct(
         slabs: system.n_slabs(),
     })?;
     let start = Instant::now();
-    let symbolic = analyze(system.pattern().symbolic().as_ref(), 2);
+    let symbolic = system.slab_symbolic();
     let n = system.slab_dimension();
     let mut u = system.rhs().to_vec();
     let entries: Vec<FactorEntries> = u
         .par_chunks_mut(n)
         .enumerate()
         .map(|(s, us)| {
-            let factor = CholeskyFactor::<f64>::new(&symbolic, system.block(s), Par::Seq)
+            let factor = CholeskyFactor::<f64>::new(symbolic, system.block(s), Par::Seq)
                 .map_err(factorization_error(format!("slab {s}")))?;
             factor.solve_in_place(us, Par::Seq);
             Ok(factor.entries())
