@@ -67,10 +67,11 @@ pub struct Slab {
 }
 
 /// The element matrices of one face of one slab, before weighting by `Δt`, `β`, `γ`
-/// (`stiffness`: the spatial regularizer's).
+/// (`stiffness`: the spatial regularizer's; `mass`: the scalar consistent mass, whose vector
+/// element is [`Slab::vector_form_element`]).
 pub struct FaceElements {
     pub data: DataElement,
-    pub mass: Matrix6<f64>,
+    pub mass: Matrix3<f64>,
     pub stiffness: Matrix6<f64>,
 }
 
@@ -143,21 +144,28 @@ impl Slab {
         sum
     }
 
-    /// Data, vector mass and regularizer (`regularizer`'s element: the connection stiffness
-    /// for the paper's covariant term) of face `f` of this slab.
+    /// Data and regularizer (`regularizer`'s element: the connection stiffness for the paper's
+    /// covariant term) of face `f` of this slab, and the scalar form `m` of its speed term
+    /// (the consistent mass), whose vector element `V(m)` is [`Self::vector_form_element`].
     pub fn face_elements(
         &self,
         face: &[u32; 3],
         f: usize,
         regularizer: &Regularizer,
     ) -> FaceElements {
-        let triangle = self.geometry.triangle(f);
-        let rotations = self.connection.face_rotations(f);
         FaceElements {
             data: self.data_element(face, f),
-            mass: element::vector_element(&element::consistent_mass(triangle), rotations),
+            mass: element::consistent_mass(self.geometry.triangle(f)),
             stiffness: self.smoothness_element(face, f, regularizer),
         }
+    }
+
+    /// `V(m)`: the vector element of the scalar form `m` on face `f` under this slab's
+    /// transports, block `(a, b) = m_ab R_aᵀ R_b` ([`element::vector_element`]). Linear in `m`,
+    /// so that terms of one block that are scalar forms (speed, the time links' parts) are
+    /// summed first and transported once.
+    pub fn vector_form_element(&self, f: usize, m: &Matrix3<f64>) -> Matrix6<f64> {
+        element::vector_element(m, self.connection.face_rotations(f))
     }
 
     /// The smoothness term's element of face `f`: `regularizer`'s, times the face's robust
@@ -342,7 +350,8 @@ impl TimeLink {
         }
     }
 
-    /// The part of face `f` on the diagonal block of `slab` (either end of the link).
+    /// The part of face `f` on the diagonal block of `slab` (either end of the link):
+    /// `V(c D_tt m̄)` under `slab`'s transports.
     pub fn diagonal_element(
         &self,
         before: &Slab,
@@ -351,10 +360,7 @@ impl TimeLink {
         f: usize,
         coupling: TimeCoupling,
     ) -> Matrix6<f64> {
-        element::vector_element(
-            &self.scalar_element(before, after, f, coupling),
-            slab.connection.face_rotations(f),
-        )
+        slab.vector_form_element(f, &self.scalar_element(before, after, f, coupling))
     }
 
     /// The part of face `f` in the block below the diagonal (rows: after, columns: before).

@@ -19,7 +19,7 @@ use crate::fem::{SparseMatrix, SparseMatrixRef, VertexPattern};
 use crate::linalg::cholesky::analyze;
 use crate::mesh::Mesh;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
-use nalgebra::{Matrix2, Matrix6};
+use nalgebra::Matrix2;
 use rayon::prelude::*;
 use std::sync::{Arc, OnceLock};
 
@@ -435,14 +435,17 @@ fn assemble_slab(
     let mut constant = 0.0;
     for (f, face) in mesh.faces().iter().enumerate() {
         let e = slab.face_elements(face, f, &params.regularizer);
-        let mut a: Matrix6<f64> =
-            (e.data.quadratic + e.mass * weights.beta + e.stiffness * weights.gamma) * slab.dt;
+        // The speed term and the links' parts are scalar forms under this slab's transports:
+        // summed, then transported once.
+        let mut scalar = e.mass * (weights.beta * slab.dt);
         if let Some((link, previous)) = link_before {
-            a += link.diagonal_element(previous, slab, slab, f, coupling);
+            scalar += link.scalar_element(previous, slab, f, coupling);
         }
         if let Some((link, next)) = link_after {
-            a += link.diagonal_element(slab, next, slab, f, coupling);
+            scalar += link.scalar_element(slab, next, f, coupling);
         }
+        let a = (e.data.quadratic + e.stiffness * weights.gamma) * slab.dt
+            + slab.vector_form_element(f, &scalar);
         pattern.add_element(f, &a, &mut values);
         for (corner, &v) in face.iter().enumerate() {
             for r in 0..2 {
