@@ -37,9 +37,9 @@
 //! | 128×95 grid, diagonal 4.1 (1.23 M) | 2.38 ms | 0.93 ms | 1.49 ms | 0.88 ms |
 //! | 128×95 grid, diagonal 40 (1.23 M) | 2.47 ms | 0.95 ms | 1.70 ms | 0.70 ms |
 //!
-//! (In faer's layout the same kernels took 10.2, 1.49 and 1.28 ms. The bfloat16 factors, whose
-//! left-out rows are walked by their bits, gain less: they are bound by that work, not by the
-//! bytes.)
+//! (In faer's layout the same kernels took 10.2, 1.49 and 1.28 ms. The bfloat16 factors gain
+//! less: their work per supernode bounds them, not the bytes, nor the bits that mark the rows
+//! they leave out, whose walk a list of the kept rows shortened by only 5–8 %: docs/scaling.md.)
 //!
 //! A solve may run the two halves of the elimination tree under its top separators on two
 //! threads ([`TreeSplit`], [`Halves`]): multigrid's coarse levels have fewer slabs than cores,
