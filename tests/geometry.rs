@@ -118,11 +118,18 @@ fn rejects_lengths_breaking_the_triangle_inequality() {
     let mut lengths = edge_lengths(&mesh, &positions).unwrap();
     let diagonal = mesh.edges().iter().position(|&e| e == [0, 3]).unwrap();
     lengths[diagonal] = 2.5; // longer than the two unit sides together
-    let err = IntrinsicGeometry::new(&mesh, lengths).unwrap_err();
+    let err = IntrinsicGeometry::new(&mesh, lengths.clone()).unwrap_err();
     assert!(
         matches!(err, GeometryError::DegenerateFace { face: 0, .. }),
         "{err:?}"
     );
+    // The check without angles (a sequence's frames) finds the same error.
+    assert_eq!(
+        IntrinsicGeometry::check(&mesh, &lengths).unwrap_err().to_string(),
+        err.to_string()
+    );
+    lengths[diagonal] = 2f64.sqrt();
+    assert!(IntrinsicGeometry::check(&mesh, &lengths).is_ok());
 }
 
 #[test]

@@ -121,12 +121,10 @@ impl MeshSequence {
         }
         // In parallel; the first bad frame's error, whatever the timing.
         let checked: Vec<Result<(), FlowError>> = (edge_lengths.par_iter().enumerate())
-            .map(
-                |(frame, lengths)| match IntrinsicGeometry::new(&mesh, lengths.clone()) {
-                    Ok(_) => Ok(()),
-                    Err(source) => Err(FlowError::Frame { frame, source }),
-                },
-            )
+            .map(|(frame, lengths)| {
+                IntrinsicGeometry::check(&mesh, lengths)
+                    .map_err(|source| FlowError::Frame { frame, source })
+            })
             .collect();
         checked.into_iter().collect::<Result<(), _>>()?;
         check_images(&mesh, &images, n_frames)?;

@@ -116,6 +116,16 @@ impl IntrinsicGeometry {
         })
     }
 
+    /// Whether [`Self::new`] would accept `edge_lengths`, and its error if not, without
+    /// computing the angles (a sequence checks every frame this way; its slabs' geometries
+    /// are made from mean lengths).
+    pub fn check(mesh: &Mesh, edge_lengths: &[f64]) -> Result<(), GeometryError> {
+        check_edge_lengths(mesh, edge_lengths)?;
+        (0..mesh.n_faces()).try_for_each(|f| {
+            checked_face(mesh, edge_lengths, f, Triangle::checked_area).map(|_| ())
+        })
+    }
+
     /// Geometry induced by an embedding in R^3.
     pub fn from_positions(mesh: &Mesh, positions: &[Vector3<f64>]) -> Result<Self, GeometryError> {
         Self::new(mesh, edge_lengths(mesh, positions)?)
@@ -190,8 +200,18 @@ fn face_triangle(
     edge_lengths: &[f64],
     face: usize,
 ) -> Result<Triangle, GeometryError> {
+    checked_face(mesh, edge_lengths, face, Triangle::from_lengths)
+}
+
+/// `make` of face `face`'s lengths, its error (the degenerate face's area) named by the face.
+fn checked_face<T>(
+    mesh: &Mesh,
+    edge_lengths: &[f64],
+    face: usize,
+    make: impl Fn([f64; 3]) -> Result<T, f64>,
+) -> Result<T, GeometryError> {
     let lengths: [f64; 3] = std::array::from_fn(|c| edge_lengths[mesh.halfedge_edge(3 * face + c)]);
-    Triangle::from_lengths(lengths).map_err(|area| GeometryError::DegenerateFace {
+    make(lengths).map_err(|area| GeometryError::DegenerateFace {
         face,
         vertices: mesh.faces()[face],
         lengths,

@@ -21,14 +21,7 @@ impl Triangle {
     /// The triangle with the given lengths, or `Err(area)` when it is degenerate: a length is not
     /// positive and finite, the triangle inequality fails, or `area ≤ ε · l_max²`.
     pub fn from_lengths(lengths: [f64; 3]) -> Result<Self, f64> {
-        if !lengths.iter().all(|l| l.is_finite() && *l > 0.0) {
-            return Err(0.0);
-        }
-        let area = kahan_heron_area(lengths);
-        let l_max = lengths.iter().cloned().fold(0.0, f64::max);
-        if area <= f64::EPSILON * l_max * l_max {
-            return Err(area);
-        }
+        let area = Self::checked_area(lengths)?;
         let sq = lengths.map(|l| l * l);
         // Corner c sits between its own edge (c) and the previous corner's edge (c + 2); the
         // edge opposite it is (c + 1).
@@ -41,6 +34,20 @@ impl Triangle {
             cotans,
             area,
         })
+    }
+
+    /// The area of the triangle with the given lengths, or `Err(area)` when it is degenerate
+    /// (as [`Self::from_lengths`]): the check without the angles, for validating frames.
+    pub fn checked_area(lengths: [f64; 3]) -> Result<f64, f64> {
+        if !lengths.iter().all(|l| l.is_finite() && *l > 0.0) {
+            return Err(0.0);
+        }
+        let area = kahan_heron_area(lengths);
+        let l_max = lengths.iter().cloned().fold(0.0, f64::max);
+        match area > f64::EPSILON * l_max * l_max {
+            true => Ok(area),
+            false => Err(area),
+        }
     }
 
     /// Corner positions of the layout: `p_a = (0, 0)`, `p_b = (l_ab, 0)`, `p_c` above the x-axis,
