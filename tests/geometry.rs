@@ -125,7 +125,9 @@ fn rejects_lengths_breaking_the_triangle_inequality() {
     );
     // The check without angles (a sequence's frames) finds the same error.
     assert_eq!(
-        IntrinsicGeometry::check(&mesh, &lengths).unwrap_err().to_string(),
+        IntrinsicGeometry::check(&mesh, &lengths)
+            .unwrap_err()
+            .to_string(),
         err.to_string()
     );
     lengths[diagonal] = 2f64.sqrt();

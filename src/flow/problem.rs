@@ -206,7 +206,8 @@ impl<'a> FlowProblem<'a> {
         };
         let one = solve::distributed::OneProcess;
         uniqueness::check_unique_minimizer(mesh, &checked, params, &weights, &one)?;
-        let system = SpaceTimeSystem::assemble(mesh, &slabs, &links, params, &weights);
+        let analysis = sequence.slab_symbolic_cache();
+        let system = SpaceTimeSystem::assemble(mesh, &slabs, &links, params, &weights, analysis);
         let slab_bytes = slabs.len() * (200 * mesh.n_faces() + 8 * mesh.n_halfedges());
         let contrasts = slabs.iter().filter_map(|slab| slab.contrast).collect();
         let slabs = match slab_bytes <= KEEP_SLABS_BYTES || !rebuildable {

@@ -63,6 +63,10 @@ pub struct MeshSequence {
     /// The symbolic Cholesky analysis of every frame's scalar `M + τL` (the mesh's pattern),
     /// once computed ([`super::pyramid::heat_symbolic`]).
     heat_symbolic: OnceLock<Arc<SymbolicCholesky<usize>>>,
+    /// The symbolic Cholesky analysis of the slab blocks (the mesh's vertex pattern, two DOFs
+    /// per vertex), once a solve has made it: every solve of the sequence (warps, levels,
+    /// reweightings) factors blocks of the same pattern ([`SpaceTimeSystem::assemble`]).
+    slab_symbolic: OnceLock<Arc<SymbolicCholesky<usize>>>,
 }
 
 impl MeshSequence {
@@ -140,12 +144,19 @@ impl MeshSequence {
             channel_means,
             times,
             heat_symbolic: OnceLock::new(),
+            slab_symbolic: OnceLock::new(),
         })
     }
 
     /// Where [`super::pyramid::heat_symbolic`] keeps its analysis.
     pub(super) fn heat_symbolic_cache(&self) -> &OnceLock<Arc<SymbolicCholesky<usize>>> {
         &self.heat_symbolic
+    }
+
+    /// Where the space-time systems of this sequence keep their slab blocks' analysis
+    /// ([`SpaceTimeSystem::assemble`]).
+    pub(super) fn slab_symbolic_cache(&self) -> &OnceLock<Arc<SymbolicCholesky<usize>>> {
+        &self.slab_symbolic
     }
 
     pub fn mesh(&self) -> &Mesh {

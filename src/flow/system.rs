@@ -120,12 +120,16 @@ pub struct SystemWindow {
 impl SpaceTimeSystem {
     /// Assembles the system of `slabs` (with `links[s]` between slab `s` and `s + 1`; no links
     /// for frame-by-frame flow) with the weights `weights`. Slabs are assembled in parallel.
+    /// `analysis` is where the slab blocks' symbolic analysis of systems on `mesh` is kept
+    /// (the sequence's, [`Self::slab_symbolic`]): taken from it when there, made beside the
+    /// assembly and kept there when the solve will factor the slabs.
     pub fn assemble(
         mesh: &Mesh,
         slabs: &[Slab],
         links: &[TimeLink],
         params: &FlowParams,
         weights: &Weights,
+        analysis: &OnceLock<Arc<SymbolicCholesky<usize>>>,
     ) -> Self {
         let coupling = params.time_coupling;
         let pattern = VertexPattern::new(mesh, 2);
@@ -161,15 +165,19 @@ impl SpaceTimeSystem {
         // The ordering (METIS, on one thread) needs only the pattern: where the solve will
         // factor the slabs, it runs beside the assembly instead of after it, alone on one core.
         let dimension = n_slabs * pattern.dimension();
-        let (analysis, (diagonal, links)) =
-            match factors_slabs(params, dimension, !links.is_empty()) {
-                true => {
-                    let (analysis, assembled) =
-                        rayon::join(|| analyze(pattern.symbolic().as_ref(), 2), assembly);
-                    (OnceLock::from(analysis), assembled)
-                }
-                false => (OnceLock::new(), assembly()),
-            };
+        let factors = factors_slabs(params, dimension, !links.is_empty());
+        let (analysis, (diagonal, links)) = match (analysis.get(), factors) {
+            (Some(made), _) => (OnceLock::from(made.clone()), assembly()),
+            (None, true) => {
+                let (made, assembled) =
+                    rayon::join(|| analyze(pattern.symbolic().as_ref(), 2), assembly);
+                (
+                    OnceLock::from(analysis.get_or_init(|| made).clone()),
+                    assembled,
+                )
+            }
+            (None, false) => (OnceLock::new(), assembly()),
+        };
         let slab_constants = diagonal.iter().map(|d| d.2).collect();
         let (blocks, rhs): (Vec<_>, Vec<_>) = diagonal.into_iter().map(|(a, b, _)| (a, b)).unzip();
         let mut system = Self {

@@ -159,8 +159,15 @@ impl WindowSlabs {
             };
             check_unique_minimizer(frames.mesh(), &checked, params, &weights, ranks)?;
         }
-        let system =
-            SpaceTimeSystem::assemble(frames.mesh(), &self.slabs, &links, params, &weights);
+        let analysis = frames.slab_symbolic_cache();
+        let system = SpaceTimeSystem::assemble(
+            frames.mesh(),
+            &self.slabs,
+            &links,
+            params,
+            &weights,
+            analysis,
+        );
         let mut window = system.into_window(self.local(&self.window.slabs));
         window.slabs = self.window.slabs.clone();
         window.n_slabs_in_all = self.window.n_slabs_in_all;
