@@ -218,9 +218,9 @@ impl SpaceTimeSystem {
         &self.pattern
     }
 
-    /// The symbolic Cholesky analysis of the slab blocks (a fill-reducing order of
-    /// [`Self::pattern`], two DOFs per vertex: [`analyze`]), which every slab factor of the
-    /// system and of its coarse levels and windows uses; made once, beside the assembly.
+    /// The symbolic Cholesky analysis of the slab blocks (METIS's nested dissection of
+    /// [`Self::pattern`]'s vertices, two DOFs each), which every slab factor of the system and
+    /// of its coarse levels and windows uses; made once, beside the assembly.
     pub fn slab_symbolic(&self) -> &Arc<SymbolicCholesky<usize>> {
         self.slab_analysis
             .get_or_init(|| analyze(self.pattern.symbolic().as_ref(), 2))
