@@ -122,16 +122,15 @@ fn spatial_terms(
     let mut terms = EnergyTerms::default();
     for (f, face) in mesh.faces().iter().enumerate() {
         let x = x(face);
-        let data = slab.data_element(face, f);
-        terms.data +=
-            slab.dt * (x.dot(&(data.quadratic * x)) + 2.0 * data.linear.dot(&x) + data.constant);
+        let e = slab.face_elements(face, f, &params.regularizer);
+        terms.data += slab.dt
+            * (x.dot(&(e.data.quadratic * x)) + 2.0 * e.data.linear.dot(&x) + e.data.constant);
         if weights.beta != 0.0 {
-            let mass = element::consistent_mass(slab.geometry.triangle(f));
             let rotations = slab.connection.face_rotations(f);
-            terms.speed += slab.dt * weights.beta * element::vector_form(&mass, rotations, &x, &x);
+            terms.speed +=
+                slab.dt * weights.beta * element::vector_form(&e.mass, rotations, &x, &x);
         }
-        let stiffness = slab.smoothness_element(face, f, &params.regularizer);
-        terms.spatial += slab.dt * weights.gamma * x.dot(&(stiffness * x));
+        terms.spatial += slab.dt * weights.gamma * x.dot(&(e.stiffness * x));
     }
     terms
 }

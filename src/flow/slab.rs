@@ -122,7 +122,7 @@ impl Slab {
 
     /// The data element of face `f`: `Σ_c w_c` times channel `c`'s [`element::data_element`],
     /// each rate shifted by the linearization (if any).
-    pub(super) fn data_element(&self, face: &[u32; 3], f: usize) -> DataElement {
+    fn data_element(&self, face: &[u32; 3], f: usize) -> DataElement {
         let triangle = self.geometry.triangle(f);
         let rotations = self.connection.face_rotations(f);
         let at = |values: &[f64]| face.map(|v| values[v as usize]);
@@ -156,7 +156,8 @@ impl Slab {
         FaceElements {
             data: self.data_element(face, f),
             mass: element::consistent_mass(self.geometry.triangle(f)),
-            stiffness: self.smoothness_element(face, f, regularizer),
+            stiffness: self.regularizer_element(face, f, regularizer)
+                * self.smoothness_weights.as_ref().map_or(1.0, |w| w[f]),
         }
     }
 
@@ -166,18 +167,6 @@ impl Slab {
     /// summed first and transported once.
     pub fn vector_form_element(&self, f: usize, m: &Matrix3<f64>) -> Matrix6<f64> {
         element::vector_element(m, self.connection.face_rotations(f))
-    }
-
-    /// The smoothness term's element of face `f`: `regularizer`'s, times the face's robust
-    /// weight (if any).
-    pub fn smoothness_element(
-        &self,
-        face: &[u32; 3],
-        f: usize,
-        regularizer: &Regularizer,
-    ) -> Matrix6<f64> {
-        self.regularizer_element(face, f, regularizer)
-            * self.smoothness_weights.as_ref().map_or(1.0, |w| w[f])
     }
 
     /// `regularizer`'s element of face `f` on this slab (its frames and tensor, if set),
