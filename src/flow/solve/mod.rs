@@ -246,9 +246,9 @@
 //! noisy one), and to 1.14 and 2.07 on the 16-core Xeon limited to 2 cores (2.87 before, the
 //! same hour; docs/scaling.md, "Small rows dropped").
 //!
-//! What slows slab Gauss–Seidel at `α = 1` (19 iterations at paper size) is error smooth in
-//! space and free in time: the slab blocks' near-null space (eigenvalues a thousandth of their
-//! diagonal), which only the time coupling holds. A coarse space of 64 Ritz vectors of the
+//! What slows slab Gauss–Seidel at `α = 1` (19 iterations at paper size) is error that the
+//! slab blocks barely see and only the time coupling holds: their near-null space (global
+//! fields along the texture's isophotes, eigenvalues a thousandth of the blocks' diagonal). A coarse space of 64 Ritz vectors of the
 //! middle slab's block, shared by all slabs, takes the paper size to 8 iterations, but making
 //! it costs what those iterations save at 20 frames; aggregation spaces 15–30 times larger do
 //! not help at all (docs/scaling.md, "What slows slab Gauss–Seidel at `α = 1`").
