@@ -16,6 +16,7 @@ with M meshflow's odd-even slab Gauss-Seidel (exact f32 slab solves, SuperLU). B
   aggregate:R  two fields per aggregate (greedy R-ring aggregates of vertices), constant up to
                the transport along a spanning tree (the polar rotation of the off-diagonal
                2x2 blocks), one step of smoothed aggregation; per slab
+  A+B          both bases side by side (e.g. aggregate:3+random:64,3,64)
 
     cargo run --release --example space_time_system -- 128 95 20 1 1 /tmp/system
     python3 examples/scipy/spatial_coarse_space.py /tmp/system eig:16 random:64,3,64 aggregate:3
@@ -176,19 +177,24 @@ def main():
     middle = problem.slabs // 2
     print(f"slab Gauss-Seidel alone: {problem.iterations(problem.gauss_seidel)} iterations")
     for spec in sys.argv[2:]:
-        kind, _, numbers = spec.partition(":")
-        numbers = [int(x) for x in numbers.split(",")]
-        if kind == "eig":
-            bases = [lowest_eigenvectors(problem.blocks[middle], numbers[0])] * problem.slabs
-        elif kind == "random":
-            bases = [randomized(problem, middle, *numbers)] * problem.slabs
-        elif kind == "aggregate":
-            aggregate, parent, count = aggregates(vertex_graph(problem.blocks[0]), numbers[0])
-            bases = [aggregation_basis(b.tocsr(), aggregate, parent, count) for b in problem.blocks]
-        else:
-            raise SystemExit(f"unknown basis {spec}")
+        parts = [bases_of(problem, middle, part) for part in spec.split("+")]
+        bases = [sp.hstack([sp.csr_matrix(part[s]) for part in parts]) for s in range(problem.slabs)]
         size = bases[0].shape[1]
         print(f"{spec}: {size} coarse unknowns per slab, {problem.two_level(bases)} iterations")
+
+
+def bases_of(problem, middle, spec):
+    """One basis per slab for `spec` (see the module docs)."""
+    kind, _, numbers = spec.partition(":")
+    numbers = [int(x) for x in numbers.split(",")]
+    if kind == "eig":
+        return [lowest_eigenvectors(problem.blocks[middle], numbers[0])] * problem.slabs
+    if kind == "random":
+        return [randomized(problem, middle, *numbers)] * problem.slabs
+    if kind == "aggregate":
+        aggregate, parent, count = aggregates(vertex_graph(problem.blocks[0]), numbers[0])
+        return [aggregation_basis(b.tocsr(), aggregate, parent, count) for b in problem.blocks]
+    raise SystemExit(f"unknown basis {spec}")
 
 
 if __name__ == "__main__":
