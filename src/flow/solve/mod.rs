@@ -248,12 +248,12 @@
 //!
 //! What slows slab Gauss–Seidel at `α = 1` (19 iterations at paper size) is error that the
 //! slab blocks barely see and only the time coupling holds: their near-null space (global
-//! fields along the texture's isophotes, eigenvalues a thousandth of the blocks' diagonal). A coarse space of 64 Ritz vectors of the
-//! middle slab's block, shared by all slabs, takes the paper size to 8 iterations, but making
-//! it costs what those iterations save at 20 frames; aggregation spaces 15–30 times larger do
-//! not help there at all, while on the zebrafish recording (2 slabs, Gauss–Seidel alone 186
-//! iterations) only aggregation does (24), so a coarse space for both would hold both parts
-//! (docs/scaling.md, "What slows slab Gauss–Seidel at `α = 1`").
+//! fields along the texture's isophotes, eigenvalues a thousandth of the blocks' diagonal). A
+//! coarse space of 64 Ritz vectors of the middle slab's block, shared by all slabs, takes the
+//! paper size to 8 iterations, but making it costs what those iterations save at 20 frames;
+//! aggregation spaces 15–30 times larger do not help there at all, while on the zebrafish
+//! recording (2 slabs, Gauss–Seidel alone 186 iterations) only aggregation does (24); both
+//! side by side serve both (docs/scaling.md, "What slows slab Gauss–Seidel at `α = 1`").
 //!
 //! Results agree with the direct solver to 1e-9 relative (`tests/solver.rs`), for lumped and
 //! consistent coupling, Neumann and Dirichlet boundaries, even and odd slab counts.

@@ -259,8 +259,7 @@ fn torus_slab_factor(n1: usize, n2: usize, params: crate::flow::FlowParams) -> C
     let sequence = crate::synth::paper_torus(n1, n2, 3).unwrap();
     let problem = crate::flow::FlowProblem::new(&sequence, &params).unwrap();
     let system = problem.system();
-    let symbolic = analyze(system.pattern().symbolic().as_ref(), 2);
-    CholeskyFactor::<f32>::new(&symbolic, system.block(1), Par::Seq).unwrap()
+    CholeskyFactor::<f32>::new(system.slab_symbolic(), system.block(1), Par::Seq).unwrap()
 }
 
 /// A timed solve: with copy `k` of a factor, on `x`, with `work`.
