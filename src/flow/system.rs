@@ -307,8 +307,17 @@ impl SpaceTimeSystem {
 
     /// `y = A x`, parallel over slabs.
     pub fn apply(&self, x: &[f64], y: &mut [f64]) {
+        self.apply_rows(x, y, |_| true);
+    }
+
+    /// `y_s = (A x)_s` for the slabs `s` that `rows` accepts, `y_s = 0` for the others.
+    pub fn apply_rows(&self, x: &[f64], y: &mut [f64], rows: impl Fn(usize) -> bool + Sync) {
         let n = self.slab_dimension();
         y.par_chunks_mut(n).enumerate().for_each(|(s, ys)| {
+            if !rows(s) {
+                ys.fill(0.0);
+                return;
+            }
             symmetric_mul(self.block(s), &x[s * n..(s + 1) * n], ys);
             if s > 0 && self.has_links() {
                 self.link_mul(s - 1, &x[(s - 1) * n..s * n], ys);

@@ -26,6 +26,10 @@ pub trait SlabFactor: Sized + Send + Sync {
     fn bytes_at_most(symbolic: &SymbolicCholesky<usize>) -> usize;
     /// How the entries are stored, for the solver's reasons.
     const NAME: &'static str;
+    /// Whether solves come close enough to the block's inverse to eliminate slabs with them
+    /// (`crate::flow::solve::reduced`): `f32` and `f64` entries do, bfloat16's rounding
+    /// (`2⁻⁹` per entry) would leave each elimination that far from exact.
+    const ELIMINATES: bool = Self::ENTRY_BYTES >= 4;
     /// The factor multigrid's levels use when slab Gauss–Seidel started with this one.
     type Compressed: SlabFactor;
     /// Factors `matrix`, single-threaded; `Err` carries the reason it is not numerically

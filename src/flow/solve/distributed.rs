@@ -33,7 +33,7 @@ use super::multigrid::{level_slab_counts, prolong_add, restrict, v_cycle, CycleL
 use super::pcg::{self, Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings};
 use super::{factorization_error, Solution, SolveObserver, SolverMethod};
-use super::{gauss_seidel_verdict, levels_keep_precision, PROBE_ITERATIONS, SWITCH_ITERATIONS};
+use super::{gauss_seidel_verdict, levels_keep_precision, probe_give_up};
 use crate::flow::system::{dot, SystemWindow};
 use crate::flow::{FlowError, FlowParams, LinkMatrix, SolverChoice, SpaceTimeSystem};
 use crate::linalg::cholesky::{CholeskyFactor, FactorEntries};
@@ -427,19 +427,12 @@ impl<'a> WindowJob<'a> {
         let symbolic = self.window.system.slab_symbolic();
         let mut levels = factor_levels::<F>(vec![self.fine_plan()], symbolic, self.ranks)?;
         let b = self.window.system.rhs();
-        let stop = pcg::Stop {
-            tolerance: self.params.tolerance,
-            done: 0,
-            max_iterations: self.params.max_iterations,
-            give_up: None,
-        };
+        let stop = pcg::Stop::new(self.params.tolerance, self.params.max_iterations);
         let (x, done, reason) = match self.multigrid {
             Some(true) => (vec![0.0; b.len()], 0, "asked for".to_string()),
             sweeps_or_auto => {
                 let probe = pcg::Stop {
-                    give_up: sweeps_or_auto
-                        .is_none()
-                        .then_some((PROBE_ITERATIONS, SWITCH_ITERATIONS)),
+                    give_up: sweeps_or_auto.is_none().then(|| probe_give_up(self.params)),
                     ..stop
                 };
                 let outcome = self.pcg(&levels, 1, vec![0.0; b.len()], probe)?;

@@ -15,7 +15,11 @@
 //!   stored in single precision: half the memory and memory traffic, CG itself runs in double
 //!   precision). The sweep runs in odd–even order ([`precondition::SlabSweeps`]): all even
 //!   slabs at once, then all odd ones, so it is parallel in time and the same preconditioner
-//!   however many cores share the work. The slab solves handle the spatial coupling exactly,
+//!   however many cores share the work. PCG runs on the odd slabs alone, the even ones
+//!   eliminated ([`reduced`]): the same spectrum as the sweep's, but each slab solved once an
+//!   iteration instead of the even ones twice, in two rounds of refinement that make up for
+//!   the `f32` factors' inexact elimination (paper-size frames: 19 → 20 iterations, the
+//!   iterations' time 15–20 % less). The slab solves handle the spatial coupling exactly,
 //!   so iteration counts stay flat under spatial refinement. The error they leave is smooth in
 //!   time, and when the time coupling dominates that error dominates: 166 iterations at
 //!   `α = 0.1` on the 128×95×20 torus.
@@ -262,6 +266,7 @@ pub mod distributed;
 mod multigrid;
 mod pcg;
 mod precondition;
+mod reduced;
 
 use super::system::SpaceTimeSystem;
 use super::{FlowError, FlowParams, SolverChoice};
@@ -505,10 +510,8 @@ fn run_pcg(
     observer: &dyn SolveObserver,
 ) -> Result<pcg::CgOutcome, FlowError> {
     let stop = pcg::Stop {
-        tolerance: params.tolerance,
         done,
-        max_iterations: params.max_iterations,
-        give_up: None,
+        ..pcg::Stop::new(params.tolerance, params.max_iterations)
     };
     run_pcg_until(system, x, preconditioner, stop, observer)
 }
@@ -550,6 +553,16 @@ pub const PROBE_ITERATIONS: usize = 4;
 /// its coarse levels about one more round of factorizations; multigrid needs at most ~11
 /// iterations after the probe, so it pays from about 30 Gauss–Seidel iterations on.
 pub const SWITCH_ITERATIONS: f64 = 30.0;
+
+/// `auto`'s probe: [`PROBE_ITERATIONS`], then give up on slab Gauss–Seidel above
+/// [`SWITCH_ITERATIONS`] projected to the tolerance.
+fn probe_give_up(params: &FlowParams) -> pcg::GiveUp {
+    pcg::GiveUp {
+        probe: PROBE_ITERATIONS,
+        limit: SWITCH_ITERATIONS,
+        goal: params.tolerance,
+    }
+}
 
 /// Why `auto` kept slab Gauss–Seidel, or left it for multigrid in time, after a run that may
 /// have given up ([`pcg::Stop::give_up`]).
@@ -668,14 +681,11 @@ fn slab_pcg_with<F: SlabFactor>(
         Preconditioning::Multigrid => (None, 0, format!("asked for; {}", plan.describe())),
         _ => {
             let stop = pcg::Stop {
-                tolerance: params.tolerance,
-                done: 0,
-                max_iterations: params.max_iterations,
                 give_up: (preconditioning == Preconditioning::Adaptive)
-                    .then_some((PROBE_ITERATIONS, SWITCH_ITERATIONS)),
+                    .then(|| probe_give_up(params)),
+                ..pcg::Stop::new(params.tolerance, params.max_iterations)
             };
-            let gauss_seidel = SlabGaussSeidel::new(system, &fine);
-            let outcome = run_pcg_until(system, None, &gauss_seidel, stop, observer)?;
+            let outcome = gauss_seidel_pcg(system, &fine, plan, stop, observer)?;
             let verdict = gauss_seidel_verdict(&outcome);
             if outcome.gave_up.is_none() || preconditioning == Preconditioning::GaussSeidel {
                 let reason = match preconditioning {
@@ -703,6 +713,39 @@ fn slab_pcg_with<F: SlabFactor>(
         true => time_multigrid(job, fine, switch),
         false => time_multigrid(job, fine.compress(), switch),
     }
+}
+
+/// Slab Gauss–Seidel's PCG under `stop`: on the odd slabs alone (the even ones eliminated,
+/// [`reduced`]) where each slab has its own factor and the factors solve exactly enough; a run
+/// whose rounds of refinement stall ends as PCG on the whole system from where they left it.
+fn gauss_seidel_pcg<F: SlabFactor>(
+    system: &SpaceTimeSystem,
+    fine: &SlabSweeps<F>,
+    plan: &FactorPlan<'_>,
+    stop: pcg::Stop,
+    observer: &dyn SolveObserver,
+) -> Result<pcg::CgOutcome, FlowError> {
+    let gauss_seidel = SlabGaussSeidel::new(system, fine);
+    if !F::ELIMINATES || plan.slabs_per_factor > 1 || !system.has_links() {
+        return run_pcg_until(system, None, &gauss_seidel, stop, observer);
+    }
+    let reduced = reduced::odd_slab_pcg(system, fine, stop, observer)?;
+    let unfinished = reduced.relative_residual > stop.tolerance
+        && reduced.iterations < stop.max_iterations
+        && reduced.gave_up.is_none();
+    if !unfinished {
+        return Ok(reduced);
+    }
+    let rest = pcg::Stop {
+        done: reduced.iterations,
+        give_up: None,
+        ..stop
+    };
+    let outcome = run_pcg_until(system, Some(reduced.x), &gauss_seidel, rest, observer)?;
+    Ok(pcg::CgOutcome {
+        spectrum: reduced.spectrum,
+        ..outcome
+    })
 }
 
 /// Where multigrid in time starts: from `x` after `done` Gauss–Seidel iterations (`None`: from

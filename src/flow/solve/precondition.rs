@@ -63,7 +63,7 @@ pub struct SlabSweeps<F: SlabFactor> {
 
 /// Which slabs a half sweep solves.
 #[derive(Clone, Copy, PartialEq, Eq)]
-enum Parity {
+pub(super) enum Parity {
     Even = 0,
     Odd = 1,
 }
@@ -182,7 +182,7 @@ impl<F: SlabFactor> SlabSweeps<F> {
 
     /// Solves the slabs of `parity` in place, after subtracting their neighbours' coupling
     /// when `coupled`.
-    fn half_sweep(
+    pub(super) fn half_sweep(
         &self,
         system: &SpaceTimeSystem,
         z: &mut [f64],
@@ -202,9 +202,15 @@ impl<F: SlabFactor> SlabSweeps<F> {
         });
     }
 
+    /// `z_s ← D_s⁻¹ z_s` for the given slabs `(s, z_s)`, in parallel.
+    pub(super) fn solve_slabs(&self, slabs: Vec<(usize, &mut [f64])>) {
+        let halves = Halves::for_solves(slabs.len());
+        (slabs.into_par_iter()).for_each(|(s, zs)| self.factor(s).solve(zs, halves));
+    }
+
     /// `X_{s−1} z_{s−1} + X_sᵀ z_{s+1}` for each slab `s` of `parity`, in order; beyond the
     /// system's ends the coupling `around` gives.
-    fn neighbour_terms(
+    pub(super) fn neighbour_terms(
         &self,
         system: &SpaceTimeSystem,
         z: &[f64],
