@@ -716,8 +716,9 @@ fn slab_pcg_with<F: SlabFactor>(
 }
 
 /// Slab Gauss–Seidel's PCG under `stop`: on the odd slabs alone (the even ones eliminated,
-/// [`reduced`]) where each slab has its own factor and the factors solve exactly enough; a run
-/// whose rounds of refinement stall ends as PCG on the whole system from where they left it.
+/// [`reduced`]) where each slab has its own factor and the factors solve exactly enough; when a
+/// round of refinement is too slow or stalls (other than `auto`'s probe giving up), PCG on the
+/// whole system goes on from where the rounds left it.
 fn gauss_seidel_pcg<F: SlabFactor>(
     system: &SpaceTimeSystem,
     fine: &SlabSweeps<F>,

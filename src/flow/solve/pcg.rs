@@ -62,8 +62,9 @@ impl Stop {
 
 /// Give up when a run, after `probe` iterations or any later one, is too slow: when the rate
 /// of its last `probe − 1` iterations projects more than `limit − probe` further iterations to
-/// `goal` (a relative residual, the tolerance of the whole solve); before, only when it makes
-/// no progress at all ([`Projection::gives_up`]).
+/// `goal` (a relative residual: the solve's tolerance for `auto`'s probe, a round's stopping
+/// point in [`super::reduced`]); before, only when it makes no progress at all
+/// ([`Projection::gives_up`]).
 #[derive(Clone, Copy, Debug)]
 pub struct GiveUp {
     pub probe: usize,
@@ -72,7 +73,7 @@ pub struct GiveUp {
 }
 
 /// Result of a CG run: iterate, iterations (including `Stop::done`), the last recursive
-/// residual `‖r‖/‖b‖`.
+/// residual `‖r‖/‖b‖` (the true one after rounds of refinement, [`super::reduced`]).
 pub struct CgOutcome {
     pub x: Vec<f64>,
     pub iterations: usize,
