@@ -193,19 +193,19 @@ impl<F: SlabFactor> SlabSweeps<F> {
         let terms = (coupled && around.coupled(system))
             .then(|| self.neighbour_terms(system, z, parity, around));
         let slabs = slabs_of(z, system.slab_dimension(), parity, around.first_slab());
+        self.solve_slabs(slabs, terms.as_deref());
+    }
+
+    /// `z_s ← D_s⁻¹ (z_s − less_k)` for the `k`-th of the given slabs `(s, z_s)` (`less_k = 0`
+    /// without `less`), in parallel: each task subtracts, then solves, while its slab is warm.
+    pub(super) fn solve_slabs(&self, slabs: Vec<(usize, &mut [f64])>, less: Option<&[Vec<f64>]>) {
         let halves = Halves::for_solves(slabs.len());
         slabs.into_par_iter().enumerate().for_each(|(k, (s, zs))| {
-            if let Some(terms) = &terms {
-                subtract(zs, &terms[k]);
+            if let Some(less) = less {
+                subtract(zs, &less[k]);
             }
             self.factor(s).solve(zs, halves);
         });
-    }
-
-    /// `z_s ← D_s⁻¹ z_s` for the given slabs `(s, z_s)`, in parallel.
-    pub(super) fn solve_slabs(&self, slabs: Vec<(usize, &mut [f64])>) {
-        let halves = Halves::for_solves(slabs.len());
-        (slabs.into_par_iter()).for_each(|(s, zs)| self.factor(s).solve(zs, halves));
     }
 
     /// `X_{s−1} z_{s−1} + X_sᵀ z_{s+1}` for each slab `s` of `parity`, in order; beyond the
@@ -287,7 +287,8 @@ pub(super) fn add(z: &mut [f64], c: &[f64]) {
     z.iter_mut().zip(c).for_each(|(z, c)| *z += c);
 }
 
-fn subtract(z: &mut [f64], c: &[f64]) {
+/// `z −= c`.
+pub(super) fn subtract(z: &mut [f64], c: &[f64]) {
     z.iter_mut().zip(c).for_each(|(z, c)| *z -= c);
 }
 

@@ -32,7 +32,7 @@
 //! Gauss–Seidel on the odd slabs alone".
 
 use super::pcg::{self, CgOutcome, Directions, GiveUp, Operator, Preconditioner, Recycling, Stop};
-use super::precondition::{Parity, SlabSweeps, Whole};
+use super::precondition::{subtract, Parity, SlabSweeps, Whole};
 use super::{SolveObserver, PROBE_ITERATIONS, SWITCH_ITERATIONS};
 use crate::flow::system::{dot, SpaceTimeSystem};
 use crate::flow::FlowError;
@@ -191,7 +191,7 @@ impl<'a, F: SlabFactor> OddSlabs<'a, F> {
         self.pack(r, &mut g);
         (g.par_chunks_mut(n))
             .zip(coupling)
-            .for_each(|(gs, c)| gs.iter_mut().zip(c).for_each(|(g, c)| *g -= c));
+            .for_each(|(gs, c)| subtract(gs, &c));
         g
     }
 
@@ -210,7 +210,8 @@ impl<F: SlabFactor> Operator for OddSlabs<'_, F> {
     /// `y = S x = D_O x − C D_E⁻¹ Cᵀ x`: the odd rows of `A z` for `z = (−D_E⁻¹ Cᵀ x, x)`.
     fn apply(&self, x: &[f64], y: &mut [f64]) {
         let [z, az] = &mut *self.scratch.borrow_mut();
-        z.par_iter_mut().for_each(|z| *z = 0.0);
+        let n = self.system.slab_dimension();
+        (z.par_chunks_mut(n).step_by(2)).for_each(|zs| zs.fill(0.0));
         self.unpack(x, z);
         self.sweeps
             .half_sweep(self.system, z, Parity::Even, true, &Whole);
@@ -230,8 +231,8 @@ impl<F: SlabFactor> Preconditioner for OddSlabs<'_, F> {
         z.copy_from_slice(r);
         let n = self.system.slab_dimension();
         let slabs = z.chunks_mut(n).enumerate();
-        self.sweeps
-            .solve_slabs(slabs.map(|(k, zs)| (2 * k + 1, zs)).collect());
+        let odd = slabs.map(|(k, zs)| (2 * k + 1, zs)).collect();
+        self.sweeps.solve_slabs(odd, None);
     }
 }
 
