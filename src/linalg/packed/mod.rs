@@ -24,29 +24,35 @@
 //! and the upper solve, which walks the supernodes backwards, starts each run anew: the
 //! processor's prefetcher, which follows one run forwards or backwards, kept restarting. Stored
 //! in blocks of four columns, tiles of eight rows ([`layout`]), and read forwards by the lower
-//! solve and backwards by the upper one, a solve is two long runs over the factor, and the
-//! solves are now bound by the memory's bandwidth: with both cores solving, the lower solve
-//! alone takes 3.1 ms and the upper alone 3.4 ms on the paper-size slab (36 MB: together
-//! about 23 GB/s, where this machine streams 28 GB/s on two cores). Only reading less makes
-//! them faster now. Per solve on each of 2 cores (the fastest of 12 interleaved rounds, `cargo
-//! test --release --lib packed::tests::timing -- --ignored --nocapture`, 2026-11-28):
+//! solve and backwards by the upper one, a solve is two long runs over the factor. Per solve on
+//! each of 2 cores, each thread solving with factors of its own (the fastest of 12 interleaved
+//! rounds, `cargo test --release --lib packed::tests::timing -- --ignored --nocapture`,
+//! 2026-11-28):
 //!
-//! | block | faer `f32` | packed `f32` | portable build | bfloat16 |
+//! | block (entries) | faer `f32` | packed `f32` | portable | bfloat16 (kept) |
 //! |---|---|---|---|---|
-//! | paper-size slab (9.0 M entries stored) | 13.1 ms | 5.6 ms | 7.8 ms | 5.4 ms (6.2 M kept) |
-//! | 128×95 grid, diagonal 4.1 (1.23 M) | 2.38 ms | 0.93 ms | 1.49 ms | 0.88 ms |
-//! | 128×95 grid, diagonal 40 (1.23 M) | 2.47 ms | 0.95 ms | 1.70 ms | 0.70 ms |
+//! | paper-size slab (9.0 M) | 15.1–16.1 ms | 7.0–7.1 ms | 8.4–8.7 ms | 5.5–6.2 ms (6.2 M) |
+//! | 128×95 grid, diagonal 4.1 (1.23 M) | 2.9–3.1 ms | 1.1–1.4 ms | 1.6–1.9 ms | 0.98 ms |
+//! | 128×95 grid, diagonal 40 (1.23 M) | 2.9 ms | 1.2 ms | 1.7–1.8 ms | 0.73 ms |
 //!
-//! (In faer's layout the same kernels took 10.2, 1.49 and 1.28 ms. The bfloat16 factors gain
-//! less: their work per supernode bounds them, not the bytes, nor the bits that mark the rows
-//! they leave out, whose walk a list of the kept rows shortened by only 5–8 %: docs/scaling.md.)
+//! **Not bound by the bytes.** A paper-size solve reads 72 MB, so two cores solve at about
+//! 20 GB/s where they stream 27–45 GB/s (`examples/bench_floor.rs`), and one core alone at
+//! 6.6–7.2 ms, 10–11 GB/s, where it streams 22–28 GB/s. A lone tile loop streams at that
+//! rate; what is left is the work per supernode, along the elimination tree's dependences:
+//! solving only the narrow supernodes (24,221 of 27,130, 15 % of the entries) takes 3.4–3.6 ms
+//! of a solve on one core, the wide ones alone 6.4–7.0 ms, the two overlapping. Tried without
+//! gain (docs/scaling.md, "The paper size against its floors"): software prefetching, the two
+//! subtrees' supernodes interleaved on one thread, 2 MB pages. The bfloat16 factors gain less
+//! than their bytes for the same reason: their work per supernode bounds them, not the bytes,
+//! nor the bits that mark the rows they leave out, whose walk a list of the kept rows shortened
+//! by only 5–8 %.
 //!
 //! A solve may run the two halves of the elimination tree under its top separators on two
 //! threads ([`TreeSplit`], [`Halves`]): multigrid's coarse levels have fewer slabs than cores,
 //! and a lone slab solve then uses both cores (`bench_solver`, `α = γ = 0.01`: solve
 //! 2.02–2.09 → 1.96–2.02 s, four alternating runs, with bfloat16 factors). Where every core
-//! has a solve of its own the split only costs (the paper-size slab: 6.3 ms split against
-//! 5.6), so a sweep splits only where its solves do not divide evenly among the threads.
+//! has a solve of its own the split only costs (the paper-size slab: 7.4–7.7 ms split against
+//! 7.0–7.1), so a sweep splits only where its solves do not divide evenly among the threads.
 //!
 //! The kernels walk faer's own symbolic structure, supernodal or simplicial, so the ordering
 //! and fill are those of the `f32` factor faer computed, less the rows left out.
@@ -236,7 +242,7 @@ impl<E: Entry> PackedFactor<E> {
 
 /// Whether a solve runs the two halves of its elimination tree on two threads
 /// ([`TreeSplit`]). Worth it only where a thread would otherwise wait: on the paper-size slab
-/// block, with both cores busy solving, a split solve takes 6.3 ms against 5.6 ms
+/// block, with both cores busy solving, a split solve takes 7.4–7.7 ms against 7.0–7.1 ms
 /// (`tests::timing`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Halves {
