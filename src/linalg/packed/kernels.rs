@@ -3,18 +3,23 @@
 //! Per supernode of `w` columns and `m` kept rows below:
 //!
 //! - `L y = b`: up to four columns wide (column-major, `ld = w + m`), the triangle by columns
-//!   (`y_j /= L_jj`, then an axpy on the later columns), then `y_r −= Σ_j L_rj y_j` for each
-//!   row `r` below, each row's sum taken straight into `y_r`. Wider, block by block of four
-//!   columns ([`layout`]): the block's triangle, then its tiles of rows inside the supernode's
-//!   triangle straight into `y`, and its tiles of rows below summed into scratch, which is
-//!   scattered once per supernode.
+//!   (`y_j /= L_jj`, then the later columns), unrolled for its width, then `y_r −= Σ_j L_rj y_j`
+//!   for each row `r` below, each row's sum taken straight into `y_r`. Wider, block by block of
+//!   four columns ([`layout`]): the block's triangle, then its tiles of rows inside the
+//!   supernode's triangle straight into `y`, and its tiles of rows below summed into scratch,
+//!   which is scattered once per supernode.
 //! - `Lᵀ x = y`, in reverse: up to four columns wide, each column's dot product with the
 //!   solved rows below (gathered straight from `y`, two rows per step so that two sums are in
-//!   flight), then the triangle backwards. Wider, the rows below gathered once, then block by
-//!   block from the last: the tiles' dot products with the gathered rows and with the later
-//!   columns, then the block's triangle backwards. The tiles are read from the last, so that
-//!   the upper solve reads the factor in one backward run as the lower one reads it in one
-//!   forward run.
+//!   flight), then the triangle backwards, unrolled for its width. Wider, the rows below
+//!   gathered once, then block by block from the last: the tiles' dot products with the
+//!   gathered rows and with the later columns, then the block's triangle backwards. The tiles
+//!   are read from the last, so that the upper solve reads the factor in one backward run as
+//!   the lower one reads it in one forward run.
+//!
+//! A narrow supernode's triangle is unrolled for its width (one to four columns, a constant of
+//! the loop): as loops of run-time length, the one-vertex supernodes that make up most of a
+//! factor paid their short loops' branches in every solve (paper slab: 7.0–7.3 → 6.5–6.9 ms a
+//! solve, bfloat16 factors of 128 × 95 grids 10–16 % less, `tests::timing`).
 //!
 //! Each loop is compiled twice: portable, and with AVX2 and fused multiply–add, chosen once
 //! per factor ([`Kernels::detect`]). The two builds round differently (a fused multiply–add
@@ -44,9 +49,6 @@ impl Kernels {
         Self::Portable
     }
 }
-
-/// Independent sums of a lone dot product or axpy, in `f32` lanes: two AVX registers.
-const LANES: usize = 16;
 
 /// `self.$avx2::<E, WHOLE>(args)` where the factor's kernels are AVX2 + FMA, otherwise the
 /// portable `self.$portable::<E, false, WHOLE>(args)`, with `WHOLE` the value of `$whole`.
@@ -168,21 +170,15 @@ impl Supernodes<'_> {
                 continue;
             }
             let ld = w + below.len();
-            let y = &mut columns.own[first..first + w];
-            for j in 0..w {
-                let column = &l[j * ld + j..j * ld + w];
-                let yj = y[j] / column[0].widen();
-                y[j] = yj;
-                axpy::<E, FMA>(&mut y[j + 1..], &column[1..], -yj);
-            }
-            if below.len() == 0 {
-                continue;
-            }
             let panel = |j: usize| &l[j * ld + w..(j + 1) * ld];
             macro_rules! narrow {
                 ($w:literal) => {{
-                    let solved: [f32; $w] = std::array::from_fn(|t| columns.own[first + t]);
-                    scatter::<E, $w, FMA, WHOLE>(std::array::from_fn(panel), solved, below, columns)
+                    let y = &mut columns.own[first..first + $w];
+                    let solved = narrow_lower_triangle::<E, $w, FMA>(l, ld, y);
+                    if below.len() > 0 {
+                        let panels = std::array::from_fn(panel);
+                        scatter::<E, $w, FMA, WHOLE>(panels, solved, below, columns)
+                    }
                 }};
             }
             match w {
@@ -225,28 +221,20 @@ impl Supernodes<'_> {
             }
             let ld = w + below.len();
             let panel = |j: usize| &l[j * ld + w..(j + 1) * ld];
-            if below.len() > 0 {
-                macro_rules! narrow {
-                    ($w:literal) => {{
-                        let sums =
-                            gathered_dots::<E, $w, FMA>(std::array::from_fn(panel), below, solved);
-                        (own[first..first + $w].iter_mut())
-                            .zip(sums)
-                            .for_each(|(y, s)| *y -= s);
-                    }};
-                }
-                match w {
-                    1 => narrow!(1),
-                    2 => narrow!(2),
-                    3 => narrow!(3),
-                    _ => narrow!(4),
-                }
+            macro_rules! narrow {
+                ($w:literal) => {{
+                    let sums = match below.len() {
+                        0 => [0.0; $w],
+                        _ => gathered_dots::<E, $w, FMA>(std::array::from_fn(panel), below, solved),
+                    };
+                    narrow_upper_triangle::<E, $w, FMA>(l, ld, &mut own[first..first + $w], sums);
+                }};
             }
-            let y = &mut own[first..first + w];
-            for j in (0..w).rev() {
-                let column = &l[j * ld + j..j * ld + w];
-                let later = dot::<E, FMA>(&column[1..], &y[j + 1..]);
-                y[j] = (y[j] - later) / column[0].widen();
+            match w {
+                1 => narrow!(1),
+                2 => narrow!(2),
+                3 => narrow!(3),
+                _ => narrow!(4),
             }
         }
     }
@@ -295,6 +283,42 @@ fn upper_block<E: Entry, const W: usize, const FMA: bool>(
             madd::<FMA>(triangle[j * W + i].widen(), own[i], sum)
         });
         own[j] = (own[j] - later) / triangle[j * W + j].widen();
+    }
+}
+
+/// `L y = b` on the triangle of a narrow supernode `W` columns wide (faer's layout, `ld` rows
+/// a column) whose own columns are `y`: the solved values, also written to `y`. The width is
+/// known at compile time, so the triangle is straight-line code.
+#[inline(always)]
+fn narrow_lower_triangle<E: Entry, const W: usize, const FMA: bool>(
+    l: &[E],
+    ld: usize,
+    y: &mut [f32],
+) -> [f32; W] {
+    let mut solved: [f32; W] = std::array::from_fn(|t| y[t]);
+    for j in 0..W {
+        solved[j] /= l[j * ld + j].widen();
+        for i in j + 1..W {
+            solved[i] = madd::<FMA>(l[j * ld + i].widen(), -solved[j], solved[i]);
+        }
+    }
+    y[..W].copy_from_slice(&solved);
+    solved
+}
+
+/// `Lᵀ x = y` on the triangle of a narrow supernode `W` columns wide, its own columns `y`, with
+/// `sums` its columns' dot products with the solved rows below.
+#[inline(always)]
+fn narrow_upper_triangle<E: Entry, const W: usize, const FMA: bool>(
+    l: &[E],
+    ld: usize,
+    y: &mut [f32],
+    sums: [f32; W],
+) {
+    (y.iter_mut()).zip(sums).for_each(|(y, s)| *y -= s);
+    for j in (0..W).rev() {
+        let later = (j + 1..W).fold(0.0, |sum, i| madd::<FMA>(l[j * ld + i].widen(), y[i], sum));
+        y[j] = (y[j] - later) / l[j * ld + j].widen();
     }
 }
 
@@ -418,22 +442,6 @@ fn axpy<E: Entry, const FMA: bool>(update: &mut [f32], l: &[E], a: f32) {
     for (u, x) in update.iter_mut().zip(l) {
         *u = madd::<FMA>(x.widen(), a, *u);
     }
-}
-
-/// `l · g`, in [`LANES`] independent sums.
-#[inline(always)]
-fn dot<E: Entry, const FMA: bool>(l: &[E], g: &[f32]) -> f32 {
-    let mut lanes = [0.0f32; LANES];
-    let (x, v) = (l.chunks_exact(LANES), g.chunks_exact(LANES));
-    let tail = (x.remainder().iter())
-        .zip(v.remainder())
-        .fold(0.0, |sum, (x, g)| madd::<FMA>(x.widen(), *g, sum));
-    for (x, v) in x.zip(v) {
-        for k in 0..LANES {
-            lanes[k] = madd::<FMA>(x[k].widen(), v[k], lanes[k]);
-        }
-    }
-    lanes.iter().sum::<f32>() + tail
 }
 
 /// `y ← L⁻¹ y` for faer's simplicial (CSC, diagonal first in each column) layout: small
