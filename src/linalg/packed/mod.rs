@@ -31,16 +31,17 @@
 //!
 //! | block (entries) | faer `f32` | packed `f32` | portable | bfloat16 (kept) |
 //! |---|---|---|---|---|
-//! | paper-size slab (9.0 M) | 15.1–16.1 ms | 7.0–7.1 ms | 8.4–8.7 ms | 5.5–6.2 ms (6.2 M) |
-//! | 128×95 grid, diagonal 4.1 (1.23 M) | 2.9–3.1 ms | 1.1–1.4 ms | 1.6–1.9 ms | 0.98 ms |
-//! | 128×95 grid, diagonal 40 (1.23 M) | 2.9 ms | 1.2 ms | 1.7–1.8 ms | 0.73 ms |
+//! | paper-size slab (9.0 M) | 15.7–15.9 ms | 6.6–6.8 ms | 7.8–8.1 ms | 5.5–6.0 ms (6.2 M) |
+//! | 128×95 grid, diagonal 4.1 (1.23 M) | 2.7–2.8 ms | 1.0 ms | 1.4–1.5 ms | 0.82–0.84 ms |
+//! | 128×95 grid, diagonal 40 (1.23 M) | 2.8–2.9 ms | 1.0–1.1 ms | 1.5–1.6 ms | 0.61–0.62 ms |
 //!
 //! **Not bound by the bytes.** A paper-size solve reads 72 MB, so two cores solve at about
-//! 20 GB/s where they stream 27–45 GB/s (`examples/bench_floor.rs`), and one core alone at
-//! 6.6–7.2 ms, 10–11 GB/s, where it streams 22–28 GB/s. A lone tile loop streams at that
-//! rate; what is left is the work per supernode, along the elimination tree's dependences:
-//! solving only the narrow supernodes (24,221 of 27,130, 15 % of the entries) takes 3.4–3.6 ms
-//! of a solve on one core, the wide ones alone 6.4–7.0 ms, the two overlapping. Tried without
+//! 21 GB/s where they stream 27–45 GB/s (`examples/bench_floor.rs`), and one core alone at
+//! 6.6–7.2 ms (before the narrow triangles were unrolled, [`kernels`]), 10–11 GB/s, where it
+//! streams 22–28 GB/s. A lone tile loop streams at that rate; what is left is the work per
+//! supernode, along the elimination tree's dependences: solving only the narrow supernodes
+//! (24,221 of 27,130, 15 % of the entries) took 3.4–3.6 ms of a solve on one core, the wide
+//! ones alone 6.4–7.0 ms, the two overlapping. Tried without
 //! gain (docs/scaling.md, "The paper size against its floors"): software prefetching, the two
 //! subtrees' supernodes interleaved on one thread, 2 MB pages. The bfloat16 factors gain less
 //! than their bytes for the same reason: their work per supernode bounds them, not the bytes,
@@ -51,8 +52,8 @@
 //! threads ([`TreeSplit`], [`Halves`]): multigrid's coarse levels have fewer slabs than cores,
 //! and a lone slab solve then uses both cores (`bench_solver`, `α = γ = 0.01`: solve
 //! 2.02–2.09 → 1.96–2.02 s, four alternating runs, with bfloat16 factors). Where every core
-//! has a solve of its own the split only costs (the paper-size slab: 7.4–7.7 ms split against
-//! 7.0–7.1), so a sweep splits only where its solves do not divide evenly among the threads.
+//! has a solve of its own the split only costs (the paper-size slab: 7.3 ms split against
+//! 6.6–6.8), so a sweep splits only where its solves do not divide evenly among the threads.
 //!
 //! The kernels walk faer's own symbolic structure, supernodal or simplicial, so the ordering
 //! and fill are those of the `f32` factor faer computed, less the rows left out.
@@ -242,7 +243,7 @@ impl<E: Entry> PackedFactor<E> {
 
 /// Whether a solve runs the two halves of its elimination tree on two threads
 /// ([`TreeSplit`]). Worth it only where a thread would otherwise wait: on the paper-size slab
-/// block, with both cores busy solving, a split solve takes 7.4–7.7 ms against 7.0–7.1 ms
+/// block, with both cores busy solving, a split solve takes 7.3 ms against 6.6–6.8 ms
 /// (`tests::timing`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Halves {
