@@ -41,12 +41,11 @@
 //! streams 22–28 GB/s. A lone tile loop streams at that rate; what is left is the work per
 //! supernode, along the elimination tree's dependences: solving only the narrow supernodes
 //! (24,221 of 27,130, 15 % of the entries) took 3.4–3.6 ms of a solve on one core, the wide
-//! ones alone 6.4–7.0 ms, the two overlapping. Tried without
-//! gain (docs/scaling.md, "The paper size against its floors"): software prefetching, the two
-//! subtrees' supernodes interleaved on one thread, 2 MB pages. The bfloat16 factors gain less
-//! than their bytes for the same reason: their work per supernode bounds them, not the bytes,
-//! nor the bits that mark the rows they leave out, whose walk a list of the kept rows shortened
-//! by only 5–8 %.
+//! ones alone 6.4–7.0 ms, the two overlapping. Tried without gain (docs/scaling.md, "The
+//! paper size against its floors"): software prefetching, the two subtrees' supernodes
+//! interleaved on one thread, 2 MB pages. The bfloat16 factors gain less than their bytes for
+//! the same reason: their work per supernode bounds them, not the bytes, nor the bits that mark
+//! the rows they leave out, whose walk a list of the kept rows shortened by only 5–8 %.
 //!
 //! A solve may run the two halves of the elimination tree under its top separators on two
 //! threads ([`TreeSplit`], [`Halves`]): multigrid's coarse levels have fewer slabs than cores,
