@@ -432,7 +432,9 @@ impl<'a> WindowJob<'a> {
             Some(true) => (vec![0.0; b.len()], 0, "asked for".to_string()),
             sweeps_or_auto => {
                 let probe = pcg::Stop {
-                    give_up: sweeps_or_auto.is_none().then(|| probe_give_up(self.params)),
+                    give_up: sweeps_or_auto
+                        .is_none()
+                        .then(|| probe_give_up(self.params.tolerance)),
                     ..stop
                 };
                 let outcome = self.pcg(&levels, 1, vec![0.0; b.len()], probe)?;

@@ -555,12 +555,13 @@ pub const PROBE_ITERATIONS: usize = 4;
 pub const SWITCH_ITERATIONS: f64 = 30.0;
 
 /// `auto`'s probe: [`PROBE_ITERATIONS`], then give up on slab Gauss–Seidel above
-/// [`SWITCH_ITERATIONS`] projected to the tolerance.
-fn probe_give_up(params: &FlowParams) -> pcg::GiveUp {
+/// [`SWITCH_ITERATIONS`] projected to `goal` (the tolerance; a round's stopping point in
+/// [`reduced`]).
+fn probe_give_up(goal: f64) -> pcg::GiveUp {
     pcg::GiveUp {
         probe: PROBE_ITERATIONS,
         limit: SWITCH_ITERATIONS,
-        goal: params.tolerance,
+        goal,
     }
 }
 
@@ -682,7 +683,7 @@ fn slab_pcg_with<F: SlabFactor>(
         _ => {
             let stop = pcg::Stop {
                 give_up: (preconditioning == Preconditioning::Adaptive)
-                    .then(|| probe_give_up(params)),
+                    .then(|| probe_give_up(params.tolerance)),
                 ..pcg::Stop::new(params.tolerance, params.max_iterations)
             };
             let outcome = gauss_seidel_pcg(system, &fine, plan, stop, observer)?;

@@ -31,9 +31,10 @@
 //! Measured against slab Gauss–Seidel's PCG on the whole system: docs/scaling.md, "Slab
 //! Gauss–Seidel on the odd slabs alone".
 
-use super::pcg::{self, CgOutcome, Directions, GiveUp, Operator, Preconditioner, Recycling, Stop};
+use super::multigrid::residual;
+use super::pcg::{self, CgOutcome, Directions, Operator, Preconditioner, Recycling, Stop};
 use super::precondition::{subtract, Parity, SlabSweeps, Whole};
-use super::{SolveObserver, PROBE_ITERATIONS, SWITCH_ITERATIONS};
+use super::{probe_give_up, SolveObserver};
 use crate::flow::system::{dot, SpaceTimeSystem};
 use crate::flow::FlowError;
 use crate::linalg::factor::SlabFactor;
@@ -53,9 +54,9 @@ pub const LAST_ROUND_MARGIN: f64 = 0.5;
 /// under `stop`, on the odd slabs' reduced system in rounds of refinement (module docs). The
 /// first round probes with `stop.give_up` when given, and its Lanczos spectrum is the run's.
 /// Returns when the tolerance is reached, the iterations are spent, the probe gives up
-/// (`gave_up` set), or a round is too slow ([`slow_round`]) or fails to halve the residual
-/// (`gave_up` not set: the caller goes on with the whole system). `relative_residual` is the
-/// true one, `‖b − A x‖ / ‖b‖`, and `x` the whole system's.
+/// (`gave_up` set), or a round is too slow (as `auto`'s probe judges it) or fails to halve the
+/// residual (`gave_up` not set: the caller goes on with the whole system). `relative_residual`
+/// is the true one, `‖b − A x‖ / ‖b‖`, and `x` the whole system's.
 pub fn odd_slab_pcg<F: SlabFactor>(
     system: &SpaceTimeSystem,
     sweeps: &SlabSweeps<F>,
@@ -81,12 +82,17 @@ pub fn odd_slab_pcg<F: SlabFactor>(
         if started <= stop.tolerance || outcome.iterations >= stop.max_iterations {
             break;
         }
+        let goal = round_tolerance(started, stop.tolerance);
+        // A round too slow for its stopping point, as `auto`'s probe judges slab Gauss–Seidel:
+        // where the even slabs are far better conditioned than the reduced system (a time
+        // coupling that nearly cancels `D_O`, small `α`), the elimination's rounding leaves `S`
+        // too inexact for CG, and the whole system's PCG goes on from the rounds' iterate.
         let round_stop = Stop {
-            tolerance: round_tolerance(started, stop.tolerance),
+            tolerance: goal,
             done: outcome.iterations,
             give_up: Some(match (round, stop.give_up) {
                 (0, Some(probe)) => probe,
-                _ => slow_round(started, stop.tolerance),
+                _ => probe_give_up(goal),
             }),
             reference: Some(b_norm),
             ..stop
@@ -100,7 +106,7 @@ pub fn odd_slab_pcg<F: SlabFactor>(
         outcome = pcg::pcg_recycling(&odd, &g, zero, &odd, cg, recycling)?;
         spectrum = spectrum.or(outcome.spectrum);
         let correction = odd.whole_correction(&r, &outcome.x);
-        add_correction(system, b, &correction, &mut x, &mut r);
+        r = add_correction(system, b, &correction, &mut x);
         outcome.relative_residual = dot(&r, &r).sqrt() / b_norm;
         let probed = round == 0 && stop.give_up.is_some();
         let halved = outcome.relative_residual <= 0.5 * started;
@@ -114,19 +120,6 @@ pub fn odd_slab_pcg<F: SlabFactor>(
     Ok(outcome)
 }
 
-/// When a round that starts at the whole residual `started` is too slow for its stopping point
-/// (as `auto`'s probe judges slab Gauss–Seidel, [`super::probe_give_up`]): where the even slabs
-/// are far better conditioned than the reduced system (a time coupling that nearly cancels
-/// `D_O`, small `α`), the elimination's rounding leaves `S` too inexact for CG. The whole
-/// system's PCG then goes on from the rounds' iterate.
-fn slow_round(started: f64, tolerance: f64) -> GiveUp {
-    GiveUp {
-        probe: PROBE_ITERATIONS,
-        limit: SWITCH_ITERATIONS,
-        goal: round_tolerance(started, tolerance),
-    }
-}
-
 /// Where a round that starts at the whole residual `started` stops its CG: at
 /// [`ROUND_REDUCTION`] of it, or at [`LAST_ROUND_MARGIN`] of the tolerance where that is as far.
 fn round_tolerance(started: f64, tolerance: f64) -> f64 {
@@ -136,11 +129,10 @@ fn round_tolerance(started: f64, tolerance: f64) -> f64 {
     }
 }
 
-/// `x += d`, `r = b − A x`.
-fn add_correction(system: &SpaceTimeSystem, b: &[f64], d: &[f64], x: &mut [f64], r: &mut [f64]) {
+/// `x += d`, then `b − A x`.
+fn add_correction(system: &SpaceTimeSystem, b: &[f64], d: &[f64], x: &mut [f64]) -> Vec<f64> {
     x.par_iter_mut().zip(d).for_each(|(x, d)| *x += d);
-    system.apply(x, r);
-    r.par_iter_mut().zip(b).for_each(|(r, b)| *r = b - *r);
+    residual(system, b, x)
 }
 
 /// The reduced system on the odd slabs of a whole system: its vectors hold the odd slabs
@@ -338,10 +330,7 @@ mod tests {
             let zero = vec![0.0; system.dimension()];
             let b = system.rhs();
             let reference = pcg::pcg(&system, b, zero, &whole, stop, &|_| {}).unwrap();
-            let mut r = vec![0.0; b.len()];
-            system.apply(&reduced.x, &mut r);
-            r.iter_mut().zip(b).for_each(|(r, b)| *r = b - *r);
-            let true_residual = (dot(&r, &r) / dot(b, b)).sqrt();
+            let true_residual = crate::flow::solve::relative_residual(&system, b, &reduced.x);
             println!(
                 "{} slabs: {} iterations (whole system {}), residual {true_residual:.2e}",
                 system.n_slabs(),
