@@ -100,9 +100,12 @@ impl IntrinsicGeometry {
     /// Geometry from one length per undirected edge (indexed like [`Mesh::edges`]).
     pub fn new(mesh: &Mesh, edge_lengths: Vec<f64>) -> Result<Self, GeometryError> {
         check_edge_lengths(mesh, &edge_lengths)?;
-        let triangles = (0..mesh.n_faces())
-            .map(|f| face_triangle(mesh, &edge_lengths, f))
-            .collect::<Result<Vec<_>, _>>()?;
+        // Pushed into a vector of its size: collected through a `Result` (no size hint), it grew
+        // by doubling and kept the surplus (31,072 triangles' worth on the paper-size torus).
+        let mut triangles = Vec::with_capacity(mesh.n_faces());
+        for f in 0..mesh.n_faces() {
+            triangles.push(face_triangle(mesh, &edge_lengths, f)?);
+        }
         let mut vertex_angle_sums = vec![0.0; mesh.n_vertices()];
         for (face, triangle) in mesh.faces().iter().zip(&triangles) {
             for c in 0..3 {
