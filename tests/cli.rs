@@ -236,6 +236,25 @@ fn solve_command_writes_the_library_flow() {
     assert!(summary["iterations"].is_number() && summary["seconds"]["total"].is_number());
 }
 
+#[test]
+fn solve_finishes_when_its_reader_has_gone() {
+    // `meshflow solve … | head`: stdout and stderr closed while the run still writes to them.
+    let out = tempfile::tempdir().unwrap();
+    let dir = out.path().join("flow");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_meshflow"))
+        .args(["solve", &shipped("rotating_sphere"), "--out"])
+        .arg(&dir)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    drop(child.stderr.take());
+    let status = child.wait().unwrap();
+    assert!(status.success(), "{status}");
+    assert!(summary(&dir)["relative_residual"].as_f64().unwrap() < 1e-8);
+}
+
 /// Runs `solve` with `args` appended and checks the failure contract; returns stderr.
 fn failing_solve(input: &Path, args: &[&str]) -> String {
     let out = tempfile::tempdir().unwrap();

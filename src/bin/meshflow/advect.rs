@@ -55,7 +55,7 @@ pub fn advect(
         write_npy_sequence(staged.path(), &positions, faces, Some(&grey), times)
             .map_err(|e| target(e.into()))?;
         let up = UpChoice::of_sequence(&loaded);
-        println!("{}", crate::pictures::up_axis_line(&up, None));
+        stdout_line!("{}", crate::pictures::up_axis_line(&up, None));
         let view = up.view();
         draw_paths(&staged, sequence, &trajectories, view).map_err(target)?;
     }
@@ -156,7 +156,7 @@ fn report(
     vertex_seeds: bool,
 ) {
     let stuck = trajectories.reached_boundary.iter().filter(|&&b| b).count();
-    println!(
+    stdout_line!(
         "{}: {} points followed through {} frames ({stuck} reached the boundary) -> {}",
         run.display(),
         grey[0].len(),
@@ -167,7 +167,7 @@ fn report(
         a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f64>() / a.len() as f64
     };
     for k in (1..grey.len()).filter(|_| vertex_seeds) {
-        println!(
+        stdout_line!(
             "  frame {k:3}: mean image change along the trajectories {:.3e} (at rest {:.3e})",
             mean_change(&grey[k], &grey[0]),
             mean_change(sequence.intensities(k), sequence.intensities(0)),

@@ -61,10 +61,10 @@ pub fn analyze(request: AnalyzeRequest) -> Result<(), Error> {
         };
         let written = draw(staged.path(), &loaded, &slabs, args, scales)
             .map_err(|e| staged.error_in_target(e))?;
-        println!("pictures: {written} PNG files in {}", out.display());
+        stdout_line!("pictures: {written} PNG files in {}", out.display());
     }
     staged.commit()?;
-    println!(
+    stdout_line!(
         "{}: {} x {} faces analysed in {seconds:.2} s -> {}",
         run.display(),
         crate::plural(slabs.len(), "slab"),
@@ -77,14 +77,21 @@ pub fn analyze(request: AnalyzeRequest) -> Result<(), Error> {
 
 /// Per slab: the means over the surface and the shares of the Hodge parts in `∫|U|²`.
 fn print_table(times: &[f64], slabs: &[SlabAnalysis]) {
-    println!(
+    stdout_line!(
         "{:>5} {:>10} {:>10} {:>10} {:>11} {:>11} {:>11} {:>10}  Hodge exact / co-exact / harmonic",
-        "slab", "time", "area", "speed", "divergence", "curl", "areal rate", "shear"
+        "slab",
+        "time",
+        "area",
+        "speed",
+        "divergence",
+        "curl",
+        "areal rate",
+        "shear"
     );
     for (a, t) in slabs.iter().zip(times) {
         let totals = &a.totals;
         let share = |part: f64| 100.0 * part / totals.energy.max(f64::MIN_POSITIVE);
-        println!(
+        stdout_line!(
             "{:>5} {:>10.4} {:>10.4e} {:>10.3e} {:>11.3e} {:>11.3e} {:>11.3e} {:>10.3e}  {:.1} % / {:.1} % / {:.1} %",
             a.slab,
             t,

@@ -1,5 +1,23 @@
 //! The `meshflow` command line. Every failure is one line on stderr and a non-zero exit code.
 
+/// `println!` that leaves out a line it cannot write: a run's product is its files, and a
+/// reader that has gone (`meshflow solve … | head`) must not stop it (`println!` panics on a
+/// closed pipe).
+macro_rules! stdout_line {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
+/// [`stdout_line!`] on stderr: progress, warnings and errors.
+macro_rules! stderr_line {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 mod advect;
 mod analyze;
 mod args;
@@ -206,7 +224,7 @@ fn main() -> ExitCode {
     remove_staging_on_signals();
     #[cfg(feature = "mpi")]
     if !matches!(cli.command, Command::Solve(_)) && ranks::launched_as_one_of_several() {
-        eprintln!("meshflow: error: only `meshflow solve` runs over several ranks; run the other commands in one process");
+        stderr_line!("meshflow: error: only `meshflow solve` runs over several ranks; run the other commands in one process");
         return ExitCode::FAILURE;
     }
     let result = match cli.command {
@@ -268,7 +286,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("meshflow: error: {error}");
+            stderr_line!("meshflow: error: {error}");
             ExitCode::FAILURE
         }
     }
@@ -279,11 +297,11 @@ fn main() -> ExitCode {
 fn remove_staging_on_signals() {
     let installed = ctrlc::set_handler(|| {
         meshflow::run::remove_live_staging();
-        eprintln!("meshflow: interrupted: nothing was written");
+        stderr_line!("meshflow: interrupted: nothing was written");
         std::process::exit(130);
     });
     if let Err(error) = installed {
-        eprintln!("meshflow: warning: cannot handle interruptions ({error})");
+        stderr_line!("meshflow: warning: cannot handle interruptions ({error})");
     }
 }
 
@@ -341,6 +359,6 @@ fn welded_note(n_welded: usize) -> String {
 /// One `meshflow: warning: …` line per warning, on stderr.
 fn print_warnings(warnings: &[meshflow::load::LoadWarning]) {
     for warning in warnings {
-        eprintln!("meshflow: warning: {warning}");
+        stderr_line!("meshflow: warning: {warning}");
     }
 }

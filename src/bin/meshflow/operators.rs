@@ -68,7 +68,7 @@ pub fn write_operators(
             .map_err(|e| staged.in_target(e))?;
     }
     staged.commit()?;
-    println!(
+    stdout_line!(
         "{}: {} vertices{}, {} faces, {} boundary vertices, Euler characteristic {} -> {}",
         mesh_path.display(),
         mesh.n_vertices(),

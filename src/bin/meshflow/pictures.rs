@@ -79,11 +79,11 @@ impl ViewArgs {
     pub fn announced_view(&self, default: &UpChoice) -> View {
         match self.up {
             Some(up) => {
-                println!("view: up axis {up} (--up)");
+                stdout_line!("view: up axis {up} (--up)");
                 self.view(View::default().with_up(up))
             }
             None => {
-                println!("{}", up_axis_line(default, Some(default.alternative())));
+                stdout_line!("{}", up_axis_line(default, Some(default.alternative())));
                 self.view(default.view())
             }
         }
@@ -286,7 +286,7 @@ pub fn render_output(
         true => crate::plural(slabs.len(), "slab"),
         false => format!("{} of {} slabs", chosen.len(), slabs.len()),
     };
-    println!(
+    stdout_line!(
         "{}: {drawn} -> {} pictures in {}",
         dir.display(),
         written.len(),

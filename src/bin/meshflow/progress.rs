@@ -48,7 +48,7 @@ fn run() -> (Mode, Instant) {
 /// One plain progress line.
 fn line(text: &str) {
     let seconds = run().1.elapsed().as_secs_f64();
-    eprintln!("{LINE_PREFIX}{seconds:7.1} s] {text}");
+    stderr_line!("{LINE_PREFIX}{seconds:7.1} s] {text}");
 }
 
 /// What a plain-lines display remembers between lines.

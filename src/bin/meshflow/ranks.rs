@@ -34,7 +34,7 @@ pub fn solve(args: &SolveArgs) -> Result<(), Error> {
         _ => solve::solve_on_rank(args, &ranks),
     };
     if let Err(error) = result {
-        eprintln!("meshflow (rank {}): error: {error}", world.rank());
+        stderr_line!("meshflow (rank {}): error: {error}", world.rank());
         world.abort(1);
     }
     Ok(())

@@ -57,13 +57,13 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
     let outside: usize = sampled.outside.iter().sum();
     if outside > 0 {
         let total = sampled.values.len() * geometry.mesh.n_vertices();
-        eprintln!(
+        stderr_line!(
             "meshflow: warning: {outside} of {total} vertex frames ({:.1} %) have a shell that leaves the volume: written as 0, and marked in {}",
             100.0 * outside as f64 / total as f64,
             no_data_file(&out).display()
         );
     }
-    println!(
+    stdout_line!(
         "{}",
         describe(&request, &sampled, geometry.mesh.n_vertices(), &out)
     );
@@ -101,15 +101,15 @@ fn sample_streamed(
 
 pub(crate) fn report_voxel_size(volumes: &Path, source: &VoxelSizeSource) {
     match source {
-        VoxelSizeSource::Default => eprintln!(
+        VoxelSizeSource::Default => stderr_line!(
             "meshflow: warning: {}: no voxel size given (--voxel-size X,Y,Z) or found in the files: taking 1 × 1 × 1",
             volumes.display()
         ),
-        VoxelSizeSource::GivenOverInvalid(why) => eprintln!(
+        VoxelSizeSource::GivenOverInvalid(why) => stderr_line!(
             "meshflow: warning: {}: the files' voxel size metadata is invalid ({why}): using --voxel-size",
             volumes.display()
         ),
-        VoxelSizeSource::File(said) => println!("voxel size from the {said}"),
+        VoxelSizeSource::File(said) => stdout_line!("voxel size from the {said}"),
         VoxelSizeSource::Given => {}
     }
 }

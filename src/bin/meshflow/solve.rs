@@ -46,7 +46,7 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
     }
     // Over ranks, the others read their windows' frames and weld with rank 0 (`load_frames`).
     if ranks.is_some_and(|ranks| ranks.size() > 1) {
-        println!("{}", gathering_note(args));
+        stdout_line!("{}", gathering_note(args));
     }
     let loaded = during(
         format!("reading {}", args.input.display()),
@@ -132,7 +132,7 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
         &result,
     );
     if args.png {
-        println!(
+        stdout_line!(
             "pictures: {} PNG files for {} slab{} in {}",
             pictures.len(),
             slabs.len(),
@@ -141,14 +141,14 @@ pub fn solve(args: &SolveArgs, ranks: Option<&dyn TimeRanks>) -> Result<(), Erro
         );
     }
     if let Some(report) = &report {
-        println!("{}", describe_errors("ground truth: flow", &report.errors));
-        println!(
+        stdout_line!("{}", describe_errors("ground truth: flow", &report.errors));
+        stdout_line!(
             "{}",
             describe_errors("         zero flow", &report.zero_flow)
         );
     }
     if let Some(report) = &track_report {
-        println!("{}", describe_track_scores(&report.scores.overall));
+        stdout_line!("{}", describe_track_scores(&report.scores.overall));
     }
     Ok(())
 }
@@ -176,7 +176,7 @@ pub fn solve_on_rank(args: &SolveArgs, ranks: &dyn TimeRanks) -> Result<(), Erro
 /// The input as read: its source, mesh size, welding and channels.
 fn print_input(args: &SolveArgs, loaded: &LoadedSequence) {
     let sequence = &loaded.sequence;
-    println!(
+    stdout_line!(
         "{}: {}, {} vertices, {} faces{}{}",
         args.input.display(),
         loaded.source.describe(),
@@ -197,7 +197,7 @@ fn print_result(
     params: &FlowParams,
     result: &FlowResult,
 ) {
-    println!(
+    stdout_line!(
         "{}: {} frames x {} vertices -> {}; {} solver, {} iterations, residual {:.1e}; energy {:.4e} (zero flow {:.4e}); {:.2} s -> {}",
         args.input.display(),
         n_frames,
@@ -211,19 +211,19 @@ fn print_result(
         result.timings.total,
         args.out.display()
     );
-    println!(
+    stdout_line!(
         "{}",
         describe_weights(&result.weights, params, result.intrinsic.len())
     );
-    println!("solver: {}", describe_solver(result));
+    stdout_line!("solver: {}", describe_solver(result));
     if !result.timings.steps.is_empty() {
-        println!("{}", describe_steps(result));
+        stdout_line!("{}", describe_steps(result));
     }
     if let Some(line) = describe_anisotropy(params, result) {
-        println!("{line}");
+        stdout_line!("{line}");
     }
     if result.reweightings > 0 {
-        println!(
+        stdout_line!(
             "robust smoothness ({}{}): {} reweighted solves until the energy settled",
             match params.flow_driven {
                 FlowDriven::Isotropic => "flow-driven isotropic",

@@ -141,9 +141,9 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
         let mut surface = find_surface_consuming(volume, &request.finding)
             .map_err(|e| Error::from(e).in_file(format!("{} (frame {k})", file.display())))?;
         bar.suspend(|| {
-            println!("  frame {k:3}: {}", describe_found(&surface));
+            stdout_line!("  frame {k:3}: {}", describe_found(&surface));
             for warning in surface.warnings() {
-                eprintln!("meshflow: warning: frame {k}: {warning}");
+                stderr_line!("meshflow: warning: frame {k}: {warning}");
             }
         });
         // The mesh moves to the tracker; `found` keeps the report (`vertices`, `faces`).
@@ -161,10 +161,11 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
     let vertices = request.vertices.min(found[0].vertices / 2);
     if vertices < request.vertices {
         bar.suspend(|| {
-            println!(
+            stdout_line!(
                 "frame 0's surface has {} vertices: the tracked mesh gets {vertices} (half; {} \
                  were asked)",
-                found[0].vertices, request.vertices
+                found[0].vertices,
+                request.vertices
             )
         });
     }
@@ -382,7 +383,7 @@ fn print_report(fitted: &FittedSurface, points: &Path, out: &Path, voxels: Voxel
         ),
         Reference::Plane { .. } => "a height over the plane z = 0".to_string(),
     };
-    println!(
+    stdout_line!(
         "{}: {} -> {reference}: {} vertices, {} faces, mean edge {:.3e} -> {}",
         points.display(),
         crate::plural(fitted.positions.len(), "frame"),
@@ -402,7 +403,7 @@ fn print_report(fitted: &FittedSurface, points: &Path, out: &Path, voxels: Voxel
             ),
             None => String::new(),
         };
-        println!(
+        stdout_line!(
             "  frame {k:3}: {found}{} points ({} outside the surface), height residual rms {:.3e}, max {:.3e}",
             fit.points, fit.dropped, fit.rms_residual, fit.max_residual
         );
@@ -440,7 +441,7 @@ pub fn write_tracks(points: &Path, out: &Path, max_distance: Option<f64>) -> Res
     let (shape, values) = tracks.to_array();
     write_npy(out, &shape, &values)?;
     let pairs = tracks.pairs_per_slab();
-    println!(
+    stdout_line!(
         "{}: {} frames of {} points -> {} tracks, matched within {bound:.4e}: {} pairs per slab -> {}",
         points.display(),
         frames.len(),

@@ -77,7 +77,7 @@ pub fn run(request: TrackRequest) -> Result<(), Error> {
     staged.commit()?;
     print_summary(&tracked, request.out);
     if image.is_none() {
-        eprintln!(
+        stderr_line!(
             "meshflow: warning: the frames have no image (vertex colours, texture or a PLY \
              property): intensity.npy not written, and `meshflow solve` on the result will need \
              --intensity FILE.npy of shape (frames, {} vertices); or track again with \
@@ -301,7 +301,7 @@ fn print_header(input: &Path, frames: &[TrackFrame], options: &TrackOptions) {
             format!("normal motion and ARAP relaxation ({iterations} steps)")
         }
     };
-    println!(
+    stdout_line!(
         "{}: tracking {} frames by {relaxation}, {reference}, align {:?}; per frame, against \
          the previous frame (frame 0: the reference projected onto frame 0; worst_*_change: \
          against the reference):",
@@ -313,7 +313,7 @@ fn print_header(input: &Path, frames: &[TrackFrame], options: &TrackOptions) {
 
 pub(crate) fn print_summary(tracked: &Tracked, out: &Path) {
     let mesh = tracked.sequence.mesh();
-    println!(
+    stdout_line!(
         "{} frames tracked on {} vertices, {} faces (step bound {:.3e}) -> {}",
         tracked.sequence.n_frames(),
         mesh.n_vertices(),
@@ -322,7 +322,7 @@ pub(crate) fn print_summary(tracked: &Tracked, out: &Path) {
         out.display()
     );
     for warning in &tracked.report.warnings {
-        eprintln!("meshflow: warning: {warning}");
+        stderr_line!("meshflow: warning: {warning}");
     }
 }
 
@@ -344,7 +344,7 @@ pub(crate) fn tracked_with_progress(
 pub(crate) fn show_event(bar: &Progress, event: TrackEvent) {
     match event {
         TrackEvent::Frame(report) => {
-            bar.suspend(|| println!("  {}", describe(report)));
+            bar.suspend(|| stdout_line!("  {}", describe(report)));
             bar.inc(1);
         }
         TrackEvent::Trimmed {
@@ -353,7 +353,7 @@ pub(crate) fn show_event(bar: &Progress, event: TrackEvent) {
             remaining,
         } => {
             bar.suspend(|| {
-                println!(
+                stdout_line!(
                     "  frame {frame:3}: {uncovered} reference vertices lie beyond the frame's \
                      boundary: trimmed to {remaining} vertices, tracking again from frame 0"
                 )

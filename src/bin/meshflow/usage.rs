@@ -22,7 +22,7 @@ pub(crate) fn usage_error(error: clap::Error) -> ExitCode {
         .filter(|line| !line.is_empty() && !line.starts_with("For more information"))
         .collect();
     let hint = glob_hint(&error).unwrap_or_default();
-    eprintln!(
+    stderr_line!(
         "meshflow: {}{hint} (see meshflow --help)",
         message.join(" ")
     );
