@@ -12,6 +12,11 @@
 //!   four bytes an entry. At the rate this machine streams an `f32` array on `T` threads (the
 //!   fastest of five passes over 1 GB), an iteration cannot take less than those bytes' time.
 //!
+//! - **First touches.** The pages the solve maps on first touch (4 KB each, most of them the
+//!   new factors'; faer zeroes a factor before it factors) and the system time of the solve:
+//!   on this machine a fault costs 1.7–8 µs, varying between runs (docs/scaling.md, "The
+//!   paper size against its floors").
+//!
 //! `cargo run --release --example bench_floor [-- N1 N2 FRAMES]` (default 255 190 20).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -51,7 +56,9 @@ fn main() -> Result<()> {
         })
         .fold(f64::INFINITY, f64::min);
     let stream = streaming_read_rate();
+    let before = Usage::now();
     let result = problem.solve(&|_| {})?;
+    let touched = Usage::now().since(&before);
 
     let factorization_floor = slabs as f64 * one_factorization / threads as f64;
     let iteration_bytes = slabs as f64 * 2.0 * cost.entries * 4.0;
@@ -95,7 +102,43 @@ fn main() -> Result<()> {
         "assembly            {:>6}      {:6.2} s",
         "", result.timings.assembly
     );
+    println!(
+        "first touches       {:.0} k page faults in the solve ({:.2} GB), {:.2} s of system time",
+        touched.minor_faults as f64 / 1e3,
+        touched.minor_faults as f64 * 4096.0 / 1e9,
+        touched.system_seconds
+    );
     Ok(())
+}
+
+/// What the kernel did for the process so far: the pages it mapped on first touch (the new
+/// factors' among them) and its CPU time doing so and the rest (`getrusage`).
+struct Usage {
+    minor_faults: i64,
+    system_seconds: f64,
+}
+
+impl Usage {
+    fn now() -> Self {
+        // SAFETY: `getrusage` fills the zeroed struct it is given.
+        let usage = unsafe {
+            let mut usage: libc::rusage = std::mem::zeroed();
+            libc::getrusage(libc::RUSAGE_SELF, &mut usage);
+            usage
+        };
+        let time = usage.ru_stime;
+        Self {
+            minor_faults: usage.ru_minflt,
+            system_seconds: time.tv_sec as f64 + time.tv_usec as f64 * 1e-6,
+        }
+    }
+
+    fn since(&self, earlier: &Self) -> Self {
+        Self {
+            minor_faults: self.minor_faults - earlier.minor_faults,
+            system_seconds: self.system_seconds - earlier.system_seconds,
+        }
+    }
 }
 
 /// A supernodal factor's size and the flops of its numeric factorization.
