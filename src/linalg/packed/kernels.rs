@@ -174,7 +174,7 @@ impl Supernodes<'_> {
             macro_rules! narrow {
                 ($w:literal) => {{
                     let y = &mut columns.own[first..first + $w];
-                    let solved = narrow_lower_triangle::<E, $w, FMA>(l, ld, y);
+                    let solved = lower_triangle::<E, $w, FMA>(l, ld, y);
                     if below.len() > 0 {
                         let panels = std::array::from_fn(panel);
                         scatter::<E, $w, FMA, WHOLE>(panels, solved, below, columns)
@@ -251,14 +251,7 @@ fn lower_block<E: Entry, const W: usize, const FMA: bool>(
     update: &mut [f32],
 ) {
     let (solved, later) = y[c0..].split_at_mut(W);
-    for j in 0..W {
-        let yj = solved[j] / triangle[j * W + j].widen();
-        solved[j] = yj;
-        for i in j + 1..W {
-            solved[i] = madd::<FMA>(triangle[j * W + i].widen(), -yj, solved[i]);
-        }
-    }
-    let a: [f32; W] = std::array::from_fn(|t| solved[t]);
+    let a = lower_triangle::<E, W, FMA>(triangle, W, solved);
     tiled_axpy::<E, W, FMA>(later, inside, a.map(|a| -a));
     tiled_axpy::<E, W, FMA>(update, below, a);
 }
@@ -286,11 +279,12 @@ fn upper_block<E: Entry, const W: usize, const FMA: bool>(
     }
 }
 
-/// `L y = b` on the triangle of a narrow supernode `W` columns wide (faer's layout, `ld` rows
-/// a column) whose own columns are `y`: the solved values, also written to `y`. The width is
-/// known at compile time, so the triangle is straight-line code.
+/// `L y = b` on a triangle `W` columns wide, column-major with `ld` rows a column (a narrow
+/// supernode in faer's layout, `ld = w + m`; a wide supernode's block, `ld = W`), whose own
+/// columns are `y`: the solved values, also written to `y`. The width is known at compile
+/// time, so the triangle is straight-line code.
 #[inline(always)]
-fn narrow_lower_triangle<E: Entry, const W: usize, const FMA: bool>(
+fn lower_triangle<E: Entry, const W: usize, const FMA: bool>(
     l: &[E],
     ld: usize,
     y: &mut [f32],
@@ -307,7 +301,9 @@ fn narrow_lower_triangle<E: Entry, const W: usize, const FMA: bool>(
 }
 
 /// `Lᵀ x = y` on the triangle of a narrow supernode `W` columns wide, its own columns `y`, with
-/// `sums` its columns' dot products with the solved rows below.
+/// `sums` its columns' dot products with the solved rows below. (A wide supernode's block,
+/// [`upper_block`], adds its sums to the later columns' before subtracting: another rounding,
+/// so it keeps its own loop.)
 #[inline(always)]
 fn narrow_upper_triangle<E: Entry, const W: usize, const FMA: bool>(
     l: &[E],
