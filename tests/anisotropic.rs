@@ -524,7 +524,7 @@ fn the_anisotropic_energy_converges_at_second_order_on_the_sphere() {
                 let corner = face.map(|v| &frames[v as usize]);
                 let e = Regularizer::Covariant.element(
                     triangle,
-                    connection.face_rotations(f),
+                    &connection.face_rotations(f),
                     Some(corner),
                     Some(&d),
                 );

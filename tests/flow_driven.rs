@@ -39,7 +39,7 @@ fn the_gradient_structure_is_the_gradient_gram_matrix() {
     let mixed = Regularizer::Strain { dirichlet: 0.3 };
     for (f, face) in sequence.mesh().faces().iter().enumerate().take(40) {
         let triangle = slab.geometry.triangle(f);
-        let rotations = slab.connection.face_rotations(f);
+        let rotations = &slab.connection.face_rotations(f);
         let g = triangle.hat_gradients();
         let gradient: Matrix2<f64> = (0..3)
             .map(|a| rotations[a] * u[face[a] as usize] * g[a].transpose())

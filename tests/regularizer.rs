@@ -39,7 +39,7 @@ fn energy(
             let corner = face.map(|v| &frames[v as usize]);
             let e = regularizer.element(
                 geometry.triangle(f),
-                connection.face_rotations(f),
+                &connection.face_rotations(f),
                 Some(corner),
                 None,
             );

@@ -53,17 +53,18 @@ pub struct Connection {
     vertex_scales: Vec<f64>,
     /// Vertex-frame polar angle of each halfedge at its tail vertex.
     halfedge_angles: Vec<f64>,
-    /// `R_{T,i}` as matrices (the element assembly's hot path needs no trigonometry); the
-    /// angles `r_{T,i}` are not kept besides (24 bytes per face and slab: 0.46 GB at 200 frames
-    /// of 96,900 faces), [`Self::corner_rotation_angle`] reads them off the matrices.
-    corner_matrices: Vec<[Matrix2<f64>; 3]>,
+    /// `R_{T,i}` as `(cos r_{T,i}, sin r_{T,i})`: the element assembly's hot path needs no
+    /// trigonometry, and the two numbers are half of the matrix (48 bytes per face and slab
+    /// less: 88 MB at paper size). The angles are not kept besides,
+    /// [`Self::corner_rotation_angle`] reads them off the pairs.
+    corner_rotations: Vec<[[f64; 2]; 3]>,
 }
 
 impl Connection {
     pub fn new(mesh: &Mesh, geometry: &IntrinsicGeometry) -> Self {
         let mut vertex_scales = vec![1.0; mesh.n_vertices()];
         let mut halfedge_angles = vec![0.0; mesh.n_halfedges()];
-        let mut corner_rotations = vec![[0.0; 3]; mesh.n_faces()];
+        let mut corner_rotations = vec![[[1.0, 0.0]; 3]; mesh.n_faces()];
         for (i, scale) in vertex_scales.iter_mut().enumerate() {
             if !mesh.is_boundary_vertex(i) {
                 *scale = 2.0 * PI / geometry.vertex_angle_sums()[i];
@@ -75,19 +76,17 @@ impl Connection {
                 let theta = triangle.angles[c];
                 let vartheta = *scale * swept;
                 halfedge_angles[corner.first_halfedge()] = vartheta;
-                corner_rotations[f][c] =
-                    triangle.first_edge_angles()[c] - vartheta + theta * (1.0 - *scale) / 2.0;
+                let (sin, cos) = (triangle.first_edge_angles()[c] - vartheta
+                    + theta * (1.0 - *scale) / 2.0)
+                    .sin_cos();
+                corner_rotations[f][c] = [cos, sin];
                 swept += theta;
             }
         }
-        let corner_matrices = corner_rotations
-            .iter()
-            .map(|angles| angles.map(rotation))
-            .collect();
         Self {
             vertex_scales,
             halfedge_angles,
-            corner_matrices,
+            corner_rotations,
         }
     }
 
@@ -127,18 +126,18 @@ impl Connection {
 
     /// `r_{T,i}` for face `face` and local corner `local`, in `(−π, π]`.
     pub fn corner_rotation_angle(&self, face: usize, local: usize) -> f64 {
-        let r = &self.corner_matrices[face][local];
-        r[(1, 0)].atan2(r[(0, 0)])
+        let [cos, sin] = self.corner_rotations[face][local];
+        sin.atan2(cos)
     }
 
     /// `R_{T,i}`: maps a vertex-frame vector at corner `local` of `face` into the face frame.
     pub fn vertex_to_face(&self, face: usize, local: usize) -> Matrix2<f64> {
-        self.corner_matrices[face][local]
+        rotation_matrix(self.corner_rotations[face][local])
     }
 
     /// `[R_{T,a}, R_{T,b}, R_{T,c}]` for face `T = face`.
-    pub fn face_rotations(&self, face: usize) -> &[Matrix2<f64>; 3] {
-        &self.corner_matrices[face]
+    pub fn face_rotations(&self, face: usize) -> [Matrix2<f64>; 3] {
+        self.corner_rotations[face].map(rotation_matrix)
     }
 
     /// `ρ_{ij}` for halfedge `h = i→j`: the rotation angle that carries a vector at `i` to `j`.
@@ -219,6 +218,11 @@ impl Connection {
 /// The counter-clockwise rotation by `angle`.
 pub fn rotation(angle: f64) -> Matrix2<f64> {
     let (s, c) = angle.sin_cos();
+    rotation_matrix([c, s])
+}
+
+/// The rotation with cosine and sine `[c, s]`.
+fn rotation_matrix([c, s]: [f64; 2]) -> Matrix2<f64> {
     Matrix2::new(c, -s, s, c)
 }
 

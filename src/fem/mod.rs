@@ -74,7 +74,7 @@ pub fn connection_laplacian(
     assemble_vector(mesh, |f| {
         element::vector_element(
             &element::cotan_stiffness(geometry.triangle(f)),
-            connection.face_rotations(f),
+            &connection.face_rotations(f),
         )
     })
 }
@@ -91,7 +91,7 @@ pub fn vector_mass(
         MassKind::Consistent => assemble_vector(mesh, |f| {
             element::vector_element(
                 &element::consistent_mass(geometry.triangle(f)),
-                connection.face_rotations(f),
+                &connection.face_rotations(f),
             )
         }),
         MassKind::Lumped => diagonal_matrix(

@@ -126,7 +126,7 @@ fn spatial_terms(
         terms.data += slab.dt
             * (x.dot(&(e.data.quadratic * x)) + 2.0 * e.data.linear.dot(&x) + e.data.constant);
         if weights.beta != 0.0 {
-            let rotations = slab.connection.face_rotations(f);
+            let rotations = &slab.connection.face_rotations(f);
             terms.speed +=
                 slab.dt * weights.beta * element::vector_form(&e.mass, rotations, &x, &x);
         }

@@ -8,6 +8,7 @@ use super::{energy, robust, slab, solve, uniqueness, warp};
 use super::{DataScales, EnergyTerms, FlowError, FlowParams, MeshSequence, Slab};
 use super::{SolveObserver, SolverMethod, SpaceTimeSystem, Weights};
 use crate::connection::{push_forward, vertex_frames_in_r3};
+use crate::mesh::Mesh;
 use nalgebra::{Vector2, Vector3};
 use std::borrow::Cow;
 use std::time::Instant;
@@ -134,12 +135,19 @@ impl FlowResult {
     }
 }
 
-/// Slab geometry and connection kept after assembly up to this many bytes (an estimate: about
-/// 200 bytes per face and slab); beyond it they are rebuilt for the energy terms and the
+/// Slab geometry and connection kept after assembly up to this many bytes
+/// ([`kept_slab_bytes`]); beyond it they are rebuilt for the energy terms and the
 /// push-forward, in one pass that builds each slab about once more (it was three times: on
 /// the 200-frame torus that pass took 8.8 s, 19× the 20-frame one), which bounds the memory
 /// per frame.
 pub const KEEP_SLABS_BYTES: usize = 1 << 30;
+
+/// The bytes `slabs` slabs' geometry and connections take on `mesh`: per face the triangle
+/// (80), the corner rotations (48), its share of the edge lengths and vertex arrays (about 20),
+/// and 8 per halfedge (the polar angles).
+pub(super) fn kept_slab_bytes(mesh: &Mesh, slabs: usize) -> usize {
+    slabs * (150 * mesh.n_faces() + 8 * mesh.n_halfedges())
+}
 
 /// A sequence with parameters, assembled: the energy and its linear system, ready to solve.
 pub struct FlowProblem<'a> {
@@ -208,7 +216,7 @@ impl<'a> FlowProblem<'a> {
         uniqueness::check_unique_minimizer(mesh, &checked, params, &weights, &one)?;
         let analysis = sequence.slab_symbolic_cache();
         let system = SpaceTimeSystem::assemble(mesh, &slabs, &links, params, &weights, analysis);
-        let slab_bytes = slabs.len() * (200 * mesh.n_faces() + 8 * mesh.n_halfedges());
+        let slab_bytes = kept_slab_bytes(mesh, slabs.len());
         let contrasts = slabs.iter().filter_map(|slab| slab.contrast).collect();
         let slabs = match slab_bytes <= KEEP_SLABS_BYTES || !rebuildable {
             true => Some(slabs),
@@ -372,7 +380,7 @@ pub(super) fn energy_and_vectors<'a>(
 
 /// The flow `u` of `slab` in R^3 on the slab's first frame, at `positions`.
 pub(super) fn slab_vectors(
-    mesh: &crate::mesh::Mesh,
+    mesh: &Mesh,
     slab: &Slab,
     positions: &[Vector3<f64>],
     u: &[Vector2<f64>],

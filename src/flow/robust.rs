@@ -340,7 +340,7 @@ pub fn gradient_structure(
     u: &[Vector2<f64>],
 ) -> Matrix2<f64> {
     let triangle = slab.geometry.triangle(f);
-    let rotations = slab.connection.face_rotations(f);
+    let rotations = &slab.connection.face_rotations(f);
     let x = corner_values(face, u);
     let density = |d: Matrix2<f64>| {
         let e = regularizer.element(triangle, rotations, None, Some(&d));

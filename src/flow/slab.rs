@@ -124,7 +124,7 @@ impl Slab {
     /// each rate shifted by the linearization (if any).
     fn data_element(&self, face: &[u32; 3], f: usize) -> DataElement {
         let triangle = self.geometry.triangle(f);
-        let rotations = self.connection.face_rotations(f);
+        let rotations = &self.connection.face_rotations(f);
         let at = |values: &[f64]| face.map(|v| values[v as usize]);
         let mut sum = DataElement::zero();
         for channel in &self.channels {
@@ -166,7 +166,7 @@ impl Slab {
     /// so that terms of one block that are scalar forms (speed, the time links' parts) are
     /// summed first and transported once.
     pub fn vector_form_element(&self, f: usize, m: &Matrix3<f64>) -> Matrix6<f64> {
-        element::vector_element(m, self.connection.face_rotations(f))
+        element::vector_element(m, &self.connection.face_rotations(f))
     }
 
     /// `regularizer`'s element of face `f` on this slab (its frames and tensor, if set),
@@ -179,7 +179,7 @@ impl Slab {
     ) -> Matrix6<f64> {
         regularizer.element(
             self.geometry.triangle(f),
-            self.connection.face_rotations(f),
+            &self.connection.face_rotations(f),
             self.corner_frames(face),
             self.diffusion_tensors.as_ref().map(|d| &d[f]),
         )
@@ -362,8 +362,8 @@ impl TimeLink {
     ) -> Matrix6<f64> {
         let scalar = self.scalar_element(before, after, f, coupling);
         let (r0, r1) = (
-            before.connection.face_rotations(f),
-            after.connection.face_rotations(f),
+            &before.connection.face_rotations(f),
+            &after.connection.face_rotations(f),
         );
         -element::rotated_element(&scalar, r1, r0, &self.polar_rotation(f))
     }
@@ -373,8 +373,8 @@ impl TimeLink {
     pub fn lumped_cross_blocks(&self, before: &Slab, after: &Slab, f: usize) -> [Matrix2<f64>; 3] {
         let weight = self.face_coupling(before, after, f) / 3.0;
         let (r0, r1) = (
-            before.connection.face_rotations(f),
-            after.connection.face_rotations(f),
+            &before.connection.face_rotations(f),
+            &after.connection.face_rotations(f),
         );
         let q = self.polar_rotation(f);
         std::array::from_fn(|a| -(r1[a].transpose() * q * r0[a]) * weight)
@@ -394,8 +394,8 @@ impl TimeLink {
     ) -> f64 {
         let scalar = self.scalar_element(before, after, f, coupling);
         let (r0, r1) = (
-            before.connection.face_rotations(f),
-            after.connection.face_rotations(f),
+            &before.connection.face_rotations(f),
+            &after.connection.face_rotations(f),
         );
         let q = self.polar_rotation(f);
         let w: [Vector2<f64>; 3] = std::array::from_fn(|a| {

@@ -21,7 +21,9 @@
 
 use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, TimeRanks};
 use super::outer::{OuterStart, SlabSolver};
-use super::problem::{energy_and_vectors, intrinsic_fields, FlowResult, Timings, KEEP_SLABS_BYTES};
+use super::problem::{
+    energy_and_vectors, intrinsic_fields, kept_slab_bytes, FlowResult, Timings, KEEP_SLABS_BYTES,
+};
 use super::robust::reweighted;
 use super::slab::{build_slabs, complete_slabs, time_links, Slab};
 use super::system::SystemWindow;
@@ -199,8 +201,7 @@ impl WindowSlabs {
     /// Drops the slabs when they take more than [`KEEP_SLABS_BYTES`] (as [`super::FlowProblem`]
     /// does): the energy and the flow in R^3 rebuild them one at a time after the solve.
     fn release_large(&mut self, frames: &MeshSequence) {
-        let mesh = frames.mesh();
-        let bytes = self.slabs.len() * (200 * mesh.n_faces() + 8 * mesh.n_halfedges());
+        let bytes = kept_slab_bytes(frames.mesh(), self.slabs.len());
         if self.rebuildable && bytes > KEEP_SLABS_BYTES {
             self.slabs = Vec::new();
         }
