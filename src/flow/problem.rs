@@ -135,11 +135,11 @@ impl FlowResult {
     }
 }
 
-/// Slab geometry and connection kept after assembly up to this many bytes
-/// ([`kept_slab_bytes`]); beyond it they are rebuilt for the energy terms and the
-/// push-forward, in one pass that builds each slab about once more (it was three times: on
-/// the 200-frame torus that pass took 8.8 s, 19× the 20-frame one), which bounds the memory
-/// per frame.
+/// Slab geometry and connection kept after assembly up to this many bytes (estimated at 150
+/// bytes per face and slab and 8 per halfedge); beyond it they are rebuilt for the energy
+/// terms and the push-forward, in one pass that builds each slab about once more (it was three
+/// times: on the 200-frame torus that pass took 8.8 s, 19× the 20-frame one), which bounds the
+/// memory per frame.
 pub const KEEP_SLABS_BYTES: usize = 1 << 30;
 
 /// The bytes `slabs` slabs' geometry and connections take on `mesh`: per face the triangle

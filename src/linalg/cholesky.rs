@@ -165,9 +165,21 @@ impl<T: Precision> CholeskyFactor<T> {
         matrix: SparseMatrixRef<'_>,
         par: Par,
     ) -> Result<Self, String> {
+        Self::new_in(symbolic, matrix, par, Vec::new())
+    }
+
+    /// [`Self::new`], writing `L` into `values` (whatever it holds; its pages already mapped
+    /// where it held a factor before, [`super::factor::SpareValues`]).
+    pub fn new_in(
+        symbolic: &Arc<SymbolicCholesky<usize>>,
+        matrix: SparseMatrixRef<'_>,
+        par: Par,
+        mut values: Vec<T>,
+    ) -> Result<Self, String> {
         let (pattern, entries) = matrix.parts();
         let rounded: Vec<T> = entries.iter().map(|&v| T::from_f64(v)).collect();
-        let mut values = vec![T::from_f64(0.0); symbolic.len_val()];
+        values.clear();
+        values.resize(symbolic.len_val(), T::from_f64(0.0));
         let scratch = symbolic.factorize_numeric_llt_scratch::<T>(par, Default::default());
         symbolic
             .factorize_numeric_llt::<T>(

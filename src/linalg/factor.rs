@@ -16,7 +16,44 @@ use super::packed::{Entry, Halves, PackedFactor};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
 use std::cell::Cell;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
+
+/// `f32` buffers of factors given up (faer's output of a factor rounded to bfloat16, an `f32`
+/// factor rounded, its column-major copy), for the next factorizations to write into. A new
+/// buffer maps each of its pages on first touch, a page fault apiece (several microseconds on
+/// a virtual machine); one taken from here has its pages mapped already. It holds at most
+/// `capacity` buffers (one per thread that factors at once), and dropping it frees them.
+pub struct SpareValues {
+    buffers: Mutex<Vec<Vec<f32>>>,
+    capacity: usize,
+}
+
+impl SpareValues {
+    /// Room for one buffer per thread of the current rayon pool.
+    pub fn per_thread() -> Self {
+        Self {
+            buffers: Mutex::new(Vec::new()),
+            capacity: rayon::current_num_threads(),
+        }
+    }
+
+    /// A spare buffer (empty if none is left): its contents are to be overwritten.
+    pub fn take(&self) -> Vec<f32> {
+        self.lock().pop().unwrap_or_default()
+    }
+
+    /// Keeps `buffer` for a later [`Self::take`], or frees it when the spares are full.
+    pub fn give(&self, buffer: Vec<f32>) {
+        let mut buffers = self.lock();
+        if buffers.len() < self.capacity {
+            buffers.push(buffer);
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Vec<Vec<f32>>> {
+        self.buffers.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+}
 
 /// A factor that a preconditioner solves with.
 pub trait SlabFactor: Sized + Send + Sync {
@@ -32,16 +69,18 @@ pub trait SlabFactor: Sized + Send + Sync {
     const ELIMINATES: bool = Self::ENTRY_BYTES >= 4;
     /// The factor multigrid's levels use when slab Gauss–Seidel started with this one.
     type Compressed: SlabFactor;
-    /// Factors `matrix`, single-threaded; `Err` carries the reason it is not numerically
-    /// positive definite.
+    /// Factors `matrix`, single-threaded, with the buffers of `spare` where it needs `f32`
+    /// ones; `Err` carries the reason it is not numerically positive definite.
     fn factor(
         symbolic: &Arc<SymbolicCholesky<usize>>,
         matrix: SparseMatrixRef<'_>,
+        spare: &SpareValues,
     ) -> Result<Self, String>;
     /// `x ← A⁻¹ x`, on two threads where `halves` says so and the factor can.
     fn solve(&self, x: &mut [f64], halves: Halves);
     fn entries(&self) -> FactorEntries;
-    fn compress(self) -> Self::Compressed;
+    /// The factor in the precision of [`Self::Compressed`], the buffers it gives up to `spare`.
+    fn compress(self, spare: &SpareValues) -> Self::Compressed;
 }
 
 /// Double precision, the fallback for blocks too ill-conditioned for single: faer's factor
@@ -58,6 +97,7 @@ impl SlabFactor for CholeskyFactor<f64> {
     fn factor(
         symbolic: &Arc<SymbolicCholesky<usize>>,
         matrix: SparseMatrixRef<'_>,
+        _: &SpareValues,
     ) -> Result<Self, String> {
         Self::new(symbolic, matrix, Par::Seq)
     }
@@ -70,7 +110,7 @@ impl SlabFactor for CholeskyFactor<f64> {
         CholeskyFactor::entries(self)
     }
 
-    fn compress(self) -> Self {
+    fn compress(self, _: &SpareValues) -> Self {
         self
     }
 }
@@ -80,20 +120,26 @@ impl SlabFactor for CholeskyFactor<f64> {
 pub trait PackedEntry: Entry {
     const NAME: &'static str;
     type Compressed: SlabFactor;
-    fn pack(factor: CholeskyFactor<f32>) -> PackedFactor<Self>;
-    fn compress(factor: PackedFactor<Self>) -> Self::Compressed;
+    /// The packed factor of faer's `factor`, whose buffer goes to `spare` if not kept.
+    fn pack(factor: CholeskyFactor<f32>, spare: &SpareValues) -> PackedFactor<Self>;
+    fn compress(factor: PackedFactor<Self>, spare: &SpareValues) -> Self::Compressed;
 }
 
 impl PackedEntry for f32 {
     const NAME: &'static str = "single precision";
     type Compressed = Bf16Factor;
 
-    fn pack(factor: CholeskyFactor<f32>) -> PackedFactor<f32> {
+    fn pack(factor: CholeskyFactor<f32>, _: &SpareValues) -> PackedFactor<f32> {
         PackedFactor::new(factor)
     }
 
-    fn compress(factor: PackedFactor<f32>) -> Bf16Factor {
-        Bf16Factor::rounding(factor.symbolic(), &factor.column_major_values())
+    fn compress(factor: PackedFactor<f32>, spare: &SpareValues) -> Bf16Factor {
+        let mut column_major = spare.take();
+        factor.column_major_values_into(&mut column_major);
+        let rounded = Bf16Factor::rounding(factor.symbolic(), &column_major);
+        spare.give(column_major);
+        spare.give(factor.into_values());
+        rounded
     }
 }
 
@@ -101,11 +147,13 @@ impl PackedEntry for Bf16 {
     const NAME: &'static str = "bfloat16";
     type Compressed = Bf16Factor;
 
-    fn pack(factor: CholeskyFactor<f32>) -> Bf16Factor {
-        Bf16Factor::rounding(factor.symbolic(), factor.values())
+    fn pack(factor: CholeskyFactor<f32>, spare: &SpareValues) -> Bf16Factor {
+        let rounded = Bf16Factor::rounding(factor.symbolic(), factor.values());
+        spare.give(factor.into_parts().1);
+        rounded
     }
 
-    fn compress(factor: Bf16Factor) -> Bf16Factor {
+    fn compress(factor: Bf16Factor, _: &SpareValues) -> Bf16Factor {
         factor
     }
 }
@@ -119,12 +167,14 @@ impl<E: PackedEntry> SlabFactor for PackedFactor<E> {
         PackedFactor::<E>::bytes_at_most(symbolic)
     }
 
-    /// Factors in `f32` (faer), then packs.
+    /// Factors in `f32` (faer, into a spare buffer), then packs.
     fn factor(
         symbolic: &Arc<SymbolicCholesky<usize>>,
         matrix: SparseMatrixRef<'_>,
+        spare: &SpareValues,
     ) -> Result<Self, String> {
-        CholeskyFactor::<f32>::new(symbolic, matrix, Par::Seq).map(E::pack)
+        CholeskyFactor::<f32>::new_in(symbolic, matrix, Par::Seq, spare.take())
+            .map(|factor| E::pack(factor, spare))
     }
 
     /// With one scratch buffer per thread: a fresh one per solve would be fresh pages. The
@@ -144,7 +194,7 @@ impl<E: PackedEntry> SlabFactor for PackedFactor<E> {
         PackedFactor::entries(self)
     }
 
-    fn compress(self) -> E::Compressed {
-        E::compress(self)
+    fn compress(self, spare: &SpareValues) -> E::Compressed {
+        E::compress(self, spare)
     }
 }

@@ -37,7 +37,7 @@ use super::{gauss_seidel_verdict, levels_keep_precision, probe_give_up};
 use crate::flow::system::{dot, SystemWindow};
 use crate::flow::{FlowError, FlowParams, LinkMatrix, SolverChoice, SpaceTimeSystem};
 use crate::linalg::cholesky::{CholeskyFactor, FactorEntries};
-use crate::linalg::factor::SlabFactor;
+use crate::linalg::factor::{SlabFactor, SpareValues};
 use crate::linalg::packed::PackedFactor;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use nalgebra::Matrix2;
@@ -425,7 +425,9 @@ impl<'a> WindowJob<'a> {
     /// slow (as one process does).
     fn run<F: SlabFactor>(&self) -> Result<Solution, FlowError> {
         let symbolic = self.window.system.slab_symbolic();
-        let mut levels = factor_levels::<F>(vec![self.fine_plan()], symbolic, self.ranks)?;
+        let spare = SpareValues::per_thread();
+        let mut levels = factor_levels::<F>(vec![self.fine_plan()], symbolic, self.ranks, &spare)?;
+        drop(spare);
         let b = self.window.system.rhs();
         let stop = pcg::Stop::new(self.params.tolerance, self.params.max_iterations);
         let (x, done, reason) = match self.multigrid {
@@ -457,20 +459,26 @@ impl<'a> WindowJob<'a> {
             reason,
         };
         let seconds = factored.factor_seconds;
+        let spare = SpareValues::per_thread();
         match levels_keep_precision::<F>(symbolic, self.window.n_slabs_in_all) {
-            true => self.multigrid(factored.sweeps, seconds, symbolic, start),
-            false => self.multigrid(factored.sweeps.compress(), seconds, symbolic, start),
+            true => self.multigrid(factored.sweeps, seconds, symbolic, start, spare),
+            false => {
+                let compressed = factored.sweeps.compress(&spare);
+                self.multigrid(compressed, seconds, symbolic, start, spare)
+            }
         }
     }
 
     /// CG with multigrid in time from `start`, the fine level's sweeps given (factored in
-    /// `fine_seconds`) and the coarse levels factored as type `F`.
+    /// `fine_seconds`) and the coarse levels factored as type `F` (into `spare`'s buffers,
+    /// freed before CG).
     fn multigrid<F: SlabFactor>(
         &self,
         fine: SlabSweeps<F>,
         fine_seconds: f64,
         symbolic: &Arc<SymbolicCholesky<usize>>,
         start: Continuation,
+        spare: SpareValues,
     ) -> Result<Solution, FlowError> {
         let (plans, n_levels_in_all) = build_levels(self.window, self.windows, self.ranks);
         let mut plans = plans.into_iter();
@@ -479,7 +487,8 @@ impl<'a> WindowJob<'a> {
             sweeps: fine,
             factor_seconds: fine_seconds,
         };
-        let coarse = factor_levels::<F>(plans.collect(), symbolic, self.ranks)?;
+        let coarse = factor_levels::<F>(plans.collect(), symbolic, self.ranks, &spare)?;
+        drop(spare);
         let levels: Vec<Level<'_, F>> = std::iter::once(fine).chain(coarse).collect();
         let Continuation { x, stop, reason } = start;
         let outcome = self.pcg(&levels, n_levels_in_all, x, stop)?;
@@ -628,12 +637,14 @@ fn build_levels<'a>(
     (levels, n_levels_in_all)
 }
 
-/// The levels of `plans` with their slab factors in precision `T`; an error on any rank fails
-/// them on all (so that all ranks retry in double precision together).
+/// The levels of `plans` with their slab factors in precision `T` (in `spare`'s buffers where
+/// it has some); an error on any rank fails them on all (so that all ranks retry in double
+/// precision together).
 fn factor_levels<'a, F: SlabFactor>(
     plans: Vec<LevelPlan<'a>>,
     symbolic: &Arc<SymbolicCholesky<usize>>,
     ranks: &dyn TimeRanks,
+    spare: &SpareValues,
 ) -> Result<Vec<Level<'a, F>>, FlowError> {
     let start = Instant::now();
     let slabs: Vec<(usize, usize)> = (plans.iter().enumerate())
@@ -648,7 +659,7 @@ fn factor_levels<'a, F: SlabFactor>(
                 Cow::Borrowed(_) => format!("slab {slab}"),
                 Cow::Owned(_) => format!("merged slab {slab} of a coarse time level"),
             };
-            F::factor(symbolic, window.system.block(s)).map_err(factorization_error(what))
+            F::factor(symbolic, window.system.block(s), spare).map_err(factorization_error(what))
         })
         .collect::<Result<Vec<_>, _>>();
     let mut failed = [f64::from(u8::from(factors.is_err()))];

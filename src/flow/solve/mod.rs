@@ -272,7 +272,7 @@ use super::system::SpaceTimeSystem;
 use super::{FlowError, FlowParams, SolverChoice};
 use crate::linalg::bfloat::Bf16Factor;
 use crate::linalg::cholesky::{analyze, CholeskyFactor, FactorEntries};
-use crate::linalg::factor::SlabFactor;
+use crate::linalg::factor::{SlabFactor, SpareValues};
 use crate::linalg::packed::PackedFactor;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::Par;
@@ -647,7 +647,8 @@ fn slab_pcg_in<F: SlabFactor>(job: SlabJob<'_>) -> Result<Solution, FlowError> {
     job.observer.notify(SolveEvent::Factorizing {
         slabs: system.n_slabs(),
     })?;
-    slab_pcg_with(job, plan.factor::<F>(&[system])?)
+    let fine = plan.factor::<F>(&[system], &SpareValues::per_thread())?;
+    slab_pcg_with(job, fine)
 }
 
 /// What [`slab_pcg_with`] needs besides the factors (factored since `start`).
@@ -710,9 +711,13 @@ fn slab_pcg_with<F: SlabFactor>(
         factor_seconds,
         coarse_start: Instant::now(),
     };
+    let spare = SpareValues::per_thread();
     match levels_keep_precision::<F>(plan.symbolic, system.n_slabs()) {
-        true => time_multigrid(job, fine, switch),
-        false => time_multigrid(job, fine.compress(), switch),
+        true => time_multigrid(job, fine, switch, spare),
+        false => {
+            let compressed = fine.compress(&spare);
+            time_multigrid(job, compressed, switch, spare)
+        }
     }
 }
 
@@ -760,11 +765,13 @@ struct Switch {
     coarse_start: Instant,
 }
 
-/// PCG with multigrid in time whose levels have factors of type `F`, the fine ones given.
+/// PCG with multigrid in time whose levels have factors of type `F`, the fine ones given, the
+/// coarse ones factored into `spare`'s buffers (freed before CG).
 fn time_multigrid<F: SlabFactor>(
     job: SlabJob<'_>,
     fine: SlabSweeps<F>,
     switch: Switch,
+    spare: SpareValues,
 ) -> Result<Solution, FlowError> {
     let (system, observer) = (job.system, job.observer);
     let hierarchy = TimeHierarchy::new(system);
@@ -773,7 +780,8 @@ fn time_multigrid<F: SlabFactor>(
         slabs: coarse.iter().map(|c| c.n_slabs()).sum(),
     })?;
     let mut sweeps = vec![fine];
-    sweeps.extend(job.plan.factor::<F>(&coarse)?);
+    sweeps.extend(job.plan.factor::<F>(&coarse, &spare)?);
+    drop(spare);
     let factor_seconds = switch.factor_seconds + switch.coarse_start.elapsed().as_secs_f64();
     let factor_entries = sweeps.iter().map(SlabSweeps::entries).sum();
     let levels = sweeps.len();
@@ -878,10 +886,12 @@ impl<'a> FactorPlan<'a> {
         }
     }
 
-    /// One [`SlabSweeps`] per system, all factors computed in one parallel pass.
+    /// One [`SlabSweeps`] per system, all factors computed in one parallel pass (in `spare`'s
+    /// buffers where it has some).
     fn factor<F: SlabFactor>(
         &self,
         levels: &[&SpaceTimeSystem],
+        spare: &SpareValues,
     ) -> Result<Vec<SlabSweeps<F>>, FlowError> {
         let g = self.slabs_per_factor;
         let groups: Vec<(usize, usize)> = (0..levels.len())
@@ -902,7 +912,7 @@ impl<'a> FactorPlan<'a> {
                     Some(values) => system.block_pattern().view(values),
                     None => system.block(slabs.start),
                 };
-                F::factor(self.symbolic, block).map_err(factorization_error(what))
+                F::factor(self.symbolic, block, spare).map_err(factorization_error(what))
             })
             .collect::<Result<Vec<_>, _>>()?
             .into_iter();

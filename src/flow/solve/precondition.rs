@@ -3,7 +3,7 @@
 use super::pcg::Preconditioner;
 use crate::flow::system::SpaceTimeSystem;
 use crate::linalg::cholesky::FactorEntries;
-use crate::linalg::factor::SlabFactor;
+use crate::linalg::factor::{SlabFactor, SpareValues};
 use crate::linalg::packed::Halves;
 use rayon::prelude::*;
 
@@ -88,10 +88,13 @@ impl<F: SlabFactor> SlabSweeps<F> {
         &self.factors[slab / self.slabs_per_factor]
     }
 
-    /// The same sweeps with the factors multigrid's levels use ([`SlabFactor::Compressed`]).
-    pub fn compress(self) -> SlabSweeps<F::Compressed> {
+    /// The same sweeps with the factors multigrid's levels use ([`SlabFactor::Compressed`]),
+    /// the buffers given up left in `spare` for the levels' factorizations.
+    pub fn compress(self, spare: &SpareValues) -> SlabSweeps<F::Compressed> {
         SlabSweeps {
-            factors: self.factors.into_par_iter().map(F::compress).collect(),
+            factors: (self.factors.into_par_iter())
+                .map(|factor| factor.compress(spare))
+                .collect(),
             slabs_per_factor: self.slabs_per_factor,
         }
     }
@@ -331,7 +334,9 @@ mod tests {
             let system = problem.system();
             let symbolic = system.slab_symbolic();
             let factors = (0..system.n_slabs())
-                .map(|s| CholeskyFactor::<f64>::factor(symbolic, system.block(s)).unwrap())
+                .map(|s| {
+                    CholeskyFactor::<f64>::new(symbolic, system.block(s), faer::Par::Seq).unwrap()
+                })
                 .collect();
             check(system, &SlabSweeps::new(factors, 1, system.n_slabs()));
         }

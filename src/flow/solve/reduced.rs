@@ -235,6 +235,7 @@ mod tests {
     use crate::flow::system::for_each_column;
     use crate::flow::{FlowParams, FlowProblem, TimeCoupling};
     use crate::linalg::cholesky::CholeskyFactor;
+    use crate::linalg::factor::SpareValues;
     use crate::linalg::packed::PackedFactor;
     use nalgebra::{DMatrix, DVector};
 
@@ -260,7 +261,7 @@ mod tests {
     fn sweeps<F: SlabFactor>(system: &SpaceTimeSystem) -> SlabSweeps<F> {
         let symbolic = system.slab_symbolic();
         let factors = (0..system.n_slabs())
-            .map(|s| F::factor(symbolic, system.block(s)).unwrap())
+            .map(|s| F::factor(symbolic, system.block(s), &SpareValues::per_thread()).unwrap())
             .collect();
         SlabSweeps::new(factors, 1, system.n_slabs())
     }

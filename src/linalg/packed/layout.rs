@@ -145,13 +145,14 @@ pub fn to_blocked<E: Copy + Default>(
 }
 
 /// The values of blocked supernodes (`starts`, `shapes` as [`to_blocked`] left them) in
-/// faer's layout, the unused upper halves of the triangles zero.
+/// faer's layout, the unused upper halves of the triangles zero, written over `out`.
 pub fn to_column_major<E: Copy + Default>(
     values: &[E],
     starts: &[usize],
     shapes: impl Fn(usize) -> (usize, usize),
-) -> Vec<E> {
-    let mut out = Vec::new();
+    out: &mut Vec<E>,
+) {
+    out.clear();
     for s in 0..starts.len() - 1 {
         let (w, m) = shapes(s);
         let stored = &values[starts[s]..starts[s + 1]];
@@ -166,7 +167,6 @@ pub fn to_column_major<E: Copy + Default>(
             out.extend_from_slice(stored);
         }
     }
-    out
 }
 
 #[cfg(test)]
@@ -222,7 +222,8 @@ mod tests {
             .map(|&(w, m)| triangle_entries(w) + w * m)
             .sum();
         assert_eq!(values.len(), stored);
-        let back = to_column_major(&values, &blocked_starts, |s| shapes[s]);
+        let mut back = Vec::new();
+        to_column_major(&values, &blocked_starts, |s| shapes[s], &mut back);
         assert_eq!(back, expected);
     }
 }

@@ -195,13 +195,29 @@ impl<E: Entry> PackedFactor<E> {
 
     /// The stored entries in faer's layout (less the rows left out), the unused upper halves
     /// of the supernodes' triangles zero.
+    #[cfg(test)]
     pub fn column_major_values(&self) -> Vec<E> {
+        let mut values = Vec::new();
+        self.column_major_values_into(&mut values);
+        values
+    }
+
+    /// [`Self::column_major_values`], written over `out`.
+    pub fn column_major_values_into(&self, out: &mut Vec<E>) {
         match (self.symbolic.raw(), &self.kept) {
             (SymbolicCholeskyRaw::Supernodal(s), Some(kept)) => {
-                layout::to_column_major(&self.values, &kept.value_start, shapes(s, &kept.rows))
+                layout::to_column_major(&self.values, &kept.value_start, shapes(s, &kept.rows), out)
             }
-            _ => self.values.clone(),
+            _ => {
+                out.clear();
+                out.extend_from_slice(&self.values);
+            }
         }
+    }
+
+    /// The stored entries, the factor given up.
+    pub fn into_values(self) -> Vec<E> {
+        self.values
     }
 
     /// Overwrites `x` with `(L Lᵀ)⁻¹ x`, in `f32` arithmetic; `work` holds one permuted copy
