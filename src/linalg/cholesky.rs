@@ -178,8 +178,15 @@ impl<T: Precision> CholeskyFactor<T> {
     ) -> Result<Self, String> {
         let (pattern, entries) = matrix.parts();
         let rounded: Vec<T> = entries.iter().map(|&v| T::from_f64(v)).collect();
-        values.clear();
-        values.resize(symbolic.len_val(), T::from_f64(0.0));
+        let (len, zero) = (symbolic.len_val(), T::from_f64(0.0));
+        match values.capacity() < len {
+            // Zero pages from the system, mapped where faer writes first (no second pass).
+            true => values = vec![zero; len],
+            false => {
+                values.clear();
+                values.resize(len, zero);
+            }
+        }
         let scratch = symbolic.factorize_numeric_llt_scratch::<T>(par, Default::default());
         symbolic
             .factorize_numeric_llt::<T>(

@@ -198,3 +198,70 @@ impl<E: PackedEntry> SlabFactor for PackedFactor<E> {
         E::compress(self, spare)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::linalg::cholesky::analyze;
+    use crate::linalg::packed::tests::grid_block;
+
+    /// Two different blocks of one pattern: the grid with two diagonals.
+    fn two_blocks() -> (
+        Arc<SymbolicCholesky<usize>>,
+        [faer::sparse::SparseColMat<usize, f64>; 2],
+    ) {
+        let blocks = [grid_block(12, 10, 4.1), grid_block(12, 10, 40.0)];
+        (analyze(blocks[0].symbolic(), 2), blocks)
+    }
+
+    #[test]
+    fn a_factor_written_over_another_is_the_factor() {
+        let (symbolic, [a, b]) = two_blocks();
+        let fresh = CholeskyFactor::<f32>::new(&symbolic, a.as_ref(), Par::Seq).unwrap();
+        let other = CholeskyFactor::<f32>::new(&symbolic, b.as_ref(), Par::Seq).unwrap();
+        assert_ne!(fresh.values(), other.values());
+        let (_, used) = other.into_parts();
+        let over = CholeskyFactor::<f32>::new_in(&symbolic, a.as_ref(), Par::Seq, used).unwrap();
+        assert_eq!(over.values(), fresh.values());
+    }
+
+    #[test]
+    fn spare_buffers_give_the_same_packed_and_rounded_factors() {
+        let (symbolic, [a, b]) = two_blocks();
+        let none = SpareValues::per_thread();
+        let fresh_bf16 = Bf16Factor::factor(&symbolic, a.as_ref(), &none).unwrap();
+        let fresh_f32 = PackedFactor::<f32>::factor(&symbolic, a.as_ref(), &none).unwrap();
+        let reference = fresh_f32.column_major_values();
+        let fresh_rounded = fresh_f32.compress(&none);
+
+        // Spares holding another block's factor and its column-major copy.
+        let spare = SpareValues {
+            buffers: Mutex::new(Vec::new()),
+            capacity: 2,
+        };
+        let other = PackedFactor::<f32>::factor(&symbolic, b.as_ref(), &spare).unwrap();
+        let _ = other.compress(&spare);
+        assert_eq!(spare.lock().len(), 2);
+        let bf16 = Bf16Factor::factor(&symbolic, a.as_ref(), &spare).unwrap();
+        assert_eq!(bf16.column_major_values(), fresh_bf16.column_major_values());
+        let packed = PackedFactor::<f32>::factor(&symbolic, a.as_ref(), &spare).unwrap();
+        assert_eq!(packed.column_major_values(), reference);
+        let rounded = packed.compress(&spare);
+        assert_eq!(
+            rounded.column_major_values(),
+            fresh_rounded.column_major_values()
+        );
+    }
+
+    #[test]
+    fn spares_keep_at_most_their_capacity() {
+        let spare = SpareValues {
+            buffers: Mutex::new(Vec::new()),
+            capacity: 2,
+        };
+        assert!(spare.take().is_empty());
+        (1..=3).for_each(|n| spare.give(vec![1.0; n]));
+        let lengths: Vec<usize> = (0..3).map(|_| spare.take().len()).collect();
+        assert_eq!(lengths, [2, 1, 0]);
+    }
+}

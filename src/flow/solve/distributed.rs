@@ -425,9 +425,9 @@ impl<'a> WindowJob<'a> {
     /// slow (as one process does).
     fn run<F: SlabFactor>(&self) -> Result<Solution, FlowError> {
         let symbolic = self.window.system.slab_symbolic();
-        let spare = SpareValues::per_thread();
-        let mut levels = factor_levels::<F>(vec![self.fine_plan()], symbolic, self.ranks, &spare)?;
-        drop(spare);
+        let fine = vec![self.fine_plan()];
+        let mut levels =
+            factor_levels::<F>(fine, symbolic, self.ranks, &SpareValues::per_thread())?;
         let b = self.window.system.rhs();
         let stop = pcg::Stop::new(self.params.tolerance, self.params.max_iterations);
         let (x, done, reason) = match self.multigrid {
