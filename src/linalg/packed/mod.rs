@@ -193,8 +193,7 @@ impl<E: Entry> PackedFactor<E> {
         &self.symbolic
     }
 
-    /// The stored entries in faer's layout (less the rows left out), the unused upper halves
-    /// of the supernodes' triangles zero.
+    /// [`Self::column_major_values_into`] a new vector.
     #[cfg(test)]
     pub fn column_major_values(&self) -> Vec<E> {
         let mut values = Vec::new();
@@ -202,7 +201,8 @@ impl<E: Entry> PackedFactor<E> {
         values
     }
 
-    /// [`Self::column_major_values`], written over `out`.
+    /// The stored entries in faer's layout (less the rows left out), the unused upper halves
+    /// of the supernodes' triangles zero, written over `out`.
     pub fn column_major_values_into(&self, out: &mut Vec<E>) {
         match (self.symbolic.raw(), &self.kept) {
             (SymbolicCholeskyRaw::Supernodal(s), Some(kept)) => {
