@@ -100,7 +100,7 @@ fn rank_solve(
     rank.sum(&mut sums);
     let scales = ScaleSums::from_array(sums).scales();
     let system = slabs.assemble(&local, params, &scales).unwrap();
-    let solution = solve_window(&system, &rank, params, &|_| {}).unwrap();
+    let solution = solve_window(&system, &rank, params, None, &|_| {}).unwrap();
     (solution.u, solution.iterations)
 }
 

@@ -11,6 +11,7 @@
 use super::problem::{FlowProblem, FlowResult, SolveStep, Timings};
 use super::{DataScales, FlowError, FlowParams, MeshSequence};
 use super::{Slab, SolveObserver, Weights};
+use nalgebra::Vector2;
 use std::ops::Range;
 use std::time::Instant;
 
@@ -25,11 +26,13 @@ pub(super) trait SlabSolver {
 
     /// Minimizes the model of `params` on the frames' slabs `slabs` (all of them, in order); the
     /// result's flow is that of [`SlabSolver::own`], its energy terms the whole sequence's.
-    /// Collective over ranks.
+    /// The iterative solvers start from `start`, the own slabs' flow (the run's previous
+    /// solve's), or from zero. Collective over ranks.
     fn solve(
         &self,
         params: &FlowParams,
         slabs: Vec<Slab>,
+        start: Option<&[Vec<Vector2<f64>>]>,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError>;
 
@@ -75,9 +78,10 @@ impl SlabSolver for WholeSequence<'_> {
         &self,
         params: &FlowParams,
         slabs: Vec<Slab>,
+        start: Option<&[Vec<Vector2<f64>>]>,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError> {
-        FlowProblem::from_slabs(self.0, params, slabs)?.solve(observer)
+        FlowProblem::from_slabs(self.0, params, slabs)?.solve_from(start, observer)
     }
 
     fn sum(&self, _: &mut [f64]) {}

@@ -85,12 +85,15 @@ impl std::str::FromStr for FlowDriven {
 /// Charbonnier smoothness of scale `epsilon` (module docs), isotropic or anisotropic as
 /// `start.params.flow_driven` says; the result is the last reweighted solve's, with
 /// `reweightings` and `robust_scales` set and the robust energy (`energy_terms.spatial` the
-/// Charbonnier term). Over ranks, each rank reweights its own slabs.
+/// Charbonnier term). Over ranks, each rank reweights its own slabs. The first solve starts
+/// from `first_flow` (the own slabs', or zero), each later one from the flow before it (its
+/// weights are that flow's).
 pub(super) fn reweighted(
     solver: &dyn SlabSolver,
     start: &OuterStart,
     mut slabs: Vec<super::Slab>,
     epsilon: Scale,
+    first_flow: Option<&[Vec<Vector2<f64>>]>,
     observer: &dyn SolveObserver,
 ) -> Result<FlowResult, FlowError> {
     let mesh = solver.frames().mesh();
@@ -113,7 +116,7 @@ pub(super) fn reweighted(
             .collect(),
     };
     let mut clock = RunClock::start(start.assembly_seconds);
-    let mut result = solver.solve(&params, slabs.clone(), observer)?;
+    let mut result = solver.solve(&params, slabs.clone(), first_flow, observer)?;
     clock.end_step("first solve".into(), &result);
     // The penalty's arguments of the current flow on the own slabs: its energy, and the next
     // solve's weights.
@@ -127,7 +130,8 @@ pub(super) fn reweighted(
     while reweightings < MAX_REWEIGHTINGS {
         penalty.reweight(&mut slabs[own.clone()], &arguments);
         clock.begin_step();
-        result = solver.solve(&params, slabs.clone(), observer)?;
+        let last = Some(result.intrinsic.as_slice());
+        result = solver.solve(&params, slabs.clone(), last, observer)?;
         reweightings += 1;
         clock.end_step(format!("reweighting {reweightings}"), &result);
         arguments = penalty.arguments(mesh, &slabs[own.clone()], &result);

@@ -22,7 +22,8 @@
 use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, TimeRanks};
 use super::outer::{OuterStart, SlabSolver};
 use super::problem::{
-    energy_and_vectors, intrinsic_fields, kept_slab_bytes, FlowResult, Timings, KEEP_SLABS_BYTES,
+    energy_and_vectors, flat_unknowns, intrinsic_fields, kept_slab_bytes, FlowResult, Timings,
+    KEEP_SLABS_BYTES,
 };
 use super::robust::reweighted;
 use super::slab::{build_slabs, complete_slabs, time_links, Slab};
@@ -279,8 +280,10 @@ pub fn flow_of_own_slabs(
             drop(slabs); // warping builds its own slabs from the images
             coarse_to_fine(&solver, &outer, observer)?
         }
-        (false, Some(epsilon)) => reweighted(&solver, &outer, slabs.slabs, epsilon, observer)?,
-        (false, None) => solver.solve_window_slabs(slabs, params, observer, start)?,
+        (false, Some(epsilon)) => {
+            reweighted(&solver, &outer, slabs.slabs, epsilon, None, observer)?
+        }
+        (false, None) => solver.solve_window_slabs(slabs, params, None, observer, start)?,
     };
     Ok(result)
 }
@@ -308,6 +311,7 @@ impl SlabSolver for RankWindow<'_> {
         &self,
         params: &FlowParams,
         slabs: Vec<Slab>,
+        first: Option<&[Vec<Vector2<f64>>]>,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError> {
         let start = Instant::now();
@@ -318,12 +322,12 @@ impl SlabSolver for RankWindow<'_> {
                 scales: self.scales,
                 assembly_seconds: 0.0,
             };
-            return reweighted(self, &outer, slabs, epsilon, observer);
+            return reweighted(self, &outer, slabs, epsilon, first, observer);
         }
         let offset = self.window.frames().start;
         let slabs =
             WindowSlabs::with_slabs(self.frames, offset, self.window.clone(), params, slabs)?;
-        self.solve_window_slabs(slabs, params, observer, start)
+        self.solve_window_slabs(slabs, params, first, observer, start)
     }
 
     fn sum(&self, values: &mut [f64]) {
@@ -332,12 +336,14 @@ impl SlabSolver for RankWindow<'_> {
 }
 
 impl RankWindow<'_> {
-    /// One linear solve over all ranks of the window's `slabs`, begun at `start`: the result
-    /// of the window's own slabs (its flow theirs, its energy terms summed over ranks).
+    /// One linear solve over all ranks of the window's `slabs`, begun at `start`, its
+    /// iterations from the own slabs' flow `first` (or zero): the result of the window's own
+    /// slabs (its flow theirs, its energy terms summed over ranks).
     fn solve_window_slabs(
         &self,
         mut slabs: WindowSlabs,
         params: &FlowParams,
+        first: Option<&[Vec<Vector2<f64>>]>,
         observer: &dyn SolveObserver,
         start: Instant,
     ) -> Result<FlowResult, FlowError> {
@@ -345,7 +351,8 @@ impl RankWindow<'_> {
         let system = slabs.assemble_checked(frames, params, &self.scales, Some(ranks))?;
         slabs.release_large(frames);
         let assembly = start.elapsed().as_secs_f64();
-        let solution = solve_window(&system, ranks, params, observer)?;
+        let first = first.map(flat_unknowns);
+        let solution = solve_window(&system, ranks, params, first.as_deref(), observer)?;
         let solve = start.elapsed().as_secs_f64() - assembly;
         let n = system.system.slab_dimension();
         let mut u = solution.u.clone();

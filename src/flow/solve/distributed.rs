@@ -32,7 +32,7 @@
 use super::multigrid::{level_slab_counts, prolong_add, restrict, v_cycle, CycleLevels};
 use super::pcg::{self, Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings};
-use super::{factorization_error, Solution, SolveObserver, SolverMethod};
+use super::{factorization_error, Solution, SolveObserver, SolverMethod, WarmStart};
 use super::{gauss_seidel_verdict, levels_keep_precision, probe_give_up};
 use crate::flow::system::{dot, SystemWindow};
 use crate::flow::{FlowError, FlowParams, LinkMatrix, SolverChoice, SpaceTimeSystem};
@@ -338,20 +338,25 @@ impl<F: SlabFactor> Preconditioner for WindowPreconditioner<'_, '_, F> {
 /// rank, the others naming no slab; the caller ends the job (`MPI_Abort`), as `meshflow solve`
 /// under `mpirun` does.
 ///
+/// `start`, when given, is this rank's part of CG's first iterate, as in one process
+/// ([`super::solve`]): a start that meets the tolerance over all ranks is the solution.
+///
 /// Subnormal numbers are flushed on each rank ([`crate::subnormals`]).
 pub fn solve_window(
     window: &SystemWindow,
     ranks: &dyn TimeRanks,
     params: &FlowParams,
+    start: Option<&[f64]>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
-    crate::subnormals::flushed(|| solve_window_flushed(window, ranks, params, observer))
+    crate::subnormals::flushed(|| solve_window_flushed(window, ranks, params, start, observer))
 }
 
 fn solve_window_flushed(
     window: &SystemWindow,
     ranks: &dyn TimeRanks,
     params: &FlowParams,
+    start: Option<&[f64]>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     let multigrid = match params.solver {
@@ -375,12 +380,21 @@ fn solve_window_flushed(
         windows: &windows,
         ranks,
         params,
+        start,
         observer,
         multigrid,
     };
     let b = window.system.rhs();
-    if job.fine_plan().view(ranks).dot(b, b) == 0.0 {
+    let operator = job.fine_plan();
+    let operator = operator.view(ranks);
+    if operator.dot(b, b) == 0.0 {
         return Ok(Solution::zero(b.len()));
+    }
+    if let Some(met) = WarmStart::met(&operator, b, params, start) {
+        return Ok(met.solution(match multigrid {
+            Some(true) => SolverMethod::PcgTimeMultigrid,
+            _ => SolverMethod::PcgSlabGaussSeidel,
+        }));
     }
     // Single-precision factors (bfloat16 for multigrid's levels, as in one process) suffice for
     // a preconditioner; f64 if a block of any level is too ill-conditioned (on any rank: the
@@ -405,6 +419,8 @@ struct WindowJob<'a> {
     windows: &'a [Range<usize>],
     ranks: &'a dyn TimeRanks,
     params: &'a FlowParams,
+    /// This rank's part of CG's first iterate; zero when `None`.
+    start: Option<&'a [f64]>,
     observer: &'a dyn SolveObserver,
     /// `Some(true)`: multigrid; `Some(false)`: the sweeps; `None`: the sweeps, then multigrid
     /// if they are too slow.
@@ -430,16 +446,20 @@ impl<'a> WindowJob<'a> {
             factor_levels::<F>(fine, symbolic, self.ranks, &SpareValues::per_thread())?;
         let b = self.window.system.rhs();
         let stop = pcg::Stop::new(self.params.tolerance, self.params.max_iterations);
+        let first = || {
+            self.start
+                .map_or_else(|| vec![0.0; b.len()], <[f64]>::to_vec)
+        };
         let (x, done, reason) = match self.multigrid {
-            Some(true) => (vec![0.0; b.len()], 0, "asked for".to_string()),
+            Some(true) => (first(), 0, "asked for".to_string()),
             sweeps_or_auto => {
                 let probe = pcg::Stop {
                     give_up: sweeps_or_auto
                         .is_none()
-                        .then(|| probe_give_up(self.params.tolerance)),
+                        .then(|| probe_give_up(self.params.tolerance, self.start.is_some())),
                     ..stop
                 };
-                let outcome = self.pcg(&levels, 1, vec![0.0; b.len()], probe)?;
+                let outcome = self.pcg(&levels, 1, first(), probe)?;
                 let verdict = gauss_seidel_verdict(&outcome);
                 if sweeps_or_auto == Some(false) || outcome.gave_up.is_none() {
                     let reason = match sweeps_or_auto {

@@ -375,12 +375,17 @@ pub struct Solution {
 
 /// Solves the system with the method `params.solver` asks for (see the module docs), with
 /// subnormal numbers flushed ([`crate::subnormals`]).
+///
+/// `start`, when given, is the first iterate of the iterative methods (the direct ones ignore
+/// it): e.g. the flow of the previous solve of a run, where warping or reweighting changed the
+/// system a little ([`WarmStart`]).
 pub fn solve(
     system: &SpaceTimeSystem,
     params: &FlowParams,
+    start: Option<&[f64]>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
-    let solution = crate::subnormals::flushed(|| solve_flushed(system, params, observer));
+    let solution = crate::subnormals::flushed(|| solve_flushed(system, params, start, observer));
     // The factors are gone; what comes next (energy terms, push-forward) rebuilds slabs.
     crate::limits::release_free_memory();
     solution
@@ -400,6 +405,7 @@ pub(crate) fn factors_slabs(params: &FlowParams, dimension: usize, coupled: bool
 fn solve_flushed(
     system: &SpaceTimeSystem,
     params: &FlowParams,
+    start: Option<&[f64]>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     let b = system.rhs();
@@ -423,19 +429,27 @@ fn solve_flushed(
                 params.direct_limit
             ),
         )?,
-        SolverChoice::Auto => slab_pcg(system, params, Preconditioning::Adaptive, observer)?,
+        SolverChoice::Auto => slab_pcg(system, params, Preconditioning::Adaptive, start, observer)?,
         SolverChoice::Direct => direct(system, observer, "asked for".into())?,
-        SolverChoice::PcgSlabGaussSeidel => {
-            slab_pcg(system, params, Preconditioning::GaussSeidel, observer)?
-        }
+        SolverChoice::PcgSlabGaussSeidel => slab_pcg(
+            system,
+            params,
+            Preconditioning::GaussSeidel,
+            start,
+            observer,
+        )?,
         SolverChoice::PcgTimeMultigrid => {
-            slab_pcg(system, params, Preconditioning::Multigrid, observer)?
+            slab_pcg(system, params, Preconditioning::Multigrid, start, observer)?
         }
-        SolverChoice::PcgJacobi => {
-            let outcome = run_pcg(system, None, &Jacobi::new(system), params, 0, observer)?;
-            Solution::iterated(outcome, SolverMethod::PcgJacobi, "asked for".into())
-                .converged(params)?
-        }
+        SolverChoice::PcgJacobi => match WarmStart::met(system, system.rhs(), params, start) {
+            Some(met) => met.solution(SolverMethod::PcgJacobi),
+            None => {
+                let x = start.map(<[f64]>::to_vec);
+                let outcome = run_pcg(system, x, &Jacobi::new(system), params, 0, observer)?;
+                Solution::iterated(outcome, SolverMethod::PcgJacobi, "asked for".into())
+                    .converged(params)?
+            }
+        },
     };
     solution.relative_residual = relative_residual(system, system.rhs(), &solution.u);
     Ok(solution)
@@ -488,6 +502,48 @@ impl Solution {
                 residual: self.relative_residual,
                 tolerance: params.tolerance,
             }),
+        }
+    }
+}
+
+/// A first iterate that already meets the tolerance: the solution of no iteration, found before
+/// anything is factored. A run's next solve (warping, reweighting) may start there when the
+/// system changed less than the tolerance sees, e.g. the last warp of a converged level.
+struct WarmStart {
+    u: Vec<f64>,
+    relative_residual: f64,
+}
+
+impl WarmStart {
+    /// `start` when `‖b − A start‖ ≤ tolerance ‖b‖`.
+    fn met(
+        system: &dyn pcg::Operator,
+        b: &[f64],
+        params: &FlowParams,
+        start: Option<&[f64]>,
+    ) -> Option<Self> {
+        let u = start?;
+        let relative_residual = relative_residual(system, b, u);
+        (relative_residual <= params.tolerance).then(|| WarmStart {
+            u: u.to_vec(),
+            relative_residual,
+        })
+    }
+
+    fn solution(self, method: SolverMethod) -> Solution {
+        Solution {
+            iterations: 0,
+            relative_residual: self.relative_residual,
+            spectrum: None,
+            ..Solution::exact(
+                self.u,
+                method,
+                format!(
+                    "the start (the run's previous flow) already meets the tolerance: \
+                     residual {:.1e}",
+                    self.relative_residual
+                ),
+            )
         }
     }
 }
@@ -556,12 +612,13 @@ pub const SWITCH_ITERATIONS: f64 = 30.0;
 
 /// `auto`'s probe: [`PROBE_ITERATIONS`], then give up on slab Gauss–Seidel above
 /// [`SWITCH_ITERATIONS`] projected to `goal` (the tolerance; a round's stopping point in
-/// [`reduced`]).
-fn probe_give_up(goal: f64) -> pcg::GiveUp {
+/// [`reduced`]); before, without progress, unless the run starts `warm` ([`pcg::GiveUp::early`]).
+fn probe_give_up(goal: f64, warm: bool) -> pcg::GiveUp {
     pcg::GiveUp {
         probe: PROBE_ITERATIONS,
         limit: SWITCH_ITERATIONS,
         goal,
+        early: !warm,
     }
 }
 
@@ -605,8 +662,15 @@ fn slab_pcg(
     system: &SpaceTimeSystem,
     params: &FlowParams,
     preconditioning: Preconditioning,
+    first: Option<&[f64]>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
+    if let Some(met) = WarmStart::met(system, system.rhs(), params, first) {
+        return Ok(met.solution(match preconditioning {
+            Preconditioning::Multigrid => SolverMethod::PcgTimeMultigrid,
+            _ => SolverMethod::PcgSlabGaussSeidel,
+        }));
+    }
     let start = Instant::now();
     let symbolic = system.slab_symbolic();
     // Single precision (f32 or bfloat16) suffices for a preconditioner; double precision if a
@@ -624,6 +688,7 @@ fn slab_pcg(
         preconditioning,
         plan,
         start,
+        first,
         observer,
     };
     let outcome = match single.slabs_per_factor {
@@ -640,7 +705,15 @@ fn slab_pcg(
 fn slab_pcg_in<F: SlabFactor>(job: SlabJob<'_>) -> Result<Solution, FlowError> {
     let (system, params, plan) = (job.system, job.params, job.plan);
     if plan.slabs_per_factor > system.n_slabs() {
-        let outcome = run_pcg(system, None, &Jacobi::new(system), params, 0, job.observer)?;
+        let jacobi = Jacobi::new(system);
+        let outcome = run_pcg(
+            system,
+            job.first_iterate(),
+            &jacobi,
+            params,
+            0,
+            job.observer,
+        )?;
         return Solution::iterated(outcome, SolverMethod::PcgJacobi, plan.describe())
             .converged(params);
     }
@@ -651,7 +724,8 @@ fn slab_pcg_in<F: SlabFactor>(job: SlabJob<'_>) -> Result<Solution, FlowError> {
     slab_pcg_with(job, fine)
 }
 
-/// What [`slab_pcg_with`] needs besides the factors (factored since `start`).
+/// What [`slab_pcg_with`] needs besides the factors (factored since `start`; PCG's first
+/// iterate `first`, zero when `None`).
 #[derive(Clone, Copy)]
 struct SlabJob<'a> {
     system: &'a SpaceTimeSystem,
@@ -659,7 +733,14 @@ struct SlabJob<'a> {
     preconditioning: Preconditioning,
     plan: &'a FactorPlan<'a>,
     start: Instant,
+    first: Option<&'a [f64]>,
     observer: &'a dyn SolveObserver,
+}
+
+impl SlabJob<'_> {
+    fn first_iterate(&self) -> Option<Vec<f64>> {
+        self.first.map(<[f64]>::to_vec)
+    }
 }
 
 fn slab_pcg_with<F: SlabFactor>(
@@ -673,6 +754,7 @@ fn slab_pcg_with<F: SlabFactor>(
         plan,
         start,
         observer,
+        ..
     } = job;
     let fine = fine.remove(0);
     // The factorizations' workspaces, before CG's vectors.
@@ -680,14 +762,19 @@ fn slab_pcg_with<F: SlabFactor>(
     let factor_seconds = start.elapsed().as_secs_f64();
     let factor_entries = fine.entries();
     let (x, done, reason) = match preconditioning {
-        Preconditioning::Multigrid => (None, 0, format!("asked for; {}", plan.describe())),
+        Preconditioning::Multigrid => (
+            job.first_iterate(),
+            0,
+            format!("asked for; {}", plan.describe()),
+        ),
         _ => {
             let stop = pcg::Stop {
                 give_up: (preconditioning == Preconditioning::Adaptive)
-                    .then(|| probe_give_up(params.tolerance)),
+                    .then(|| probe_give_up(params.tolerance, job.first.is_some())),
                 ..pcg::Stop::new(params.tolerance, params.max_iterations)
             };
-            let outcome = gauss_seidel_pcg(system, &fine, plan, stop, observer)?;
+            let first = job.first_iterate();
+            let outcome = gauss_seidel_pcg(system, &fine, plan, first, stop, observer)?;
             let verdict = gauss_seidel_verdict(&outcome);
             if outcome.gave_up.is_none() || preconditioning == Preconditioning::GaussSeidel {
                 let reason = match preconditioning {
@@ -721,22 +808,24 @@ fn slab_pcg_with<F: SlabFactor>(
     }
 }
 
-/// Slab Gauss–Seidel's PCG under `stop`: on the odd slabs alone (the even ones eliminated,
-/// [`reduced`]) where each slab has its own factor and the factors solve exactly enough; when a
-/// round of refinement is too slow or stalls (other than `auto`'s probe giving up), PCG on the
-/// whole system goes on from where the rounds left it.
+/// Slab Gauss–Seidel's PCG from `x` (zero when `None`) under `stop`: on the odd slabs alone
+/// (the even ones eliminated, [`reduced`]) where each slab has its own factor and the factors
+/// solve exactly enough; when a round of refinement is too slow or stalls (other than `auto`'s
+/// probe giving up), PCG on the whole system goes on from where the rounds left it.
 fn gauss_seidel_pcg<F: SlabFactor>(
     system: &SpaceTimeSystem,
     fine: &SlabSweeps<F>,
     plan: &FactorPlan<'_>,
+    x: Option<Vec<f64>>,
     stop: pcg::Stop,
     observer: &dyn SolveObserver,
 ) -> Result<pcg::CgOutcome, FlowError> {
     let gauss_seidel = SlabGaussSeidel::new(system, fine);
     if !F::ELIMINATES || plan.slabs_per_factor > 1 || !system.has_links() {
-        return run_pcg_until(system, None, &gauss_seidel, stop, observer);
+        return run_pcg_until(system, x, &gauss_seidel, stop, observer);
     }
-    let reduced = reduced::odd_slab_pcg(system, fine, stop, observer)?;
+    let x = x.unwrap_or_else(|| vec![0.0; system.dimension()]);
+    let reduced = reduced::odd_slab_pcg(system, fine, x, stop, observer)?;
     let unfinished = reduced.relative_residual > stop.tolerance
         && reduced.iterations < stop.max_iterations
         && reduced.gave_up.is_none();

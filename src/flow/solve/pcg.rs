@@ -64,12 +64,18 @@ impl Stop {
 /// of its last `probe − 1` iterations projects more than `limit − probe` further iterations to
 /// `goal` (a relative residual: the solve's tolerance for `auto`'s probe, a round's stopping
 /// point in [`super::reduced`]); before, only when it makes no progress at all
-/// ([`Projection::gives_up`]).
+/// ([`Projection::gives_up`]) and `early` allows it.
 #[derive(Clone, Copy, Debug)]
 pub struct GiveUp {
     pub probe: usize,
     pub limit: f64,
     pub goal: f64,
+    /// Whether it may give up during the probe. Not from a warm start: its error is what the
+    /// preconditioner handles worst (the fast components are gone), and CG, which minimizes
+    /// the error's energy norm, may raise the residual's norm in its first iterations. At paper
+    /// size with `--large-motion`, the second warp of a level started at 6.7e-5 and its first
+    /// iteration left 1.1e-4, where slab Gauss–Seidel went on to converge in 6 iterations.
+    pub early: bool,
 }
 
 /// Result of a CG run: iterate, iterations (including `Stop::done`), the last recursive
@@ -113,7 +119,7 @@ impl Projection {
 
     /// Whether a run that probes for `probe` iterations gives up after `ran` of them, with
     /// `residuals` its residuals so far (its start first) and `limit` the iterations it may
-    /// take in all.
+    /// take in all (`give_up`'s fields).
     ///
     /// After the probe, when the rate of its last `probe − 1` iterations projects more than
     /// `limit − probe` further iterations. During the probe only when the residual has not
@@ -122,14 +128,21 @@ impl Projection {
     /// cannot even reduce the residual is far off. On the torus at `α ≤ 0.1` slab
     /// Gauss–Seidel's first iteration leaves 1.5–3.6 times the starting residual, and multigrid
     /// needs no more iterations from there than from the fourth.
-    fn gives_up(residuals: &[f64], ran: usize, probe: usize, limit: f64, tol: f64) -> Option<Self> {
+    fn gives_up(residuals: &[f64], ran: usize, give_up: GiveUp) -> Option<Self> {
+        let GiveUp {
+            probe,
+            limit,
+            goal,
+            early,
+        } = give_up;
         let window = probe.max(2);
         let (projection, allowed) = match ran >= window {
             true => (
-                Self::of(&residuals[ran + 1 - window..=ran], tol),
+                Self::of(&residuals[ran + 1 - window..=ran], goal),
                 limit - probe as f64,
             ),
-            false => (Self::of(&residuals[..=ran], tol), f64::MAX),
+            false if early => (Self::of(&residuals[..=ran], goal), f64::MAX),
+            false => return None,
         };
         (projection.remaining > allowed).then_some(projection)
     }
@@ -274,9 +287,9 @@ pub fn pcg_recycling(
         if relative <= stop.tolerance {
             break;
         }
-        if let Some(GiveUp { probe, limit, goal }) = stop.give_up {
+        if let Some(give_up) = stop.give_up {
             let ran = iteration - stop.done;
-            gave_up = Projection::gives_up(&residuals, ran, probe, limit, goal);
+            gave_up = Projection::gives_up(&residuals, ran, give_up);
             if gave_up.is_some() {
                 break;
             }
@@ -382,6 +395,7 @@ mod tests {
                 probe: 4,
                 limit: 30.0,
                 goal: 1e-8,
+                early: true,
             }),
             ..Stop::new(1e-8, 1000)
         };
@@ -407,27 +421,33 @@ mod tests {
 
     /// During the probe a run gives up only without progress: on `diag(1, 100)` with
     /// `b = (10, 1)` CG's first step leaves `‖r₁‖ ≈ 4.9 ‖r₀‖`, and the run stops there, while
-    /// the slow start of the run above (rate 0.785 in its first iteration) goes on.
+    /// the slow start of the run above (rate 0.785 in its first iteration) goes on. A run that
+    /// may not give up early (a warm start) goes on and converges in its second iteration.
     #[test]
     fn cg_gives_up_during_the_probe_only_when_the_residual_grows() {
         let system = Diagonal(vec![1.0, 100.0]);
-        let stop = Stop {
-            give_up: Some(GiveUp {
+        let run = |early| {
+            let give_up = GiveUp {
                 probe: 4,
                 limit: 30.0,
                 goal: 1e-8,
-            }),
-            ..Stop::new(1e-8, 10)
+                early,
+            };
+            let stop = Stop {
+                give_up: Some(give_up),
+                ..Stop::new(1e-8, 10)
+            };
+            pcg(
+                &system,
+                &[10.0, 1.0],
+                vec![0.0; 2],
+                &Identity,
+                stop,
+                &|_| {},
+            )
+            .unwrap()
         };
-        let outcome = pcg(
-            &system,
-            &[10.0, 1.0],
-            vec![0.0; 2],
-            &Identity,
-            stop,
-            &|_| {},
-        )
-        .unwrap();
+        let outcome = run(true);
         let projection = outcome.gave_up.expect("no progress");
         assert_eq!(outcome.iterations, 1);
         assert!(
@@ -436,6 +456,10 @@ mod tests {
             outcome.relative_residual
         );
         assert!(projection.rate > 1.0 && projection.remaining.is_infinite());
+        let patient = run(false);
+        assert!(patient.gave_up.is_none());
+        assert_eq!(patient.iterations, 2);
+        assert!(patient.relative_residual <= 1e-8);
     }
 
     /// A run started deflated by an earlier run's directions on the same operator needs fewer

@@ -50,7 +50,7 @@ pub const ROUND_REDUCTION: f64 = 3e-5;
 /// elimination's rounding adds to the whole residual.
 pub const LAST_ROUND_MARGIN: f64 = 0.5;
 
-/// Solves `A x = b` (the system's right-hand side) from zero as slab Gauss–Seidel's PCG does
+/// Solves `A x = b` (the system's right-hand side) from `x` as slab Gauss–Seidel's PCG does
 /// under `stop`, on the odd slabs' reduced system in rounds of refinement (module docs). The
 /// first round probes with `stop.give_up` when given, and its Lanczos spectrum is the run's.
 /// Returns when the tolerance is reached, the iterations are spent, the probe gives up
@@ -60,18 +60,25 @@ pub const LAST_ROUND_MARGIN: f64 = 0.5;
 pub fn odd_slab_pcg<F: SlabFactor>(
     system: &SpaceTimeSystem,
     sweeps: &SlabSweeps<F>,
+    mut x: Vec<f64>,
     stop: Stop,
     observer: &dyn SolveObserver,
 ) -> Result<CgOutcome, FlowError> {
     let b = system.rhs();
     let b_norm = dot(b, b).sqrt();
     let odd = OddSlabs::new(system, sweeps);
-    let mut x = vec![0.0; b.len()];
-    let mut r = b.to_vec();
+    let mut r = match x.par_iter().any(|x| *x != 0.0) {
+        true => residual(system, b, &x),
+        false => b.to_vec(),
+    };
     let mut outcome = CgOutcome {
         x: Vec::new(),
         iterations: stop.done,
-        relative_residual: if b_norm > 0.0 { 1.0 } else { 0.0 },
+        relative_residual: if b_norm > 0.0 {
+            dot(&r, &r).sqrt() / b_norm
+        } else {
+            0.0
+        },
         gave_up: None,
         spectrum: None,
     };
@@ -92,7 +99,7 @@ pub fn odd_slab_pcg<F: SlabFactor>(
             done: outcome.iterations,
             give_up: Some(match (round, stop.give_up) {
                 (0, Some(probe)) => probe,
-                _ => probe_give_up(goal),
+                _ => probe_give_up(goal, false),
             }),
             reference: Some(b_norm),
             ..stop
@@ -326,7 +333,14 @@ mod tests {
         for system in systems() {
             let sweeps = sweeps::<PackedFactor<f32>>(&system);
             let stop = Stop::new(1e-8, 500);
-            let reduced = odd_slab_pcg(&system, &sweeps, stop, &|_| {}).unwrap();
+            let reduced = odd_slab_pcg(
+                &system,
+                &sweeps,
+                vec![0.0; system.dimension()],
+                stop,
+                &|_| {},
+            )
+            .unwrap();
             let whole = SlabGaussSeidel::new(&system, &sweeps);
             let zero = vec![0.0; system.dimension()];
             let b = system.rhs();
