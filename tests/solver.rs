@@ -371,11 +371,17 @@ fn auto_leaves_gauss_seidel_after_an_iteration_without_progress() {
     assert!(difference < 1e-6, "relative difference {difference:e}");
 }
 
+/// `result` with its flow 1 % off, as the next solve of a warping run starts.
+fn one_percent_off(result: &FlowResult) -> FlowResult {
+    let mut nearby = result.clone();
+    (nearby.intrinsic.iter_mut().flatten()).for_each(|u| *u *= 1.01);
+    nearby
+}
+
 /// A warm start ([`FlowProblem::solve_from`]): from the solution itself the solve returns it
-/// without an iteration (nothing factored); from a nearby flow (the solution 1 % off, as the
-/// next solve of a warping run starts) it converges to the same flow in fewer iterations than
-/// from zero, and `auto`'s probe does not read the start's slower rate as a reason to leave
-/// slab Gauss–Seidel. Multigrid in time starts there too.
+/// without an iteration (nothing factored); from a nearby flow it converges to the same flow in
+/// fewer iterations than from zero, and `auto`'s probe does not read the start's slower rate as
+/// a reason to leave slab Gauss–Seidel. Multigrid in time starts there too.
 #[test]
 fn a_warm_start_converges_to_the_same_flow_in_fewer_iterations() {
     let sequence = rotating_sphere(3, 9, 1.0, 0.05).unwrap().sequence;
@@ -388,7 +394,7 @@ fn a_warm_start_converges_to_the_same_flow_in_fewer_iterations() {
         };
         let problem = FlowProblem::new(&sequence, &params).unwrap();
         let cold = problem.solve(&|_| {}).unwrap();
-        let solved = problem.solve_from(Some(&cold.intrinsic), &|_| {}).unwrap();
+        let solved = problem.solve_from(Some(&cold), &|_| {}).unwrap();
         assert_eq!(solved.iterations, 0, "{solver:?}");
         assert_eq!(solved.intrinsic, cold.intrinsic);
         assert_eq!(solved.factor_entries, 0, "nothing factored");
@@ -398,10 +404,9 @@ fn a_warm_start_converges_to_the_same_flow_in_fewer_iterations() {
             "{}",
             solved.solver_reason
         );
-        let nearby: Vec<Vec<_>> = (cold.intrinsic.iter())
-            .map(|slab| slab.iter().map(|u| u * 1.01).collect())
-            .collect();
-        let warm = problem.solve_from(Some(&nearby), &|_| {}).unwrap();
+        let warm = problem
+            .solve_from(Some(&one_percent_off(&cold)), &|_| {})
+            .unwrap();
         println!(
             "{solver:?}: {} iterations from zero, {} from 1 % off ({})",
             cold.iterations, warm.iterations, warm.solver_reason
@@ -411,4 +416,42 @@ fn a_warm_start_converges_to_the_same_flow_in_fewer_iterations() {
         assert!(warm.iterations < cold.iterations);
         assert_same_intrinsic_flow(&cold, &warm);
     }
+}
+
+/// Where the previous solve needed multigrid in time, `auto` starts the next one with it
+/// instead of probing slab Gauss–Seidel again (the probe's iterations would be spent to find
+/// the same): the strong time coupling of `auto_adds_time_levels_only_when_gauss_seidel_is_slow`.
+#[test]
+fn auto_goes_straight_to_multigrid_after_a_solve_that_needed_it() {
+    let sequence = rotating_sphere(3, 17, 1.0, 0.05).unwrap().sequence;
+    let params = FlowParams {
+        direct_limit: 0,
+        ..FlowParams::paper(1e-3, 0.0, 0.1)
+    };
+    let problem = FlowProblem::new(&sequence, &params).unwrap();
+    let cold = problem.solve(&|_| {}).unwrap();
+    assert_eq!(cold.method, SolverMethod::PcgTimeMultigrid);
+    assert!(
+        cold.solver_reason.contains("slab Gauss-Seidel"),
+        "{}",
+        cold.solver_reason
+    );
+    let warm = problem
+        .solve_from(Some(&one_percent_off(&cold)), &|_| {})
+        .unwrap();
+    println!(
+        "{} iterations from zero ({}), {} from 1 % off ({})",
+        cold.iterations, cold.solver_reason, warm.iterations, warm.solver_reason
+    );
+    assert_eq!(warm.method, SolverMethod::PcgTimeMultigrid);
+    assert!(
+        warm.solver_reason
+            .starts_with("the run's previous solve needed multigrid in time"),
+        "{}",
+        warm.solver_reason
+    );
+    assert!(warm.iterations < cold.iterations);
+    assert!(warm.relative_residual <= params.tolerance);
+    let difference = flow_difference(&cold, &warm);
+    assert!(difference < 1e-6, "relative difference {difference:e}");
 }

@@ -78,6 +78,6 @@ pub(crate) use sequence::check_finite_intensities;
 pub use sequence::{Images, MeshSequence};
 pub use slab::{Slab, SlabChannel};
 pub use solve::distributed;
-pub use solve::{SolveEvent, SolveObserver, SolverMethod};
+pub use solve::{SolveEvent, SolveObserver, SolverMethod, WarmStart};
 pub use system::{LinkMatrix, SpaceTimeSystem, SystemWindow};
 pub use warp::warped_slab;

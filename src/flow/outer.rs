@@ -11,7 +11,6 @@
 use super::problem::{FlowProblem, FlowResult, SolveStep, Timings};
 use super::{DataScales, FlowError, FlowParams, MeshSequence};
 use super::{Slab, SolveObserver, Weights};
-use nalgebra::Vector2;
 use std::ops::Range;
 use std::time::Instant;
 
@@ -26,13 +25,13 @@ pub(super) trait SlabSolver {
 
     /// Minimizes the model of `params` on the frames' slabs `slabs` (all of them, in order); the
     /// result's flow is that of [`SlabSolver::own`], its energy terms the whole sequence's.
-    /// The iterative solvers start from `start`, the own slabs' flow (the run's previous
-    /// solve's), or from zero. Collective over ranks.
+    /// The solve is warm-started from `previous`, the run's previous result (of the own
+    /// slabs), when given ([`FlowProblem::solve_from`]). Collective over ranks.
     fn solve(
         &self,
         params: &FlowParams,
         slabs: Vec<Slab>,
-        start: Option<&[Vec<Vector2<f64>>]>,
+        previous: Option<&FlowResult>,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError>;
 
@@ -78,10 +77,10 @@ impl SlabSolver for WholeSequence<'_> {
         &self,
         params: &FlowParams,
         slabs: Vec<Slab>,
-        start: Option<&[Vec<Vector2<f64>>]>,
+        previous: Option<&FlowResult>,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError> {
-        FlowProblem::from_slabs(self.0, params, slabs)?.solve_from(start, observer)
+        FlowProblem::from_slabs(self.0, params, slabs)?.solve_from(previous, observer)
     }
 
     fn sum(&self, _: &mut [f64]) {}

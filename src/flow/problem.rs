@@ -126,6 +126,14 @@ impl FlowResult {
         }
     }
 
+    /// Where a run's next solve starts after this one ([`solve::WarmStart`]): its flow, its method.
+    pub(super) fn next_start(&self) -> solve::WarmStart {
+        solve::WarmStart {
+            u: flat_unknowns(&self.intrinsic),
+            method: self.method,
+        }
+    }
+
     /// Solver iterations over all the run's solves (`iterations` is the last solve's).
     pub fn iterations_in_all(&self) -> usize {
         match self.timings.steps.as_slice() {
@@ -305,23 +313,23 @@ impl<'a> FlowProblem<'a> {
         self.solve_from(None, observer)
     }
 
-    /// [`Self::solve`] with the iterative solvers started from the flow `start`
-    /// (`start[s][i]` as [`FlowResult::intrinsic`]) instead of zero (a warm start): e.g. the
-    /// previous solve's flow in a run of solves whose systems differ a little, as warping and
-    /// robust reweighting run them. A start that already meets the tolerance is returned
-    /// before anything is factored (0 iterations); the direct solvers ignore it. With robust
-    /// reweighting, the first solve starts there; with warping, only the solves after the first
-    /// (each from the last one's flow).
+    /// [`Self::solve`] warm-started from `previous`, the result of a problem on the same
+    /// sequence whose system differs a little (as warping and robust reweighting run their
+    /// solves): the iterative solvers start from its flow instead of zero, and `auto` goes
+    /// straight to multigrid in time where `previous` needed it ([`solve::WarmStart`]). A start that
+    /// already meets the tolerance is returned before anything is factored (0 iterations); the
+    /// direct solvers ignore it. With robust reweighting, the first solve starts there; with
+    /// warping, only the solves after the first (each from the last one's result).
     ///
     /// At paper size with `--large-motion` (8 solves) the warm starts took 184 iterations to
     /// 124 and the run from 66.5 to 57.7 s (docs/scaling.md, "Warm starts across a run's
     /// solves").
     pub fn solve_from(
         &self,
-        start: Option<&[Vec<Vector2<f64>>]>,
+        previous: Option<&FlowResult>,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError> {
-        let mut result = self.minimize(start, observer)?;
+        let mut result = self.minimize(previous, observer)?;
         result.anisotropic_contrasts = self.contrasts.clone();
         Ok(result)
     }
@@ -329,7 +337,7 @@ impl<'a> FlowProblem<'a> {
     /// [`Self::solve_from`] but for the contrasts.
     fn minimize(
         &self,
-        start: Option<&[Vec<Vector2<f64>>]>,
+        previous: Option<&FlowResult>,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError> {
         let outer = OuterStart {
@@ -344,11 +352,11 @@ impl<'a> FlowProblem<'a> {
         }
         if let Some(epsilon) = self.params.robust_smoothness {
             let slabs = self.slabs().into_owned();
-            return robust::reweighted(&whole, &outer, slabs, epsilon, start, observer);
+            return robust::reweighted(&whole, &outer, slabs, epsilon, previous, observer);
         }
-        let first = start.map(flat_unknowns);
+        let first = previous.map(FlowResult::next_start);
         let start = Instant::now();
-        let solution = solve::solve(&self.system, &self.params, first.as_deref(), observer)?;
+        let solution = solve::solve(&self.system, &self.params, first.as_ref(), observer)?;
         let solve_seconds = start.elapsed().as_secs_f64();
         let intrinsic = intrinsic_fields(&solution.u, self.system.slab_dimension());
         let weighting = (&self.params, &self.weights);

@@ -85,15 +85,15 @@ impl std::str::FromStr for FlowDriven {
 /// Charbonnier smoothness of scale `epsilon` (module docs), isotropic or anisotropic as
 /// `start.params.flow_driven` says; the result is the last reweighted solve's, with
 /// `reweightings` and `robust_scales` set and the robust energy (`energy_terms.spatial` the
-/// Charbonnier term). Over ranks, each rank reweights its own slabs. The first solve starts
-/// from `first_flow` (the own slabs', or zero), each later one from the flow before it (its
-/// weights are that flow's).
+/// Charbonnier term). Over ranks, each rank reweights its own slabs. The first solve is
+/// warm-started from `previous` (a result of the own slabs) when given, each later one from
+/// the solve before it, whose flow its weights are.
 pub(super) fn reweighted(
     solver: &dyn SlabSolver,
     start: &OuterStart,
     mut slabs: Vec<super::Slab>,
     epsilon: Scale,
-    first_flow: Option<&[Vec<Vector2<f64>>]>,
+    previous: Option<&FlowResult>,
     observer: &dyn SolveObserver,
 ) -> Result<FlowResult, FlowError> {
     let mesh = solver.frames().mesh();
@@ -116,7 +116,7 @@ pub(super) fn reweighted(
             .collect(),
     };
     let mut clock = RunClock::start(start.assembly_seconds);
-    let mut result = solver.solve(&params, slabs.clone(), first_flow, observer)?;
+    let mut result = solver.solve(&params, slabs.clone(), previous, observer)?;
     clock.end_step("first solve".into(), &result);
     // The penalty's arguments of the current flow on the own slabs: its energy, and the next
     // solve's weights.
@@ -130,8 +130,7 @@ pub(super) fn reweighted(
     while reweightings < MAX_REWEIGHTINGS {
         penalty.reweight(&mut slabs[own.clone()], &arguments);
         clock.begin_step();
-        let last = Some(result.intrinsic.as_slice());
-        result = solver.solve(&params, slabs.clone(), last, observer)?;
+        result = solver.solve(&params, slabs.clone(), Some(&result), observer)?;
         reweightings += 1;
         clock.end_step(format!("reweighting {reweightings}"), &result);
         arguments = penalty.arguments(mesh, &slabs[own.clone()], &result);

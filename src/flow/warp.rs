@@ -21,8 +21,8 @@
 //! **Smoothness on the total flow.** Every solve minimizes the full energy in the total `u`
 //! (only the data term is linearized), so spatial and temporal smoothness, the boundary
 //! conditions and the time coupling act on the flow itself, not on increments. So each solve
-//! starts from the last one's flow (a warm start): within a level the next warp's system
-//! differs from the last one's by the re-linearization alone.
+//! starts from the last one's flow (a warm start, [`super::FlowProblem::solve_from`]): within
+//! a level the next warp's system differs from the last one's by the re-linearization alone.
 //!
 //! **Levels.** The images are smoothed by heat diffusion ([`super::pyramid`]), coarsest first;
 //! `γ` doubles per level coarser (a blurred image has weaker gradients, and the coarse flow
@@ -74,8 +74,7 @@ pub(super) fn coarse_to_fine(
             clock.begin_step();
             let slabs = warped_slabs(frames, &pyramid[level], &flow, &channel_weights)?;
             // The last solve's flow is a first guess (the energy is the total flow's).
-            let start = (solves > 1).then_some(&flow[own.clone()]);
-            let solved = solver.solve(&params, slabs, start, observer)?;
+            let solved = solver.solve(&params, slabs, result.as_ref(), observer)?;
             clock.end_step(format!("level {level}, warp {}", warp + 1), &solved);
             flow[own.clone()].clone_from_slice(&solved.intrinsic);
             result = Some(solved);

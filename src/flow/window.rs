@@ -22,8 +22,7 @@
 use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, TimeRanks};
 use super::outer::{OuterStart, SlabSolver};
 use super::problem::{
-    energy_and_vectors, flat_unknowns, intrinsic_fields, kept_slab_bytes, FlowResult, Timings,
-    KEEP_SLABS_BYTES,
+    energy_and_vectors, intrinsic_fields, kept_slab_bytes, FlowResult, Timings, KEEP_SLABS_BYTES,
 };
 use super::robust::reweighted;
 use super::slab::{build_slabs, complete_slabs, time_links, Slab};
@@ -311,7 +310,7 @@ impl SlabSolver for RankWindow<'_> {
         &self,
         params: &FlowParams,
         slabs: Vec<Slab>,
-        first: Option<&[Vec<Vector2<f64>>]>,
+        previous: Option<&FlowResult>,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError> {
         let start = Instant::now();
@@ -322,12 +321,12 @@ impl SlabSolver for RankWindow<'_> {
                 scales: self.scales,
                 assembly_seconds: 0.0,
             };
-            return reweighted(self, &outer, slabs, epsilon, first, observer);
+            return reweighted(self, &outer, slabs, epsilon, previous, observer);
         }
         let offset = self.window.frames().start;
         let slabs =
             WindowSlabs::with_slabs(self.frames, offset, self.window.clone(), params, slabs)?;
-        self.solve_window_slabs(slabs, params, first, observer, start)
+        self.solve_window_slabs(slabs, params, previous, observer, start)
     }
 
     fn sum(&self, values: &mut [f64]) {
@@ -336,14 +335,14 @@ impl SlabSolver for RankWindow<'_> {
 }
 
 impl RankWindow<'_> {
-    /// One linear solve over all ranks of the window's `slabs`, begun at `start`, its
-    /// iterations from the own slabs' flow `first` (or zero): the result of the window's own
-    /// slabs (its flow theirs, its energy terms summed over ranks).
+    /// One linear solve over all ranks of the window's `slabs`, begun at `start`, warm-started
+    /// from `previous` (of the own slabs) when given: the result of the window's own slabs (its
+    /// flow theirs, its energy terms summed over ranks).
     fn solve_window_slabs(
         &self,
         mut slabs: WindowSlabs,
         params: &FlowParams,
-        first: Option<&[Vec<Vector2<f64>>]>,
+        previous: Option<&FlowResult>,
         observer: &dyn SolveObserver,
         start: Instant,
     ) -> Result<FlowResult, FlowError> {
@@ -351,8 +350,8 @@ impl RankWindow<'_> {
         let system = slabs.assemble_checked(frames, params, &self.scales, Some(ranks))?;
         slabs.release_large(frames);
         let assembly = start.elapsed().as_secs_f64();
-        let first = first.map(flat_unknowns);
-        let solution = solve_window(&system, ranks, params, first.as_deref(), observer)?;
+        let first = previous.map(FlowResult::next_start);
+        let solution = solve_window(&system, ranks, params, first.as_ref(), observer)?;
         let solve = start.elapsed().as_secs_f64() - assembly;
         let n = system.system.slab_dimension();
         let mut u = solution.u.clone();

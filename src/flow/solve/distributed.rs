@@ -32,8 +32,9 @@
 use super::multigrid::{level_slab_counts, prolong_add, restrict, v_cycle, CycleLevels};
 use super::pcg::{self, Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings};
-use super::{factorization_error, Solution, SolveObserver, SolverMethod, WarmStart};
+use super::{factorization_error, Solution, SolveObserver, SolverMethod};
 use super::{gauss_seidel_verdict, levels_keep_precision, probe_give_up};
+use super::{MetStart, Preconditioning, WarmStart, MULTIGRID_AS_BEFORE};
 use crate::flow::system::{dot, SystemWindow};
 use crate::flow::{FlowError, FlowParams, LinkMatrix, SolverChoice, SpaceTimeSystem};
 use crate::linalg::cholesky::{CholeskyFactor, FactorEntries};
@@ -338,15 +339,15 @@ impl<F: SlabFactor> Preconditioner for WindowPreconditioner<'_, '_, F> {
 /// rank, the others naming no slab; the caller ends the job (`MPI_Abort`), as `meshflow solve`
 /// under `mpirun` does.
 ///
-/// `start`, when given, is this rank's part of CG's first iterate, as in one process
-/// ([`super::solve`]): a start that meets the tolerance over all ranks is the solution.
+/// `start`, when given, is a warm start as in one process ([`WarmStart`]), its `u` this rank's
+/// part: a start that meets the tolerance over all ranks is the solution.
 ///
 /// Subnormal numbers are flushed on each rank ([`crate::subnormals`]).
 pub fn solve_window(
     window: &SystemWindow,
     ranks: &dyn TimeRanks,
     params: &FlowParams,
-    start: Option<&[f64]>,
+    start: Option<&WarmStart>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     crate::subnormals::flushed(|| solve_window_flushed(window, ranks, params, start, observer))
@@ -356,11 +357,14 @@ fn solve_window_flushed(
     window: &SystemWindow,
     ranks: &dyn TimeRanks,
     params: &FlowParams,
-    start: Option<&[f64]>,
+    start: Option<&WarmStart>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     let multigrid = match params.solver {
-        SolverChoice::Auto => None,
+        SolverChoice::Auto => match WarmStart::auto(start) {
+            Preconditioning::MultigridAsBefore => Some(true),
+            _ => None,
+        },
         SolverChoice::PcgSlabGaussSeidel => Some(false),
         SolverChoice::PcgTimeMultigrid => Some(true),
         SolverChoice::Direct => {
@@ -380,7 +384,7 @@ fn solve_window_flushed(
         windows: &windows,
         ranks,
         params,
-        start,
+        start: start.map(|s| s.u.as_slice()),
         observer,
         multigrid,
     };
@@ -390,7 +394,7 @@ fn solve_window_flushed(
     if operator.dot(b, b) == 0.0 {
         return Ok(Solution::zero(b.len()));
     }
-    if let Some(met) = WarmStart::met(&operator, b, params, start) {
+    if let Some(met) = MetStart::of(&operator, b, params, start) {
         return Ok(met.solution(match multigrid {
             Some(true) => SolverMethod::PcgTimeMultigrid,
             _ => SolverMethod::PcgSlabGaussSeidel,
@@ -451,7 +455,14 @@ impl<'a> WindowJob<'a> {
                 .map_or_else(|| vec![0.0; b.len()], <[f64]>::to_vec)
         };
         let (x, done, reason) = match self.multigrid {
-            Some(true) => (first(), 0, "asked for".to_string()),
+            Some(true) => (
+                first(),
+                0,
+                match self.params.solver {
+                    SolverChoice::Auto => MULTIGRID_AS_BEFORE.to_string(),
+                    _ => "asked for".to_string(),
+                },
+            ),
             sweeps_or_auto => {
                 let probe = pcg::Stop {
                     give_up: sweeps_or_auto

@@ -95,6 +95,14 @@
 //! price of a weaker preconditioner). Every solution says why its method was chosen
 //! ([`Solution::reason`]).
 //!
+//! **Warm starts** ([`WarmStart`]). The solves of a run (coarse-to-fine warping, robust
+//! reweighting) start from the previous solve's flow: a start within the tolerance is the
+//! solution (nothing factored), the probe does not give up during its first iterations from a
+//! start (CG may raise the residual's norm first), and `auto` goes straight to multigrid where
+//! the previous solve needed it. Paper size with `--large-motion`: 184 → 124 iterations in 8
+//! solves; the zebrafish recording's robust run 63 → 38 in 7 (docs/scaling.md, "Warm starts
+//! across a run's solves").
+//!
 //! Measured on the 128×95 torus × 20 frames (`synth::paper_torus` geometry, grey values in
 //! [0, 1], tolerance 1e-8, 2 cores; `cargo run --release --example bench_solver [-- 128 95 20
 //! SOLVER]`): iterations, then solve seconds including factorization. Before the odd–even
@@ -376,13 +384,12 @@ pub struct Solution {
 /// Solves the system with the method `params.solver` asks for (see the module docs), with
 /// subnormal numbers flushed ([`crate::subnormals`]).
 ///
-/// `start`, when given, is the first iterate of the iterative methods (the direct ones ignore
-/// it): e.g. the flow of the previous solve of a run, where warping or reweighting changed the
-/// system a little ([`WarmStart`]).
+/// `start`, when given, is where the iterative methods start ([`WarmStart`]; the direct ones
+/// ignore it).
 pub fn solve(
     system: &SpaceTimeSystem,
     params: &FlowParams,
-    start: Option<&[f64]>,
+    start: Option<&WarmStart>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     let solution = crate::subnormals::flushed(|| solve_flushed(system, params, start, observer));
@@ -402,10 +409,42 @@ pub(crate) fn factors_slabs(params: &FlowParams, dimension: usize, coupled: bool
     }
 }
 
+/// A warm start: the previous solve of a run whose systems differ a little (warping,
+/// reweighting), as [`crate::flow::FlowProblem::solve_from`] and the distributed solve take it.
+///
+/// PCG starts from `u` instead of zero, and a `u` that already meets the tolerance is the
+/// solution, returned before anything is factored. `auto` goes straight to multigrid in time
+/// where the previous solve needed it (its probe of slab Gauss–Seidel would only find that
+/// again, later: from a start nearer the tolerance the projected rest of slab Gauss–Seidel
+/// stays within its limit for more iterations), and otherwise probes as from zero but for the
+/// first iterations' lack of progress, which from a warm start says little (CG may raise the
+/// residual's norm first). Measured: docs/scaling.md, "Warm starts across a run's solves".
+#[derive(Clone, Debug)]
+pub struct WarmStart {
+    /// The previous solution's unknowns, slab-major (`2V` per slab, two per vertex, as
+    /// `SpaceTimeSystem` orders them; over ranks, this rank's slabs).
+    pub u: Vec<f64>,
+    /// The method that solution ended with.
+    pub method: SolverMethod,
+}
+
+impl WarmStart {
+    /// How `auto` preconditions a solve from `start`.
+    fn auto(start: Option<&Self>) -> Preconditioning {
+        match start.map(|s| s.method) {
+            Some(SolverMethod::PcgTimeMultigrid) => Preconditioning::MultigridAsBefore,
+            _ => Preconditioning::Adaptive,
+        }
+    }
+}
+
+/// Why `auto` runs multigrid from the start of a warm solve ([`WarmStart`]).
+const MULTIGRID_AS_BEFORE: &str = "the run's previous solve needed multigrid in time";
+
 fn solve_flushed(
     system: &SpaceTimeSystem,
     params: &FlowParams,
-    start: Option<&[f64]>,
+    start: Option<&WarmStart>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     let b = system.rhs();
@@ -429,7 +468,7 @@ fn solve_flushed(
                 params.direct_limit
             ),
         )?,
-        SolverChoice::Auto => slab_pcg(system, params, Preconditioning::Adaptive, start, observer)?,
+        SolverChoice::Auto => slab_pcg(system, params, WarmStart::auto(start), start, observer)?,
         SolverChoice::Direct => direct(system, observer, "asked for".into())?,
         SolverChoice::PcgSlabGaussSeidel => slab_pcg(
             system,
@@ -441,10 +480,10 @@ fn solve_flushed(
         SolverChoice::PcgTimeMultigrid => {
             slab_pcg(system, params, Preconditioning::Multigrid, start, observer)?
         }
-        SolverChoice::PcgJacobi => match WarmStart::met(system, system.rhs(), params, start) {
+        SolverChoice::PcgJacobi => match MetStart::of(system, system.rhs(), params, start) {
             Some(met) => met.solution(SolverMethod::PcgJacobi),
             None => {
-                let x = start.map(<[f64]>::to_vec);
+                let x = start.map(|s| s.u.clone());
                 let outcome = run_pcg(system, x, &Jacobi::new(system), params, 0, observer)?;
                 Solution::iterated(outcome, SolverMethod::PcgJacobi, "asked for".into())
                     .converged(params)?
@@ -506,25 +545,25 @@ impl Solution {
     }
 }
 
-/// A first iterate that already meets the tolerance: the solution of no iteration, found before
-/// anything is factored. A run's next solve (warping, reweighting) may start there when the
-/// system changed less than the tolerance sees, e.g. the last warp of a converged level.
-struct WarmStart {
+/// A [`WarmStart`] that already meets the tolerance: the solution of no iteration, found before
+/// anything is factored. A run's next solve may start there when its system changed less than
+/// the tolerance sees (at paper size with `--large-motion`, the coarsest level's second warp).
+struct MetStart {
     u: Vec<f64>,
     relative_residual: f64,
 }
 
-impl WarmStart {
-    /// `start` when `‖b − A start‖ ≤ tolerance ‖b‖`.
-    fn met(
+impl MetStart {
+    /// `start` when `‖b − A u‖ ≤ tolerance ‖b‖`.
+    fn of(
         system: &dyn pcg::Operator,
         b: &[f64],
         params: &FlowParams,
-        start: Option<&[f64]>,
+        start: Option<&WarmStart>,
     ) -> Option<Self> {
-        let u = start?;
+        let u = &start?.u;
         let relative_residual = relative_residual(system, b, u);
-        (relative_residual <= params.tolerance).then(|| WarmStart {
+        (relative_residual <= params.tolerance).then(|| MetStart {
             u: u.to_vec(),
             relative_residual,
         })
@@ -595,6 +634,8 @@ fn factorization_error(what: String) -> impl Fn(String) -> FlowError {
 enum Preconditioning {
     GaussSeidel,
     Multigrid,
+    /// `auto` from a [`WarmStart`] whose solve ended with multigrid in time.
+    MultigridAsBefore,
     /// Slab Gauss–Seidel for [`PROBE_ITERATIONS`]; multigrid in time if it is too slow.
     Adaptive,
 }
@@ -662,12 +703,14 @@ fn slab_pcg(
     system: &SpaceTimeSystem,
     params: &FlowParams,
     preconditioning: Preconditioning,
-    first: Option<&[f64]>,
+    first: Option<&WarmStart>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
-    if let Some(met) = WarmStart::met(system, system.rhs(), params, first) {
+    if let Some(met) = MetStart::of(system, system.rhs(), params, first) {
         return Ok(met.solution(match preconditioning {
-            Preconditioning::Multigrid => SolverMethod::PcgTimeMultigrid,
+            Preconditioning::Multigrid | Preconditioning::MultigridAsBefore => {
+                SolverMethod::PcgTimeMultigrid
+            }
             _ => SolverMethod::PcgSlabGaussSeidel,
         }));
     }
@@ -688,7 +731,7 @@ fn slab_pcg(
         preconditioning,
         plan,
         start,
-        first,
+        first: first.map(|s| s.u.as_slice()),
         observer,
     };
     let outcome = match single.slabs_per_factor {
@@ -766,6 +809,11 @@ fn slab_pcg_with<F: SlabFactor>(
             job.first_iterate(),
             0,
             format!("asked for; {}", plan.describe()),
+        ),
+        Preconditioning::MultigridAsBefore => (
+            job.first_iterate(),
+            0,
+            format!("{MULTIGRID_AS_BEFORE}; {}", plan.describe()),
         ),
         _ => {
             let stop = pcg::Stop {
