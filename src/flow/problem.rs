@@ -319,11 +319,12 @@ impl<'a> FlowProblem<'a> {
     /// straight to multigrid in time where `previous` needed it ([`solve::WarmStart`]). A start that
     /// already meets the tolerance is returned before anything is factored (0 iterations); the
     /// direct solvers ignore it. With robust reweighting, the first solve starts there; with
-    /// warping, only the solves after the first (each from the last one's result).
+    /// warping, `previous` is not used (the first solve's images are warped by the zero flow),
+    /// and each later solve starts from the last one's result.
     ///
     /// At paper size with `--large-motion` (8 solves) the warm starts took 184 iterations to
-    /// 124 and the run from 66.5 to 57.7 s (docs/scaling.md, "Warm starts across a run's
-    /// solves").
+    /// 124 and the run from 62.3–67.4 to 60.8–61.5 s on 2 cores (docs/scaling.md, "Warm starts
+    /// across a run's solves").
     pub fn solve_from(
         &self,
         previous: Option<&FlowResult>,
