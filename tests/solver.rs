@@ -371,11 +371,19 @@ fn auto_leaves_gauss_seidel_after_an_iteration_without_progress() {
     assert!(difference < 1e-6, "relative difference {difference:e}");
 }
 
-/// `result` with its flow 1 % off, as the next solve of a warping run starts.
-fn one_percent_off(result: &FlowResult) -> FlowResult {
-    let mut nearby = result.clone();
+/// The flow of `params` on `sequence` from zero, and warm-started from it 1 % off (as the next
+/// solve of a warping run starts), with both runs' iterations printed.
+fn cold_and_warm(sequence: &MeshSequence, params: &FlowParams) -> (FlowResult, FlowResult) {
+    let problem = FlowProblem::new(sequence, params).unwrap();
+    let cold = problem.solve(&|_| {}).unwrap();
+    let mut nearby = cold.clone();
     (nearby.intrinsic.iter_mut().flatten()).for_each(|u| *u *= 1.01);
-    nearby
+    let warm = problem.solve_from(Some(&nearby), &|_| {}).unwrap();
+    println!(
+        "{} iterations from zero ({}), {} from 1 % off ({})",
+        cold.iterations, cold.solver_reason, warm.iterations, warm.solver_reason
+    );
+    (cold, warm)
 }
 
 /// A warm start ([`FlowProblem::solve_from`]): from the solution itself the solve returns it
@@ -392,29 +400,19 @@ fn a_warm_start_converges_to_the_same_flow_in_fewer_iterations() {
             tolerance: 1e-10,
             ..FlowParams::paper(1.0, 0.0, 0.1)
         };
+        let (cold, warm) = cold_and_warm(&sequence, &params);
+        assert_eq!(warm.method, cold.method, "{}", warm.solver_reason);
+        assert!(warm.relative_residual <= 1e-10);
+        assert!(warm.iterations < cold.iterations, "{solver:?}");
+        assert_same_intrinsic_flow(&cold, &warm);
         let problem = FlowProblem::new(&sequence, &params).unwrap();
-        let cold = problem.solve(&|_| {}).unwrap();
         let solved = problem.solve_from(Some(&cold), &|_| {}).unwrap();
         assert_eq!(solved.iterations, 0, "{solver:?}");
         assert_eq!(solved.intrinsic, cold.intrinsic);
         assert_eq!(solved.factor_entries, 0, "nothing factored");
         assert!(solved.relative_residual <= 1e-10);
-        assert!(
-            solved.solver_reason.contains("start"),
-            "{}",
-            solved.solver_reason
-        );
-        let warm = problem
-            .solve_from(Some(&one_percent_off(&cold)), &|_| {})
-            .unwrap();
-        println!(
-            "{solver:?}: {} iterations from zero, {} from 1 % off ({})",
-            cold.iterations, warm.iterations, warm.solver_reason
-        );
-        assert_eq!(warm.method, cold.method, "{}", warm.solver_reason);
-        assert!(warm.relative_residual <= 1e-10);
-        assert!(warm.iterations < cold.iterations);
-        assert_same_intrinsic_flow(&cold, &warm);
+        let reason = &solved.solver_reason;
+        assert!(reason.contains("already meets the tolerance"), "{reason}");
     }
 }
 
@@ -428,28 +426,12 @@ fn auto_goes_straight_to_multigrid_after_a_solve_that_needed_it() {
         direct_limit: 0,
         ..FlowParams::paper(1e-3, 0.0, 0.1)
     };
-    let problem = FlowProblem::new(&sequence, &params).unwrap();
-    let cold = problem.solve(&|_| {}).unwrap();
+    let (cold, warm) = cold_and_warm(&sequence, &params);
     assert_eq!(cold.method, SolverMethod::PcgTimeMultigrid);
-    assert!(
-        cold.solver_reason.contains("slab Gauss-Seidel"),
-        "{}",
-        cold.solver_reason
-    );
-    let warm = problem
-        .solve_from(Some(&one_percent_off(&cold)), &|_| {})
-        .unwrap();
-    println!(
-        "{} iterations from zero ({}), {} from 1 % off ({})",
-        cold.iterations, cold.solver_reason, warm.iterations, warm.solver_reason
-    );
+    assert!(cold.solver_reason.contains("slab Gauss-Seidel"));
     assert_eq!(warm.method, SolverMethod::PcgTimeMultigrid);
-    assert!(
-        warm.solver_reason
-            .starts_with("the run's previous solve needed multigrid in time"),
-        "{}",
-        warm.solver_reason
-    );
+    let reason = &warm.solver_reason;
+    assert!(reason.starts_with("the run's previous solve needed multigrid in time"));
     assert!(warm.iterations < cold.iterations);
     assert!(warm.relative_residual <= params.tolerance);
     let difference = flow_difference(&cold, &warm);
