@@ -8,6 +8,7 @@ use super::{energy, robust, slab, solve, uniqueness, warp};
 use super::{DataScales, EnergyTerms, FlowError, FlowParams, MeshSequence, Slab};
 use super::{SolveObserver, SolverMethod, SpaceTimeSystem, Weights};
 use crate::connection::{push_forward, vertex_frames_in_r3};
+use crate::linalg::factor::SpareValues;
 use crate::mesh::Mesh;
 use nalgebra::{Vector2, Vector3};
 use std::borrow::Cow;
@@ -330,15 +331,27 @@ impl<'a> FlowProblem<'a> {
         previous: Option<&FlowResult>,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError> {
-        let mut result = self.minimize(previous, observer)?;
+        self.solve_in_run(previous, None, observer)
+    }
+
+    /// [`Self::solve_from`] as one solve of a run whose slab factors take their buffers from
+    /// `recycled` and give them back ([`solve::solve`]).
+    pub(super) fn solve_in_run(
+        &self,
+        previous: Option<&FlowResult>,
+        recycled: Option<&SpareValues>,
+        observer: &dyn SolveObserver,
+    ) -> Result<FlowResult, FlowError> {
+        let mut result = self.minimize(previous, recycled, observer)?;
         result.anisotropic_contrasts = self.contrasts.clone();
         Ok(result)
     }
 
-    /// [`Self::solve_from`] but for the contrasts.
+    /// [`Self::solve_in_run`] but for the contrasts.
     fn minimize(
         &self,
         previous: Option<&FlowResult>,
+        recycled: Option<&SpareValues>,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError> {
         let outer = OuterStart {
@@ -347,7 +360,7 @@ impl<'a> FlowProblem<'a> {
             scales: self.scales,
             assembly_seconds: self.assembly_seconds,
         };
-        let whole = WholeSequence(self.sequence);
+        let whole = WholeSequence::new(self.sequence);
         if self.params.warping.is_active() {
             return warp::coarse_to_fine(&whole, &outer, observer);
         }
@@ -357,7 +370,8 @@ impl<'a> FlowProblem<'a> {
         }
         let first = previous.map(FlowResult::next_start);
         let start = Instant::now();
-        let solution = solve::solve(&self.system, &self.params, first.as_ref(), observer)?;
+        let (system, params) = (&self.system, &self.params);
+        let solution = solve::solve(system, params, first.as_ref(), recycled, observer)?;
         let solve_seconds = start.elapsed().as_secs_f64();
         let intrinsic = intrinsic_fields(&solution.u, self.system.slab_dimension());
         let weighting = (&self.params, &self.weights);

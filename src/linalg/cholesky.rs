@@ -179,11 +179,15 @@ impl<T: Precision> CholeskyFactor<T> {
         let (pattern, entries) = matrix.parts();
         let rounded: Vec<T> = entries.iter().map(|&v| T::from_f64(v)).collect();
         let (len, zero) = (symbolic.len_val(), T::from_f64(0.0));
-        match values.capacity() < len {
+        values.clear();
+        match values.capacity() {
             // Zero pages from the system, mapped where faer writes first (no second pass).
-            true => values = vec![zero; len],
-            false => {
-                values.clear();
+            0 => values = vec![zero; len],
+            // A packed factor's buffer is shorter than faer's layout (its diagonal blocks'
+            // upper triangles left out): grown in place where it can be (a large buffer is
+            // remapped, not copied), so only the extra pages are new.
+            _ => {
+                values.reserve_exact(len);
                 values.resize(len, zero);
             }
         }

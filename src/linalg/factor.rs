@@ -31,9 +31,15 @@ pub struct SpareValues {
 impl SpareValues {
     /// Room for one buffer per thread of the current rayon pool.
     pub fn per_thread() -> Self {
+        Self::with_capacity(rayon::current_num_threads())
+    }
+
+    /// Room for `capacity` buffers: e.g. all kept factors of a solve, for the next solve of a
+    /// run to factor into ([`SlabFactor::recycle`]).
+    pub fn with_capacity(capacity: usize) -> Self {
         Self {
             buffers: Mutex::new(Vec::new()),
-            capacity: rayon::current_num_threads(),
+            capacity,
         }
     }
 
@@ -81,6 +87,13 @@ pub trait SlabFactor: Sized + Send + Sync {
     fn entries(&self) -> FactorEntries;
     /// The factor in the precision of [`Self::Compressed`], the buffers it gives up to `spare`.
     fn compress(self, spare: &SpareValues) -> Self::Compressed;
+    /// Whether the factor keeps the `f32` buffer it factored into (and gives none back while it
+    /// factors), so that [`Self::recycle`] returns it for another factorization of the pattern.
+    const RECYCLES: bool = false;
+    /// Gives up the factor, its `f32` buffer (where [`Self::RECYCLES`]) to `spare`.
+    fn recycle(self, spare: &SpareValues) {
+        let _ = spare;
+    }
 }
 
 /// Double precision, the fallback for blocks too ill-conditioned for single: faer's factor
@@ -123,6 +136,10 @@ pub trait PackedEntry: Entry {
     /// The packed factor of faer's `factor`, whose buffer goes to `spare` if not kept.
     fn pack(factor: CholeskyFactor<f32>, spare: &SpareValues) -> PackedFactor<Self>;
     fn compress(factor: PackedFactor<Self>, spare: &SpareValues) -> Self::Compressed;
+    /// [`SlabFactor::RECYCLES`].
+    const RECYCLES: bool;
+    /// [`SlabFactor::recycle`].
+    fn recycle(factor: PackedFactor<Self>, spare: &SpareValues);
 }
 
 impl PackedEntry for f32 {
@@ -141,6 +158,12 @@ impl PackedEntry for f32 {
         spare.give(factor.into_values());
         rounded
     }
+
+    const RECYCLES: bool = true;
+
+    fn recycle(factor: PackedFactor<f32>, spare: &SpareValues) {
+        spare.give(factor.into_values());
+    }
 }
 
 impl PackedEntry for Bf16 {
@@ -156,6 +179,10 @@ impl PackedEntry for Bf16 {
     fn compress(factor: Bf16Factor, _: &SpareValues) -> Bf16Factor {
         factor
     }
+
+    const RECYCLES: bool = false;
+
+    fn recycle(_: Bf16Factor, _: &SpareValues) {}
 }
 
 impl<E: PackedEntry> SlabFactor for PackedFactor<E> {
@@ -196,6 +223,12 @@ impl<E: PackedEntry> SlabFactor for PackedFactor<E> {
 
     fn compress(self, spare: &SpareValues) -> E::Compressed {
         E::compress(self, spare)
+    }
+
+    const RECYCLES: bool = E::RECYCLES;
+
+    fn recycle(self, spare: &SpareValues) {
+        E::recycle(self, spare)
     }
 }
 
@@ -251,6 +284,28 @@ mod tests {
             rounded.column_major_values(),
             fresh_rounded.column_major_values()
         );
+    }
+
+    /// A run's next solve factors into the buffers of the last one's `f32` factors: a factor
+    /// recycled gives its buffer back (bfloat16 factors keep none), and the factor written into
+    /// it equals a fresh one; factoring takes from the pool and gives nothing back.
+    #[test]
+    fn recycled_factors_give_their_buffers_to_the_next_factorization() {
+        let (symbolic, [a, b]) = two_blocks();
+        let none = SpareValues::per_thread();
+        let fresh = PackedFactor::<f32>::factor(&symbolic, a.as_ref(), &none).unwrap();
+        let run = SpareValues::with_capacity(4);
+        Bf16Factor::factor(&symbolic, b.as_ref(), &none)
+            .unwrap()
+            .recycle(&run);
+        assert!(run.lock().is_empty());
+        let last = PackedFactor::<f32>::factor(&symbolic, b.as_ref(), &none).unwrap();
+        last.recycle(&run);
+        assert_eq!(run.lock().len(), 1);
+        assert!(PackedFactor::<f32>::RECYCLES && !Bf16Factor::RECYCLES);
+        let next = PackedFactor::<f32>::factor(&symbolic, a.as_ref(), &run).unwrap();
+        assert!(run.lock().is_empty());
+        assert_eq!(next.column_major_values(), fresh.column_major_values());
     }
 
     #[test]

@@ -385,14 +385,19 @@ pub struct Solution {
 /// subnormal numbers flushed ([`crate::subnormals`]).
 ///
 /// `start`, when given, is where the iterative methods start ([`WarmStart`]; the direct ones
-/// ignore it).
+/// ignore it). `recycled`, when given, is a run's pool of `f32` factor buffers: the slab
+/// factors take their buffers from it, and slab Gauss–Seidel's `f32` factors go back to it at
+/// the end, so that the run's next solve writes into pages mapped already
+/// ([`SlabFactor::recycle`]).
 pub fn solve(
     system: &SpaceTimeSystem,
     params: &FlowParams,
     start: Option<&WarmStart>,
+    recycled: Option<&SpareValues>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
-    let solution = crate::subnormals::flushed(|| solve_flushed(system, params, start, observer));
+    let solution =
+        crate::subnormals::flushed(|| solve_flushed(system, params, (start, recycled), observer));
     // The factors are gone; what comes next (energy terms, push-forward) rebuilds slabs.
     crate::limits::release_free_memory();
     solution
@@ -444,9 +449,13 @@ const MULTIGRID_AS_BEFORE: &str = "the run's previous solve needed multigrid in 
 fn solve_flushed(
     system: &SpaceTimeSystem,
     params: &FlowParams,
-    start: Option<&WarmStart>,
+    (start, recycled): (Option<&WarmStart>, Option<&SpareValues>),
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
+    let slab_pcg = |preconditioning| {
+        let from = Starting { start, recycled };
+        slab_pcg(system, params, preconditioning, from, observer)
+    };
     let b = system.rhs();
     if b.iter().all(|&v| v == 0.0) {
         return Ok(Solution::zero(b.len()));
@@ -468,18 +477,10 @@ fn solve_flushed(
                 params.direct_limit
             ),
         )?,
-        SolverChoice::Auto => slab_pcg(system, params, WarmStart::auto(start), start, observer)?,
+        SolverChoice::Auto => slab_pcg(WarmStart::auto(start))?,
         SolverChoice::Direct => direct(system, observer, "asked for".into())?,
-        SolverChoice::PcgSlabGaussSeidel => slab_pcg(
-            system,
-            params,
-            Preconditioning::GaussSeidel,
-            start,
-            observer,
-        )?,
-        SolverChoice::PcgTimeMultigrid => {
-            slab_pcg(system, params, Preconditioning::Multigrid, start, observer)?
-        }
+        SolverChoice::PcgSlabGaussSeidel => slab_pcg(Preconditioning::GaussSeidel)?,
+        SolverChoice::PcgTimeMultigrid => slab_pcg(Preconditioning::Multigrid)?,
         SolverChoice::PcgJacobi => match MetStart::of(system, system.rhs(), params, start) {
             Some(met) => met.solution(SolverMethod::PcgJacobi),
             None => {
@@ -703,7 +704,10 @@ fn slab_pcg(
     system: &SpaceTimeSystem,
     params: &FlowParams,
     preconditioning: Preconditioning,
-    first: Option<&WarmStart>,
+    Starting {
+        start: first,
+        recycled,
+    }: Starting<'_>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     if let Some(met) = MetStart::of(system, system.rhs(), params, first) {
@@ -732,6 +736,7 @@ fn slab_pcg(
         plan,
         start,
         first: first.map(|s| s.u.as_slice()),
+        recycled,
         observer,
     };
     let outcome = match single.slabs_per_factor {
@@ -763,12 +768,25 @@ fn slab_pcg_in<F: SlabFactor>(job: SlabJob<'_>) -> Result<Solution, FlowError> {
     job.observer.notify(SolveEvent::Factorizing {
         slabs: system.n_slabs(),
     })?;
-    let fine = plan.factor::<F>(&[system], &SpareValues::per_thread())?;
+    let per_thread = SpareValues::per_thread();
+    let spare = match job.recycled {
+        Some(recycled) if F::RECYCLES => recycled,
+        _ => &per_thread,
+    };
+    let fine = plan.factor::<F>(&[system], spare)?;
     slab_pcg_with(job, fine)
 }
 
+/// Where a solve of a run starts: the previous solve ([`WarmStart`]) and the run's pool of
+/// factor buffers ([`solve`]'s `recycled`).
+#[derive(Clone, Copy)]
+struct Starting<'a> {
+    start: Option<&'a WarmStart>,
+    recycled: Option<&'a SpareValues>,
+}
+
 /// What [`slab_pcg_with`] needs besides the factors (factored since `start`; PCG's first
-/// iterate `first`, zero when `None`).
+/// iterate `first`, zero when `None`; the run's pool `recycled` for the kept factors).
 #[derive(Clone, Copy)]
 struct SlabJob<'a> {
     system: &'a SpaceTimeSystem,
@@ -777,6 +795,7 @@ struct SlabJob<'a> {
     plan: &'a FactorPlan<'a>,
     start: Instant,
     first: Option<&'a [f64]>,
+    recycled: Option<&'a SpareValues>,
     observer: &'a dyn SolveObserver,
 }
 
@@ -833,6 +852,9 @@ fn slab_pcg_with<F: SlabFactor>(
                     Solution::iterated(outcome, SolverMethod::PcgSlabGaussSeidel, reason);
                 solution.factor_seconds = factor_seconds;
                 solution.factor_entries = factor_entries;
+                if let Some(recycled) = job.recycled {
+                    fine.recycle(recycled);
+                }
                 return solution.converged(params);
             }
             let reason = format!("{verdict}; {}", plan.describe());

@@ -99,6 +99,11 @@ impl<F: SlabFactor> SlabSweeps<F> {
         }
     }
 
+    /// Gives up the factors, their `f32` buffers to `spare` ([`SlabFactor::recycle`]).
+    pub fn recycle(self, spare: &SpareValues) {
+        self.factors.into_iter().for_each(|f| f.recycle(spare));
+    }
+
     /// Entries of all factors.
     pub fn entries(&self) -> FactorEntries {
         self.factors.iter().map(F::entries).sum()
