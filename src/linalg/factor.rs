@@ -302,7 +302,7 @@ mod tests {
         let last = PackedFactor::<f32>::factor(&symbolic, b.as_ref(), &none).unwrap();
         last.recycle(&run);
         assert_eq!(run.lock().len(), 1);
-        assert!(PackedFactor::<f32>::RECYCLES && !Bf16Factor::RECYCLES);
+        const { assert!(PackedFactor::<f32>::RECYCLES && !Bf16Factor::RECYCLES) };
         let next = PackedFactor::<f32>::factor(&symbolic, a.as_ref(), &run).unwrap();
         assert!(run.lock().is_empty());
         assert_eq!(next.column_major_values(), fresh.column_major_values());
