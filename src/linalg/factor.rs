@@ -91,9 +91,7 @@ pub trait SlabFactor: Sized + Send + Sync {
     /// factors), so that [`Self::recycle`] returns it for another factorization of the pattern.
     const RECYCLES: bool = false;
     /// Gives up the factor, its `f32` buffer (where [`Self::RECYCLES`]) to `spare`.
-    fn recycle(self, spare: &SpareValues) {
-        let _ = spare;
-    }
+    fn recycle(self, _spare: &SpareValues) {}
 }
 
 /// Double precision, the fallback for blocks too ill-conditioned for single: faer's factor

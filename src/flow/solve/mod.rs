@@ -824,16 +824,14 @@ fn slab_pcg_with<F: SlabFactor>(
     let factor_seconds = start.elapsed().as_secs_f64();
     let factor_entries = fine.entries();
     let (x, done, reason) = match preconditioning {
-        Preconditioning::Multigrid => (
-            job.first_iterate(),
-            0,
-            format!("asked for; {}", plan.describe()),
-        ),
-        Preconditioning::MultigridAsBefore => (
-            job.first_iterate(),
-            0,
-            format!("{MULTIGRID_AS_BEFORE}; {}", plan.describe()),
-        ),
+        Preconditioning::Multigrid | Preconditioning::MultigridAsBefore => {
+            let why = match preconditioning {
+                Preconditioning::Multigrid => "asked for",
+                _ => MULTIGRID_AS_BEFORE,
+            };
+            let reason = format!("{why}; {}", plan.describe());
+            (job.first_iterate(), 0, reason)
+        }
         _ => {
             let stop = pcg::Stop {
                 give_up: (preconditioning == Preconditioning::Adaptive)
