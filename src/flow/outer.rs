@@ -9,9 +9,9 @@
 //! over processes with [`SlabSolver::sum`].
 
 use super::problem::{FlowProblem, FlowResult, SolveStep, Timings};
+use super::solve::{FactorReuse, InRun, RunFactors};
 use super::{DataScales, FlowError, FlowParams, MeshSequence};
 use super::{Slab, SolveObserver, Weights};
-use crate::linalg::factor::SpareValues;
 use std::ops::Range;
 use std::time::Instant;
 
@@ -27,12 +27,14 @@ pub(super) trait SlabSolver {
     /// Minimizes the model of `params` on the frames' slabs `slabs` (all of them, in order); the
     /// result's flow is that of [`SlabSolver::own`], its energy terms the whole sequence's.
     /// The solve is warm-started from `previous`, the run's previous result (of the own
-    /// slabs), when given ([`FlowProblem::solve_from`]). Collective over ranks.
+    /// slabs), when given ([`FlowProblem::solve_from`]), and takes or keeps slab factors as
+    /// `reuse` says ([`FactorReuse`]; one process only). Collective over ranks.
     fn solve(
         &self,
         params: &FlowParams,
         slabs: Vec<Slab>,
         previous: Option<&FlowResult>,
+        reuse: FactorReuse,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError>;
 
@@ -62,19 +64,20 @@ impl OuterStart<'_> {
     }
 }
 
-/// The whole sequence in one process, with the pool its solves' `f32` slab factors are
-/// recycled through: a run's next solve factors into pages mapped already (at paper size a
-/// factor is 36 MB, 9,000 pages that each fault on first touch).
+/// The whole sequence in one process, with what its solves hand on to each other
+/// ([`RunFactors`]): the pool their `f32` slab factors are recycled through, so that a run's
+/// next solve factors into pages mapped already (at paper size a factor is 36 MB, 9,000 pages
+/// that each fault on first touch), and the factors a warp keeps for the next.
 pub(super) struct WholeSequence<'a> {
     sequence: &'a MeshSequence,
-    recycled: SpareValues,
+    factors: RunFactors,
 }
 
 impl<'a> WholeSequence<'a> {
     pub fn new(sequence: &'a MeshSequence) -> Self {
         Self {
             sequence,
-            recycled: SpareValues::with_capacity(sequence.n_slabs()),
+            factors: RunFactors::new(sequence.n_slabs()),
         }
     }
 }
@@ -93,10 +96,12 @@ impl SlabSolver for WholeSequence<'_> {
         params: &FlowParams,
         slabs: Vec<Slab>,
         previous: Option<&FlowResult>,
+        reuse: FactorReuse,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError> {
         let problem = FlowProblem::from_slabs(self.sequence, params, slabs)?;
-        problem.solve_in_run(previous, Some(&self.recycled), observer)
+        let factors = &self.factors;
+        problem.solve_in_run(previous, Some(InRun { factors, reuse }), observer)
     }
 
     fn sum(&self, _: &mut [f64]) {}

@@ -4,11 +4,11 @@
 //! [`FlowResult`] with the fields, the energy, the solver's figures and [`Timings`].
 
 use super::outer::{OuterStart, WholeSequence};
+use super::solve::InRun;
 use super::{energy, robust, slab, solve, uniqueness, warp};
 use super::{DataScales, EnergyTerms, FlowError, FlowParams, MeshSequence, Slab};
 use super::{SolveObserver, SolverMethod, SpaceTimeSystem, Weights};
 use crate::connection::{push_forward, vertex_frames_in_r3};
-use crate::linalg::factor::SpareValues;
 use crate::mesh::Mesh;
 use nalgebra::{Vector2, Vector3};
 use std::borrow::Cow;
@@ -334,15 +334,15 @@ impl<'a> FlowProblem<'a> {
         self.solve_in_run(previous, None, observer)
     }
 
-    /// [`Self::solve_from`] as one solve of a run whose slab factors take their buffers from
-    /// `recycled` and give them back ([`solve::solve`]).
+    /// [`Self::solve_from`] as one solve of `run`, whose slab factors take their buffers from
+    /// the run's pool and hand them on ([`solve::solve`]).
     pub(super) fn solve_in_run(
         &self,
         previous: Option<&FlowResult>,
-        recycled: Option<&SpareValues>,
+        run: Option<InRun<'_>>,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError> {
-        let mut result = self.minimize(previous, recycled, observer)?;
+        let mut result = self.minimize(previous, run, observer)?;
         result.anisotropic_contrasts = self.contrasts.clone();
         Ok(result)
     }
@@ -351,7 +351,7 @@ impl<'a> FlowProblem<'a> {
     fn minimize(
         &self,
         previous: Option<&FlowResult>,
-        recycled: Option<&SpareValues>,
+        run: Option<InRun<'_>>,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError> {
         let outer = OuterStart {
@@ -371,7 +371,7 @@ impl<'a> FlowProblem<'a> {
         let first = previous.map(FlowResult::next_start);
         let start = Instant::now();
         let (system, params) = (&self.system, &self.params);
-        let solution = solve::solve(system, params, first.as_ref(), recycled, observer)?;
+        let solution = solve::solve(system, params, first.as_ref(), run, observer)?;
         let solve_seconds = start.elapsed().as_secs_f64();
         let intrinsic = intrinsic_fields(&solution.u, self.system.slab_dimension());
         let weighting = (&self.params, &self.weights);

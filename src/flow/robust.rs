@@ -44,6 +44,7 @@
 
 use super::outer::{OuterStart, RunClock, SlabSolver};
 use super::problem::FlowResult;
+use super::solve::FactorReuse;
 use super::{FlowError, FlowParams, SolveObserver};
 use super::{Regularizer, Scale};
 use crate::mesh::Mesh;
@@ -116,7 +117,13 @@ pub(super) fn reweighted(
             .collect(),
     };
     let mut clock = RunClock::start(start.assembly_seconds);
-    let mut result = solver.solve(&params, slabs.clone(), previous, observer)?;
+    let mut result = solver.solve(
+        &params,
+        slabs.clone(),
+        previous,
+        FactorReuse::NONE,
+        observer,
+    )?;
     clock.end_step("first solve".into(), &result);
     // The penalty's arguments of the current flow on the own slabs: its energy, and the next
     // solve's weights.
@@ -130,7 +137,13 @@ pub(super) fn reweighted(
     while reweightings < MAX_REWEIGHTINGS {
         penalty.reweight(&mut slabs[own.clone()], &arguments);
         clock.begin_step();
-        result = solver.solve(&params, slabs.clone(), Some(&result), observer)?;
+        result = solver.solve(
+            &params,
+            slabs.clone(),
+            Some(&result),
+            FactorReuse::NONE,
+            observer,
+        )?;
         reweightings += 1;
         clock.end_step(format!("reweighting {reweightings}"), &result);
         arguments = penalty.arguments(mesh, &slabs[own.clone()], &result);

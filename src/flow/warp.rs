@@ -32,6 +32,7 @@ use super::outer::{OuterStart, RunClock, SlabSolver};
 use super::problem::FlowResult;
 use super::pyramid::scale_pyramid;
 use super::slab::{Slab, SlabChannel};
+use super::solve::FactorReuse;
 use super::{FlowError, FlowParams, Images, MeshSequence, SolveEvent};
 use super::{SolveObserver, Weight};
 use crate::geometry::{trace, SurfacePoint};
@@ -74,7 +75,13 @@ pub(super) fn coarse_to_fine(
             clock.begin_step();
             let slabs = warped_slabs(frames, &pyramid[level], &flow, &channel_weights)?;
             // The last solve's flow is a first guess (the energy is the total flow's).
-            let solved = solver.solve(&params, slabs, result.as_ref(), observer)?;
+            // A level's next warp differs by the re-linearized data term alone: it
+            // preconditions with this warp's factors.
+            let reuse = FactorReuse {
+                take: warp > 0,
+                keep: warp + 1 < warping.warps,
+            };
+            let solved = solver.solve(&params, slabs, result.as_ref(), reuse, observer)?;
             clock.end_step(format!("level {level}, warp {}", warp + 1), &solved);
             flow[own.clone()].clone_from_slice(&solved.intrinsic);
             result = Some(solved);

@@ -19,13 +19,14 @@
 //! the minimizer is unique (`β = 0`, `FlowError::Singular`) runs over the ranks before each solve:
 //! each checks its own slabs and links and the parts that couple all slabs are summed.
 
-use super::distributed::{gather_to_first, next_rank_first_slab, solve_window, TimeRanks};
+use super::distributed::{gather_to_first, next_rank_first_slab, solve_window_in_run, TimeRanks};
 use super::outer::{OuterStart, SlabSolver};
 use super::problem::{
     energy_and_vectors, intrinsic_fields, kept_slab_bytes, FlowResult, Timings, KEEP_SLABS_BYTES,
 };
 use super::robust::reweighted;
 use super::slab::{build_slabs, complete_slabs, time_links, Slab};
+use super::solve::{FactorReuse, InRun, RunFactors};
 use super::system::SystemWindow;
 use super::uniqueness::{check_unique_minimizer, CheckedSlabs};
 use super::warp::coarse_to_fine;
@@ -267,6 +268,7 @@ pub fn flow_of_own_slabs(
         window,
         ranks,
         scales,
+        factors: RunFactors::new(window.slabs.len()),
     };
     let outer = OuterStart {
         params,
@@ -282,7 +284,7 @@ pub fn flow_of_own_slabs(
         (false, Some(epsilon)) => {
             reweighted(&solver, &outer, slabs.slabs, epsilon, None, observer)?
         }
-        (false, None) => solver.solve_window_slabs(slabs, params, None, observer, start)?,
+        (false, None) => solver.solve_window_slabs(slabs, params, (None, None), observer, start)?,
     };
     Ok(result)
 }
@@ -294,6 +296,8 @@ struct RankWindow<'a> {
     ranks: &'a dyn TimeRanks,
     /// The whole sequence's data scales.
     scales: DataScales,
+    /// What the window's solves hand on to each other.
+    factors: RunFactors,
 }
 
 impl SlabSolver for RankWindow<'_> {
@@ -311,6 +315,7 @@ impl SlabSolver for RankWindow<'_> {
         params: &FlowParams,
         slabs: Vec<Slab>,
         previous: Option<&FlowResult>,
+        reuse: FactorReuse,
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError> {
         let start = Instant::now();
@@ -326,7 +331,11 @@ impl SlabSolver for RankWindow<'_> {
         let offset = self.window.frames().start;
         let slabs =
             WindowSlabs::with_slabs(self.frames, offset, self.window.clone(), params, slabs)?;
-        self.solve_window_slabs(slabs, params, previous, observer, start)
+        let run = InRun {
+            factors: &self.factors,
+            reuse,
+        };
+        self.solve_window_slabs(slabs, params, (previous, Some(run)), observer, start)
     }
 
     fn sum(&self, values: &mut [f64]) {
@@ -336,13 +345,13 @@ impl SlabSolver for RankWindow<'_> {
 
 impl RankWindow<'_> {
     /// One linear solve over all ranks of the window's `slabs`, begun at `start`, warm-started
-    /// from `previous` (of the own slabs) when given: the result of the window's own slabs (its
-    /// flow theirs, its energy terms summed over ranks).
+    /// from `previous` (of the own slabs) when given, as one of `run` when given: the result of
+    /// the window's own slabs (its flow theirs, its energy terms summed over ranks).
     fn solve_window_slabs(
         &self,
         mut slabs: WindowSlabs,
         params: &FlowParams,
-        previous: Option<&FlowResult>,
+        (previous, run): (Option<&FlowResult>, Option<InRun<'_>>),
         observer: &dyn SolveObserver,
         start: Instant,
     ) -> Result<FlowResult, FlowError> {
@@ -351,7 +360,7 @@ impl RankWindow<'_> {
         slabs.release_large(frames);
         let assembly = start.elapsed().as_secs_f64();
         let first = previous.map(FlowResult::next_start);
-        let solution = solve_window(&system, ranks, params, first.as_ref(), observer)?;
+        let solution = solve_window_in_run(&system, ranks, params, first.as_ref(), run, observer)?;
         let solve = start.elapsed().as_secs_f64() - assembly;
         let n = system.system.slab_dimension();
         let mut u = solution.u.clone();

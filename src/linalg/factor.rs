@@ -61,8 +61,9 @@ impl SpareValues {
     }
 }
 
-/// A factor that a preconditioner solves with.
-pub trait SlabFactor: Sized + Send + Sync {
+/// A factor that a preconditioner solves with (`'static`: a run's solves hand factors on as
+/// `Any`, `crate::flow::solve::run`).
+pub trait SlabFactor: Sized + Send + Sync + 'static {
     /// Bytes each stored entry of `L` takes.
     const ENTRY_BYTES: usize;
     /// Bytes one factor of the analysed pattern takes at most (the memory budget's unit).

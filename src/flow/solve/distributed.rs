@@ -32,9 +32,10 @@
 use super::multigrid::{level_slab_counts, prolong_add, restrict, v_cycle, CycleLevels};
 use super::pcg::{self, Operator, Preconditioner};
 use super::precondition::{add, SlabSweeps, Surroundings};
+use super::run::{InRun, WithLevels};
 use super::{factorization_error, Solution, SolveObserver, SolverMethod};
 use super::{gauss_seidel_verdict, levels_keep_precision, probe_give_up};
-use super::{MetStart, Preconditioning, WarmStart, MULTIGRID_AS_BEFORE};
+use super::{MetStart, Preconditioning, WarmStart, KEPT, MULTIGRID_AS_BEFORE};
 use crate::flow::system::{dot, SystemWindow};
 use crate::flow::{FlowError, FlowParams, LinkMatrix, SolverChoice, SpaceTimeSystem};
 use crate::linalg::cholesky::{CholeskyFactor, FactorEntries};
@@ -350,14 +351,29 @@ pub fn solve_window(
     start: Option<&WarmStart>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
-    crate::subnormals::flushed(|| solve_window_flushed(window, ranks, params, start, observer))
+    solve_window_in_run(window, ranks, params, start, None, observer)
+}
+
+/// [`solve_window`] as one solve of `run`, whose slab factors take their buffers from the
+/// run's pool and are kept for its next solve or taken from its previous one as [`InRun`]
+/// says (the same decision on every rank), as in one process ([`super::solve`]).
+pub(crate) fn solve_window_in_run(
+    window: &SystemWindow,
+    ranks: &dyn TimeRanks,
+    params: &FlowParams,
+    start: Option<&WarmStart>,
+    run: Option<InRun<'_>>,
+    observer: &dyn SolveObserver,
+) -> Result<Solution, FlowError> {
+    let from = (start, run);
+    crate::subnormals::flushed(|| solve_window_flushed(window, ranks, params, from, observer))
 }
 
 fn solve_window_flushed(
     window: &SystemWindow,
     ranks: &dyn TimeRanks,
     params: &FlowParams,
-    start: Option<&WarmStart>,
+    (start, run): (Option<&WarmStart>, Option<InRun<'_>>),
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     let multigrid = match params.solver {
@@ -387,6 +403,8 @@ fn solve_window_flushed(
         start: start.map(|s| s.u.as_slice()),
         observer,
         multigrid,
+        run,
+        kept: false,
     };
     let b = window.system.rhs();
     let operator = job.fine_plan();
@@ -399,6 +417,15 @@ fn solve_window_flushed(
             Some(true) => SolverMethod::PcgTimeMultigrid,
             _ => SolverMethod::PcgSlabGaussSeidel,
         }));
+    }
+    if let Some(run) = run {
+        if run.reuse.take {
+            let kept = WindowKept { job };
+            if let Some(solution) = run.factors.take(super::shape(&window.system), kept) {
+                return solution;
+            }
+        }
+        run.factors.release();
     }
     // Single-precision factors (bfloat16 for multigrid's levels, as in one process) suffice for
     // a preconditioner; f64 if a block of any level is too ill-conditioned (on any rank: the
@@ -418,6 +445,7 @@ struct Continuation {
 }
 
 /// What a rank's solve needs, whatever the factors' precision.
+#[derive(Clone, Copy)]
 struct WindowJob<'a> {
     window: &'a SystemWindow,
     windows: &'a [Range<usize>],
@@ -429,6 +457,48 @@ struct WindowJob<'a> {
     /// `Some(true)`: multigrid; `Some(false)`: the sweeps; `None`: the sweeps, then multigrid
     /// if they are too slow.
     multigrid: Option<bool>,
+    /// The run the solve is one of.
+    run: Option<InRun<'a>>,
+    /// Whether the factors are kept from the run's previous solve ([`super::run`]).
+    kept: bool,
+}
+
+/// The sweeps or multigrid in time with the levels the run's previous solve kept.
+struct WindowKept<'a> {
+    job: WindowJob<'a>,
+}
+
+impl WithLevels for WindowKept<'_> {
+    type Output = Result<Solution, FlowError>;
+
+    fn with<F: SlabFactor>(self, levels: Vec<SlabSweeps<F>>) -> Self::Output {
+        let job = WindowJob {
+            kept: true,
+            ..self.job
+        };
+        let level = |(plan, sweeps)| Level {
+            plan,
+            sweeps,
+            factor_seconds: 0.0,
+        };
+        // Decided alike on every rank: a rank whose windows of the coarse levels are empty
+        // holds fewer levels than the others.
+        if job.multigrid != Some(true) {
+            let fine = levels
+                .into_iter()
+                .next()
+                .map(|l| level((job.fine_plan(), l)));
+            return job.iterate(fine.into_iter().collect());
+        }
+        let (plans, n_levels_in_all) = build_levels(job.window, job.windows, job.ranks);
+        let start = Continuation {
+            x: job.first_iterate(),
+            stop: pcg::Stop::new(job.params.tolerance, job.params.max_iterations),
+            reason: job.reason(job.multigrid_why()),
+        };
+        let levels = plans.into_iter().zip(levels).map(level).collect();
+        job.multigrid_over(levels, n_levels_in_all, start)
+    }
 }
 
 impl<'a> WindowJob<'a> {
@@ -446,23 +516,19 @@ impl<'a> WindowJob<'a> {
     fn run<F: SlabFactor>(&self) -> Result<Solution, FlowError> {
         let symbolic = self.window.system.slab_symbolic();
         let fine = vec![self.fine_plan()];
-        let mut levels =
-            factor_levels::<F>(fine, symbolic, self.ranks, &SpareValues::per_thread())?;
-        let b = self.window.system.rhs();
+        let per_thread = SpareValues::per_thread();
+        let spare = super::run::spare_for::<F>(self.run, &per_thread);
+        let levels = factor_levels::<F>(fine, symbolic, self.ranks, spare)?;
+        self.iterate(levels)
+    }
+
+    /// CG from the fine level's factors `levels` (one level), as [`Self::run`] says.
+    fn iterate<F: SlabFactor>(&self, mut levels: Vec<Level<'a, F>>) -> Result<Solution, FlowError> {
+        let symbolic = self.window.system.slab_symbolic();
         let stop = pcg::Stop::new(self.params.tolerance, self.params.max_iterations);
-        let first = || {
-            self.start
-                .map_or_else(|| vec![0.0; b.len()], <[f64]>::to_vec)
-        };
+        let first = || self.first_iterate();
         let (x, done, reason) = match self.multigrid {
-            Some(true) => (
-                first(),
-                0,
-                match self.params.solver {
-                    SolverChoice::Auto => MULTIGRID_AS_BEFORE.to_string(),
-                    _ => "asked for".to_string(),
-                },
-            ),
+            Some(true) => (first(), 0, self.reason(self.multigrid_why())),
             sweeps_or_auto => {
                 let probe = pcg::Stop {
                     give_up: sweeps_or_auto
@@ -474,13 +540,15 @@ impl<'a> WindowJob<'a> {
                 let verdict = gauss_seidel_verdict(&outcome);
                 if sweeps_or_auto == Some(false) || outcome.gave_up.is_none() {
                     let reason = match sweeps_or_auto {
-                        Some(false) => "asked for".into(),
-                        _ => verdict,
+                        Some(false) => self.reason("asked for"),
+                        _ => self.reason(&verdict),
                     };
                     let method = SolverMethod::PcgSlabGaussSeidel;
-                    return self.finish(outcome, method, reason, &levels, 1);
+                    let solution = self.finish(outcome, method, reason, &levels, 1);
+                    self.hand_on(levels);
+                    return solution;
                 }
-                (outcome.x, outcome.iterations, verdict)
+                (outcome.x, outcome.iterations, self.reason(&verdict))
             }
         };
         let factored = levels.pop().expect("the fine level");
@@ -521,10 +589,54 @@ impl<'a> WindowJob<'a> {
         let coarse = factor_levels::<F>(plans.collect(), symbolic, self.ranks, &spare)?;
         drop(spare);
         let levels: Vec<Level<'_, F>> = std::iter::once(fine).chain(coarse).collect();
+        self.multigrid_over(levels, n_levels_in_all, start)
+    }
+
+    /// CG with multigrid in time over `levels` from `start`; the levels' sweeps handed on to
+    /// the run at the end.
+    fn multigrid_over<F: SlabFactor>(
+        &self,
+        levels: Vec<Level<'_, F>>,
+        n_levels_in_all: usize,
+        start: Continuation,
+    ) -> Result<Solution, FlowError> {
         let Continuation { x, stop, reason } = start;
         let outcome = self.pcg(&levels, n_levels_in_all, x, stop)?;
         let method = SolverMethod::PcgTimeMultigrid;
-        self.finish(outcome, method, reason, &levels, n_levels_in_all)
+        let solution = self.finish(outcome, method, reason, &levels, n_levels_in_all);
+        self.hand_on(levels);
+        solution
+    }
+
+    /// This rank's part of CG's first iterate.
+    fn first_iterate(&self) -> Vec<f64> {
+        let n = self.window.system.rhs().len();
+        self.start.map_or_else(|| vec![0.0; n], <[f64]>::to_vec)
+    }
+
+    /// Why multigrid in time runs from the start.
+    fn multigrid_why(&self) -> &'static str {
+        match self.params.solver {
+            SolverChoice::Auto => MULTIGRID_AS_BEFORE,
+            _ => "asked for",
+        }
+    }
+
+    /// `why`, with where the factors came from when they are kept.
+    fn reason(&self, why: &str) -> String {
+        match self.kept {
+            true => format!("{why}; {KEPT}"),
+            false => why.to_string(),
+        }
+    }
+
+    /// The solve's `levels` to the run: kept for the next solve, or their buffers recycled.
+    fn hand_on<F: SlabFactor>(&self, levels: Vec<Level<'_, F>>) {
+        if let Some(run) = self.run {
+            let sweeps = levels.into_iter().map(|l| l.sweeps).collect();
+            let shape = super::shape(&self.window.system);
+            run.factors.hand_on(sweeps, shape, run.reuse.keep);
+        }
     }
 
     /// CG from `x` on the whole system, preconditioned by multigrid in time over `levels`

@@ -275,6 +275,7 @@ mod multigrid;
 mod pcg;
 mod precondition;
 mod reduced;
+mod run;
 
 use super::system::SpaceTimeSystem;
 use super::{FlowError, FlowParams, SolverChoice};
@@ -287,6 +288,8 @@ use faer::Par;
 use multigrid::{TimeHierarchy, TimeMultigrid};
 use precondition::{Jacobi, SlabGaussSeidel, SlabSweeps};
 use rayon::prelude::*;
+pub(crate) use run::{FactorReuse, InRun, RunFactors};
+use run::{Shape, WithLevels};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -385,19 +388,20 @@ pub struct Solution {
 /// subnormal numbers flushed ([`crate::subnormals`]).
 ///
 /// `start`, when given, is where the iterative methods start ([`WarmStart`]; the direct ones
-/// ignore it). `recycled`, when given, is a run's pool of `f32` factor buffers: the slab
-/// factors take their buffers from it, and slab Gauss–Seidel's `f32` factors go back to it at
-/// the end, so that the run's next solve writes into pages mapped already
-/// ([`SlabFactor::recycle`]).
+/// ignore it). `run`, when given, holds what a run's solves hand on ([`run`]): the slab
+/// factors take their buffers from its pool and give them back at the end, so that the run's
+/// next solve writes into pages mapped already ([`SlabFactor::recycle`]); and where
+/// [`FactorReuse`] says so, a solve keeps its factors for the next one, which preconditions
+/// with them instead of factoring its own.
 pub fn solve(
     system: &SpaceTimeSystem,
     params: &FlowParams,
     start: Option<&WarmStart>,
-    recycled: Option<&SpareValues>,
+    run: Option<InRun<'_>>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     let solution =
-        crate::subnormals::flushed(|| solve_flushed(system, params, (start, recycled), observer));
+        crate::subnormals::flushed(|| solve_flushed(system, params, (start, run), observer));
     // The factors are gone; what comes next (energy terms, push-forward) rebuilds slabs.
     crate::limits::release_free_memory();
     solution
@@ -449,11 +453,11 @@ const MULTIGRID_AS_BEFORE: &str = "the run's previous solve needed multigrid in 
 fn solve_flushed(
     system: &SpaceTimeSystem,
     params: &FlowParams,
-    (start, recycled): (Option<&WarmStart>, Option<&SpareValues>),
+    (start, run): (Option<&WarmStart>, Option<InRun<'_>>),
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     let slab_pcg = |preconditioning| {
-        let from = Starting { start, recycled };
+        let from = Starting { start, run };
         slab_pcg(system, params, preconditioning, from, observer)
     };
     let b = system.rhs();
@@ -704,10 +708,7 @@ fn slab_pcg(
     system: &SpaceTimeSystem,
     params: &FlowParams,
     preconditioning: Preconditioning,
-    Starting {
-        start: first,
-        recycled,
-    }: Starting<'_>,
+    Starting { start: first, run }: Starting<'_>,
     observer: &dyn SolveObserver,
 ) -> Result<Solution, FlowError> {
     if let Some(met) = MetStart::of(system, system.rhs(), params, first) {
@@ -719,16 +720,6 @@ fn slab_pcg(
         }));
     }
     let start = Instant::now();
-    let symbolic = system.slab_symbolic();
-    // Single precision (f32 or bfloat16) suffices for a preconditioner; double precision if a
-    // block of any level (the fine slabs, or the coarse levels multigrid adds later) is too
-    // ill-conditioned for single, within the whole budget as before. Single-precision factors
-    // get half the budget per level: multigrid adds about as many coarse factors again.
-    let half_budget = params.factor_memory_limit / 2;
-    let single = FactorPlan::new::<PackedFactor<f32>>(system, symbolic, half_budget);
-    let compressed = FactorPlan::new::<Bf16Factor>(system, symbolic, half_budget);
-    let budget = params.factor_memory_limit;
-    let double = FactorPlan::new::<CholeskyFactor<f64>>(system, symbolic, budget);
     let job = |plan| SlabJob {
         system,
         params,
@@ -736,16 +727,64 @@ fn slab_pcg(
         plan,
         start,
         first: first.map(|s| s.u.as_slice()),
-        recycled,
+        run,
+        kept: false,
         observer,
     };
+    let plans = Plans::new(system, params);
+    if let Some(run) = run {
+        if run.reuse.take {
+            let kept = WithKept {
+                job: job(&plans.single),
+                plans: &plans,
+            };
+            if let Some(solution) = run.factors.take(shape(system), kept) {
+                return solution;
+            }
+        }
+        run.factors.release();
+    }
+    let Plans {
+        single,
+        compressed,
+        double,
+    } = &plans;
     let outcome = match single.slabs_per_factor {
-        1 => slab_pcg_in::<PackedFactor<f32>>(job(&single)),
-        _ => slab_pcg_in::<Bf16Factor>(job(&compressed)),
+        1 => slab_pcg_in::<PackedFactor<f32>>(job(single)),
+        _ => slab_pcg_in::<Bf16Factor>(job(compressed)),
     };
     match outcome {
-        Err(FlowError::Factorization { .. }) => slab_pcg_in::<CholeskyFactor<f64>>(job(&double)),
+        Err(FlowError::Factorization { .. }) => slab_pcg_in::<CholeskyFactor<f64>>(job(double)),
         other => other,
+    }
+}
+
+/// The [`FactorPlan`]s of a system's slab factors by precision: single precision (`f32` or
+/// bfloat16) suffices for a preconditioner; double precision if a block of any level (the
+/// fine slabs, or the coarse levels multigrid adds later) is too ill-conditioned for single.
+struct Plans<'a> {
+    single: FactorPlan<'a>,
+    compressed: FactorPlan<'a>,
+    double: FactorPlan<'a>,
+}
+
+impl<'a> Plans<'a> {
+    fn new(system: &'a SpaceTimeSystem, params: &FlowParams) -> Self {
+        let symbolic = system.slab_symbolic();
+        Self {
+            single: FactorPlan::new::<PackedFactor<f32>>(system, symbolic, params),
+            compressed: FactorPlan::new::<Bf16Factor>(system, symbolic, params),
+            double: FactorPlan::new::<CholeskyFactor<f64>>(system, symbolic, params),
+        }
+    }
+
+    /// The plan for factors of type `F`.
+    fn of<F: SlabFactor>(&self) -> &FactorPlan<'a> {
+        match F::ENTRY_BYTES {
+            8 => &self.double,
+            2 => &self.compressed,
+            _ => &self.single,
+        }
     }
 }
 
@@ -769,24 +808,22 @@ fn slab_pcg_in<F: SlabFactor>(job: SlabJob<'_>) -> Result<Solution, FlowError> {
         slabs: system.n_slabs(),
     })?;
     let per_thread = SpareValues::per_thread();
-    let spare = match job.recycled {
-        Some(recycled) if F::RECYCLES => recycled,
-        _ => &per_thread,
-    };
-    let fine = plan.factor::<F>(&[system], spare)?;
+    let spare = run::spare_for::<F>(job.run, &per_thread);
+    let fine = plan.factor::<F>(&[system], spare)?.remove(0);
     slab_pcg_with(job, fine)
 }
 
-/// Where a solve of a run starts: the previous solve ([`WarmStart`]) and the run's pool of
-/// factor buffers ([`solve`]'s `recycled`).
+/// Where a solve of a run starts: the previous solve ([`WarmStart`]) and what the run's solves
+/// hand on ([`solve`]'s `run`).
 #[derive(Clone, Copy)]
 struct Starting<'a> {
     start: Option<&'a WarmStart>,
-    recycled: Option<&'a SpareValues>,
+    run: Option<InRun<'a>>,
 }
 
 /// What [`slab_pcg_with`] needs besides the factors (factored since `start`; PCG's first
-/// iterate `first`, zero when `None`; the run's pool `recycled` for the kept factors).
+/// iterate `first`, zero when `None`; the run the solve is one of; whether the factors are
+/// `kept` from the run's previous solve, [`run`]).
 #[derive(Clone, Copy)]
 struct SlabJob<'a> {
     system: &'a SpaceTimeSystem,
@@ -795,7 +832,8 @@ struct SlabJob<'a> {
     plan: &'a FactorPlan<'a>,
     start: Instant,
     first: Option<&'a [f64]>,
-    recycled: Option<&'a SpareValues>,
+    run: Option<InRun<'a>>,
+    kept: bool,
     observer: &'a dyn SolveObserver,
 }
 
@@ -803,11 +841,75 @@ impl SlabJob<'_> {
     fn first_iterate(&self) -> Option<Vec<f64>> {
         self.first.map(<[f64]>::to_vec)
     }
+
+    /// The solve's `levels` to the run: kept for the next solve, or their buffers recycled.
+    fn hand_on<F: SlabFactor>(&self, levels: Vec<SlabSweeps<F>>) {
+        if let Some(run) = self.run {
+            (run.factors).hand_on(levels, shape(self.system), run.reuse.keep);
+        }
+    }
+
+    /// `reason` with where the factors came from.
+    fn factors_reason(&self, reason: String) -> String {
+        match self.kept {
+            true => format!("{reason}; {KEPT}"),
+            false => format!("{reason}; {}", self.plan.describe()),
+        }
+    }
+}
+
+/// Why a solve's factors are not its own ([`run`]).
+const KEPT: &str = "the factors of the level's previous warp, kept (the systems differ by the \
+                    re-linearized data term alone)";
+
+/// The slabs and unknowns per slab of `system`: what kept factors must match.
+fn shape(system: &SpaceTimeSystem) -> Shape {
+    (system.n_slabs(), system.slab_dimension())
+}
+
+/// [`slab_pcg_with`] or multigrid in time with the levels the run's previous solve kept.
+struct WithKept<'a> {
+    job: SlabJob<'a>,
+    plans: &'a Plans<'a>,
+}
+
+impl WithLevels for WithKept<'_> {
+    type Output = Result<Solution, FlowError>;
+
+    fn with<F: SlabFactor>(self, mut levels: Vec<SlabSweeps<F>>) -> Self::Output {
+        let job = SlabJob {
+            plan: self.plans.of::<F>(),
+            kept: true,
+            ..self.job
+        };
+        let fine = levels.remove(0);
+        if levels.is_empty() {
+            return slab_pcg_with(job, fine);
+        }
+        let switch = Switch {
+            x: job.first_iterate(),
+            done: 0,
+            reason: job.factors_reason(multigrid_why(job.preconditioning).into()),
+            factor_seconds: 0.0,
+            coarse_start: Instant::now(),
+        };
+        let mut sweeps = vec![fine];
+        sweeps.extend(levels);
+        multigrid_pcg(job, TimeHierarchy::new(job.system), sweeps, switch)
+    }
+}
+
+/// Why multigrid in time runs from the start under `preconditioning`.
+fn multigrid_why(preconditioning: Preconditioning) -> &'static str {
+    match preconditioning {
+        Preconditioning::Multigrid => "asked for",
+        _ => MULTIGRID_AS_BEFORE,
+    }
 }
 
 fn slab_pcg_with<F: SlabFactor>(
     job: SlabJob<'_>,
-    mut fine: Vec<SlabSweeps<F>>,
+    fine: SlabSweeps<F>,
 ) -> Result<Solution, FlowError> {
     let SlabJob {
         system,
@@ -818,18 +920,13 @@ fn slab_pcg_with<F: SlabFactor>(
         observer,
         ..
     } = job;
-    let fine = fine.remove(0);
     // The factorizations' workspaces, before CG's vectors.
     crate::limits::release_free_memory();
     let factor_seconds = start.elapsed().as_secs_f64();
     let factor_entries = fine.entries();
     let (x, done, reason) = match preconditioning {
         Preconditioning::Multigrid | Preconditioning::MultigridAsBefore => {
-            let why = match preconditioning {
-                Preconditioning::Multigrid => "asked for",
-                _ => MULTIGRID_AS_BEFORE,
-            };
-            let reason = format!("{why}; {}", plan.describe());
+            let reason = job.factors_reason(multigrid_why(preconditioning).into());
             (job.first_iterate(), 0, reason)
         }
         _ => {
@@ -839,23 +936,22 @@ fn slab_pcg_with<F: SlabFactor>(
                 ..pcg::Stop::new(params.tolerance, params.max_iterations)
             };
             let first = job.first_iterate();
-            let outcome = gauss_seidel_pcg(system, &fine, plan, first, stop, observer)?;
+            let eliminates = !job.kept && plan.slabs_per_factor == 1;
+            let outcome = gauss_seidel_pcg(system, &fine, eliminates, first, stop, observer)?;
             let verdict = gauss_seidel_verdict(&outcome);
             if outcome.gave_up.is_none() || preconditioning == Preconditioning::GaussSeidel {
                 let reason = match preconditioning {
-                    Preconditioning::GaussSeidel => format!("asked for; {}", plan.describe()),
-                    _ => format!("{verdict}; {}", plan.describe()),
+                    Preconditioning::GaussSeidel => job.factors_reason("asked for".into()),
+                    _ => job.factors_reason(verdict),
                 };
                 let mut solution =
                     Solution::iterated(outcome, SolverMethod::PcgSlabGaussSeidel, reason);
                 solution.factor_seconds = factor_seconds;
                 solution.factor_entries = factor_entries;
-                if let Some(recycled) = job.recycled {
-                    fine.recycle(recycled);
-                }
+                job.hand_on(vec![fine]);
                 return solution.converged(params);
             }
-            let reason = format!("{verdict}; {}", plan.describe());
+            let reason = job.factors_reason(verdict);
             (Some(outcome.x), outcome.iterations, reason)
         }
     };
@@ -877,19 +973,20 @@ fn slab_pcg_with<F: SlabFactor>(
 }
 
 /// Slab Gauss–Seidel's PCG from `x` (zero when `None`) under `stop`: on the odd slabs alone
-/// (the even ones eliminated, [`reduced`]) where each slab has its own factor and the factors
-/// solve exactly enough; when a round of refinement is too slow or stalls (other than `auto`'s
-/// probe giving up), PCG on the whole system goes on from where the rounds left it.
+/// (the even ones eliminated, [`reduced`]) where the factors `eliminate` (each slab has its own
+/// factor of its own block) and solve exactly enough; when a round of refinement is too slow
+/// or stalls (other than `auto`'s probe giving up), PCG on the whole system goes on from where
+/// the rounds left it.
 fn gauss_seidel_pcg<F: SlabFactor>(
     system: &SpaceTimeSystem,
     fine: &SlabSweeps<F>,
-    plan: &FactorPlan<'_>,
+    eliminate: bool,
     x: Option<Vec<f64>>,
     stop: pcg::Stop,
     observer: &dyn SolveObserver,
 ) -> Result<pcg::CgOutcome, FlowError> {
     let gauss_seidel = SlabGaussSeidel::new(system, fine);
-    if !F::ELIMINATES || plan.slabs_per_factor > 1 || !system.has_links() {
+    if !eliminate || !F::ELIMINATES || !system.has_links() {
         return run_pcg_until(system, x, &gauss_seidel, stop, observer);
     }
     let x = x.unwrap_or_else(|| vec![0.0; system.dimension()]);
@@ -930,15 +1027,26 @@ fn time_multigrid<F: SlabFactor>(
     switch: Switch,
     spare: SpareValues,
 ) -> Result<Solution, FlowError> {
-    let (system, observer) = (job.system, job.observer);
-    let hierarchy = TimeHierarchy::new(system);
+    let hierarchy = TimeHierarchy::new(job.system);
     let coarse: Vec<&SpaceTimeSystem> = hierarchy.coarse_systems().iter().collect();
-    observer.notify(SolveEvent::Factorizing {
+    job.observer.notify(SolveEvent::Factorizing {
         slabs: coarse.iter().map(|c| c.n_slabs()).sum(),
     })?;
     let mut sweeps = vec![fine];
     sweeps.extend(job.plan.factor::<F>(&coarse, &spare)?);
     drop(spare);
+    multigrid_pcg(job, hierarchy, sweeps, switch)
+}
+
+/// PCG with multigrid in time over `hierarchy` with the levels' `sweeps`, finest first; the
+/// sweeps handed on to the run at the end.
+fn multigrid_pcg<F: SlabFactor>(
+    job: SlabJob<'_>,
+    hierarchy: TimeHierarchy,
+    sweeps: Vec<SlabSweeps<F>>,
+    switch: Switch,
+) -> Result<Solution, FlowError> {
+    let (system, observer) = (job.system, job.observer);
     let factor_seconds = switch.factor_seconds + switch.coarse_start.elapsed().as_secs_f64();
     let factor_entries = sweeps.iter().map(SlabSweeps::entries).sum();
     let levels = sweeps.len();
@@ -951,6 +1059,7 @@ fn time_multigrid<F: SlabFactor>(
         switch.done,
         observer,
     )?;
+    job.hand_on(multigrid.into_sweeps());
     let reason = format!("{}; the levels' factors in {}", switch.reason, F::NAME);
     let mut solution = Solution::iterated(outcome, SolverMethod::PcgTimeMultigrid, reason);
     solution.factor_seconds = factor_seconds;
@@ -996,12 +1105,18 @@ struct FactorPlan<'a> {
 }
 
 impl<'a> FactorPlan<'a> {
-    /// The plan for factors of type `F`.
+    /// The plan for factors of type `F` within `params.factor_memory_limit`: half of it for
+    /// single precision (multigrid adds about as many coarse factors again, in bfloat16),
+    /// all of it for double.
     fn new<F: SlabFactor>(
         system: &SpaceTimeSystem,
         symbolic: &'a Arc<SymbolicCholesky<usize>>,
-        budget: usize,
+        params: &FlowParams,
     ) -> Self {
+        let budget = match F::ENTRY_BYTES {
+            8 => params.factor_memory_limit,
+            _ => params.factor_memory_limit / 2,
+        };
         let factor_bytes = F::bytes_at_most(symbolic);
         let fitting = budget / factor_bytes.max(1);
         let slabs_per_factor = match fitting {

@@ -98,6 +98,11 @@ impl<'a, F: SlabFactor> TimeMultigrid<'a, F> {
             sweeps,
         }
     }
+
+    /// The levels' sweeps, finest first, given back.
+    pub fn into_sweeps(self) -> Vec<SlabSweeps<F>> {
+        self.sweeps
+    }
 }
 
 /// What a V-cycle needs of its levels: level `l`'s system, sweeps and surroundings, and the
