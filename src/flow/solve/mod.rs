@@ -103,6 +103,13 @@
 //! solves; the zebrafish recording's robust run 63 → 38 in 7 (docs/scaling.md, "Warm starts
 //! across a run's solves").
 //!
+//! **Factors handed on** ([`run`]). A run's solves recycle their `f32` factors' buffers, and a
+//! warping level's next warp, whose system differs by the re-linearized data term alone, is
+//! preconditioned with the last warp's factors instead of its own (slab Gauss–Seidel's sweeps
+//! or all of multigrid's levels): about as many iterations, no factorization. `--large-motion`
+//! on the Stanford bunny sequence 45.4 → 38.3 s (docs/scaling.md, "Factors kept for a level's
+//! next warp").
+//!
 //! Measured on the 128×95 torus × 20 frames (`synth::paper_torus` geometry, grey values in
 //! [0, 1], tolerance 1e-8, 2 cores; `cargo run --release --example bench_solver [-- 128 95 20
 //! SOLVER]`): iterations, then solve seconds including factorization. Before the odd–even
