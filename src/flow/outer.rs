@@ -28,7 +28,7 @@ pub(super) trait SlabSolver {
     /// result's flow is that of [`SlabSolver::own`], its energy terms the whole sequence's.
     /// The solve is warm-started from `previous`, the run's previous result (of the own
     /// slabs), when given ([`FlowProblem::solve_from`]), and takes or keeps slab factors as
-    /// `reuse` says ([`FactorReuse`]; one process only). Collective over ranks.
+    /// `reuse` says ([`FactorReuse`]). Collective over ranks.
     fn solve(
         &self,
         params: &FlowParams,

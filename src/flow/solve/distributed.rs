@@ -418,14 +418,9 @@ fn solve_window_flushed(
             _ => SolverMethod::PcgSlabGaussSeidel,
         }));
     }
-    if let Some(run) = run {
-        if run.reuse.take {
-            let kept = WindowKept { job };
-            if let Some(solution) = run.factors.take(super::shape(&window.system), kept) {
-                return solution;
-            }
-        }
-        run.factors.release();
+    let kept = |run: InRun<'_>| run.take_kept(super::shape(&window.system), WindowKept { job });
+    if let Some(solution) = run.and_then(kept) {
+        return solution;
     }
     // Single-precision factors (bfloat16 for multigrid's levels, as in one process) suffice for
     // a preconditioner; f64 if a block of any level is too ill-conditioned (on any rank: the
@@ -526,9 +521,8 @@ impl<'a> WindowJob<'a> {
     fn iterate<F: SlabFactor>(&self, mut levels: Vec<Level<'a, F>>) -> Result<Solution, FlowError> {
         let symbolic = self.window.system.slab_symbolic();
         let stop = pcg::Stop::new(self.params.tolerance, self.params.max_iterations);
-        let first = || self.first_iterate();
         let (x, done, reason) = match self.multigrid {
-            Some(true) => (first(), 0, self.reason(self.multigrid_why())),
+            Some(true) => (self.first_iterate(), 0, self.reason(self.multigrid_why())),
             sweeps_or_auto => {
                 let probe = pcg::Stop {
                     give_up: sweeps_or_auto
@@ -536,7 +530,7 @@ impl<'a> WindowJob<'a> {
                         .then(|| probe_give_up(self.params.tolerance, self.start.is_some())),
                     ..stop
                 };
-                let outcome = self.pcg(&levels, 1, first(), probe)?;
+                let outcome = self.pcg(&levels, 1, self.first_iterate(), probe)?;
                 let verdict = gauss_seidel_verdict(&outcome);
                 if sweeps_or_auto == Some(false) || outcome.gave_up.is_none() {
                     let reason = match sweeps_or_auto {
@@ -634,8 +628,7 @@ impl<'a> WindowJob<'a> {
     fn hand_on<F: SlabFactor>(&self, levels: Vec<Level<'_, F>>) {
         if let Some(run) = self.run {
             let sweeps = levels.into_iter().map(|l| l.sweeps).collect();
-            let shape = super::shape(&self.window.system);
-            run.factors.hand_on(sweeps, shape, run.reuse.keep);
+            run.hand_on(sweeps, super::shape(&self.window.system));
         }
     }
 

@@ -739,17 +739,15 @@ fn slab_pcg(
         observer,
     };
     let plans = Plans::new(system, params);
-    if let Some(run) = run {
-        if run.reuse.take {
-            let kept = WithKept {
-                job: job(&plans.single),
-                plans: &plans,
-            };
-            if let Some(solution) = run.factors.take(shape(system), kept) {
-                return solution;
-            }
-        }
-        run.factors.release();
+    let kept = |run: InRun<'_>| {
+        let with = WithKept {
+            job: job(&plans.single),
+            plans: &plans,
+        };
+        run.take_kept(shape(system), with)
+    };
+    if let Some(solution) = run.and_then(kept) {
+        return solution;
     }
     let Plans {
         single,
@@ -852,7 +850,7 @@ impl SlabJob<'_> {
     /// The solve's `levels` to the run: kept for the next solve, or their buffers recycled.
     fn hand_on<F: SlabFactor>(&self, levels: Vec<SlabSweeps<F>>) {
         if let Some(run) = self.run {
-            (run.factors).hand_on(levels, shape(self.system), run.reuse.keep);
+            run.hand_on(levels, shape(self.system));
         }
     }
 

@@ -99,27 +99,14 @@ impl RunFactors {
     }
 
     /// Keeps `levels`, the factors of a system of `shape`, for the next solve.
-    pub(super) fn keep<F: SlabFactor>(&self, levels: Vec<SlabSweeps<F>>, shape: Shape) {
+    fn keep<F: SlabFactor>(&self, levels: Vec<SlabSweeps<F>>, shape: Shape) {
         let levels = Box::new(levels);
         *self.lock() = Some(Kept { levels, shape });
     }
 
-    /// `levels` kept where `keep`, otherwise given up, their `f32` buffers to the pool.
-    pub(super) fn hand_on<F: SlabFactor>(
-        &self,
-        levels: Vec<SlabSweeps<F>>,
-        shape: Shape,
-        keep: bool,
-    ) {
-        match keep {
-            true => self.keep(levels, shape),
-            false => levels.into_iter().for_each(|l| l.recycle(&self.spare)),
-        }
-    }
-
     /// The kept levels, if they factor a system of `shape`, handed to `with`; `None` (and the
     /// levels given up) otherwise.
-    pub(super) fn take<W: WithLevels>(&self, shape: Shape, with: W) -> Option<W::Output> {
+    fn take<W: WithLevels>(&self, shape: Shape, with: W) -> Option<W::Output> {
         let kept = self.lock().take()?;
         if kept.shape != shape {
             Self::give_up(kept.levels, &self.spare);
@@ -130,7 +117,7 @@ impl RunFactors {
 
     /// Gives up the kept levels, if any, their `f32` buffers to the pool: before a solve that
     /// factors its own, so that the two never take memory at once.
-    pub(super) fn release(&self) {
+    fn release(&self) {
         if let Some(kept) = self.lock().take() {
             Self::give_up(kept.levels, &self.spare);
         }
@@ -141,7 +128,7 @@ impl RunFactors {
         impl WithLevels for Recycle<'_> {
             type Output = ();
             fn with<F: SlabFactor>(self, levels: Vec<SlabSweeps<F>>) {
-                levels.into_iter().for_each(|l| l.recycle(self.0));
+                recycle(levels, self.0);
             }
         }
         with_levels(levels, Recycle(spare));
@@ -150,6 +137,34 @@ impl RunFactors {
     fn lock(&self) -> std::sync::MutexGuard<'_, Option<Kept>> {
         self.kept.lock().unwrap_or_else(PoisonError::into_inner)
     }
+}
+
+impl InRun<'_> {
+    /// Where this solve takes the previous solve's factors (and they factor a system of
+    /// `shape`), `with` applied to them; otherwise `None`, any kept factors given up first.
+    pub(super) fn take_kept<W: WithLevels>(self, shape: Shape, with: W) -> Option<W::Output> {
+        if self.reuse.take {
+            if let Some(output) = self.factors.take(shape, with) {
+                return Some(output);
+            }
+        }
+        self.factors.release();
+        None
+    }
+
+    /// This solve's `levels` (of a system of `shape`) kept for the next solve where
+    /// [`FactorReuse::keep`] says so, otherwise given up, their `f32` buffers to the pool.
+    pub(super) fn hand_on<F: SlabFactor>(self, levels: Vec<SlabSweeps<F>>, shape: Shape) {
+        match self.reuse.keep {
+            true => self.factors.keep(levels, shape),
+            false => recycle(levels, &self.factors.spare),
+        }
+    }
+}
+
+/// Gives up `levels`, their `f32` buffers to `spare` ([`SlabSweeps::recycle`]).
+fn recycle<F: SlabFactor>(levels: Vec<SlabSweeps<F>>, spare: &SpareValues) {
+    levels.into_iter().for_each(|l| l.recycle(spare));
 }
 
 /// The pool a factorization of type `F` takes its buffers from: the run's where `F` recycles
