@@ -207,21 +207,41 @@ fn an_edited_manifest_reads_nothing_else() {
     let manifest = run.join("meshflow_run.json");
     let text = std::fs::read_to_string(&manifest).unwrap();
     let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
-    let elsewhere = serde_json::Value::from(elsewhere.to_str().unwrap());
-    // The solve's record, and the command line that an earlier version's manifest holds
-    // instead.
+    let absolute = serde_json::Value::from(elsewhere.to_str().unwrap());
+    // The solve's record (relative to the run), an absolute path in it, and the command line
+    // that an earlier version's manifest holds instead (relative to a working directory that
+    // the manifest names).
     let recorded = json["solve"].clone();
-    json["solve"]["input"] = elsewhere.clone();
+    json["solve"]["input"] = absolute.clone();
+    let mut relative = json.clone();
+    relative["solve"]["input"] = serde_json::Value::from("../elsewhere");
     let mut earlier = json.clone();
     earlier.as_object_mut().unwrap().remove("solve");
-    earlier["commands"][0][2] = elsewhere;
-    for edited_json in [&json, &earlier] {
+    earlier["commands"][0][2] = absolute;
+    let edited = "which the run did not read (was meshflow_run.json edited?)";
+    let cases = [
+        (
+            &json,
+            &[][..],
+            "is an absolute path: a run names its inputs relative to itself",
+        ),
+        (&json, &["--allow-external-files"][..], edited),
+        (&relative, &[][..], edited),
+        (
+            &earlier,
+            &[][..],
+            "relative to a working directory that it names itself",
+        ),
+        (&earlier, &["--allow-external-files"][..], edited),
+    ];
+    for (edited_json, flags, expected) in cases {
         std::fs::write(&manifest, edited_json.to_string()).unwrap();
         for command in ["analyze", "advect"] {
             let out = dir.path().join(command);
             let (run, out_text) = (run.to_str().unwrap(), out.to_str().unwrap());
-            let edited = "which the run did not read (was meshflow_run.json edited?)";
-            meshflow_error(&[command, run, "--out", out_text], edited);
+            let mut args = vec![command, run, "--out", out_text];
+            args.extend(flags);
+            meshflow_error(&args, expected);
             assert!(!out.exists());
         }
     }
@@ -266,21 +286,38 @@ fn the_run_is_never_its_own_output() {
 
 /// A file added beside the input since the solve is not the run's: `analyze` still reads the
 /// run (a frame removed or changed is named, see `broken_runs_fail_in_one_line_without_output`).
+/// A frame whose fingerprint the manifest lost is refused: the load would read it unchecked.
 #[test]
-fn a_new_file_beside_the_input_is_not_a_change() {
+fn a_new_file_beside_the_input_is_not_a_change_a_frame_without_its_record_is() {
     let dir = tempfile::tempdir().unwrap();
     let input = copy_of_the_sample(&dir.path().join("frames"));
     let run = dir.path().join("run");
     solve(input.to_str().unwrap(), &run);
     std::fs::write(input.join("notes.txt"), "taken on a Tuesday").unwrap();
     let out = dir.path().join("analysis");
-    meshflow_ok(&[
+    let args = [
         "analyze",
         run.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
-    ]);
+    ];
+    meshflow_ok(&args);
     assert!(out.join("summary.json").exists());
+    // A frame changed, and its fingerprint deleted from the manifest: refused all the same.
+    let frame = input.join("frame_2.obj");
+    let mut text = std::fs::read_to_string(&frame).unwrap();
+    text.push_str("# edited\n");
+    std::fs::write(&frame, text).unwrap();
+    let manifest = run.join("meshflow_run.json");
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
+    let inputs = json["inputs"].as_array_mut().unwrap();
+    inputs.retain(|entry| !entry["path"].as_str().unwrap().ends_with("frame_2.obj"));
+    std::fs::write(&manifest, json.to_string()).unwrap();
+    meshflow_error(
+        &args,
+        "frame_2.obj, of which the run recorded no fingerprint",
+    );
 }
 
 /// The library reads a solve's output back without the command line: the manifest's record
@@ -305,7 +342,12 @@ fn the_library_reads_a_run_back_from_its_record() {
         "--quiet",
     ]);
     let solved = SolveInput::of_run(&run).unwrap();
-    assert_eq!(solved.input, Path::new(&input));
+    // Recorded relative to the run, read back as the same directory.
+    assert!(solved.input.is_relative() || solved.input.starts_with(&run));
+    assert_eq!(
+        solved.input.canonicalize().unwrap(),
+        Path::new(&input).canonicalize().unwrap()
+    );
     let options = LoadOptions {
         channels: meshflow::io::Channels::Luma,
         ..LoadOptions::default()

@@ -1,14 +1,16 @@
 //! Fuzzing the volume and point readers with mutated files: valid small TIFF stacks, NPY
-//! volumes and CSV point files with bytes flipped, cut short, or header fields (TIFF widths,
-//! heights, strip offsets and counts, next-page pointers; NPY shapes) set to extremes. Every
-//! reader must return `Ok` or `Err`, never panic, and stay within the memory limit: a counting
-//! global allocator measures each case's peak on its thread.
+//! volumes, CSV point files and OME-Zarr images (v2, v3, sharded; every codec chain, written by
+//! `zarrs`) with bytes flipped, cut short, or header fields (TIFF widths, heights, strip
+//! offsets and counts, next-page pointers; NPY shapes; shard index entries, blosc and zstd
+//! headers) set to extremes. Every reader must return `Ok` or `Err`, never panic, and stay
+//! within the memory limit: a counting global allocator measures each case's peak on its
+//! thread (the Zarr reader's threads run on the case's own, in a pool of one).
 //!
 //! `MESHFLOW_FUZZ_CASES` sets the cases per reader (default 3,000).
 
 mod hostile_support;
 
-use hostile_support::{npy_bytes, small_tiff};
+use hostile_support::{npy_bytes, small_tiff, zarr};
 use meshflow::surface::read_points;
 use meshflow::volume::{count_volume_frames, read_volumes, VolumeOptions};
 use proptest::prelude::*;
@@ -165,8 +167,86 @@ fn read_volume_file(file: &Path) {
     }
 }
 
+/// The small images of every codec chain, written once.
+fn zarr_images() -> &'static [(&'static str, std::path::PathBuf)] {
+    static IMAGES: std::sync::OnceLock<(
+        tempfile::TempDir,
+        Vec<(&'static str, std::path::PathBuf)>,
+    )> = std::sync::OnceLock::new();
+    let (_, images) = IMAGES.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let images = zarr::write_all(dir.path());
+        (dir, images)
+    });
+    images
+}
+
+/// A copy of directory `from` at `to`.
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap().flatten() {
+        let target = to.join(entry.file_name());
+        match entry.file_type().unwrap().is_dir() {
+            true => copy_dir(&entry.path(), &target),
+            false => drop(std::fs::copy(entry.path(), &target).unwrap()),
+        }
+    }
+}
+
+thread_local! {
+    /// A pool of this thread alone: the reader's parallel decoding then allocates where the
+    /// counter sees it.
+    static ONE_THREAD: rayon::ThreadPool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .use_current_thread()
+        .build()
+        .unwrap();
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: cases(), failure_persistence: None, ..ProptestConfig::default() })]
+
+    #[test]
+    fn mutated_zarr_images_read_or_fail_within_the_limit(
+        image in any::<usize>(),
+        target in prop_oneof![3 => Just(0usize), 1 => Just(1), 1 => Just(2)],
+        file in any::<usize>(),
+        from_end in any::<bool>(),
+        mutations in prop::collection::vec(mutation(), 1..4),
+    ) {
+        meshflow::limits::set_memory_limit(LIMIT);
+        let images = zarr_images();
+        let (name, template) = &images[image % images.len()];
+        let dir = tempfile::tempdir().unwrap();
+        let copy = dir.path().join("image.zarr");
+        copy_dir(template, &copy);
+        // A chunk or shard (most cases), the array's metadata, or the group's.
+        let chunks = zarr::chunk_files(&copy);
+        let array = ["0/zarr.json", "0/.zarray"].map(|f| copy.join(f)).into_iter().find(|f| f.exists());
+        let group = ["zarr.json", ".zattrs"].map(|f| copy.join(f)).into_iter().find(|f| f.exists());
+        let victim = match target {
+            0 => chunks[file % chunks.len()].clone(),
+            1 => array.unwrap(),
+            _ => group.unwrap(),
+        };
+        let mut bytes = std::fs::read(&victim).unwrap();
+        for mutation in &mutations {
+            // Shard indexes and blosc or zstd headers are at the ends: aim there half the time.
+            let mutation = match (mutation, from_end) {
+                (Mutation::SetU32(at, v), true) => Mutation::SetU32(bytes.len().saturating_sub(1 + at % 40), *v),
+                (Mutation::Flip(at, x), true) => Mutation::Flip(bytes.len().saturating_sub(1 + at % 40), *x),
+                (other, _) => other.clone(),
+            };
+            apply(&mut bytes, &mutation);
+        }
+        std::fs::write(&victim, &bytes).unwrap();
+        let peak = peak_of(|| ONE_THREAD.with(|pool| pool.install(|| {
+            if let Ok(frames) = read_volumes(&copy, &VolumeOptions::default()) {
+                assert!(!frames.volumes.is_empty(), "{name}");
+            }
+        })));
+        prop_assert!(peak <= LIMIT as i64 + MARGIN, "{name}: peak {peak} bytes over the limit");
+    }
 
     #[test]
     fn mutated_tiff_stacks_read_or_fail_within_the_limit(

@@ -5,6 +5,7 @@
 //! `sample` too; one-line errors for a channel or level that is not there.
 
 mod common;
+mod hostile_support;
 
 use common::{meshflow_error, meshflow_ok, surface, write_npy};
 use meshflow::volume::{read_volumes, VolumeOptions, VolumeStream, VoxelSizeSource};
@@ -439,4 +440,56 @@ fn ome_zarr_imagej_hyperstack_and_npy_read_as_the_same_volumes() {
         said.contains("declares 5 frames × 24 slices × 2 channels = 240 pages, the file has 144"),
         "{said}"
     );
+}
+
+/// Every codec chain meshflow reads, written by `zarrs` (an independent writer): gzip, zstd,
+/// blosc, crc32c, big-endian, transposed (v3) and F-order (v2) chunks, shards with their index
+/// at either end, partial chunks at the edges; each reads back as written. A chunk removed
+/// reads as the fill value and is counted; a frame none of whose chunks is stored is an error.
+#[test]
+fn every_codec_chain_written_by_zarrs_reads_back_as_written() {
+    use hostile_support::zarr;
+    let dir = tempfile::tempdir().unwrap();
+    let [_, nz, ny, nx] = zarr::SHAPE;
+    for (name, image) in zarr::write_all(dir.path()) {
+        let read = read_volumes(&image, &VolumeOptions::default())
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(read.volumes.len(), 2, "{name}");
+        for (t, volume) in read.volumes.iter().enumerate() {
+            assert_eq!(volume.shape(), [nz, ny, nx], "{name}");
+            let expected = &zarr::values()[t * nz * ny * nx..(t + 1) * nz * ny * nx];
+            let expected: Vec<f32> = expected.iter().map(|&v| f32::from(v)).collect();
+            assert_eq!(volume.values(), &expected[..], "{name}, frame {t}");
+            assert_eq!(volume.voxel_size(), Vector3::new(0.5, 0.5, 2.0), "{name}");
+        }
+        // One chunk (or shard) of frame 0 removed: its voxels read as the fill value 9.
+        let files = zarr::chunk_files(&image);
+        let frame_of = |file: &Path| {
+            let key = file
+                .strip_prefix(image.join("0"))
+                .unwrap()
+                .to_string_lossy()
+                .into_owned();
+            let key = key.strip_prefix("c/").unwrap_or(&key).to_string();
+            key.split('/').next().unwrap().parse::<usize>().unwrap()
+        };
+        let first = files.iter().find(|f| frame_of(f) == 0).unwrap();
+        std::fs::remove_file(first).unwrap();
+        let mut stream = VolumeStream::open(&image, &VolumeOptions::default()).unwrap();
+        let (volume, _) = stream.next().unwrap().unwrap();
+        assert_eq!(volume.values()[0], 9.0, "{name}");
+        let (missing, chunks) = stream.missing_chunks().unwrap();
+        assert!(
+            missing >= 1 && missing < chunks,
+            "{name}: {missing} of {chunks}"
+        );
+        // Frame 1's chunks all removed: an error naming the frame, not a frame of nines.
+        for file in files.iter().filter(|f| frame_of(f) == 1) {
+            std::fs::remove_file(file).unwrap();
+        }
+        let error = read_volumes(&image, &VolumeOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("frame 1: none of its"), "{name}: {error}");
+    }
 }

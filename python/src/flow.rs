@@ -478,7 +478,7 @@ impl Flow {
             // The run holds its input, so `meshflow advect OUT` reads it from there.
             staged.record_command(["python", "-c", "meshflow.write_outputs(...)"]);
             let load = LoadOptions::default();
-            staged.record_solve(SolveRecord { input: None, load });
+            staged.record_solve(SolveRecord::new(None, load, &out));
             write_run_input(staged.path(), &self.loaded).map_err(|e| staged.in_target(e))?;
             let view = self.view();
             write_flow_outputs(

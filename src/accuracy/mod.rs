@@ -58,7 +58,7 @@ mod tracks;
 
 pub use tracks::{
     default_match_distance, match_tracks, score_result, score_tracks, TrackPoint, TrackScores,
-    TrackSummary, Tracks,
+    TrackSummary, Tracks, TRACK_REACH,
 };
 
 use crate::fem::vertex_areas;
@@ -113,6 +113,13 @@ pub enum AccuracyError {
     TracksShape(Vec<u64>),
     #[error("the tracks have {tracks} frames, the sequence has {frames}")]
     TrackFrames { tracks: usize, frames: usize },
+    #[error("tracks: frame {frame}, point {point} lies {distance:.3e} from the surface's bounding box, over {}× its diameter {diameter:.3e}: not a point on it (wrong units or a corrupt file?)", TRACK_REACH)]
+    TrackFarOff {
+        frame: usize,
+        point: usize,
+        distance: f64,
+        diameter: f64,
+    },
     #[error("the matching distance must be a positive number, got {0}")]
     MatchDistance(f64),
     #[error(

@@ -193,23 +193,53 @@ pub struct TrackScores {
     pub overall: TrackSummary,
 }
 
+/// How far from a frame's surface, in its bounding box's diameters, a tracked point may lie
+/// ([`Tracks::check_for`]).
+pub const TRACK_REACH: f64 = 10.0;
+
+impl Tracks {
+    /// Checks that the tracks fit `sequence`, which must be embedded: as many frames, and each
+    /// tracked point within [`TRACK_REACH`] diameters of its frame's bounding box (a point at
+    /// 1e300 would score as infinity).
+    pub fn check_for(&self, sequence: &MeshSequence) -> Result<(), AccuracyError> {
+        super::check_embedded(sequence)?;
+        if self.n_frames() != sequence.n_frames() {
+            return Err(AccuracyError::TrackFrames {
+                tracks: self.n_frames(),
+                frames: sequence.n_frames(),
+            });
+        }
+        for (frame, points) in self.frames.iter().enumerate() {
+            let positions = sequence.positions(frame).expect("embedded, checked above");
+            let (low, high) = crate::geometry::bounding_box(positions);
+            let diameter = (high - low).norm();
+            for (point, x) in points.iter().enumerate().filter(|(_, x)| x.x.is_finite()) {
+                let distance = (low - x).sup(&(x - high)).sup(&Vector3::zeros()).norm();
+                if !(distance <= TRACK_REACH * diameter) {
+                    return Err(AccuracyError::TrackFarOff {
+                        frame,
+                        point,
+                        distance,
+                        diameter,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Scores the R³ flow `vectors[s][i]` of `sequence` at `tracks` (module docs).
 ///
-/// Errors: an intrinsic sequence, a flow of the wrong size, tracks with another number of
-/// frames than the sequence.
+/// Errors: an intrinsic sequence, a flow of the wrong size, tracks that do not fit the
+/// sequence ([`Tracks::check_for`]).
 pub fn score_tracks(
     sequence: &MeshSequence,
     vectors: &[Vec<Vector3<f64>>],
     tracks: &Tracks,
 ) -> Result<TrackScores, AccuracyError> {
-    super::check_embedded(sequence)?;
     super::check_flow(sequence, "computed", vectors)?;
-    if tracks.n_frames() != sequence.n_frames() {
-        return Err(AccuracyError::TrackFrames {
-            tracks: tracks.n_frames(),
-            frames: sequence.n_frames(),
-        });
-    }
+    tracks.check_for(sequence)?;
     let mut points = Vec::new();
     for (s, flow) in vectors.iter().enumerate() {
         points.extend(score_slab(sequence, s, flow, tracks)?);

@@ -109,3 +109,29 @@ impl IoError {
         }
     }
 }
+
+/// `text` in single quotes for a message, control characters escaped, shortened to its first
+/// 60 characters where it is longer (a hostile file can hold a name or field of megabytes, or
+/// a line break; an error stays one short line).
+pub fn quoted(text: &str) -> String {
+    const MOST: usize = 60;
+    match text.char_indices().nth(MOST) {
+        None => format!("'{}'", text.escape_debug()),
+        Some((at, _)) => format!("'{}'… ({} bytes)", text[..at].escape_debug(), text.len()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn long_text_is_quoted_shortened() {
+        assert_eq!(super::quoted("../x"), "'../x'");
+        assert_eq!(super::quoted("a\nb"), "'a\\nb'");
+        let long = "a".repeat(1000);
+        let quoted = super::quoted(&long);
+        assert!(
+            quoted.len() < 90 && quoted.ends_with("(1000 bytes)"),
+            "{quoted}"
+        );
+    }
+}

@@ -8,9 +8,24 @@ use std::path::{Path, PathBuf};
 /// The whole of a regular file, after checking its size against the memory limit
 /// ([`crate::limits`]): a device such as `/dev/zero` or a FIFO would never end.
 pub fn read_file(path: &Path) -> Result<Vec<u8>, IoError> {
+    read_file_at_most(path, u64::MAX, "the file")
+}
+
+/// [`read_file`] for a file of a kind that is never large (a run manifest, a JSON document of
+/// metadata): refused, naming it as `what`, when it is over `most` bytes, before anything is
+/// read.
+pub fn read_file_at_most(path: &Path, most: u64, what: &str) -> Result<Vec<u8>, IoError> {
     use std::io::Read;
     let (file, length) = open_regular(path)?;
-    crate::limits::check_declared("the file", length).map_err(|e| IoError::too_large(path, e))?;
+    if length > most {
+        let why = format!(
+            "{} for {what}, which is at most {}: not meshflow's",
+            crate::limits::format_size(length),
+            crate::limits::format_size(most)
+        );
+        return Err(IoError::format(path, why));
+    }
+    crate::limits::check_declared(what, length).map_err(|e| IoError::too_large(path, e))?;
     let mut bytes = Vec::with_capacity(length as usize);
     (file.take(length).read_to_end(&mut bytes)).map_err(|e| IoError::file(path, e))?;
     Ok(bytes)
@@ -38,7 +53,13 @@ pub fn open_regular(path: &Path) -> Result<(std::fs::File, u64), IoError> {
     if !metadata.is_file() {
         return Err(not_regular());
     }
-    let file = std::fs::File::open(path).map_err(|e| IoError::file(path, e))?;
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    // Non-blocking: a FIFO put in the file's place since the check above opens at once
+    // (and is refused below) instead of waiting for a writer. Reads of a regular file ignore it.
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::custom_flags(&mut options, libc::O_NONBLOCK);
+    let file = options.open(path).map_err(|e| IoError::file(path, e))?;
     // Checked again on what was opened: the path may have changed in between.
     let metadata = file.metadata().map_err(|e| IoError::file(path, e))?;
     match metadata.is_file() {

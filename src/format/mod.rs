@@ -36,10 +36,11 @@ pub mod ply;
 mod texture;
 pub mod vtk;
 
-pub use error::IoError;
+pub use error::{quoted, IoError};
 pub(crate) use file::temporary_beside;
 pub use file::{
-    open_regular, read_file, read_stream, write_all_atomically, write_atomically, FileContents,
+    open_regular, read_file, read_file_at_most, read_stream, write_all_atomically,
+    write_atomically, FileContents,
 };
 pub use frame_mesh::{grey_value, grey_values, FrameMesh, RawSequence, VertexValues};
 pub(crate) use frames::{directory_files, glob_files};
@@ -57,7 +58,7 @@ pub use npy_sequence::{
     write_intensity_array, write_no_data, write_npy_sequence, FACES, INTENSITY, NO_DATA, POSITIONS,
     TIMES,
 };
-pub(crate) use npy_sequence::{read_intensity_rows, VertexCount};
+pub(crate) use npy_sequence::{read_intensity_rows, VertexCount, IMAGE};
 pub use number::format_number;
 pub use obj::{read_obj, read_obj_from, write_obj, ObjMesh};
 pub use texture::Texture;

@@ -172,7 +172,7 @@ pub fn read_npy_sequence(dir: &Path, keep: KeepRows) -> Result<(RawSequence, usi
     let images = match intensity_file.exists() {
         true => {
             let counts = [VertexCount::new(v as usize, "vertices")];
-            Some(read_intensity_rows(&intensity_file, k_all as usize, &counts, keep)?.0)
+            Some(read_intensity_rows(IMAGE, &intensity_file, k_all as usize, &counts, keep)?.0)
         }
         false => None,
     };
@@ -207,6 +207,9 @@ fn first_non_finite(frames: &[VertexValues]) -> Option<String> {
     })
 }
 
+/// What [`read_intensity_rows`] calls an image in its errors.
+pub(crate) const IMAGE: &str = "intensity array";
+
 /// A number of vertices an image may have rows for, and what they are.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct VertexCount {
@@ -228,13 +231,14 @@ pub fn read_intensity_array(
     n_vertices: usize,
 ) -> Result<Vec<VertexValues>, IoError> {
     let counts = [VertexCount::new(n_vertices, "vertices")];
-    Ok(read_intensity_rows(path, n_frames, &counts, &|_| true)?.0)
+    Ok(read_intensity_rows(IMAGE, path, n_frames, &counts, &|_| true)?.0)
 }
 
 /// [`read_intensity_array`] with rows for any of the vertex `counts` (say, the files' and the
 /// mesh's, when they differ): the image and which count its rows matched. The first matching
 /// count wins, so equal counts are never ambiguous. Only the frames `keep` are read.
 pub(crate) fn read_intensity_rows(
+    what: &str,
     path: &Path,
     n_frames: usize,
     counts: &[VertexCount],
@@ -253,7 +257,7 @@ pub(crate) fn read_intensity_rows(
         _ => {
             return Err(IoError::format(
                 path,
-                intensity_shape_error(&shape, n_frames, counts),
+                intensity_shape_error(what, &shape, n_frames, counts),
             ))
         }
     };
@@ -266,16 +270,21 @@ pub(crate) fn read_intensity_rows(
     Ok((images, count))
 }
 
-/// `intensity array has shape (4, 10), expected (3, 1528) = (frames, vertices in the files) or
+/// `WHAT has shape (4, 10), expected (3, 1528) = (frames, vertices in the files) or
 /// (3, 1224) = (frames, …), each optionally with a third axis of channels`.
-fn intensity_shape_error(shape: &[u64], n_frames: usize, counts: &[VertexCount]) -> String {
+fn intensity_shape_error(
+    what: &str,
+    shape: &[u64],
+    n_frames: usize,
+    counts: &[VertexCount],
+) -> String {
     let expected: Vec<String> = (counts.iter().enumerate())
         .filter(|(i, c)| counts[..*i].iter().all(|earlier| earlier.n != c.n))
         .map(|(_, c)| c)
         .map(|c| format!("({n_frames}, {}) = (frames, {})", c.n, c.what))
         .collect();
     format!(
-        "intensity array has shape {shape:?}, expected {}, or with a third axis of channels",
+        "{what} has shape {shape:?}, expected {}, or with a third axis of channels",
         expected.join(" or ")
     )
 }

@@ -52,6 +52,18 @@ pub enum GeometryError {
     },
 }
 
+/// The corners `(low, high)` of the axis-aligned box around `positions` (`(+max, −max)` when
+/// there are none).
+pub fn bounding_box(positions: &[Vector3<f64>]) -> (Vector3<f64>, Vector3<f64>) {
+    let low = positions
+        .iter()
+        .fold(Vector3::repeat(f64::MAX), |a, p| a.inf(p));
+    let high = positions
+        .iter()
+        .fold(Vector3::repeat(f64::MIN), |a, p| a.sup(p));
+    (low, high)
+}
+
 /// Length of every undirected edge (indexed like [`Mesh::edges`]) of an embedding in R^3.
 pub fn edge_lengths(mesh: &Mesh, positions: &[Vector3<f64>]) -> Result<Vec<f64>, GeometryError> {
     check_positions(mesh, positions)?;

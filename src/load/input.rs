@@ -43,6 +43,23 @@ impl FrameFormat {
     }
 }
 
+/// Whether a file in an input directory is one a load may read: a mesh frame, an NPY array,
+/// `times.txt`, or what a frame names beside it (a material library, a texture, a glTF
+/// buffer). A later command that reads a run's input again must find each such file as the
+/// run recorded it ([`crate::run::RunManifest::check_inputs`]); notes and other files beside
+/// the frames are not read.
+pub fn may_read(file: &Path) -> bool {
+    let extension = file
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let named = file.file_name().and_then(|n| n.to_str()) == Some(TIMES);
+    let linked = ["npy", "mtl", "bin", "png", "jpg", "jpeg"];
+    named
+        || FrameFormat::of(file).is_some()
+        || extension.is_some_and(|e| linked.contains(&e.as_str()))
+}
+
 /// A sequence's files, as found from the path the user gave.
 #[derive(Clone, Debug, PartialEq)]
 pub enum SequenceSource {

@@ -27,7 +27,7 @@ mod warning;
 pub use crate::format::read_intensity_array;
 pub use channels::{select_channels, Channels};
 pub use ground_truth::read_ground_truth;
-pub use input::{FrameFormat, SequenceSource};
+pub use input::{may_read, FrameFormat, SequenceSource};
 pub use options::LoadOptions;
 pub use prepare::{load_mesh, mesh_from_arrays, read_mesh_geometry, LoadedMesh};
 pub(crate) use sequence::StaticImageCheck;

@@ -23,7 +23,7 @@ use crate::format::gltf::{
     read_gltf_animation, read_gltf_animation_frames, read_gltf_frame, ImplicitClip,
 };
 use crate::format::ply::read_ply;
-use crate::format::{read_intensity_rows, read_npy_sequence, VertexCount};
+use crate::format::{read_intensity_rows, read_npy_sequence, VertexCount, IMAGE};
 use crate::format::{read_obj, texture_colors};
 use crate::format::{FrameMesh, IoError, RawSequence, TextureCache, VertexValues};
 use crate::mesh::{Mesh, SumOverReaders};
@@ -247,7 +247,7 @@ fn build_sequence(
     let (images, images_file, on_mesh) = match &options.intensity {
         Some(file) => {
             let held = |k: usize| window.held.contains(&k);
-            let (images, count) = read_intensity_rows(file, window.n_frames_in_all, &counts, &held)?;
+            let (images, count) = read_intensity_rows(IMAGE, file, window.n_frames_in_all, &counts, &held)?;
             (images, file.as_path(), count == 1)
         }
         None => (

@@ -75,7 +75,7 @@ fn glob_location(input: &Path) -> PathBuf {
 
 /// `path` with links resolved, also where its last components do not exist yet (resolved
 /// through the nearest existing ancestor, the rest normalized lexically).
-fn resolve(path: &Path) -> PathBuf {
+pub(super) fn resolve(path: &Path) -> PathBuf {
     let absolute = match path.is_absolute() {
         true => path.to_path_buf(),
         false => std::env::current_dir()

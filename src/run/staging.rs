@@ -26,8 +26,7 @@
 
 use super::guard::{refuse_output_over_inputs, OutputKind};
 use super::SolveRecord;
-use crate::format::write_atomically;
-use crate::format::IoError;
+use crate::format::{quoted, read_file_at_most, write_atomically, IoError};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::io::Write;
@@ -130,6 +129,16 @@ pub fn input_files(paths: &[&Path]) -> Vec<PathBuf> {
 
 const MANIFEST_FORMAT: &str = "meshflow run";
 
+/// The most bytes a run manifest may have. Its largest part is the fingerprint of every input
+/// file (some 200 bytes each): 64 MiB hold some 300,000 of them.
+const MANIFEST_MOST_BYTES: u64 = 64 << 20;
+
+/// Whether `name` is a plain file name in its directory: not empty, not `.` or `..`, not the
+/// manifest itself, no separator.
+fn is_plain_name(name: &str) -> bool {
+    !matches!(name, "" | "." | ".." | RUN_MANIFEST) && !name.contains(['/', '\\', '\0'])
+}
+
 impl RunManifest {
     /// `path` as the first command meant it: relative paths against [`Self::directory`].
     pub fn resolve(&self, path: &Path) -> PathBuf {
@@ -140,18 +149,32 @@ impl RunManifest {
     }
 
     /// The manifest of the run `dir`, with a message that tells a missing manifest from a
-    /// corrupt one.
+    /// corrupt one; refused when it lists a file that is not a plain name in `dir`
+    /// ([`Self::check_entries`]).
     pub fn read_run(dir: &Path) -> Result<Self, IoError> {
+        let manifest = Self::parse(dir)?;
+        manifest.check_entries(&dir.join(RUN_MANIFEST))?;
+        Ok(manifest)
+    }
+
+    /// The manifest of `dir` as its file says, unchecked: read with a size bound, a FIFO or
+    /// device refused before it is opened ([`crate::format::read_file_at_most`]).
+    fn parse(dir: &Path) -> Result<Self, IoError> {
         let path = dir.join(RUN_MANIFEST);
-        let text = match std::fs::read(&path) {
-            Ok(text) => text,
+        let text = match std::fs::symlink_metadata(&path) {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
                 return Err(IoError::format(
                     dir,
                     format!("not a meshflow output (no {RUN_MANIFEST})"),
                 ))
             }
-            Err(e) => return Err(IoError::file(path, e)),
+            Ok(metadata) if metadata.is_symlink() => {
+                return Err(IoError::format(
+                    &path,
+                    "a link: a run's manifest is its own file",
+                ))
+            }
+            _ => read_file_at_most(&path, MANIFEST_MOST_BYTES, "a run manifest")?,
         };
         let manifest = serde_json::from_slice::<Self>(&text)
             .map_err(|e| IoError::format(&path, format!("corrupt run manifest ({e})")))?;
@@ -159,17 +182,39 @@ impl RunManifest {
             true => Ok(manifest),
             false => Err(IoError::format(
                 &path,
-                format!("not a meshflow run manifest (format {:?})", manifest.format),
+                format!(
+                    "not a meshflow run manifest (format {})",
+                    quoted(&manifest.format)
+                ),
+            )),
+        }
+    }
+
+    /// Refuses a manifest (at `path`) that lists anything but plain names of files in its own
+    /// directory: `--force` and updates remove and replace the listed files, so a listed
+    /// `../x`, `/home/me/thesis.tex` or `sub/x` would reach outside the run.
+    fn check_entries(&self, path: &Path) -> Result<(), IoError> {
+        match self.files.iter().find(|name| !is_plain_name(name)) {
+            None => Ok(()),
+            Some(name) => Err(IoError::format(
+                path,
+                format!(
+                    "lists {} among its files, which is not a file meshflow writes in its \
+                     directory: a foreign or edited manifest (remove it, or choose another \
+                     output directory)",
+                    quoted(name)
+                ),
             )),
         }
     }
 
     /// Checks the inputs `paths` of a later command against what the run recorded: each must
     /// be something the run read (a file it recorded, or a directory or glob holding one: an
-    /// edited manifest cannot name another input), and every recorded file under it must still
-    /// hold what it held then. Files added to an input directory since are not the run's and
-    /// are left to the reader (new frames change the sequence, which the flow's shape shows).
-    /// Errors about `run` name what changed.
+    /// edited manifest cannot name another input), every file under it that a load may read
+    /// ([`crate::load::may_read`]: frames, arrays, textures; not notes beside them) must be
+    /// recorded (a record that lost an entry, or a frame added since, is refused: the reader
+    /// would read it unchecked), and every recorded file under it must still hold what it
+    /// held then. Errors about `run` name what changed.
     pub fn check_inputs(&self, run: &Path, paths: &[&Path]) -> Result<(), IoError> {
         let refuse = |message: String| IoError::format(run, format!("{message}; solve again"));
         if self.inputs.is_empty() {
@@ -185,6 +230,20 @@ impl RunManifest {
                     "its manifest names {}, which the run did not read (was {RUN_MANIFEST} \
                      edited?)",
                     path.display()
+                )));
+            }
+            let files = input_files(&[path]);
+            let unrecorded =
+                (files.iter().filter(|file| crate::load::may_read(file))).find(|file| {
+                    file.canonicalize()
+                        .is_ok_and(|f| !recorded.iter().any(|r| r.path == f))
+                });
+            if let Some(file) = unrecorded {
+                return Err(refuse(format!(
+                    "its input {} holds {}, of which the run recorded no fingerprint (added \
+                     since the run, or {RUN_MANIFEST} lost its entry)",
+                    path.display(),
+                    file.display()
                 )));
             }
             for then in recorded {
@@ -231,7 +290,8 @@ impl RunManifest {
             .collect()
     }
 
-    /// The manifest of `dir`, if it has one that reads as a manifest ([`Self::read_run`]).
+    /// The manifest of `dir`, if it has one that reads as a manifest and lists plain names
+    /// ([`Self::read_run`]).
     pub fn read(dir: &Path) -> Option<Self> {
         Self::read_run(dir).ok()
     }
@@ -279,7 +339,12 @@ impl Existing {
         if names.is_empty() {
             return Ok(Self::Empty);
         }
-        let manifest = RunManifest::read(target);
+        // A manifest that does not read as one leaves the directory foreign; one that reads
+        // but lists names outside it is refused outright, --force or not.
+        let manifest = RunManifest::parse(target).ok();
+        if let Some(manifest) = &manifest {
+            manifest.check_entries(&target.join(RUN_MANIFEST))?;
+        }
         if manifest.is_some() {
             names.remove(RUN_MANIFEST);
         }
@@ -456,8 +521,8 @@ impl StagedDir {
     /// Hard-links (or copies) the earlier output's file `name` into the staging directory.
     fn link_earlier(&self, name: &str) -> Result<(), IoError> {
         let (from, to) = (self.resolved.join(name), self.staging.join(name));
-        if !from.is_file() {
-            return Ok(()); // a listed file removed since, or a directory: not kept
+        if !is_own_file(&from) {
+            return Ok(()); // a listed file removed since, a directory or a link: not kept
         }
         std::fs::hard_link(&from, &to)
             .or_else(|_| std::fs::copy(&from, &to).map(|_| ()))
@@ -522,7 +587,10 @@ impl StagedDir {
     pub fn commit(mut self) -> Result<(), IoError> {
         let fail = |e| IoError::file(&self.target, e);
         let mut files = entry_names(&self.staging).map_err(fail)?;
-        let kept = self.kept.iter().filter(|n| self.resolved.join(n).is_file());
+        let kept = self
+            .kept
+            .iter()
+            .filter(|n| is_own_file(&self.resolved.join(n)));
         files.extend(kept.cloned());
         let manifest = RunManifest {
             format: MANIFEST_FORMAT.into(),
@@ -584,7 +652,7 @@ impl StagedDir {
         let fail = |e| IoError::file(&self.target, e);
         for name in earlier.iter().filter(|n| !self.kept.contains(n)) {
             let path = self.resolved.join(name);
-            if path.is_file() {
+            if is_own_file(&path) {
                 std::fs::remove_file(&path)
                     .map_err(|e| IoError::file(self.target.join(name), e))?;
             }
@@ -605,6 +673,12 @@ impl Drop for StagedDir {
             live_staging().retain(|s| *s != self.staging);
         }
     }
+}
+
+/// Whether `path` is a regular file itself, not a link: what an output may remove or keep of
+/// an earlier one (a link there was not written by meshflow, whatever the manifest says).
+fn is_own_file(path: &Path) -> bool {
+    std::fs::symlink_metadata(path).is_ok_and(|m| m.is_file())
 }
 
 /// The names of the entries of directory `dir`.

@@ -1,7 +1,8 @@
 //! Point clouds per frame from files: `(N, 3)` NPY or CSV files (one frame each, a directory
 //! or glob in natural order), or one `(K, N, 3)` NPY of tracks (rows that are NaN dropped).
 
-use crate::format::{frame_files, read_npy_float, IoError};
+use super::MAX_COORDINATE;
+use crate::format::{frame_files, quoted, read_npy_float, IoError};
 use crate::Error;
 use nalgebra::Vector3;
 use std::path::Path;
@@ -60,7 +61,7 @@ fn read_npy_points(file: &Path, alone: bool) -> Result<Vec<Vec<Vector3<f64>>>, I
             .enumerate()
         {
             let untracked = tracks && p.iter().all(|c| c.is_nan());
-            match (untracked, p.iter().all(|c| c.is_finite())) {
+            match (untracked, p.iter().all(|&c| is_coordinate(c))) {
                 (true, _) => {}
                 (false, true) => points.push(p),
                 (false, false) => {
@@ -69,12 +70,13 @@ fn read_npy_points(file: &Path, alone: bool) -> Result<Vec<Vec<Vector3<f64>>>, I
                     } else {
                         String::new()
                     };
+                    let why = match p.iter().all(|c| c.is_finite()) {
+                        true => WITHIN,
+                        false => "points must be finite",
+                    };
                     return Err(IoError::format(
                         file,
-                        format!(
-                            "{frame}row {row} is ({}, {}, {}): points must be finite",
-                            p.x, p.y, p.z
-                        ),
+                        format!("{frame}row {row} is ({}, {}, {}): {why}", p.x, p.y, p.z),
                     ));
                 }
             }
@@ -112,6 +114,15 @@ fn read_csv(file: &Path) -> Result<Vec<Vector3<f64>>, IoError> {
     Ok(points)
 }
 
+/// What every coordinate of a point must be.
+const WITHIN: &str = "points must lie within ±1e50 (rescale them, e.g. to micrometres)";
+
+/// Whether `c` is a coordinate that a fit and a match take: finite and within
+/// [`MAX_COORDINATE`] (as [`WITHIN`] says; a test checks that it does).
+fn is_coordinate(c: f64) -> bool {
+    c.is_finite() && c.abs() <= MAX_COORDINATE
+}
+
 /// Three finite numbers x, y, z.
 fn csv_point(fields: &[&str]) -> Result<Vector3<f64>, String> {
     if fields.len() != 3 {
@@ -120,10 +131,24 @@ fn csv_point(fields: &[&str]) -> Result<Vector3<f64>, String> {
     let mut point = Vector3::zeros();
     for (c, field) in point.iter_mut().zip(fields) {
         *c = match field.parse::<f64>() {
-            Ok(v) if v.is_finite() => v,
-            Ok(_) => return Err(format!("'{field}' is not a finite number")),
-            Err(_) => return Err(format!("'{field}' is not a number")),
+            Ok(v) if is_coordinate(v) => v,
+            Ok(v) if v.is_finite() => {
+                return Err(format!("{} is too large: {WITHIN}", quoted(field)))
+            }
+            Ok(_) => return Err(format!("{} is not a finite number", quoted(field))),
+            Err(_) => return Err(format!("{} is not a number", quoted(field))),
         };
     }
     Ok(point)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_bound_named_is_the_bound_checked() {
+        let bound = format!("{:e}", super::MAX_COORDINATE);
+        assert!(super::WITHIN.contains(&bound), "{bound}");
+        assert!(super::is_coordinate(1e50) && !super::is_coordinate(1.0001e50));
+        assert!(!super::is_coordinate(f64::NAN));
+    }
 }

@@ -34,6 +34,8 @@ mod read;
 pub mod sample;
 mod smooth;
 mod tiff_stack;
+mod zarr_chunks;
+mod zarr_store;
 
 pub use ome_zarr::is_ome_zarr;
 pub use read::{

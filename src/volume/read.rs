@@ -133,6 +133,9 @@ pub struct VolumeStream {
     zarr: Option<OmeZarr>,
     /// The TIFF being read, open from one of its frames to the next.
     stack: Option<StackReader>,
+    /// Of the frame read last (an OME-Zarr image's): how many of how many chunks were not
+    /// stored, where some were not.
+    missing: Option<(u64, u64)>,
 }
 
 impl VolumeStream {
@@ -160,6 +163,7 @@ impl VolumeStream {
                 in_file: 0,
                 zarr: Some(image),
                 stack: None,
+                missing: None,
             });
         }
         check_options(path, options)?;
@@ -175,6 +179,7 @@ impl VolumeStream {
             in_file: 0,
             zarr: None,
             stack: None,
+            missing: None,
         })
     }
 
@@ -207,6 +212,13 @@ impl VolumeStream {
         &self.path
     }
 
+    /// Of the frame read last: how many of its chunks were not stored and read as the fill
+    /// value, and how many it has, where some were not (an OME-Zarr image written without
+    /// its empty chunks, or a damaged one).
+    pub fn missing_chunks(&self) -> Option<(u64, u64)> {
+        self.missing
+    }
+
     /// Where the voxel size came from, once the first frame has been read.
     pub fn voxel_size_source(&self) -> Option<&VoxelSizeSource> {
         self.chosen.as_ref().map(|(_, source)| source)
@@ -218,12 +230,10 @@ impl VolumeStream {
         let mut origin = self.options.origin;
         let (values, metadata) = match (&self.zarr, declared.frames) {
             (Some(image), _) => {
+                let (values, pieces) = image.frame(self.in_file)?;
+                self.missing = (pieces.missing > 0).then_some((pieces.missing, pieces.chunks));
                 origin += image.translation;
-                let said = image.said.clone();
-                (
-                    image.frame(self.in_file)?,
-                    Metadata::Said(image.voxel_size, said),
-                )
+                (values, image.metadata.clone())
             }
             (None, _) if declared.tiff.is_some() => {
                 tiff_frame(file, declared, self.in_file, &mut self.stack)?

@@ -54,7 +54,7 @@ impl Layout {
 /// memory limit (what a frame or the whole file takes is the caller's to check).
 pub(super) fn layout(file: &Path) -> Result<Layout, IoError> {
     let mut decoder = open(file)?;
-    let hyperstack = imagej_hyperstack(&mut decoder);
+    let hyperstack = imagej_hyperstack(&mut decoder).map_err(|why| IoError::format(file, why))?;
     let mut layout = walk(&mut decoder, file)?;
     let Some([frames, slices, channels]) = hyperstack else {
         return Ok(layout);
@@ -116,28 +116,39 @@ impl StackReader {
 }
 
 /// `[frames, slices, channels]` from an ImageJ ImageDescription that names frames or
-/// channels (each absent one is 1); `None` for any other file, a plain stack.
-fn imagej_hyperstack(decoder: &mut TiffDecoder) -> Option<[usize; 3]> {
-    let description = decoder.get_tag_ascii_string(Tag::ImageDescription).ok()?;
-    if !description.starts_with("ImageJ") {
-        return None;
-    }
-    let count = |key: &str| {
-        description
-            .lines()
-            .find_map(|line| line.strip_prefix(key)?.strip_prefix('='))
-            .and_then(|n| n.trim().parse::<usize>().ok())
-            .filter(|&n| n > 0)
+/// channels (each absent one is 1); `None` for any other file, a plain stack. A count that is
+/// there but not a positive whole number (`frames=0`, `frames=-3`) is an error: dropped, it
+/// would make the file another stack than its metadata says.
+fn imagej_hyperstack(decoder: &mut TiffDecoder) -> Result<Option<[usize; 3]>, String> {
+    let Ok(description) = decoder.get_tag_ascii_string(Tag::ImageDescription) else {
+        return Ok(None);
     };
-    let (frames, channels) = (count("frames"), count("channels"));
-    if frames.is_none() && channels.is_none() {
-        return None;
+    if !description.starts_with("ImageJ") {
+        return Ok(None);
     }
-    Some([
+    let count = |key: &str| -> Result<Option<usize>, String> {
+        let Some(said) =
+            (description.lines()).find_map(|line| line.strip_prefix(key)?.strip_prefix('='))
+        else {
+            return Ok(None);
+        };
+        match said.trim().parse::<usize>() {
+            Ok(n) if n > 0 => Ok(Some(n)),
+            _ => Err(format!(
+                "its ImageJ metadata says {key}={}: not a positive count",
+                crate::format::quoted(said.trim())
+            )),
+        }
+    };
+    let (frames, channels) = (count("frames")?, count("channels")?);
+    if frames.is_none() && channels.is_none() {
+        return Ok(None);
+    }
+    Ok(Some([
         frames.unwrap_or(1),
-        count("slices").unwrap_or(1),
+        count("slices")?.unwrap_or(1),
         channels.unwrap_or(1),
-    ])
+    ]))
 }
 
 /// A decoder whose buffers stay within the memory limit.

@@ -210,6 +210,33 @@ fn usage(message: String) -> meshflow::Error {
 }
 
 fn main() -> ExitCode {
+    report_panics_in_one_line();
+    // A panic is a bug, but still one line and exit 1: unwinding drops the outputs being
+    // staged, so nothing half-written stays.
+    std::panic::catch_unwind(run_command).unwrap_or(ExitCode::FAILURE)
+}
+
+/// Panics print the first one's message and place as one line, instead of the default
+/// message and backtrace hint (rayon's threads may panic more than once for one fault).
+fn report_panics_in_one_line() {
+    static REPORTED: std::sync::Once = std::sync::Once::new();
+    std::panic::set_hook(Box::new(|info| {
+        REPORTED.call_once(|| {
+            let message = (info.payload().downcast_ref::<&str>().copied())
+                .or(info.payload().downcast_ref::<String>().map(String::as_str))
+                .unwrap_or("no message");
+            let place = info.location().map(|l| format!(" at {}:{}", l.file(), l.line()));
+            let message = meshflow::format::quoted(message);
+            stderr_line!(
+                "meshflow: error: internal error {message}{}; please report it with the command line",
+                place.unwrap_or_default()
+            );
+        });
+    }));
+}
+
+/// The command line's command, run; its error as one line.
+fn run_command() -> ExitCode {
     let cli = match Cli::try_parse().and_then(check_usage) {
         Ok(cli) => cli,
         Err(error) => return usage::usage_error(error),

@@ -9,7 +9,7 @@ use meshflow::render::{
     write_chosen_slab_pictures, FigureOptions, RenderError, SlabSelection, SlabView, UpAxis,
     UpChoice, View,
 };
-use meshflow::run::{Overwrite, StagedDir};
+use meshflow::run::{run_file, Overwrite, StagedDir};
 use meshflow::Error;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
@@ -180,6 +180,13 @@ impl SlabFile {
         Ok(Self { time, path, mesh })
     }
 
+    /// The bytes its arrays hold.
+    fn bytes(&self) -> u64 {
+        let mesh = &self.mesh;
+        let values: usize = mesh.point_data.iter().map(|a| a.values.len()).sum();
+        (24 * mesh.points.len() + 12 * mesh.triangles.len() + 8 * values) as u64
+    }
+
     fn flow(&self) -> Vec<Vector3<f64>> {
         let values = &self
             .mesh
@@ -210,7 +217,7 @@ pub fn render_output(
     args: &PictureArgs,
 ) -> Result<(), Error> {
     let pvd = dir.join("flow.pvd");
-    if !pvd.exists() && dir.join("flow.npy").exists() {
+    if std::fs::symlink_metadata(&pvd).is_err() && dir.join("flow.npy").exists() {
         let message = "this run has no ParaView files (solved with --format npy?); render reads \
                        flow.pvd and its flow_SSSS.vtu: solve again with vtu among the formats \
                        (the default), or with --png";
@@ -224,11 +231,18 @@ pub fn render_output(
         false => StagedDir::create_apart_from(&[dir], target, overwrite)?,
     };
     staged.record_command(crate::command_line());
-    let datasets = read_pvd(&pvd)?;
+    let datasets = read_pvd(&run_file(dir, "flow.pvd")?)?;
     let slabs: Vec<SlabFile> = during(format!("reading {} slab files", datasets.len()), || {
-        datasets
-            .into_iter()
-            .map(|(time, path)| SlabFile::read(time, path))
+        let mut held = 0u64;
+        (datasets.into_iter())
+            .map(|(time, path)| {
+                let slab = SlabFile::read(time, path)?;
+                // All slabs are held at once: together they must fit the memory limit too.
+                held = held.saturating_add(slab.bytes());
+                meshflow::limits::check_declared("the slab files read so far", held)
+                    .map_err(|e| IoError::too_large(&pvd, e))?;
+                Ok(slab)
+            })
             .collect::<Result<_, Error>>()
     })?;
     let Some(first) = slabs.first() else {

@@ -6,7 +6,9 @@ use crate::{Cli, Command};
 use clap::Parser;
 use meshflow::format::IoError;
 use meshflow::load::LoadedSequence;
-use meshflow::run::{read_flow, Overwrite, RunManifest, SolveInput, SolveRecord, StagedDir};
+use meshflow::run::{
+    read_flow, Overwrite, RecordBase, RunManifest, SolveInput, SolveRecord, StagedDir,
+};
 use meshflow::Error;
 use nalgebra::Vector2;
 use std::path::Path;
@@ -75,7 +77,12 @@ fn recorded_command(run: &Path, manifest: &RunManifest) -> Result<SolveRecord, E
         .first()
         .ok_or_else(|| not_a_run("its manifest lists no command"))?;
     match Cli::try_parse_from(command).map(|cli| cli.command) {
-        Ok(Command::Solve(args)) => Ok(args.solve_record()),
+        // As the user named them, from the working directory that the manifest names.
+        Ok(Command::Solve(args)) => Ok(SolveRecord {
+            input: (args.input != args.out).then(|| args.input.clone()),
+            load: args.load_options(),
+            relative_to: RecordBase::WorkingDirectory,
+        }),
         _ => Err(not_a_run("not the output of `meshflow solve`")),
     }
 }

@@ -5,7 +5,7 @@ use crate::pictures;
 use crate::pictures::PictureArgs;
 use crate::progress::{during, solver_progress};
 use meshflow::accuracy::{
-    check_embedded, compare_result, score_result, AccuracyError, FlowErrors, TrackSummary, Tracks,
+    check_embedded, compare_result, score_result, FlowErrors, TrackSummary, Tracks,
 };
 use meshflow::flow::distributed::TimeRanks;
 use meshflow::flow::window::{flow_of_own_slabs, flow_over_ranks, TimeWindow};
@@ -421,13 +421,7 @@ fn read_tracks(file: &Path, sequence: &MeshSequence) -> Result<(PathBuf, Tracks)
     check_embedded(sequence).map_err(|e| in_file(e.into()))?;
     let array = read_npy_float(file)?;
     let tracks = Tracks::from_array(&array.shape, &array.data).map_err(|e| in_file(e.into()))?;
-    if tracks.n_frames() != sequence.n_frames() {
-        let e = AccuracyError::TrackFrames {
-            tracks: tracks.n_frames(),
-            frames: sequence.n_frames(),
-        };
-        return Err(in_file(e.into()));
-    }
+    tracks.check_for(sequence).map_err(|e| in_file(e.into()))?;
     Ok((file.to_path_buf(), tracks))
 }
 
@@ -743,10 +737,8 @@ impl SolveArgs {
     /// input (`None` when it is the output itself: a run that holds its input) and how it is
     /// loaded.
     pub(crate) fn solve_record(&self) -> SolveRecord {
-        SolveRecord {
-            input: (self.input != self.out).then(|| self.input.clone()),
-            load: self.load_options(),
-        }
+        let input = (self.input != self.out).then_some(self.input.as_path());
+        SolveRecord::new(input, self.load_options(), &self.out)
     }
 
     /// The files and directories the solve reads: its input, `--intensity`, `--ground-truth`

@@ -99,9 +99,23 @@ pub fn read_vtu_from(reader: impl std::io::Read, name: &Path) -> Result<VtuMesh,
 
 /// Reads a ParaView collection: `(timestep, file)` of every `<DataSet>`, the files resolved
 /// against the `.pvd`'s directory, in order of time (equal times keep their listed order).
+/// Each file may be listed once: the DataSets are then no more than the directory's files,
+/// however many a hostile `.pvd` lists.
 pub fn read_pvd(path: &Path) -> Result<Vec<(f64, PathBuf)>, IoError> {
     let bytes = crate::format::read_file(path)?;
     let mut datasets = parse_pvd(&bytes).map_err(|e| IoError::at_line(path, e))?;
+    let mut seen = std::collections::HashMap::with_capacity(datasets.len());
+    for (k, (_, file)) in datasets.iter().enumerate() {
+        if let Some(first) = seen.insert(file.as_str(), k) {
+            let why = format!(
+                "DataSet {k} lists {} again (as DataSet {first}): a collection lists each file \
+                 once",
+                crate::format::quoted(file)
+            );
+            return Err(IoError::format(path, why));
+        }
+    }
+    drop(seen);
     datasets.sort_by(|(a, _), (b, _)| a.total_cmp(b));
     datasets
         .into_iter()
