@@ -493,3 +493,20 @@ fn vtu_declared_points_over_the_limit_are_refused() {
         "{text}"
     );
 }
+
+#[path = "../examples/hostile_battery/main.rs"]
+#[allow(dead_code)]
+mod battery;
+
+/// The hostile battery (`examples/hostile_battery`), both rounds, through the binary: every
+/// case ends as it must (refused in one line where it must be), within its time and memory,
+/// with every file outside the outputs unchanged.
+#[test]
+fn the_hostile_battery_holds() {
+    let binary = Path::new(env!("CARGO_BIN_EXE_meshflow"));
+    assert_eq!(
+        battery::run_battery(binary),
+        0,
+        "cases failed: see the table above"
+    );
+}

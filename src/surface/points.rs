@@ -2,7 +2,7 @@
 //! or glob in natural order), or one `(K, N, 3)` NPY of tracks (rows that are NaN dropped).
 
 use super::MAX_COORDINATE;
-use crate::format::{frame_files, quoted, read_npy_float, IoError};
+use crate::format::{format_number, frame_files, quoted, read_npy_float, IoError};
 use crate::Error;
 use nalgebra::Vector3;
 use std::path::Path;
@@ -76,7 +76,12 @@ fn read_npy_points(file: &Path, alone: bool) -> Result<Vec<Vec<Vector3<f64>>>, I
                     };
                     return Err(IoError::format(
                         file,
-                        format!("{frame}row {row} is ({}, {}, {}): {why}", p.x, p.y, p.z),
+                        format!(
+                            "{frame}row {row} is ({}, {}, {}): {why}",
+                            format_number(p.x),
+                            format_number(p.y),
+                            format_number(p.z)
+                        ),
                     ));
                 }
             }

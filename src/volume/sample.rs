@@ -296,6 +296,13 @@ pub enum StreamEvent<'a> {
     VoxelSize(&'a VoxelSizeSource),
     /// Frame `k` was sampled.
     Sampled(usize),
+    /// Frame `frame` of an OME-Zarr image lacked `missing` of its `chunks` chunks, read as the
+    /// fill value.
+    MissingChunks {
+        frame: usize,
+        missing: u64,
+        chunks: u64,
+    },
 }
 
 /// [`sample_sequence`] of volumes read one at a time from `stream`: only one frame's volume
@@ -327,6 +334,13 @@ pub fn sample_stream(
             }));
         };
         let (volume, _) = read?;
+        if let Some((missing, chunks)) = stream.missing_chunks() {
+            on_event(StreamEvent::MissingChunks {
+                frame,
+                missing,
+                chunks,
+            });
+        }
         if sampling.is_none() {
             if let Some(source) = stream.voxel_size_source() {
                 on_event(StreamEvent::VoxelSize(source));

@@ -221,7 +221,7 @@ pub mod zarr {
         let store = Arc::new(FilesystemStore::new(image).unwrap());
         let array = Array::open(store, "/0").unwrap();
         array
-            .store_array_subset_elements::<u16>(&array.subset_all(), &values())
+            .store_array_subset(&array.subset_all(), &values()[..])
             .unwrap();
     }
 

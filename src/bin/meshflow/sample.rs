@@ -87,6 +87,11 @@ fn sample_streamed(
             bar.suspend(|| report_voxel_size(request.volumes, source))
         }
         StreamEvent::Sampled(_) => bar.inc(1),
+        StreamEvent::MissingChunks {
+            frame,
+            missing,
+            chunks,
+        } => bar.suspend(|| report_missing_chunks(request.volumes, frame, missing, chunks)),
     };
     let sampled = sample_stream(
         &mut stream,
@@ -97,6 +102,14 @@ fn sample_streamed(
     )?;
     bar.finish();
     Ok(sampled)
+}
+
+/// Warns that frame `frame` of the OME-Zarr image `volumes` lacked `missing` of its `chunks`.
+pub(crate) fn report_missing_chunks(volumes: &Path, frame: usize, missing: u64, chunks: u64) {
+    stderr_line!(
+        "meshflow: warning: {}: frame {frame}: {missing} of its {chunks} chunks are not stored and read as the array's fill value (written without empty chunks, or damaged?)",
+        volumes.display()
+    )
 }
 
 pub(crate) fn report_voxel_size(volumes: &Path, source: &VoxelSizeSource) {

@@ -134,6 +134,10 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
         };
         let (volume, file) = read?;
         let k = found.len();
+        if let Some((missing, chunks)) = stream.missing_chunks() {
+            let volumes = request.volumes;
+            bar.suspend(|| crate::sample::report_missing_chunks(volumes, k, missing, chunks));
+        }
         if k == 0 {
             let source = stream.voxel_size_source().expect("known after a frame");
             bar.suspend(|| crate::sample::report_voxel_size(request.volumes, source));

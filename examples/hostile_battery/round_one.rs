@@ -1,193 +1,22 @@
-//! A battery of hostile and mistaken inputs run through the `meshflow` binary, as an attacker
-//! and a careless user would try them: bombs (tiny files declaring terabytes), files that name
-//! files outside their directory, outputs over inputs, unbounded options, edited manifests.
-//!
-//! Each case must end in exit 0 or a one-line error (exit 1 or 2: never a panic, an abort or a
-//! signal) within 30 s and 2 GB of resident memory, with every input file unchanged. Every case
-//! runs with `--memory-limit 1.5G`. Prints a row per case (exit code, seconds, peak resident
-//! memory, the message) and exits non-zero if any case fails.
-//!
-//! ```text
-//! cargo build --release && cargo run --release --example hostile_battery
-//! ```
+//! The first round's cases: bombs (tiny files declaring terabytes), files that name files
+//! outside their directory, outputs over inputs, unbounded options, an edited manifest. Each
+//! may end in exit 0 or a one-line error ([`Expect::Any`]).
 
-#[path = "../tests/hostile_support/mod.rs"]
-mod hostile_support;
-
-use std::collections::BTreeMap;
+use super::hostile_support;
+use super::{Case, Expect};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
-
-const TIME_LIMIT: Duration = Duration::from_secs(30);
-const MEMORY_LIMIT_KB: i64 = 2 << 20;
-
-fn main() {
-    let binary = std::env::var_os("MESHFLOW_BIN")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/release/meshflow")
-        });
-    assert!(
-        binary.exists(),
-        "build the binary first: cargo build --release"
-    );
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let base = dir.path();
-    let cases = cases(base, &binary);
-    let mut failures = 0;
-    println!(
-        "{:<44} {:>4} {:>7} {:>9}  message",
-        "case", "exit", "seconds", "peak MB"
-    );
-    for (name, args) in &cases {
-        let before = snapshot(base);
-        let outcome = run(&binary, args);
-        let after = snapshot(base);
-        let changed: Vec<&PathBuf> = (before.iter())
-            .filter(|(path, hash)| after.get(*path) != Some(hash))
-            .map(|(path, _)| path)
-            .collect();
-        let problems = outcome.problems(&changed);
-        failures += usize::from(!problems.is_empty());
-        println!(
-            "{name:<44} {:>4} {:>7.2} {:>9.1}  {}{}",
-            outcome.code.map_or("sig".into(), |c| c.to_string()),
-            outcome.seconds,
-            outcome.peak_kb as f64 / 1024.0,
-            outcome.message,
-            match problems.is_empty() {
-                true => String::new(),
-                false => format!("  <-- {}", problems.join("; ")),
-            }
-        );
-    }
-    println!("{} cases, {failures} failed", cases.len());
-    std::process::exit(i32::from(failures > 0));
-}
-
-/// How one case ended.
-struct Outcome {
-    code: Option<i32>,
-    seconds: f64,
-    peak_kb: i64,
-    /// The first line of stderr (or "ok").
-    message: String,
-    stderr_lines: usize,
-}
-
-impl Outcome {
-    fn problems(&self, changed: &[&PathBuf]) -> Vec<String> {
-        let mut problems = Vec::new();
-        if !matches!(self.code, Some(0..=2)) {
-            problems.push(format!("ended with {:?}", self.code));
-        }
-        if self.code != Some(0) && self.stderr_lines != 1 {
-            problems.push(format!("{} lines of stderr", self.stderr_lines));
-        }
-        if self.seconds > TIME_LIMIT.as_secs_f64() {
-            problems.push("over 30 s".into());
-        }
-        if self.peak_kb > MEMORY_LIMIT_KB {
-            problems.push("over 2 GB".into());
-        }
-        if !changed.is_empty() {
-            problems.push(format!("inputs changed: {changed:?}"));
-        }
-        problems
-    }
-}
-
-/// Runs the binary with `args` and `--memory-limit 1.5G --quiet`, measuring its own peak
-/// resident memory (`wait4`), killed at the time limit.
-// The child is reaped by `wait4`, which also gives its resource usage.
-#[allow(clippy::zombie_processes)]
-fn run(binary: &Path, args: &[String]) -> Outcome {
-    let start = Instant::now();
-    let child = Command::new(binary)
-        .args(args)
-        .args(["--memory-limit", "1.5G", "--quiet"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("the binary starts");
-    let pid = child.id() as libc::pid_t;
-    let mut status = 0;
-    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    let mut killed = false;
-    loop {
-        // SAFETY: `status` and `usage` are valid for writes; `pid` is our child.
-        let done = unsafe { libc::wait4(pid, &mut status, libc::WNOHANG, &mut usage) };
-        if done == pid {
-            break;
-        }
-        if start.elapsed() > TIME_LIMIT + Duration::from_secs(5) && !killed {
-            unsafe { libc::kill(pid, libc::SIGKILL) };
-            killed = true;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    let seconds = start.elapsed().as_secs_f64();
-    let mut stderr = String::new();
-    use std::io::Read;
-    let _ = child.stderr.expect("piped").read_to_string(&mut stderr);
-    let code = libc::WIFEXITED(status).then(|| libc::WEXITSTATUS(status));
-    let lines: Vec<&str> = stderr.lines().filter(|l| !l.contains("warning")).collect();
-    Outcome {
-        code,
-        seconds,
-        peak_kb: usage.ru_maxrss,
-        message: lines.first().map_or("ok".to_string(), |l| shorten(l)),
-        stderr_lines: lines.len(),
-    }
-}
-
-fn shorten(line: &str) -> String {
-    let line = line.trim_start_matches("meshflow: error: ");
-    match line.char_indices().nth(150) {
-        Some((at, _)) => format!("{}…", &line[..at]),
-        None => line.to_string(),
-    }
-}
-
-/// BLAKE3 of every file below `dir`, except the outputs (`out*`).
-fn snapshot(dir: &Path) -> BTreeMap<PathBuf, String> {
-    let mut files = BTreeMap::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for entry in std::fs::read_dir(&d).into_iter().flatten().flatten() {
-            let path = entry.path();
-            let name = entry.file_name().to_string_lossy().into_owned();
-            if name.starts_with("out") {
-                continue;
-            }
-            match entry.file_type() {
-                Ok(t) if t.is_dir() => stack.push(path),
-                Ok(t) if t.is_file() => {
-                    let bytes = std::fs::read(&path).unwrap_or_default();
-                    files.insert(path, blake3::hash(&bytes).to_hex().to_string());
-                }
-                _ => {}
-            }
-        }
-    }
-    files
-}
 
 /// The cases: a name and the command line (without `meshflow`), with their files written
 /// below `base`.
-fn cases(base: &Path, binary: &Path) -> Vec<(String, Vec<String>)> {
+pub(super) fn cases(base: &Path, binary: &Path) -> Vec<Case> {
+    std::fs::create_dir_all(base).unwrap();
     let files = Files::write(base, binary);
     let p = |path: &Path| path.to_str().unwrap().to_string();
     let out = |name: &str| p(&base.join(format!("out_{name}")));
-    let mut cases: Vec<(String, Vec<String>)> = Vec::new();
-    let mut case = |name: &str, args: &[&str]| {
-        cases.push((
-            name.to_string(),
-            args.iter().map(|a| a.to_string()).collect(),
-        ));
-    };
+    let mut cases: Vec<Case> = Vec::new();
+    let mut case = |name: &str, args: &[&str]| cases.push(Case::new(name, args, Expect::Any));
     let (frames, volume, points) = (p(&files.frames), p(&files.volume), p(&files.points));
     // Files naming files elsewhere.
     for (label, gltf) in &files.linking_gltf {
@@ -458,7 +287,7 @@ impl Files {
     }
 }
 
-fn write(dir: &Path, name: &str, bytes: Vec<u8>) -> PathBuf {
+pub(super) fn write(dir: &Path, name: &str, bytes: Vec<u8>) -> PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, bytes).unwrap();
     path
@@ -536,7 +365,7 @@ fn png_declaring(width: u32, height: u32) -> Vec<u8> {
     bytes
 }
 
-fn deflate(data: &[u8]) -> Vec<u8> {
+pub(super) fn deflate(data: &[u8]) -> Vec<u8> {
     let mut encoder = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::best());
     encoder.write_all(data).unwrap();
     encoder.finish().unwrap()
