@@ -193,7 +193,18 @@ fn copy_dir(from: &Path, to: &Path) {
     }
 }
 
+/// Puts a file's bytes back when dropped, also when a case fails.
+struct Restore(std::path::PathBuf, Vec<u8>);
+
+impl Drop for Restore {
+    fn drop(&mut self) {
+        std::fs::write(&self.0, &self.1).unwrap();
+    }
+}
+
 thread_local! {
+    /// Where this thread's copies of the Zarr images are.
+    static WORK: tempfile::TempDir = tempfile::tempdir().unwrap();
     /// A pool of this thread alone: the reader's parallel decoding then allocates where the
     /// counter sees it.
     static ONE_THREAD: rayon::ThreadPool = rayon::ThreadPoolBuilder::new()
@@ -217,9 +228,11 @@ proptest! {
         meshflow::limits::set_memory_limit(LIMIT);
         let images = zarr_images();
         let (name, template) = &images[image % images.len()];
-        let dir = tempfile::tempdir().unwrap();
-        let copy = dir.path().join("image.zarr");
-        copy_dir(template, &copy);
+        // This thread's copy of the image: each case changes one file and puts it back after.
+        let copy = WORK.with(|work| work.path().join(template.file_name().unwrap()));
+        if !copy.exists() {
+            copy_dir(template, &copy);
+        }
         // A chunk or shard (most cases), the array's metadata, or the group's.
         let chunks = zarr::chunk_files(&copy);
         let array = ["0/zarr.json", "0/.zarray"].map(|f| copy.join(f)).into_iter().find(|f| f.exists());
@@ -229,7 +242,9 @@ proptest! {
             1 => array.unwrap(),
             _ => group.unwrap(),
         };
-        let mut bytes = std::fs::read(&victim).unwrap();
+        let original = std::fs::read(&victim).unwrap();
+        let mut bytes = original.clone();
+        let _restore = Restore(victim.clone(), original);
         for mutation in &mutations {
             // Shard indexes and blosc or zstd headers are at the ends: aim there half the time.
             let mutation = match (mutation, from_end) {

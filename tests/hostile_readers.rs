@@ -5,9 +5,7 @@
 //! Every test sets the same low memory limit (64 MiB): the limit is process-wide and the tests
 //! of this binary run in parallel.
 
-mod hostile_support;
-
-use hostile_support::npy;
+use battery::hostile_support::npy;
 use meshflow::io::IoError;
 use std::path::{Path, PathBuf};
 

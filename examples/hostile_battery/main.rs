@@ -19,7 +19,7 @@
 //! ```
 
 #[path = "../../tests/hostile_support/mod.rs"]
-mod hostile_support;
+pub mod hostile_support;
 #[path = "round_one.rs"]
 mod round_one;
 #[path = "round_two.rs"]

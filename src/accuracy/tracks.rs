@@ -215,7 +215,7 @@ impl Tracks {
             let diameter = (high - low).norm();
             for (point, x) in points.iter().enumerate().filter(|(_, x)| x.x.is_finite()) {
                 let distance = (low - x).sup(&(x - high)).sup(&Vector3::zeros()).norm();
-                if !(distance <= TRACK_REACH * diameter) {
+                if distance.is_nan() || distance > TRACK_REACH * diameter {
                     return Err(AccuracyError::TrackFarOff {
                         frame,
                         point,

@@ -792,3 +792,69 @@ fn relabel(mut error: IoError, from: &Path, to: &Path) -> IoError {
     }
     error
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An earlier output whose manifest lists `listed` beside its own file, and a file of the
+    /// user's: foreign, so only `--force` may write into it.
+    fn planted(dir: &Path, listed: &str) -> PathBuf {
+        let out = dir.join("out");
+        std::fs::create_dir(&out).unwrap();
+        std::fs::write(out.join("flow.npy"), b"flow").unwrap();
+        std::fs::write(out.join("mine.txt"), b"the user's").unwrap();
+        let manifest = RunManifest {
+            format: MANIFEST_FORMAT.into(),
+            files: vec!["flow.npy".into(), listed.into()],
+            ..RunManifest::default()
+        };
+        std::fs::write(
+            out.join(RUN_MANIFEST),
+            serde_json::to_vec(&manifest).unwrap(),
+        )
+        .unwrap();
+        out
+    }
+
+    #[test]
+    fn forced_outputs_never_remove_what_lies_outside_their_directory() {
+        let dir = tempfile::tempdir().unwrap();
+        let victim = dir.path().join("thesis.tex");
+        std::fs::write(&victim, b"years of work").unwrap();
+        let absolute = victim.to_str().unwrap().to_string();
+        for listed in ["../thesis.tex", absolute.as_str(), "sub/x", "..", ".", ""] {
+            let out = planted(dir.path(), listed);
+            for overwrite in [Overwrite::EarlierRun, Overwrite::Force] {
+                let error = StagedDir::create(&out, overwrite).unwrap_err().to_string();
+                assert!(
+                    error.contains("not a file meshflow writes"),
+                    "{listed:?}: {error}"
+                );
+                assert!(error.contains(RUN_MANIFEST), "{error}");
+            }
+            assert!(StagedDir::update(&out, Overwrite::Force, |_| true).is_err());
+            std::fs::remove_dir_all(&out).unwrap();
+        }
+        assert_eq!(std::fs::read(&victim).unwrap(), b"years of work");
+    }
+
+    #[test]
+    fn forced_outputs_remove_listed_plain_files_but_not_links() {
+        let dir = tempfile::tempdir().unwrap();
+        let victim = dir.path().join("data.npy");
+        std::fs::write(&victim, b"data").unwrap();
+        let out = planted(dir.path(), "velocity.npy");
+        #[cfg(unix)]
+        std::os::unix::fs::symlink(&victim, out.join("velocity.npy")).unwrap();
+        let staged = StagedDir::create(&out, Overwrite::Force).unwrap();
+        std::fs::write(staged.path().join("summary.json"), b"{}").unwrap();
+        staged.commit().unwrap();
+        // The listed regular file went, the link stayed (not meshflow's), the user's file too.
+        assert!(!out.join("flow.npy").exists());
+        assert!(out.join("mine.txt").exists() && out.join("summary.json").exists());
+        #[cfg(unix)]
+        assert!(out.join("velocity.npy").is_symlink());
+        assert_eq!(std::fs::read(&victim).unwrap(), b"data");
+    }
+}

@@ -484,13 +484,16 @@ fn placement(
     }
 }
 
+/// A voxel size and the position of voxel `(0, 0, 0)`, along x, y, z.
+type VoxelPlacement = (Vector3<f64>, Vector3<f64>);
+
 /// The voxel size and translation along x, y, z that `dataset`'s and then `multiscale`'s
 /// coordinate transformations give; `None` where neither has a `scale`.
 fn transformations(
     multiscale: &Value,
     dataset: &Value,
     axes: &Axes,
-) -> Result<Option<(Vector3<f64>, Vector3<f64>)>, String> {
+) -> Result<Option<VoxelPlacement>, String> {
     let n = axes.count();
     let (mut scale, mut translation) = (vec![1.0; n], vec![0.0; n]);
     let mut scaled = false;

@@ -80,6 +80,38 @@ impl Element {
         }
     }
 
+    /// The elements in `bytes` (one per [`Self::size`] bytes), little- or big-endian, as `f32`
+    /// into `out`: [`Self::value`] with the type chosen once for the row.
+    pub fn convert(self, bytes: &[u8], big_endian: bool, out: &mut [f32]) {
+        fn each<const N: usize>(
+            bytes: &[u8],
+            out: &mut [f32],
+            big_endian: bool,
+            f: fn([u8; N]) -> f32,
+        ) {
+            for (slot, word) in out.iter_mut().zip(bytes.chunks_exact(N)) {
+                let mut word: [u8; N] = word.try_into().expect("N bytes");
+                if big_endian {
+                    word.reverse();
+                }
+                *slot = f(word);
+            }
+        }
+        match self {
+            Self::Bool => each::<1>(bytes, out, false, |[b]| f32::from(b != 0)),
+            Self::U8 => each::<1>(bytes, out, false, |[b]| f32::from(b)),
+            Self::I8 => each::<1>(bytes, out, false, |[b]| f32::from(b as i8)),
+            Self::U16 => each(bytes, out, big_endian, |w| f32::from(u16::from_le_bytes(w))),
+            Self::I16 => each(bytes, out, big_endian, |w| f32::from(i16::from_le_bytes(w))),
+            Self::U32 => each(bytes, out, big_endian, |w| u32::from_le_bytes(w) as f32),
+            Self::I32 => each(bytes, out, big_endian, |w| i32::from_le_bytes(w) as f32),
+            Self::U64 => each(bytes, out, big_endian, |w| u64::from_le_bytes(w) as f32),
+            Self::I64 => each(bytes, out, big_endian, |w| i64::from_le_bytes(w) as f32),
+            Self::F32 => each(bytes, out, big_endian, f32::from_le_bytes),
+            Self::F64 => each(bytes, out, big_endian, |w| f64::from_le_bytes(w) as f32),
+        }
+    }
+
     /// The element in `bytes` (its [`Self::size`] bytes), little- or big-endian, as `f32`.
     pub fn value(self, bytes: &[u8], big_endian: bool) -> f32 {
         fn word<const N: usize>(bytes: &[u8], big_endian: bool) -> [u8; N] {
@@ -274,9 +306,17 @@ impl Codecs {
         match &self.layout {
             Layout::Bytes { big_endian } => {
                 let strides = self.strides(&place.shape);
-                target.copy(place, &strides, |at| {
-                    let at = at * element.size();
-                    element.value(&bytes[at..at + element.size()], *big_endian)
+                let size = element.size();
+                target.copy(place, &strides, |row, from, stride| match stride {
+                    1 => element.convert(
+                        &bytes[from * size..(from + row.len()) * size],
+                        *big_endian,
+                        row,
+                    ),
+                    _ => (row.iter_mut().enumerate()).for_each(|(j, slot)| {
+                        let at = (from + j * stride) * size;
+                        *slot = element.value(&bytes[at..at + size], *big_endian);
+                    }),
                 });
                 Ok(Pieces {
                     chunks: 1,
@@ -355,7 +395,9 @@ impl Compressor {
     /// `bytes` decoded into at most `most` bytes.
     fn decode(&self, bytes: &[u8], most: usize) -> Result<Vec<u8>, String> {
         let bounded = |reader: &mut dyn Read, what: &str| -> Result<Vec<u8>, String> {
-            let mut out = Vec::new();
+            // The size a chunk decodes to is known and within the memory limit: room for it
+            // at once (up to 64 MiB: an intermediate stage's bound may be larger than it needs).
+            let mut out = Vec::with_capacity(most.saturating_add(1).min(1 << 26));
             let limit = (most as u64).saturating_add(1);
             (reader.take(limit).read_to_end(&mut out)).map_err(|e| format!("{what}: {e}"))?;
             match out.len() > most {
@@ -667,9 +709,15 @@ impl Target<'_> {
         strides
     }
 
-    /// Writes `value(i)` for each element of `place` in the held region, `i` being the
-    /// element's place in the chunk's buffer (`chunk_strides` per dimension).
-    fn copy(&mut self, place: &Place, chunk_strides: &[usize], value: impl Fn(usize) -> f32) {
+    /// Writes the elements of `place` in the held region a row (along the last dimension) at
+    /// a time: `write(row, from, stride)` fills `row` with the chunk's elements at `from`,
+    /// `from + stride`, … of its buffer (`chunk_strides` per dimension).
+    fn copy(
+        &mut self,
+        place: &Place,
+        chunk_strides: &[usize],
+        write: impl Fn(&mut [f32], usize, usize),
+    ) {
         let Some(ranges) = self.overlap(place) else {
             return;
         };
@@ -686,9 +734,7 @@ impl Target<'_> {
                 .map(|d| (index[d] - place.origin[d]) as usize * chunk_strides[d])
                 .sum::<usize>();
             let row = (ranges[last].end - ranges[last].start) as usize;
-            for (j, slot) in self.values[out..out + row].iter_mut().enumerate() {
-                *slot = value(from + j * chunk_strides[last]);
-            }
+            write(&mut self.values[out..out + row], from, chunk_strides[last]);
             // The next row: the odometer over all dimensions but the last.
             let mut d = last;
             loop {
@@ -708,7 +754,7 @@ impl Target<'_> {
     /// Writes `fill` where `place` meets the held region.
     pub fn fill(&mut self, place: &Place, fill: f32) {
         let strides = vec![0; place.shape.len()];
-        self.copy(place, &strides, |_| fill);
+        self.copy(place, &strides, |row, _, _| row.fill(fill));
     }
 }
 

@@ -63,7 +63,8 @@ struct Cli {
     #[arg(long, global = true, value_name = "SIZE", value_parser = meshflow::limits::parse_size)]
     memory_limit: Option<u64>,
     /// Read files that input files name (glTF buffers and images, OBJ material libraries and
-    /// textures) also outside the naming file's directory: absolute paths and '..' (for
+    /// textures, an OME-Zarr store's files, a run's recorded inputs and own files) also
+    /// outside the naming file's directory: absolute paths, '..' and links that lead out (for
     /// trusted data only)
     #[arg(long, global = true)]
     allow_external_files: bool,
