@@ -64,6 +64,12 @@ pub fn bounding_box(positions: &[Vector3<f64>]) -> (Vector3<f64>, Vector3<f64>) 
     (low, high)
 }
 
+/// The length of the diagonal of [`bounding_box`]: the size of `positions`, in their units.
+pub fn bounding_diameter(positions: &[Vector3<f64>]) -> f64 {
+    let (low, high) = bounding_box(positions);
+    (high - low).norm()
+}
+
 /// Length of every undirected edge (indexed like [`Mesh::edges`]) of an embedding in R^3.
 pub fn edge_lengths(mesh: &Mesh, positions: &[Vector3<f64>]) -> Result<Vec<f64>, GeometryError> {
     check_positions(mesh, positions)?;

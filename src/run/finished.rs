@@ -229,8 +229,7 @@ pub const FLOW_REACH: f64 = 1e3;
 /// where it does not, or the sequence has no positions.
 fn first_flow_out_of_reach(data: &[f64], v: usize, sequence: &MeshSequence) -> Option<String> {
     let positions = sequence.positions(0)?;
-    let (low, high) = crate::geometry::bounding_box(positions);
-    let diameter = (high - low).norm();
+    let diameter = crate::geometry::bounding_diameter(positions);
     let (at, step) = (data.chunks_exact(2).enumerate())
         .map(|(at, u)| (at, u[0].hypot(u[1]) * sequence.slab_duration(at / v)))
         .find(|(_, step)| *step > FLOW_REACH * diameter)?;

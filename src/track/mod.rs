@@ -389,7 +389,7 @@ fn step_bound(options: &TrackOptions, first: &TrackFrame) -> Result<f64, TrackEr
     match options.max_step {
         Some(s) if s.is_finite() && s > 0.0 => Ok(s),
         Some(s) => Err(TrackError::BadMaxStep(s)),
-        None => Ok(0.1 * bounding_diagonal(&first.positions)),
+        None => Ok(0.1 * crate::geometry::bounding_diameter(&first.positions)),
     }
 }
 
@@ -865,16 +865,6 @@ fn check_frame(k: usize, frame: &TrackFrame) -> Result<(), TrackError> {
         }
     }
     Ok(())
-}
-
-fn bounding_diagonal(points: &[Vector3<f64>]) -> f64 {
-    let lower = points
-        .iter()
-        .fold(Vector3::repeat(f64::INFINITY), |m, p| m.inf(p));
-    let upper = points
-        .iter()
-        .fold(Vector3::repeat(f64::NEG_INFINITY), |m, p| m.sup(p));
-    (upper - lower).norm()
 }
 
 impl From<crate::spatial::SpatialError> for TrackError {

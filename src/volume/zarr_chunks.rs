@@ -571,9 +571,9 @@ impl Sharding {
                 "a shard of {length} bytes, shorter than its index of {n} entries ({size} bytes)"
             ));
         }
-        let (index, _) = match self.index_at_end {
-            true => (&shard[(length - size) as usize..], ()),
-            false => (&shard[..size as usize], ()),
+        let index = match self.index_at_end {
+            true => &shard[(length - size) as usize..],
+            false => &shard[..size as usize],
         };
         let mut shape: Vec<u64> = grid.to_vec();
         shape.push(2);
