@@ -36,19 +36,35 @@ use nalgebra::{Rotation3, Vector3};
 use std::path::Path;
 use std::time::Instant;
 
-/// Turn per frame (radians).
-const OMEGA: f64 = 0.04;
-/// Relative growth of the x semi-axis, and shrinking of the z one, per frame.
-const STRAIN: f64 = 0.01;
+/// What the shell's stack shows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kind {
+    /// A bright layer with brighter cells in it.
+    Layer,
+    /// The same layer where three cells in ten are dim (at 30 % of the others' brightness),
+    /// as real tissue is: the threshold opens holes through the layer there.
+    Patchy,
+    /// Nuclei alone: bright blobs in the layer's middle with dark gaps between them.
+    Nuclei,
+}
 
 struct Scene {
     n: usize,
+    kind: Kind,
+    /// The voxel's depth in z against its sides (1: cubic voxels).
+    z_scale: f64,
+    /// Turn per frame (radians) about z.
+    omega: f64,
+    /// Relative growth of the x semi-axis, and shrinking of the z one, per frame.
+    strain: f64,
+    /// The noise's standard deviation.
+    noise: f64,
     /// Directions of the cells on the unit sphere.
     cells: Vec<Vector3<f64>>,
 }
 
 impl Scene {
-    fn new(n: usize) -> Self {
+    fn new(n: usize, kind: Kind) -> Self {
         // A golden-spiral of cell directions, jittered by a fixed hash.
         let count = 80;
         let cells = (0..count)
@@ -59,27 +75,47 @@ impl Scene {
                 Vector3::new(r * phi.cos(), r * phi.sin(), z)
             })
             .collect();
-        Self { n, cells }
+        let env = |name: &str, default: f64| {
+            std::env::var(name)
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(default)
+        };
+        Self {
+            n,
+            kind,
+            z_scale: env("Z_SCALE", 1.0),
+            omega: env("OMEGA", 0.04),
+            strain: env("STRAIN", 0.01),
+            noise: env("NOISE", 15.0),
+            cells,
+        }
+    }
+
+    /// Voxels in z.
+    fn nz(&self) -> usize {
+        ((self.n as f64) / self.z_scale).round() as usize
     }
 
     fn centre(&self) -> Vector3<f64> {
-        Vector3::repeat((self.n - 1) as f64 / 2.0)
+        let side = (self.n - 1) as f64 / 2.0;
+        Vector3::new(side, side, self.z_scale * (self.nz() - 1) as f64 / 2.0)
     }
 
-    /// The semi-axes at time `t` (voxels).
+    /// The semi-axes at time `t` (voxel sides).
     fn axes(&self, t: f64) -> Vector3<f64> {
         let r = 0.36 * self.n as f64;
         Vector3::new(
-            r * (1.0 + STRAIN * t),
+            r * (1.0 + self.strain * t),
             0.9 * r,
-            0.8 * r * (1.0 - STRAIN * t),
+            0.8 * r * (1.0 - self.strain * t),
         )
     }
 
     /// The material point (on the reference ellipsoid's scale) at `x` and time `t`.
     fn material(&self, x: &Vector3<f64>, t: f64) -> Vector3<f64> {
         let turned =
-            Rotation3::from_axis_angle(&Vector3::z_axis(), -OMEGA * t) * (x - self.centre());
+            Rotation3::from_axis_angle(&Vector3::z_axis(), -self.omega * t) * (x - self.centre());
         turned.component_div(&self.axes(t))
     }
 
@@ -87,51 +123,68 @@ impl Scene {
     fn value(&self, x: &Vector3<f64>, t: f64) -> f64 {
         let m = self.material(x, t);
         let radius = m.norm();
+        if self.kind == Kind::Nuclei {
+            // Blobs of radius 0.05 (the ellipsoid's scale) at radius 0.925: 0.37 apart.
+            let blobs: f64 = (self.cells.iter())
+                .map(|c| (-(m - 0.925 * c).norm_squared() / (2.0 * 0.05f64.powi(2))).exp())
+                .sum();
+            return 20.0 + 180.0 * blobs.min(1.0);
+        }
         if !(0.85..1.0).contains(&radius) {
             return 20.0;
         }
         let direction = m / radius;
+        let near = |c: &&Vector3<f64>| (direction - *c).norm_squared();
+        let nearest = (self.cells.iter().enumerate())
+            .min_by(|(_, a), (_, b)| near(a).total_cmp(&near(b)))
+            .map_or(0, |(i, _)| i);
         let cells: f64 = (self.cells.iter())
             .map(|c| (-(direction - c).norm_squared() / (2.0 * 0.1f64.powi(2))).exp())
             .sum();
-        60.0 + 120.0 * cells.min(1.0)
+        let brightness = match (self.kind, nearest % 10) {
+            (Kind::Patchy, 0 | 3 | 7) => 0.3,
+            _ => 1.0,
+        };
+        20.0 + brightness * (40.0 + 120.0 * cells.min(1.0))
     }
 
     /// The material's velocity at `x` and time `t` (voxels per frame).
     fn velocity(&self, x: &Vector3<f64>, t: f64) -> Vector3<f64> {
         let m = self.material(x, t);
+        let (strain, omega) = (self.strain, self.omega);
         let rate = Vector3::new(
-            STRAIN / (1.0 + STRAIN * t),
+            strain / (1.0 + strain * t),
             0.0,
-            -STRAIN / (1.0 - STRAIN * t),
+            -strain / (1.0 - strain * t),
         );
         let scaled = m.component_mul(&self.axes(t));
-        let rotation = Rotation3::from_axis_angle(&Vector3::z_axis(), OMEGA * t);
-        rotation * (Vector3::z().cross(&scaled) * OMEGA + scaled.component_mul(&rate))
+        let rotation = Rotation3::from_axis_angle(&Vector3::z_axis(), omega * t);
+        rotation * (Vector3::z().cross(&scaled) * omega + scaled.component_mul(&rate))
     }
 
-    /// Frame `k` as a volume with noise of standard deviation 15.
+    /// Frame `k` as a volume with noise of standard deviation [`Scene::noise`].
     fn volume(&self, k: usize) -> Volume {
-        let n = self.n;
-        let mut values = Vec::with_capacity(n * n * n);
+        let (n, nz) = (self.n, self.nz());
+        let mut values = Vec::with_capacity(n * n * nz);
         let mut state = 0x9e37_79b9_7f4a_7c15u64 ^ k as u64;
-        for z in 0..n {
+        for z in 0..nz {
             for y in 0..n {
                 for x in 0..n {
-                    let p = Vector3::new(x as f64, y as f64, z as f64);
-                    // xorshift, two uniforms summed: a noise of standard deviation 15.
+                    let p = Vector3::new(x as f64, y as f64, self.z_scale * z as f64);
+                    // xorshift, two uniforms summed: a noise of standard deviation `noise`.
                     let mut uniform = || {
                         state ^= state << 13;
                         state ^= state >> 7;
                         state ^= state << 17;
                         (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
                     };
-                    let noise = 15.0 * 6f64.sqrt() * (uniform() + uniform());
+                    let noise = self.noise * 6f64.sqrt() * (uniform() + uniform());
                     values.push((self.value(&p, k as f64) + noise) as f32);
                 }
             }
         }
-        Volume::new([n; 3], values, Vector3::repeat(1.0), Vector3::zeros()).expect("finite")
+        let voxel = Vector3::new(1.0, 1.0, self.z_scale);
+        Volume::new([nz, n, n], values, voxel, Vector3::zeros()).expect("finite")
     }
 }
 
@@ -144,7 +197,16 @@ fn main() -> Result<(), meshflow::Error> {
         args.first().copied().unwrap_or(64),
         args.get(1).copied().unwrap_or(5),
     );
-    let scene = Scene::new(n);
+    let kind = match std::env::var("SCENE").as_deref() {
+        Ok("patchy") => Kind::Patchy,
+        Ok("nuclei") => Kind::Nuclei,
+        _ => Kind::Layer,
+    };
+    let scene = Scene::new(n, kind);
+    println!(
+        "scene {kind:?}, voxels 1 × 1 × {}, {:.3} rad per frame, strain {} per frame, noise {}",
+        scene.z_scale, scene.omega, scene.strain, scene.noise
+    );
     let out = Path::new("out/closed_shell");
     std::fs::create_dir_all(out).map_err(|e| meshflow::format::IoError::file(out, e))?;
     let start = Instant::now();
@@ -153,7 +215,8 @@ fn main() -> Result<(), meshflow::Error> {
         .flat_map(|v| v.values().iter().map(|&x| f64::from(x)))
         .collect();
     let (nk, nn) = (k as u64, n as u64);
-    meshflow::format::write_npy(&out.join("stack.npy"), &[nk, nn, nn, nn], &stack)?;
+    let shape = [nk, scene.nz() as u64, nn, nn];
+    meshflow::format::write_npy(&out.join("stack.npy"), &shape, &stack)?;
     println!(
         "{k} volumes of {n}³ voxels rendered in {:.1} s",
         start.elapsed().as_secs_f64()
@@ -163,15 +226,46 @@ fn main() -> Result<(), meshflow::Error> {
     let start = Instant::now();
     let mut frames = Vec::new();
     for (f, volume) in volumes.iter().enumerate() {
-        let found = find_surface(volume, &IsosurfaceOptions::default())?;
+        let finding = IsosurfaceOptions {
+            closing: std::env::var("CLOSING").ok().and_then(|v| v.parse().ok()),
+            ..IsosurfaceOptions::default()
+        };
+        let found = find_surface(volume, &finding)?;
         let radii: Vec<f64> = (found.positions.iter())
             .map(|p| scene.material(p, f as f64).norm())
             .collect();
         let within = radii.iter().filter(|r| (0.85..1.0).contains(*r)).count();
+        let mesh = meshflow::mesh::Mesh::new(found.positions.len(), found.faces.clone())?;
+        // Folds of the frame's own surface: edges whose two faces face opposite ways.
+        let normal = |f: usize| {
+            let [a, b, c] = mesh.faces()[f].map(|v| found.positions[v as usize]);
+            (b - a).cross(&(c - a))
+        };
+        let mut faces_of_edge = std::collections::HashMap::new();
+        for (f, face) in mesh.faces().iter().enumerate() {
+            for e in 0..3 {
+                let (a, b) = (face[e], face[(e + 1) % 3]);
+                faces_of_edge
+                    .entry((a.min(b), a.max(b)))
+                    .or_insert_with(Vec::new)
+                    .push(f);
+            }
+        }
+        let folds = (faces_of_edge.values())
+            .filter(|f| f.len() == 2 && normal(f[0]).dot(&normal(f[1])) < 0.0)
+            .count();
+        let tried: Vec<String> = (found.closings_tried.iter())
+            .map(|c| format!("{:.1}: genus {}, share {:.2}", c.radius, c.genus, c.share))
+            .collect();
         println!(
-            "frame {f}: threshold {:.1}, {} vertices, {:.1} % of them within the bright layer",
+            "frame {f}: threshold {:.1}, component {} + {} filled, {} vertices, {folds} folded edges, genus {}, closed at radius {:.1} (tried {}), {:.1} % of them within the bright layer",
             found.threshold,
+            found.component_voxels,
+            found.filled_voxels,
             found.vertices,
+            (2 - mesh.euler_characteristic()) / 2,
+            found.closing_radius,
+            tried.join("; "),
             100.0 * within as f64 / radii.len() as f64
         );
         frames.push(TrackFrame {

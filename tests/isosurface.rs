@@ -135,6 +135,7 @@ fn a_solid_object_keeps_its_boundary_and_small_objects_are_dropped() {
     let options = IsosurfaceOptions {
         smoothing: Some(1.0),
         level: Level::Value(0.5),
+        ..IsosurfaceOptions::default()
     };
     let found = find_surface(&ball, &options).unwrap();
     assert_eq!(euler_characteristic(found.vertices, &found.faces), 2);

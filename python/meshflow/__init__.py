@@ -899,15 +899,19 @@ def find_surface(
     origin: SequenceOf[float] = (0.0, 0.0, 0.0),
     level: Union[str, float] = "auto",
     smoothing: Optional[float] = None,
+    genus: int = 0,
+    closing: Optional[float] = None,
     frame: int = 0,
     channel: Optional[int] = None,
     resolution_level: int = 0,
 ) -> Dict[str, Any]:
     """The surface of the object in one 3-D image, as ``meshflow surface --shape closed`` finds
-    it in each frame: Gaussian smoothing, a threshold (Otsu's, or ``level``), the largest
-    6-connected object above it with its holes filled, its isosurface by surface nets cleaned
-    to one closed manifold, and, where the object is a bright layer around a darker inside,
-    each vertex moved to the middle of the layer.
+    it in each frame: Gaussian smoothing, a threshold (Otsu's, or ``level``), the foreground
+    closed by the smallest ball that leaves one object of at most ``genus`` handles (the gaps of
+    a patchy layer, or between nuclei, sealed), its largest 6-connected piece with its holes
+    filled, its isosurface by surface nets cleaned to one closed manifold, and, where the
+    object is a bright layer around a darker inside, each vertex moved to the middle of the
+    layer.
 
     Parameters
     ----------
@@ -925,6 +929,12 @@ def find_surface(
         The threshold of the smoothed image; "auto" is Otsu's (a probability map works at 0.5).
     smoothing : float, optional
         ``σ`` of the Gaussian, physical units; default the largest voxel side.
+    genus : int
+        The handles the object has: 0 (a sphere's topology) unless it really has some.
+    closing : float, optional
+        The radius of the ball that closes the gaps of the object's layer (physical units; 0:
+        none). Default: a quarter of the object's smallest extent for genus 0, none for more;
+        it grows until the surface has ``genus`` handles.
 
     Returns
     -------
@@ -932,11 +942,13 @@ def find_surface(
         ``positions`` (V, 3) and ``faces`` (F, 3) of the surface (its own vertices: track
         several frames' surfaces into one mesh with :func:`track`), and ``threshold``,
         ``foreground_voxels``, ``component_voxels``, ``component_share``, ``filled_voxels``,
-        ``layer_vertices``, ``layer_thickness``, ``border_voxels`` as ``surface.json`` has
-        them, and ``warnings`` (the object touching the border, or split).
+        ``genus``, ``closing_radius`` (0 where no gap needed sealing), ``layer_vertices``,
+        ``layer_thickness``, ``border_voxels`` as ``surface.json`` has them, and ``warnings``
+        (the object touching the border, or split).
 
     Errors are ``ValueError`` with the library's message: a constant image, no voxel above
-    ``level`` or every voxel above it, an object too small to bound.
+    ``level`` or every voxel above it, an object too small to bound, a surface that keeps more
+    handles than ``genus``.
     """
     if _is_path(volume):
         read = read_volumes(
@@ -964,6 +976,8 @@ def find_surface(
         _triple("origin", origin),
         text,
         _optional_float("smoothing", smoothing),
+        _count("genus", genus),
+        _optional_float("closing", closing),
     )
 
 

@@ -142,7 +142,7 @@ pub(crate) fn read_volume(array: &PyReadonlyArray3<f32>) -> ([usize; 3], Vec<f32
 /// finds it in a frame. Returns a dict: `positions` (V, 3), `faces` (F, 3) and the report's
 /// numbers.
 #[pyfunction]
-#[pyo3(signature = (volume, voxel_size, origin, level, smoothing))]
+#[pyo3(signature = (volume, voxel_size, origin, level, smoothing, genus, closing))]
 pub(crate) fn find_surface<'py>(
     py: Python<'py>,
     volume: PyReadonlyArray3<'py, f32>,
@@ -150,6 +150,8 @@ pub(crate) fn find_surface<'py>(
     origin: (f64, f64, f64),
     level: &str,
     smoothing: Option<f64>,
+    genus: usize,
+    closing: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let level = parse::<Level>(level, "level")?;
     let (shape, values) = read_volume(&volume);
@@ -158,7 +160,12 @@ pub(crate) fn find_surface<'py>(
     let found = py
         .detach(|| -> Result<FoundSurface, Error> {
             let volume = Volume::new(shape, values, voxel_size, origin)?;
-            let options = IsosurfaceOptions { smoothing, level };
+            let options = IsosurfaceOptions {
+                smoothing,
+                level,
+                genus,
+                closing,
+            };
             Ok(surface::find_surface(&volume, &options)?)
         })
         .map_err(to_py_err)?;
@@ -170,6 +177,8 @@ pub(crate) fn find_surface<'py>(
     out.set_item("component_voxels", found.component_voxels)?;
     out.set_item("component_share", found.component_share)?;
     out.set_item("filled_voxels", found.filled_voxels)?;
+    out.set_item("genus", found.genus)?;
+    out.set_item("closing_radius", found.closing_radius)?;
     out.set_item("layer_vertices", found.layer_vertices)?;
     out.set_item("layer_thickness", found.layer_thickness)?;
     out.set_item("border_voxels", found.border_voxels)?;

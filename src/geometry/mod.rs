@@ -17,6 +17,7 @@
 //! relative to its size (`A ≤ ε · l_max²`) is reported as degenerate instead of producing
 //! infinite cotangents.
 
+pub mod folds;
 mod trace;
 mod triangle;
 

@@ -41,8 +41,10 @@
 //! Surface nets come from a well-kept crate; Otsu's threshold, the flood fills and the table of
 //! critical cells are a few lines each over our `(z, y, x)` grids and are written here.
 
+use super::closing;
 use super::reference::compact;
 use crate::connection::vertex_normals;
+use crate::geometry::folds::{folded_edges, smooth_out};
 use crate::mesh::{repair, Mesh, UnionFind, VertexNeighbours};
 use crate::volume::{Volume, VolumeError};
 use fast_surface_nets::ndshape::{RuntimeShape, Shape};
@@ -76,6 +78,12 @@ pub struct IsosurfaceOptions {
     /// Gaussian smoothing, physical units; `None`: one voxel (the largest voxel size).
     pub smoothing: Option<f64>,
     pub level: Level,
+    /// The genus the object's surface has: 0 (a sphere's topology: an embryo, an organoid)
+    /// unless the object really has handles (step 3).
+    pub genus: usize,
+    /// The radius of the ball the foreground is closed by first (step 3), physical units;
+    /// `None`: none, then as wide as the genus and the object's thickness need.
+    pub closing: Option<f64>,
 }
 
 impl Default for IsosurfaceOptions {
@@ -83,6 +91,8 @@ impl Default for IsosurfaceOptions {
         Self {
             smoothing: None,
             level: Level::Otsu,
+            genus: 0,
+            closing: None,
         }
     }
 }
@@ -107,6 +117,12 @@ pub struct FoundSurface {
     /// Voxels of the component on the volume's border: the object leaves the field of view
     /// there (its surface is closed along the border).
     pub border_voxels: usize,
+    /// The genus of the surface found (step 3): at most [`IsosurfaceOptions::genus`].
+    pub genus: usize,
+    /// The radius of the closing that sealed the layer's gaps (physical units; 0: none was
+    /// needed), and the genus and share of each radius tried before it, in order.
+    pub closing_radius: f64,
+    pub closings_tried: Vec<ClosingTried>,
     /// Vertices moved to the middle of a bright layer (step 6), and the layer's median
     /// thickness there (0 when none moved).
     pub layer_vertices: usize,
@@ -115,6 +131,22 @@ pub struct FoundSurface {
     #[serde(rename = "faces")]
     pub faces_count: usize,
 }
+
+/// One closing tried (step 3): its radius, the genus of the surface it gave, the share of the
+/// voxels above the threshold that the object holds, and the object's thickness (the radius
+/// of the largest ball inside it).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct ClosingTried {
+    pub radius: f64,
+    pub genus: i64,
+    pub share: f64,
+    pub thickness: f64,
+}
+
+/// How thick an object must be against its smallest extent for a closing to stop there: a
+/// filled shell, a tube or a solid is half its smallest extent thick; a shell whose cavity
+/// still opens to the outside through a gap is as thin as its layer (a twentieth).
+pub const THICK: f64 = 0.15;
 
 /// Why no surface was found in a volume.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -129,6 +161,10 @@ pub enum IsosurfaceError {
     Full { threshold: f64, min: f64, max: f64 },
     #[error("the object ({voxels} voxels) is too small to bound: smooth less or lower --level")]
     TooSmall { voxels: usize },
+    #[error("the closing radius must be a length of 0 or more, got {0}")]
+    BadClosing(f64),
+    #[error("the surface keeps genus {genus} (handles) up to a closing of radius {radius:.3e}, half the object's smallest extent: if the object has {genus} handles, give --genus {genus}; otherwise smooth more or raise --level")]
+    Genus { genus: i64, radius: f64 },
     #[error(transparent)]
     TooLarge(#[from] crate::limits::OverBudget),
 }
@@ -140,7 +176,7 @@ pub fn find_surface(
 ) -> Result<FoundSurface, IsosurfaceError> {
     check_memory(volume)?;
     let (smoothed, threshold) = smoothed_threshold(volume.clone(), options)?;
-    surface_of_smoothed(&smoothed, threshold)
+    surface_of_smoothed(&smoothed, threshold, options)
 }
 
 /// [`find_surface`] of a volume that is not needed afterwards: it is smoothed in place, so
@@ -152,7 +188,7 @@ pub fn find_surface_consuming(
 ) -> Result<FoundSurface, IsosurfaceError> {
     check_memory(&volume)?;
     let (smoothed, threshold) = smoothed_threshold(volume, options)?;
-    surface_of_smoothed(&smoothed, threshold)
+    surface_of_smoothed(&smoothed, threshold, options)
 }
 
 /// The smoothed copy, the masks, the labels and the padded distance field, against the
@@ -164,25 +200,24 @@ fn check_memory(volume: &Volume) -> Result<(), IsosurfaceError> {
 }
 
 /// Steps 3 to 7 (module docs) on the smoothed volume and its threshold.
-fn surface_of_smoothed(smoothed: &Volume, threshold: f32) -> Result<FoundSurface, IsosurfaceError> {
+fn surface_of_smoothed(
+    smoothed: &Volume,
+    threshold: f32,
+    options: &IsosurfaceOptions,
+) -> Result<FoundSurface, IsosurfaceError> {
     let values = smoothed.values();
     let t = f64::from(threshold);
-    let shape = smoothed.shape();
-    let foreground_voxels = values.par_iter().filter(|&&v| v > threshold).count();
-    let (component, component_voxels) = largest_component(shape, |at| values[at] > threshold);
-    let border_voxels = on_border(shape).filter(|&at| component[at]).count();
-    let mut solid = filled(&component, shape);
-    drop(component);
-    well_composed(&mut solid, shape);
-    let filled_voxels = solid.iter().filter(|&&s| s).count() - component_voxels;
-    let (positions, faces) = nets(values, &solid, threshold, smoothed);
-    let too_small = IsosurfaceError::TooSmall {
-        voxels: component_voxels,
-    };
-    let (mut positions, faces, mesh) = largest_manifold_piece(positions, &faces)
-        .filter(|(_, faces, _)| faces.len() >= 4)
-        .ok_or(too_small)?;
+    let foreground: Vec<bool> = values.par_iter().map(|&v| v > threshold).collect();
+    let foreground_voxels = foreground.par_iter().filter(|&&f| f).count();
+    let object =
+        Object::of_foreground(&foreground, foreground_voxels, options, smoothed, threshold)?;
+    drop(foreground);
+    let (mut positions, faces, mesh) = object.surface;
     let neighbours = VertexNeighbours::open(&mesh);
+    // Smoothed before the layer's middle is looked for along the normals: the voxel
+    // staircase's normals would scatter vertices moved by a few voxels (the middle of a layer
+    // of nuclei lies half a nucleus below the surface closed over them).
+    taubin_smooth(&mut positions, &neighbours, TAUBIN_ROUNDS);
     let (layer_vertices, layer_thickness) = to_layer_middle(
         &mut positions,
         &mesh,
@@ -191,7 +226,20 @@ fn surface_of_smoothed(smoothed: &Volume, threshold: f32) -> Result<FoundSurface
         f64::from(threshold),
     );
     taubin_smooth(&mut positions, &neighbours, TAUBIN_ROUNDS);
+    let folded = |x: &[Vector3<f64>]| folded_edges(&mesh, x);
+    smooth_out(
+        &mesh,
+        &neighbours,
+        &mut positions,
+        UNFOLD_ROUNDS,
+        UNFOLD_RINGS,
+        folded,
+        |_, x| x,
+    );
     Ok(FoundSurface {
+        genus: object.genus,
+        closing_radius: object.radius,
+        closings_tried: object.tried,
         layer_vertices,
         layer_thickness,
         vertices: positions.len(),
@@ -200,12 +248,181 @@ fn surface_of_smoothed(smoothed: &Volume, threshold: f32) -> Result<FoundSurface
         faces,
         threshold: t,
         foreground_voxels,
-        component_voxels,
-        component_share: component_voxels as f64 / foreground_voxels as f64,
-        filled_voxels,
-        border_voxels,
+        component_voxels: object.component_voxels,
+        component_share: object.share,
+        filled_voxels: object.filled_voxels,
+        border_voxels: object.border_voxels,
     })
 }
+
+/// The object found (step 3) and its surface (steps 4 and 5), and how it was made.
+struct Object {
+    /// The largest manifold piece of its surface: positions, faces, mesh.
+    surface: Piece,
+    genus: usize,
+    radius: f64,
+    /// The radius of the largest ball inside it ([`closing::inscribed_radius`]).
+    thickness: f64,
+    tried: Vec<ClosingTried>,
+    component_voxels: usize,
+    share: f64,
+    filled_voxels: usize,
+    border_voxels: usize,
+}
+
+impl Object {
+    /// The object in the foreground (step 3): its specks dropped, closed by a ball, its largest
+    /// component with holes filled, and the largest manifold piece of its surface; with at
+    /// most `options.genus` handles. The closing's radius starts at `options.closing` (by
+    /// default none: a clean layer needs no closing, and costs none), and where the genus is
+    /// wrong or the object is not [`THICK`] (its cavity open through a gap of the layer, or
+    /// only one nucleus of many), it jumps to a quarter of the foreground's smallest extent for
+    /// genus 0 (the largest voxel side for more handles), then grows by half, up to half the
+    /// foreground's smallest extent, where closing nears the convex hull. Past that, the
+    /// thickest object of the right genus is kept.
+    fn of_foreground(
+        foreground: &[bool],
+        foreground_voxels: usize,
+        options: &IsosurfaceOptions,
+        volume: &Volume,
+        threshold: f32,
+    ) -> Result<Self, IsosurfaceError> {
+        if let Some(r) = options.closing.filter(|r| !(r.is_finite() && *r >= 0.0)) {
+            return Err(IsosurfaceError::BadClosing(r));
+        }
+        let shape = volume.shape();
+        let voxel = volume.voxel_size();
+        let kept = without_specks(foreground, shape);
+        let extent = closing::bounding_box(&kept, shape)
+            .map(|(low, high)| {
+                let sides = [0, 1, 2].map(|a| (high[a] - low[a]) as f64);
+                (Vector3::new(sides[2], sides[1], sides[0]).component_mul(&voxel)).min()
+            })
+            .unwrap_or(0.0);
+        // After no closing, the first: a quarter of the object's smallest extent for genus 0
+        // (the gaps of a layer of nuclei or of a patchy layer are then sealed at once), the
+        // largest voxel side for more handles (which a wide ball would close).
+        let first = match options.genus {
+            0 => 0.25 * extent,
+            _ => voxel.max(),
+        };
+        let next = |r: f64| match r > 0.0 {
+            true => 1.5 * r,
+            false => first,
+        };
+        let radii = std::iter::successors(Some(options.closing.unwrap_or(0.0)), |&r| Some(next(r)))
+            .enumerate()
+            .take_while(|&(i, r)| i == 0 || (r > 0.0 && r <= 0.5 * extent))
+            .map(|(_, r)| r);
+        let mut tried: Vec<ClosingTried> = Vec::new();
+        let mut best: Option<Object> = None;
+        for radius in radii {
+            let closed;
+            let mask: &[bool] = match radius > 0.0 {
+                true => {
+                    closed = closing::closed(&kept, shape, voxel.into(), radius)?;
+                    &closed
+                }
+                false => &kept,
+            };
+            let Some(object) = Self::of_mask(
+                mask,
+                foreground,
+                foreground_voxels,
+                radius,
+                volume,
+                threshold,
+            ) else {
+                continue;
+            };
+            tried.push(ClosingTried {
+                radius,
+                genus: object.genus as i64,
+                share: object.share,
+                thickness: object.thickness,
+            });
+            if object.genus > options.genus {
+                continue;
+            }
+            if object.thickness >= THICK * extent {
+                return Ok(Self { tried, ..object });
+            }
+            if best.as_ref().is_none_or(|b| object.thickness > b.thickness) {
+                best = Some(object);
+            }
+        }
+        match best {
+            Some(object) => Ok(Self { tried, ..object }),
+            None => Err(IsosurfaceError::Genus {
+                genus: tried.iter().map(|t| t.genus).min().unwrap_or(0),
+                radius: tried.last().map_or(0.0, |t| t.radius),
+            }),
+        }
+    }
+
+    /// The largest component of `mask` (the foreground closed by `radius`), holes filled and
+    /// made well composed, and its surface; `None` where nothing is left of it.
+    fn of_mask(
+        mask: &[bool],
+        foreground: &[bool],
+        foreground_voxels: usize,
+        radius: f64,
+        volume: &Volume,
+        threshold: f32,
+    ) -> Option<Self> {
+        let shape = volume.shape();
+        let (component, component_voxels, _) = largest_component(shape, |at| mask[at]);
+        let border_voxels = on_border(shape).filter(|&at| component[at]).count();
+        let held = (component.par_iter().zip(foreground))
+            .filter(|(&c, &f)| c && f)
+            .count();
+        let mut solid = filled(&component, shape);
+        drop(component);
+        well_composed(&mut solid, shape);
+        let filled_voxels = solid.iter().filter(|&&s| s).count() - component_voxels;
+        let thickness = closing::inscribed_radius(&solid, shape, volume.voxel_size().into());
+        let (positions, faces) = nets(volume.values(), &solid, threshold, volume);
+        drop(solid);
+        let surface = largest_manifold_piece(positions, &faces).filter(|(_, f, _)| f.len() >= 4)?;
+        let genus = (2 - surface.2.euler_characteristic()).max(0) as usize / 2;
+        Some(Self {
+            surface,
+            genus,
+            radius,
+            thickness,
+            tried: Vec::new(),
+            component_voxels,
+            share: held as f64 / foreground_voxels as f64,
+            filled_voxels,
+            border_voxels,
+        })
+    }
+}
+
+/// The foreground without its specks: components holding less than [`SPECK_SHARE`] of it
+/// (noise, beads, debris), which a closing would otherwise bridge to the object. Pieces of
+/// an object (nuclei, patches of a layer: a few hundred to a few thousand of them) stay, to be
+/// joined by the closing.
+fn without_specks(foreground: &[bool], shape: [usize; 3]) -> Vec<bool> {
+    let total = foreground.par_iter().filter(|&&f| f).count();
+    let mut kept = vec![false; foreground.len()];
+    let mut seen = vec![false; foreground.len()];
+    for start in 0..foreground.len() {
+        if seen[start] || !foreground[start] {
+            continue;
+        }
+        let size = spread([start], shape, &mut seen, true, |at| foreground[at]);
+        if size as f64 >= SPECK_SHARE * total as f64 {
+            spread([start], shape, &mut kept, true, |at| foreground[at]);
+        }
+    }
+    kept
+}
+
+/// Components of the foreground below this share of it are specks ([`without_specks`]): a
+/// nucleus of 2000 is a share of 5e-4, a bead of 30 voxels beside an embryo's layer of 10⁵ is
+/// 3e-4.
+pub const SPECK_SHARE: f64 = 2e-4;
 
 /// Below this share of the foreground, the largest component is reported: the object split,
 /// or the threshold caught other things.
@@ -328,37 +545,62 @@ fn to_layer_middle(
             Some((0.5 * (enter + leave), leave - enter))
         })
         .collect();
+    let thicknesses: Vec<f64> = layers.iter().flatten().map(|&(_, t)| t).collect();
+    if thicknesses.is_empty() {
+        return (0, 0.0); // a solid object keeps its boundary
+    }
+    // Where no layer is below a vertex (a gap between nuclei, a dim cell), its depth comes
+    // from its neighbours', ring by ring: a vertex left on the outside there would fold the
+    // surface against its neighbours in the layer.
+    let mut depths: Vec<Option<f64>> = layers.iter().map(|l| l.map(|(d, _)| d)).collect();
+    while depths.iter().any(Option::is_none) {
+        let next: Vec<Option<f64>> = (0..depths.len())
+            .map(|i| {
+                depths[i].or_else(|| {
+                    let known = neighbours.of(i).iter().filter_map(|&j| depths[j as usize]);
+                    let (sum, count) = known.fold((0.0, 0.0), |(s, c), d| (s + d, c + 1.0));
+                    (count > 0.0).then(|| sum / count)
+                })
+            })
+            .collect();
+        if next == depths {
+            break; // a piece without any layer: it stays
+        }
+        depths = next;
+    }
     // The depths averaged over each vertex's neighbours a few times: noise in where the layer
-    // ends must not fold the surface.
-    let mut depths: Vec<f64> = layers.iter().map(|l| l.map_or(0.0, |(d, _)| d)).collect();
-    for _ in 0..LAYER_SMOOTHING {
+    // ends must not fold the surface. Where the layer is found below less than
+    // [`WHOLE_LAYER`] of the vertices (nuclei, dim cells), over about the layer's thickness
+    // (averaging diffuses over about the square root of its rounds in edges): the depths
+    // filled in at the gaps, and the bumps of a layer of nuclei, must not fold it either.
+    let thickness = crate::statistics::median(thicknesses.clone());
+    let edge = mean_edge_length(mesh, positions);
+    let rounds = match thicknesses.len() as f64 >= WHOLE_LAYER * positions.len() as f64 {
+        true => LAYER_SMOOTHING,
+        false => ((thickness / edge).powi(2) as usize).clamp(LAYER_SMOOTHING, MAX_LAYER_SMOOTHING),
+    };
+    let mut depths: Vec<f64> = depths.into_iter().map(|d| d.unwrap_or(0.0)).collect();
+    for _ in 0..rounds {
         depths = (0..depths.len())
-            .map(|i| match layers[i] {
-                None => 0.0,
-                Some(_) => {
-                    let around =
-                        (neighbours.of(i).iter()).filter(|&&j| layers[j as usize].is_some());
-                    let (sum, count) = around.fold((depths[i], 1.0), |(s, c), &j| {
-                        (s + depths[j as usize], c + 1.0)
-                    });
-                    sum / count
-                }
+            .map(|i| {
+                let around = neighbours.of(i);
+                let sum: f64 = around.iter().map(|&j| depths[j as usize]).sum();
+                (depths[i] + sum) / (1 + around.len()) as f64
             })
             .collect();
     }
-    let mut thicknesses = Vec::new();
-    for ((p, n), (layer, depth)) in positions
-        .iter_mut()
-        .zip(&normals)
-        .zip(layers.iter().zip(&depths))
-    {
-        if let Some((_, thickness)) = layer {
-            thicknesses.push(*thickness);
-            *p -= *depth * n;
-        }
+    for ((p, n), depth) in positions.iter_mut().zip(&normals).zip(&depths) {
+        *p -= *depth * n;
     }
-    let moved = thicknesses.len();
-    (moved, crate::statistics::median(thicknesses))
+    (thicknesses.len(), thickness)
+}
+
+/// The mean length of `mesh`'s edges at `positions`.
+fn mean_edge_length(mesh: &Mesh, positions: &[Vector3<f64>]) -> f64 {
+    let total: f64 = (mesh.edges().iter())
+        .map(|&[i, j]| (positions[i as usize] - positions[j as usize]).norm())
+        .sum();
+    total / mesh.n_edges().max(1) as f64
 }
 
 /// Taubin's λ|μ smoothing (Taubin 1995, "A signal processing approach to fair surface
@@ -385,6 +627,13 @@ fn taubin_smooth(positions: &mut [Vector3<f64>], neighbours: &VertexNeighbours, 
         }
     }
 }
+
+/// The most rounds of smoothing out the folds the move to the layer's middle leaves (step 7),
+/// and the rings around each fold it moves ([`crate::geometry::folds`]): where a surface
+/// closed over nuclei is concave between them (creases where the closing meets a nucleus), a
+/// move inward along the normals crosses neighbours over.
+const UNFOLD_ROUNDS: usize = 100;
+const UNFOLD_RINGS: usize = 2;
 
 /// Taubin's weights and rounds (module docs, step 7): twenty rounds unfold the noisiest test
 /// shell (`tests/isosurface.rs`), ten left two faces folded.
@@ -473,8 +722,13 @@ fn well_composed(solid: &mut [bool], [nz, ny, nx]: [usize; 3]) {
 /// The most passes [`well_composed`] makes (each fills what the one before left critical).
 const WELL_COMPOSED_PASSES: usize = 8;
 
-/// Rounds of neighbour averaging of the layer depths.
+/// The share of vertices with a layer below them above which the layer is whole, not nuclei
+/// or patches ([`to_layer_middle`]).
+const WHOLE_LAYER: f64 = 0.9;
+
+/// Rounds of neighbour averaging of the layer depths: at least, and at most.
 const LAYER_SMOOTHING: usize = 5;
+const MAX_LAYER_SMOOTHING: usize = 400;
 
 /// Otsu's threshold of `values` in `[min, max]` from a 256-bin histogram: the upper edge of
 /// the bin that maximizes the between-class variance.
@@ -580,17 +834,22 @@ fn flood(
     reached
 }
 
-/// The largest 6-connected component of the voxels where `inside` holds, and its size. Sizes
-/// are found with one mask of the voxels seen, which is then cleared and the largest grown
-/// again: one byte a voxel instead of a four-byte label each.
-fn largest_component(shape: [usize; 3], inside: impl Fn(usize) -> bool) -> (Vec<bool>, usize) {
+/// The largest 6-connected component of the voxels where `inside` holds, its size, and the
+/// size of every component. Sizes are found with one mask of the voxels seen, which is then
+/// cleared and the largest grown again: one byte a voxel instead of a four-byte label each.
+fn largest_component(
+    shape: [usize; 3],
+    inside: impl Fn(usize) -> bool,
+) -> (Vec<bool>, usize, Vec<usize>) {
     let mut seen = vec![false; shape.iter().product()];
     let (mut best, mut best_size) = (None, 0);
+    let mut sizes = Vec::new();
     for start in 0..seen.len() {
         if seen[start] || !inside(start) {
             continue;
         }
         let size = spread([start], shape, &mut seen, true, &inside);
+        sizes.push(size);
         if size > best_size {
             (best, best_size) = (Some(start), size);
         }
@@ -599,7 +858,7 @@ fn largest_component(shape: [usize; 3], inside: impl Fn(usize) -> bool) -> (Vec<
     if let Some(start) = best {
         spread([start], shape, &mut seen, true, &inside);
     }
-    (seen, best_size)
+    (seen, best_size, sizes)
 }
 
 /// `object` with its holes filled: every voxel the border cannot reach through the
@@ -630,7 +889,7 @@ fn nets(
     volume: &Volume,
 ) -> (Vec<Vector3<f64>>, Vec<[u32; 3]>) {
     let [nz, ny, nx] = volume.shape();
-    let Some((low, high)) = solid_box(solid, [nz, ny, nx]) else {
+    let Some((low, high)) = closing::bounding_box(solid, [nz, ny, nx]) else {
         return (Vec::new(), Vec::new());
     };
     // The padded box in volume coordinates (z, y, x), possibly beyond the volume.
@@ -679,26 +938,6 @@ fn nets(
         .map(|t| [t[0], t[1], t[2]])
         .collect();
     (positions, faces)
-}
-
-/// The smallest box `[low, high)` (z, y, x) holding every solid voxel; `None` when none is.
-fn solid_box(solid: &[bool], [_, ny, nx]: [usize; 3]) -> Option<([usize; 3], [usize; 3])> {
-    let mut low = [usize::MAX; 3];
-    let mut high = [0; 3];
-    for (row, line) in solid.chunks_exact(nx).enumerate() {
-        let Some(first) = line.iter().position(|&s| s) else {
-            continue;
-        };
-        let last = line.iter().rposition(|&s| s).expect("one is solid");
-        let (k, j) = (row / ny, row % ny);
-        low = [low[0].min(k), low[1].min(j), low[2].min(first)];
-        high = [
-            high[0].max(k + 1),
-            high[1].max(j + 1),
-            high[2].max(last + 1),
-        ];
-    }
-    (low[0] != usize::MAX).then_some((low, high))
 }
 
 /// A piece of a surface: its positions, its triangles over them, and its mesh.
@@ -819,7 +1058,7 @@ mod tests {
                 .iter()
                 .max_by_key(|&(l, s)| (s, -(*l as i64)))
                 .unwrap();
-            let (component, found) = largest_component(shape, |at| mask[at]);
+            let (component, found, _) = largest_component(shape, |at| mask[at]);
             assert_eq!(found, size, "density {density}");
             let expected: Vec<bool> = labels.iter().map(|&l| l == largest).collect();
             assert_eq!(component, expected, "density {density}");

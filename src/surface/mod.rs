@@ -44,6 +44,7 @@
 //! `λ = S⁴ d̄²`, and scaling the points scales the surface and nothing else. One factorization
 //! order (METIS) serves all frames; each frame's `B` differs, so each is factorized anew.
 
+mod closing;
 pub mod isosurface;
 mod points;
 mod reference;

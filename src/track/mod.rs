@@ -44,8 +44,9 @@ mod trim;
 
 use crate::connection::vertex_normals;
 use crate::flow::{FlowError, MeshSequence};
+use crate::geometry::folds::smooth_out;
 use crate::geometry::SurfacePoint;
-use crate::mesh::{ConnectivityError, Mesh};
+use crate::mesh::{ConnectivityError, Mesh, VertexNeighbours};
 use crate::shapes::Surface;
 pub use crate::spatial::{barycentric, FrameSurface, SurfaceSample};
 pub use align::{Alignment, AlignmentReport, Motion};
@@ -153,7 +154,10 @@ pub struct FrameReport {
     pub worst_edge_change: f64,
     /// `max |A/A_ref − 1|` over the triangles, against the reference mesh.
     pub worst_area_change: f64,
-    /// Triangles whose normal turned by more than 90° in this step.
+    /// Triangles whose normal turned by more than 90° in this step, before their folds were
+    /// smoothed out on the surface ([`Tracker::repair_folds`]).
+    pub repaired_folds: usize,
+    /// Triangles whose normal turned by more than 90° in this step (after the repair).
     pub flipped_triangles: usize,
     /// The largest distance of a tracked vertex from the frame's surface (a check: the
     /// tracked vertices are put on it).
@@ -439,6 +443,7 @@ fn track_reference(
         keep_going: options.keep_going,
         keep_uncovered: options.keep_uncovered,
         relaxer,
+        neighbours: VertexNeighbours::open(&mesh),
     };
     let mut run = Run {
         positions: Vec::with_capacity(count),
@@ -566,6 +571,11 @@ pub const FAR_HIT_RATIO: f64 = 3.0;
 /// frame's edge crowd there.
 const UNCOVERED_DISTANCE: f64 = 1e-6;
 
+/// The most rounds of [`Tracker::repair_folds`] in one step, and the rings of vertices around
+/// each fold that it moves.
+const FOLD_REPAIR_ROUNDS: usize = 30;
+const FOLD_RINGS: usize = 2;
+
 /// Area, relative to the reference's, below which a tracked triangle counts as collapsed.
 const COLLAPSED_AREA: f64 = 1e-9;
 
@@ -577,6 +587,7 @@ struct Tracker<'a> {
     keep_going: bool,
     keep_uncovered: bool,
     relaxer: Option<Relaxer>,
+    neighbours: VertexNeighbours,
 }
 
 /// The tracked mesh on one frame: positions, grey values, and what happened.
@@ -660,6 +671,7 @@ impl Tracker<'_> {
             }
             samples = relaxed.samples;
         }
+        report.repaired_folds = self.repair_folds(current, &mut samples, surface);
         let (next, grey): (Vec<_>, Vec<_>) = samples
             .into_iter()
             .map(|p| (p.position, p.intensity))
@@ -683,6 +695,52 @@ impl Tracker<'_> {
             intensity: grey,
             report,
         })
+    }
+
+    /// Unfolds the triangles that turned over from `before` to `samples` (on `surface`): their
+    /// vertices and two rings around them are smoothed out on the surface
+    /// ([`crate::geometry::folds::smooth_out`]) until no triangle is turned over or
+    /// [`FOLD_REPAIR_ROUNDS`] rounds have passed. A fold is a local tangle (a sliver that the
+    /// normal step crossed over, a bump of one frame's surface), undone where it is; what is
+    /// left is for [`Tracker::measure_quality`]. Returns how many triangles were turned over
+    /// before.
+    fn repair_folds(
+        &self,
+        before: &[Vector3<f64>],
+        samples: &mut [SurfaceSample],
+        surface: &FrameSurface,
+    ) -> usize {
+        let turned = |x: &[Vector3<f64>]| -> Vec<usize> {
+            (self.mesh.faces().iter())
+                .filter(|f| {
+                    let [a, b, c] = f.map(|v| v as usize);
+                    let was = (before[b] - before[a]).cross(&(before[c] - before[a]));
+                    was.dot(&(x[b] - x[a]).cross(&(x[c] - x[a]))) <= 0.0
+                })
+                .flat_map(|f| f.map(|v| v as usize))
+                .collect()
+        };
+        let mut positions: Vec<Vector3<f64>> = samples.iter().map(|p| p.position).collect();
+        let found = turned(&positions).len() / 3;
+        if found == 0 {
+            return 0;
+        }
+        let onto = |_: usize, x: Vector3<f64>| surface.closest_point(&x).position;
+        smooth_out(
+            self.mesh,
+            &self.neighbours,
+            &mut positions,
+            FOLD_REPAIR_ROUNDS,
+            FOLD_RINGS,
+            turned,
+            onto,
+        );
+        for (sample, x) in samples.iter_mut().zip(&positions) {
+            if sample.position != *x {
+                *sample = surface.closest_point(x);
+            }
+        }
+        found
     }
 
     /// The nearest hit along the normal line within the bound, unless it is more than

@@ -16,6 +16,7 @@
 //! target at or above frame 0's vertex count returns frame 0's mesh.
 
 use super::FrameSurface;
+use crate::geometry::folds::{folded_edges, smooth_out};
 use crate::mesh::Mesh;
 use crate::shapes::Surface;
 use nalgebra::Vector3;
@@ -29,9 +30,10 @@ const ROUNDS: usize = 3;
 /// below … the target the first rounds found, so the count stays within 9 % of it.
 const MANIFOLD_RETRIES: usize = 6;
 
-/// Passes of edge flips and of smoothing.
+/// Passes of edge flips and of smoothing, and the most rounds of smoothing out folds.
 const FLIP_PASSES: usize = 10;
 const SMOOTHING_PASSES: usize = 5;
+const UNFOLD_ROUNDS: usize = 50;
 
 /// Two triangles are flipped only if their normals differ by less than this (degrees).
 const FLIP_CREASE_DEGREES: f64 = 20.0;
@@ -223,6 +225,20 @@ fn smooth_on(mesh: &mut Surface, positions: &[Vector3<f64>], faces: &[[u32; 3]])
             .collect();
         mesh.positions = next;
     }
+    // A collapse may leave a fold (a sliver turned over against its neighbours): smoothed out
+    // on the surface, since tracking measures every turn against the reference.
+    let vertex_neighbours = crate::mesh::VertexNeighbours::open(&connectivity);
+    let folded = |x: &[Vector3<f64>]| folded_edges(&connectivity, x);
+    let onto = |_: usize, x: Vector3<f64>| surface.closest_point(&x).position;
+    smooth_out(
+        &connectivity,
+        &vertex_neighbours,
+        &mut mesh.positions,
+        UNFOLD_ROUNDS,
+        2,
+        folded,
+        onto,
+    );
 }
 
 fn used_vertices(n: usize, indices: impl Iterator<Item = u32>) -> usize {

@@ -528,6 +528,18 @@ pub(crate) struct SurfaceArgs {
     /// largest voxel side]
     #[arg(long, value_name = "SIGMA", allow_negative_numbers = true)]
     pub(crate) smooth: Option<f64>,
+    /// With --shape closed: the number of handles the object has (0, the default: a sphere's
+    /// topology, as an embryo or organoid); gaps in its bright layer are closed until the
+    /// surface has at most this many
+    #[arg(long, value_name = "N")]
+    pub(crate) genus: Option<usize>,
+    /// With --shape closed: the radius of the ball that first closes the gaps of the object's
+    /// bright layer (dim cells, the dark gaps between nuclei), physical units; concavities
+    /// narrower than it are closed too [default: none where the layer has no gaps, else a
+    /// quarter of the object's smallest extent for genus 0, growing until the surface has
+    /// --genus handles and the object is filled]
+    #[arg(long, value_name = "RADIUS")]
+    pub(crate) closing: Option<f64>,
     #[command(flatten)]
     pub(crate) placement: VolumePlacement,
 }
@@ -553,6 +565,8 @@ impl SurfaceArgs {
             finding: IsosurfaceOptions {
                 smoothing: self.smooth,
                 level: self.level.unwrap_or(Level::Otsu),
+                genus: self.genus.unwrap_or(0),
+                closing: self.closing,
             },
             vertices: self.vertices.unwrap_or(DEFAULT_VERTICES),
             times: self.times.clone(),
@@ -564,6 +578,11 @@ impl SurfaceArgs {
     /// bright voxels of volumes, needs. The input is volumes when it is TIFF or a volume flag
     /// (`--voxel-size`, `--origin`, `--level`, `--smooth`) is given.
     pub(crate) fn points_request(&self) -> Result<SurfaceRequest<'_>, Error> {
+        if self.genus.is_some() || self.closing.is_some() {
+            return Err(crate::usage(
+                "--genus and --closing apply to --shape closed (a surface through points has a sphere's or a disc's topology)".into(),
+            ));
+        }
         let volume_flags = [
             self.level.is_some(),
             self.smooth.is_some(),
@@ -579,6 +598,7 @@ impl SurfaceArgs {
             let finding = IsosurfaceOptions {
                 smoothing: self.smooth,
                 level: self.level.unwrap_or(Level::Otsu),
+                ..IsosurfaceOptions::default()
             };
             Ok((self.placement.options()?, finding))
         });
