@@ -278,9 +278,27 @@ fn main() -> Result<(), meshflow::Error> {
     let options = TrackOptions {
         reference_vertices: Some(env("VERTICES").map_or(4000, |v| v as usize)),
         keep_uncovered: true,
+        // As `meshflow surface --shape closed` does.
+        keep_coordinates: true,
+        alignment: std::env::var("ALIGN").map_or(meshflow::track::Alignment::Rigid, |a| {
+            a.parse().expect("ALIGN: rigid, similarity or none")
+        }),
         ..TrackOptions::default()
     };
     let tracked = track(&frames, None, &options)?;
+    for report in &tracked.report.frames {
+        if let Some(a) = &report.alignment {
+            println!(
+                "frame {}: rigid fit {:.2}°, median distance {:.3} -> {:.3}, {}; mean step {:.3}",
+                report.frame,
+                a.rotation_degrees,
+                a.median_distance_before,
+                a.median_distance_after,
+                if a.applied { "applied" } else { "not applied" },
+                report.mean_step
+            );
+        }
+    }
     let mesh = tracked.sequence.mesh().clone();
     let positions: Vec<Vec<Vector3<f64>>> = (0..k)
         .map(|f| tracked.sequence.positions(f).expect("in R³").to_vec())

@@ -13,8 +13,15 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 
 /// The vertices of the edges of `mesh` at `positions` whose two triangles face opposite ways
-/// (a dihedral angle beyond 90° from flat).
+/// (a dihedral angle beyond 90° from flat), two per edge.
 pub fn folded_edges(mesh: &Mesh, positions: &[Vector3<f64>]) -> Vec<usize> {
+    (folded_halfedges(mesh, positions).into_iter())
+        .flat_map(|h| mesh.halfedge_vertices(h).map(|v| v as usize))
+        .collect()
+}
+
+/// The edges of [`folded_edges`], each as the lesser of its two halfedges, in increasing order.
+pub fn folded_halfedges(mesh: &Mesh, positions: &[Vector3<f64>]) -> Vec<usize> {
     let normal = |f: usize| {
         let [a, b, c] = mesh.faces()[f].map(|v| positions[v as usize]);
         (b - a).cross(&(c - a))
@@ -23,7 +30,6 @@ pub fn folded_edges(mesh: &Mesh, positions: &[Vector3<f64>]) -> Vec<usize> {
         .filter(|&h| {
             (mesh.twin(h)).is_some_and(|t| t > h && normal(h / 3).dot(&normal(t / 3)) < 0.0)
         })
-        .flat_map(|h| mesh.halfedge_vertices(h).map(|v| v as usize))
         .collect()
 }
 

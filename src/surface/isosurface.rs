@@ -573,6 +573,12 @@ fn to_layer_middle(
     // [`WHOLE_LAYER`] of the vertices (nuclei, dim cells), over about the layer's thickness
     // (averaging diffuses over about the square root of its rounds in edges): the depths
     // filled in at the gaps, and the bumps of a layer of nuclei, must not fold it either.
+    // A solid object seen as a layer here and there (a dim yolk below part of a tissue):
+    // moving only those parts, or all by their depths, would make its surface jump from frame
+    // to frame as the parts change.
+    if (thicknesses.len() as f64) < SHELL_SHARE * positions.len() as f64 {
+        return (0, 0.0);
+    }
     let thickness = crate::statistics::median(thicknesses.clone());
     let edge = mean_edge_length(mesh, positions);
     let rounds = match thicknesses.len() as f64 >= WHOLE_LAYER * positions.len() as f64 {
@@ -725,6 +731,11 @@ const WELL_COMPOSED_PASSES: usize = 8;
 /// The share of vertices with a layer below them above which the layer is whole, not nuclei
 /// or patches ([`to_layer_middle`]).
 const WHOLE_LAYER: f64 = 0.9;
+
+/// The share of vertices with a layer below them under which the object is solid and keeps
+/// its boundary ([`to_layer_middle`]). A shell of nuclei shows a layer below half of them, a
+/// patchy one below 85 %; a real embryo whose yolk is dim in places, below 16 %.
+const SHELL_SHARE: f64 = 1.0 / 3.0;
 
 /// Rounds of neighbour averaging of the layer depths: at least, and at most.
 const LAYER_SMOOTHING: usize = 5;

@@ -91,6 +91,11 @@ impl Motion {
         self.scale * self.rotation * x + self.translation
     }
 
+    /// `x` such that `self.apply(x) = y`.
+    pub fn invert(&self, y: &Vector3<f64>) -> Vector3<f64> {
+        self.rotation.transpose() * (y - self.translation) / self.scale
+    }
+
     /// `self ∘ first`.
     fn after(&self, first: &Motion) -> Motion {
         Motion {
@@ -159,6 +164,13 @@ pub fn fit(
         matrix: motion.matrix(),
     };
     (motion, report)
+}
+
+/// Whether the fit of `report` explains a drift away: the frame was more than a quarter of
+/// the median edge `spacing` from the previous one, and the motion at least halves that.
+pub fn explains_drift(report: &AlignmentReport, spacing: f64) -> bool {
+    let (before, after) = (report.median_distance_before, report.median_distance_after);
+    before > 0.25 * spacing && after < 0.5 * before
 }
 
 /// A point, its closest point on the target and the target's unit normal there.

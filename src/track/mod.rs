@@ -44,7 +44,7 @@ mod trim;
 
 use crate::connection::vertex_normals;
 use crate::flow::{FlowError, MeshSequence};
-use crate::geometry::folds::smooth_out;
+use crate::geometry::folds::{folded_halfedges, smooth_out};
 use crate::geometry::SurfacePoint;
 use crate::mesh::{ConnectivityError, Mesh, VertexNeighbours};
 use crate::shapes::Surface;
@@ -111,6 +111,11 @@ pub struct TrackOptions {
     /// Keep reference vertices beyond a frame's boundary (they take the closest point, on
     /// the boundary) instead of trimming the reference to what every frame covers (`trim`).
     pub keep_uncovered: bool,
+    /// Leave each frame in its own coordinates: the alignment only starts each step from the
+    /// previous mesh moved by the frame's motion, and the tracked mesh stays where the frames
+    /// are (a mesh that then samples the recording needs that). Otherwise the motion is taken
+    /// out, and the tracked frames are in frame 0's coordinates.
+    pub keep_coordinates: bool,
 }
 
 /// What [`track_with_progress`] tells as it goes.
@@ -154,8 +159,9 @@ pub struct FrameReport {
     pub worst_edge_change: f64,
     /// `max |A/A_ref − 1|` over the triangles, against the reference mesh.
     pub worst_area_change: f64,
-    /// Triangles whose normal turned by more than 90° in this step, before their folds were
-    /// smoothed out on the surface ([`Tracker::repair_folds`]).
+    /// Triangles whose normal turned by more than 90° in this step, and edges newly folded
+    /// (their triangles facing opposite ways), before they were smoothed out on the surface
+    /// ([`Tracker::repair_folds`]).
     pub repaired_folds: usize,
     /// Triangles whose normal turned by more than 90° in this step (after the repair).
     pub flipped_triangles: usize,
@@ -462,16 +468,19 @@ fn track_reference(
     for (k, frame) in frames.enumerate() {
         let frame = frame?;
         let warnings_before = run.report.warnings.len();
-        let (frame, alignment) = match &previous {
-            Some(before) => align_to(
-                k,
-                frame,
-                before,
-                options.alignment,
-                &mut run.report.warnings,
-            ),
-            None => (frame, None),
+        let (frame, alignment, start) = match &previous {
+            Some(before) => {
+                let (frame, report, start) =
+                    align_to(k, frame, before, options, &mut run.report.warnings);
+                (frame, Some(report), start)
+            }
+            None => (frame, None, None),
         };
+        // Frames kept in their own coordinates: the step starts from the previous mesh moved
+        // by the frame's motion (frame k → k − 1, inverted).
+        if let Some(motion) = start {
+            current = current.iter().map(|x| motion.invert(x)).collect();
+        }
         let surface = FrameSurface::new(k, &frame.positions, &frame.faces, &frame.intensity)?;
         let mut step = match tracker.step(k, &current, &surface) {
             Ok(step) => step,
@@ -520,20 +529,23 @@ fn reference_surface(first: &TrackFrame, options: &TrackOptions) -> Result<Surfa
     }
 }
 
-/// Frame `k` moved onto `previous` (already aligned) as `alignment` asks; a rigid fit is still
-/// measured without alignment, and a frame it would bring much closer is reported.
+/// Frame `k` against `previous` as `alignment` asks: moved onto it (the motion taken out), or
+/// with `keep_coordinates` left where it is, the motion returned to start the step from. A
+/// rigid fit is still measured without alignment, and a frame it would bring much closer is
+/// reported.
 fn align_to(
     k: usize,
     frame: TrackFrame,
     target: &FrameSurface,
-    alignment: Alignment,
+    options: &TrackOptions,
     warnings: &mut Vec<String>,
-) -> (TrackFrame, Option<AlignmentReport>) {
-    let (motion, report) = align::fit(&frame.positions, target, alignment);
+) -> (TrackFrame, AlignmentReport, Option<Motion>) {
+    let alignment = options.alignment;
+    let (motion, mut report) = align::fit(&frame.positions, target, alignment);
     let spacing = median_edge_length(&frame.positions, &frame.faces);
     let (before, after) = (report.median_distance_before, report.median_distance_after);
-    // A drift of a quarter edge or more that a rigid motion explains away.
-    if alignment == Alignment::None && before > 0.25 * spacing && after < 0.5 * before {
+    report.applied = alignment != Alignment::None;
+    if !report.applied && align::explains_drift(&report, spacing) {
         warnings.push(format!(
             "frame {k} looks misaligned against frame {}: a rigid motion ({:.1}°, translation \
              {:.3e}) brings its median distance from {before:.3e} to {after:.3e} (the median \
@@ -543,21 +555,21 @@ fn align_to(
             Vector3::from(report.translation).norm()
         ));
     }
-    if alignment != Alignment::None && after > spacing {
+    if report.applied && after > spacing {
         warnings.push(format!(
             "frame {k} is still {after:.3e} from frame {} after alignment (median distance; the \
              median edge is {spacing:.3e}): the surfaces differ by more than a motion",
             k - 1
         ));
     }
-    let aligned = match alignment {
-        Alignment::None => frame,
-        _ => TrackFrame {
-            positions: frame.positions.iter().map(|x| motion.apply(x)).collect(),
-            ..frame
-        },
-    };
-    (aligned, Some(report))
+    match (report.applied, options.keep_coordinates) {
+        (false, _) => (frame, report, None),
+        (true, true) => (frame, report, Some(motion)),
+        (true, false) => {
+            let positions = frame.positions.iter().map(|x| motion.apply(x)).collect();
+            (TrackFrame { positions, ..frame }, report, None)
+        }
+    }
 }
 
 /// How much farther than the closest point a hit along the normal may be: a surface tilted by
@@ -571,10 +583,10 @@ pub const FAR_HIT_RATIO: f64 = 3.0;
 /// frame's edge crowd there.
 const UNCOVERED_DISTANCE: f64 = 1e-6;
 
-/// The most rounds of [`Tracker::repair_folds`] in one step, and the rings of vertices around
-/// each fold that it moves.
+/// The most rounds of [`Tracker::repair_folds`] in one step for each width of the region it
+/// moves: the rings of vertices around each fold, tried in turn while folds are left.
 const FOLD_REPAIR_ROUNDS: usize = 30;
-const FOLD_RINGS: usize = 2;
+const FOLD_RINGS: [usize; 3] = [2, 4, 8];
 
 /// Area, relative to the reference's, below which a tracked triangle counts as collapsed.
 const COLLAPSED_AREA: f64 = 1e-9;
@@ -710,37 +722,59 @@ impl Tracker<'_> {
         samples: &mut [SurfaceSample],
         surface: &FrameSurface,
     ) -> usize {
-        let turned = |x: &[Vector3<f64>]| -> Vec<usize> {
-            (self.mesh.faces().iter())
-                .filter(|f| {
-                    let [a, b, c] = f.map(|v| v as usize);
+        // Creases already as sharp before are the surface's own; a new one is a fold.
+        let creased_before = folded_halfedges(self.mesh, before);
+        let turned_over = |x: &[Vector3<f64>]| -> Vec<usize> {
+            (0..self.mesh.n_faces())
+                .filter(|&f| {
+                    let [a, b, c] = self.mesh.faces()[f].map(|v| v as usize);
                     let was = (before[b] - before[a]).cross(&(before[c] - before[a]));
                     was.dot(&(x[b] - x[a]).cross(&(x[c] - x[a]))) <= 0.0
                 })
-                .flat_map(|f| f.map(|v| v as usize))
+                .collect()
+        };
+        let folded_anew = |x: &[Vector3<f64>]| -> Vec<usize> {
+            (folded_halfedges(self.mesh, x).into_iter())
+                .filter(|h| creased_before.binary_search(h).is_err())
+                .collect()
+        };
+        let turned_triangles = |x: &[Vector3<f64>]| turned_over(x).len();
+        let new_folds = |x: &[Vector3<f64>]| folded_anew(x).len();
+        let turned = |x: &[Vector3<f64>]| -> Vec<usize> {
+            let faces = turned_over(x).into_iter().map(|f| self.mesh.faces()[f]);
+            let edges = folded_anew(x).into_iter();
+            (faces.flat_map(|f| f.map(|v| v as usize)))
+                .chain(edges.flat_map(|h| self.mesh.halfedge_vertices(h).map(|v| v as usize)))
                 .collect()
         };
         let mut positions: Vec<Vector3<f64>> = samples.iter().map(|p| p.position).collect();
-        let found = turned(&positions).len() / 3;
-        if found == 0 {
+        let faults = turned_triangles(&positions) + new_folds(&positions);
+        if faults == 0 {
             return 0;
         }
         let onto = |_: usize, x: Vector3<f64>| surface.closest_point(&x).position;
-        smooth_out(
-            self.mesh,
-            &self.neighbours,
-            &mut positions,
-            FOLD_REPAIR_ROUNDS,
-            FOLD_RINGS,
-            turned,
-            onto,
-        );
+        // A fold that its own rings cannot undo (a vertex whose normal missed the surface and
+        // took a far closest point) gets wider rings.
+        for rings in FOLD_RINGS {
+            let rounds = smooth_out(
+                self.mesh,
+                &self.neighbours,
+                &mut positions,
+                FOLD_REPAIR_ROUNDS,
+                rings,
+                &turned,
+                onto,
+            );
+            if rounds <= FOLD_REPAIR_ROUNDS {
+                break;
+            }
+        }
         for (sample, x) in samples.iter_mut().zip(&positions) {
             if sample.position != *x {
                 *sample = surface.closest_point(x);
             }
         }
-        found
+        faults
     }
 
     /// The nearest hit along the normal line within the bound, unless it is more than

@@ -90,6 +90,9 @@ pub struct ClosedRequest<'a> {
     pub finding: IsosurfaceOptions,
     /// About this many vertices in the tracked mesh.
     pub vertices: usize,
+    /// How the tracked mesh follows the frames' surfaces (`reference_vertices` and
+    /// `keep_uncovered` are set from `vertices` and the surface being closed).
+    pub tracking: TrackOptions,
     pub times: Option<Vec<f64>>,
     pub overwrite: Overwrite,
 }
@@ -178,7 +181,8 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
     let options = TrackOptions {
         reference_vertices: Some(vertices),
         keep_uncovered: true,
-        ..TrackOptions::default()
+        keep_coordinates: true,
+        ..request.tracking
     };
     let mut failure: Option<Error> = None;
     let tracked = {
@@ -197,23 +201,90 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
         return Err(error);
     }
     let tracked = tracked?;
-    write_closed(&staged, &tracked, &found).map_err(|e| staged.error_in_target(e))?;
+    let faults = check_frames(
+        &tracked,
+        &found,
+        request.finding.genus,
+        request.tracking.keep_going,
+    )?;
+    write_closed(&staged, &tracked, &found, &faults).map_err(|e| staged.error_in_target(e))?;
     staged.commit()?;
     crate::track::print_summary(&tracked, request.out);
     Ok(())
+}
+
+/// Edges whose triangles face opposite ways, a frame of the tracked mesh at a time: where the
+/// mesh folded over itself ([`meshflow::geometry::folds::folded_edges`]).
+#[derive(serde::Serialize)]
+struct FoldedFrame {
+    frame: usize,
+    folded_edges: usize,
+}
+
+/// The tracked mesh checked before anything is written: one closed, connected manifold (its
+/// connectivity was built as one) of the genus found in frame 0, and no frame folded over
+/// itself. A fold is an error naming the frame, or with `--keep-going` a fault listed in
+/// `surface.json`.
+fn check_frames(
+    tracked: &Tracked,
+    found: &[FoundSurface],
+    genus: usize,
+    keep_going: bool,
+) -> Result<Vec<FoldedFrame>, Error> {
+    let sequence = &tracked.sequence;
+    let mesh = sequence.mesh();
+    let components = mesh.connected_components().len();
+    let tracked_genus = (2 - mesh.euler_characteristic()) / 2;
+    let wanted = found.first().map_or(genus, |f| f.genus);
+    if !mesh.is_closed() || components != 1 || tracked_genus != wanted as i64 {
+        return Err(crate::usage(format!(
+            "frame 0: the tracked mesh is {} with {components} component(s) and genus \
+             {tracked_genus}, where frame 0's surface is closed, connected and of genus \
+             {wanted}; try other --vertices",
+            if mesh.is_closed() { "closed" } else { "open" }
+        )));
+    }
+    let mut faults = vec![];
+    for k in 0..sequence.n_frames() {
+        let positions = sequence.positions(k).expect("tracked in R^3");
+        let folded = meshflow::geometry::folds::folded_edges(mesh, positions).len() / 2;
+        if folded == 0 {
+            continue;
+        }
+        if !keep_going {
+            return Err(crate::usage(format!(
+                "frame {k}: the tracked mesh folds over itself at {folded} edge(s) (their \
+                 triangles face opposite ways); try fewer --vertices, --align rigid, or \
+                 --keep-going to write it anyway"
+            )));
+        }
+        faults.push(FoldedFrame {
+            frame: k,
+            folded_edges: folded,
+        });
+    }
+    Ok(faults)
 }
 
 /// One frame's line: what `surface.json` records of it.
 fn describe_found(s: &FoundSurface) -> String {
     format!(
         "threshold {:.4e}; the largest component holds {:.1} % of the {} voxels above it \
-         ({} filled in); {} vertices, {} faces; {}",
+         ({} filled in); {}; {} vertices, {} faces, genus {}; {}",
         s.threshold,
         100.0 * s.component_share,
         s.foreground_voxels,
         s.filled_voxels,
+        match s.closing_radius {
+            0.0 => "no closing".to_string(),
+            r => format!(
+                "gaps closed at radius {r:.3e} ({} tried)",
+                s.closings_tried.len()
+            ),
+        },
         s.vertices,
         s.faces_count,
+        s.genus,
         match s.layer_vertices {
             0 => "solid: the surface is its boundary".to_string(),
             n => format!(
@@ -230,6 +301,7 @@ fn write_closed(
     staged: &StagedDir,
     tracked: &Tracked,
     found: &[FoundSurface],
+    folds: &[FoldedFrame],
 ) -> Result<(), Error> {
     let dir = staged.path();
     let sequence = &tracked.sequence;
@@ -244,11 +316,20 @@ fn write_closed(
                 .into_iter()
                 .map(move |w| format!("frame {k}: {w}"))
         })
+        .chain(folds.iter().map(|f| {
+            format!(
+                "frame {}: the tracked mesh folds over itself at {} edge(s)",
+                f.frame, f.folded_edges
+            )
+        }))
         .collect();
+    let mesh = sequence.mesh();
     let report = serde_json::json!({
         "shape": "closed",
-        "vertices": sequence.mesh().n_vertices(),
+        "vertices": mesh.n_vertices(),
         "faces": faces.len(),
+        "genus": (2 - mesh.euler_characteristic()) / 2,
+        "folds": folds,
         "frames": found,
         "tracking": tracked.report,
         "warnings": warnings,
@@ -507,7 +588,7 @@ pub(crate) struct SurfaceArgs {
     pub(crate) edge_length: Option<f64>,
     /// About this many vertices (with --shape closed, at most half of frame 0's surface)
     /// [default: 16000]
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", alias = "reference-vertices")]
     pub(crate) vertices: Option<usize>,
     /// Smoothing length in mean point spacings (through volumes' bright voxels: in 8 of the
     /// largest voxel sides): height variations shorter than it are smoothed away (0: as close
@@ -540,6 +621,9 @@ pub(crate) struct SurfaceArgs {
     /// --genus handles and the object is filled]
     #[arg(long, value_name = "RADIUS")]
     pub(crate) closing: Option<f64>,
+    /// With --shape closed: how the reference follows the frames' surfaces
+    #[command(flatten)]
+    pub(crate) tracking: crate::track::TrackingArgs,
     #[command(flatten)]
     pub(crate) placement: VolumePlacement,
 }
@@ -569,6 +653,7 @@ impl SurfaceArgs {
                 closing: self.closing,
             },
             vertices: self.vertices.unwrap_or(DEFAULT_VERTICES),
+            tracking: self.tracking.options(meshflow::track::Alignment::Rigid),
             times: self.times.clone(),
             overwrite: self.force.overwrite(),
         })
@@ -582,6 +667,12 @@ impl SurfaceArgs {
             return Err(crate::usage(
                 "--genus and --closing apply to --shape closed (a surface through points has a sphere's or a disc's topology)".into(),
             ));
+        }
+        if let Some(flag) = self.tracking.given().first() {
+            return Err(crate::usage(format!(
+                "{flag} applies to --shape closed, whose frames' surfaces are tracked (a surface \
+                 through points is one mesh moved by its fitted heights)"
+            )));
         }
         let volume_flags = [
             self.level.is_some(),

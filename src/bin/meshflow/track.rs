@@ -417,14 +417,6 @@ pub(crate) struct TrackArgs {
     /// The mesh to move (on or near frame 0's surface; default: frame 0's own mesh)
     #[arg(long, value_name = "MESH")]
     pub(crate) reference: Option<PathBuf>,
-    /// Largest normal step per frame, in the data's length unit; a vertex farther from the next
-    /// surface is an error [default: 10 % of frame 0's bounding-box diagonal]
-    #[arg(long, value_name = "LENGTH", allow_negative_numbers = true)]
-    pub(crate) max_step: Option<f64>,
-    /// Go on past vertices beyond --max-step (they take the closest point) and flipped
-    /// triangles, counting them in the report, instead of stopping with an error
-    #[arg(long)]
-    pub(crate) keep_going: bool,
     /// Frame times t0,t1,… (default: times.txt beside the frames or the glTF animation's,
     /// else 0,1,2,…)
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
@@ -433,18 +425,8 @@ pub(crate) struct TrackArgs {
     /// simplification: faster, and it folds less than a fine segmentation mesh
     #[arg(long, value_name = "N")]
     pub(crate) reference_vertices: Option<usize>,
-    /// After each normal step, relax the mesh on the new surface as rigidly as possible
-    /// against the previous frame (arap), or move vertices along their normals only (none,
-    /// the paper's normal motion)
-    #[arg(long, value_name = "KIND", default_value = "arap")]
-    pub(crate) relax: RelaxKind,
-    /// Relaxation steps per frame (with --relax arap)
-    #[arg(long, value_name = "N", default_value_t = meshflow::track::Relaxation::DEFAULT_ITERATIONS)]
-    pub(crate) relax_iterations: usize,
-    /// Take out the motion of the whole sample between frames before tracking: rigid,
-    /// similarity (also uniform scale) or none; the transforms are in track.json
-    #[arg(long, value_name = "KIND", default_value = "none")]
-    pub(crate) align: meshflow::track::Alignment,
+    #[command(flatten)]
+    pub(crate) tracking: TrackingArgs,
     /// Keep reference vertices beyond a frame's boundary (they take the closest point on it)
     /// instead of trimming the reference to the part every frame covers
     #[arg(long)]
@@ -464,6 +446,75 @@ pub(crate) struct TrackArgs {
     pub(crate) building: MeshArgs,
 }
 
+/// How frames' surfaces are followed: `track`'s and `surface --shape closed`'s flags, declared
+/// once.
+#[derive(clap::Args)]
+pub(crate) struct TrackingArgs {
+    /// Largest normal step per frame, in the data's length unit; a vertex farther from the next
+    /// surface is an error [default: 10 % of frame 0's bounding-box diagonal]
+    #[arg(long, value_name = "LENGTH", allow_negative_numbers = true)]
+    pub(crate) max_step: Option<f64>,
+    /// Go on past vertices beyond --max-step (they take the closest point) and flipped
+    /// triangles, counting them in the report, instead of stopping with an error
+    #[arg(long)]
+    pub(crate) keep_going: bool,
+    /// After each normal step, relax the mesh on the new surface as rigidly as possible
+    /// against the previous frame (arap), or move vertices along their normals only (none,
+    /// the paper's normal motion)
+    #[arg(long, value_name = "KIND", default_value = "arap")]
+    pub(crate) relax: RelaxKind,
+    /// Relaxation steps per frame (with --relax arap)
+    #[arg(long, value_name = "N", default_value_t = meshflow::track::Relaxation::DEFAULT_ITERATIONS)]
+    pub(crate) relax_iterations: usize,
+    /// The motion of the whole sample between frames, fitted before tracking: rigid,
+    /// similarity (also uniform scale) or none. `track` takes it out (the transforms are in
+    /// track.json); `surface --shape closed` starts each frame's step from it, keeping the
+    /// recording's coordinates [default: none for track, rigid for surface]
+    #[arg(long, value_name = "KIND")]
+    pub(crate) align: Option<meshflow::track::Alignment>,
+}
+
+impl TrackingArgs {
+    /// The flags given with other than their default values.
+    pub(crate) fn given(&self) -> Vec<&'static str> {
+        let relax_iterations = meshflow::track::Relaxation::DEFAULT_ITERATIONS;
+        [
+            (self.max_step.is_some(), "--max-step"),
+            (self.keep_going, "--keep-going"),
+            (matches!(self.relax, RelaxKind::None), "--relax"),
+            (
+                self.relax_iterations != relax_iterations,
+                "--relax-iterations",
+            ),
+            (self.align.is_some(), "--align"),
+        ]
+        .into_iter()
+        .filter_map(|(given, flag)| given.then_some(flag))
+        .collect()
+    }
+
+    /// These flags' part of the tracker's options, `--align` by default `align`; the rest as
+    /// `TrackOptions::default()`.
+    pub(crate) fn options(
+        &self,
+        align: meshflow::track::Alignment,
+    ) -> meshflow::track::TrackOptions {
+        use meshflow::track::Relaxation;
+        meshflow::track::TrackOptions {
+            max_step: self.max_step,
+            keep_going: self.keep_going,
+            relaxation: match self.relax {
+                RelaxKind::Arap => Relaxation::Arap {
+                    iterations: self.relax_iterations,
+                },
+                RelaxKind::None => Relaxation::None,
+            },
+            alignment: self.align.unwrap_or(align),
+            ..meshflow::track::TrackOptions::default()
+        }
+    }
+}
+
 /// `--relax`.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 pub(crate) enum RelaxKind {
@@ -473,20 +524,10 @@ pub(crate) enum RelaxKind {
 
 impl TrackArgs {
     pub(crate) fn options(&self) -> meshflow::track::TrackOptions {
-        use meshflow::track::Relaxation;
         meshflow::track::TrackOptions {
-            max_step: self.max_step,
-            keep_going: self.keep_going,
-            reference: None,
             reference_vertices: self.reference_vertices,
-            relaxation: match self.relax {
-                RelaxKind::Arap => Relaxation::Arap {
-                    iterations: self.relax_iterations,
-                },
-                RelaxKind::None => Relaxation::None,
-            },
-            alignment: self.align,
             keep_uncovered: self.keep_uncovered,
+            ..self.tracking.options(meshflow::track::Alignment::None)
         }
     }
 
