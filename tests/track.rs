@@ -413,7 +413,10 @@ fn relaxation_prevents_the_fold_of_normal_steps_beyond_the_radius_of_curvature()
     let report = &tracked.report.frames[1];
     assert_eq!((report.flipped_triangles, report.repaired_folds), (0, 0));
     assert_eq!(tracked.report.trimmed_vertices, 0);
-    for x in [&normal, &tracked].map(|t| t.sequence.positions(1).unwrap()).concat() {
+    for x in [&normal, &tracked]
+        .map(|t| t.sequence.positions(1).unwrap())
+        .concat()
+    {
         assert!((x.z + 0.3).abs() < 1e-12, "{x:?} off the plane");
     }
     // Flattening the bump stretches the patch by its arc length, not more.

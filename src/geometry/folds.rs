@@ -81,6 +81,27 @@ pub fn smooth_out(
     }
 }
 
+/// The rings [`smooth_out_widening`] moves around each fold, tried in turn while folds are
+/// left: a fold its own rings cannot undo (a vertex that took a far closest point, a sliver
+/// between two creases) gets a wider region.
+pub const WIDENING_RINGS: [usize; 3] = [2, 4, 8];
+
+/// [`smooth_out`] with [`WIDENING_RINGS`], `rounds` rounds each; whether no fold is left.
+pub fn smooth_out_widening(
+    mesh: &Mesh,
+    neighbours: &VertexNeighbours,
+    positions: &mut [Vector3<f64>],
+    rounds: usize,
+    folded: impl Fn(&[Vector3<f64>]) -> Vec<usize>,
+    project: impl Fn(usize, Vector3<f64>) -> Vector3<f64> + Sync,
+) -> bool {
+    WIDENING_RINGS.iter().any(|&rings| {
+        smooth_out(
+            mesh, neighbours, positions, rounds, rings, &folded, &project,
+        ) <= rounds
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

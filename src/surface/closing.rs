@@ -76,26 +76,35 @@ pub(super) fn inscribed_radius(solid: &[bool], shape: [usize; 3], voxel: [f64; 3
     let Some((low, high)) = bounding_box(solid, shape) else {
         return 0.0;
     };
-    // The box with one voxel of outside around it.
-    let boxed = [0, 1, 2].map(|a| high[a] - low[a] + 2);
+    // A large box is measured on every `stride`-th voxel: the radius is then known to a
+    // stride, far finer than the thickness tests it serves, at an eighth of the cost or less.
+    let voxels: usize = (0..3).map(|a| high[a] - low[a]).product();
+    let stride = ((voxels as f64 / INSCRIBED_VOXELS).cbrt().ceil() as usize).max(1);
+    // The strided box with one voxel of outside around it.
+    let boxed = [0, 1, 2].map(|a| (high[a] - low[a]).div_ceil(stride) + 2);
     let [bz, by, bx] = boxed;
     let [_, ny, nx] = shape;
     let inside: Vec<bool> = (0..bz * by * bx)
         .into_par_iter()
         .map(|b| {
             let at = [b / (by * bx), b / bx % by, b % bx];
-            let g: [usize; 3] = std::array::from_fn(|a| (low[a] + at[a]).wrapping_sub(1));
-            let within = g.iter().zip(&shape).all(|(&g, &n)| g < n);
+            let g: [usize; 3] =
+                std::array::from_fn(|a| (low[a] + at[a] * stride).wrapping_sub(stride));
+            let within = g.iter().zip(&shape).all(|(&g, &n)| g < n) && at.iter().all(|&c| c > 0);
             within && solid[(g[0] * ny + g[1]) * nx + g[2]]
         })
         .collect();
-    let to_outside = squared_distances(boxed, voxel, |b| !inside[b]);
+    let spacing = voxel.map(|v| v * stride as f64);
+    let to_outside = squared_distances(boxed, spacing, |b| !inside[b]);
     let deepest = (to_outside.par_iter().zip(&inside))
         .filter(|(_, &i)| i)
         .map(|(&d, _)| d)
         .reduce(|| 0.0, f32::max);
     f64::from(deepest).sqrt()
 }
+
+/// The most voxels [`inscribed_radius`] measures on before it strides.
+const INSCRIBED_VOXELS: f64 = (1 << 22) as f64;
 
 /// The smallest box `[low, high)` (z, y, x) holding every voxel of `set` on a grid of `shape`;
 /// `None` when it holds none.

@@ -122,7 +122,13 @@ pub struct FoundSurface {
     /// The radius of the closing that sealed the layer's gaps (physical units; 0: none was
     /// needed), and the genus and share of each radius tried before it, in order.
     pub closing_radius: f64,
+    /// Whether the slices' holes were filled too (a cavity open through a hole wider than
+    /// any closing).
+    pub slices_filled: bool,
     pub closings_tried: Vec<ClosingTried>,
+    /// The Gaussian smoothing's σ used (physical units): as asked, or by default the largest
+    /// voxel side, doubled for a porous foreground.
+    pub smoothing: f64,
     /// Vertices moved to the middle of a bright layer (step 6), and the layer's median
     /// thickness there (0 when none moved).
     pub layer_vertices: usize,
@@ -132,12 +138,14 @@ pub struct FoundSurface {
     pub faces_count: usize,
 }
 
-/// One closing tried (step 3): its radius, the genus of the surface it gave, the share of the
+/// One closing tried (step 3): its radius, whether slices were filled, the genus of the surface it gave, the share of the
 /// voxels above the threshold that the object holds, and the object's thickness (the radius
 /// of the largest ball inside it).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct ClosingTried {
     pub radius: f64,
+    /// The slices' holes filled too (the last pass for genus 0).
+    pub slices_filled: bool,
     pub genus: i64,
     pub share: f64,
     pub thickness: f64,
@@ -174,9 +182,7 @@ pub fn find_surface(
     volume: &Volume,
     options: &IsosurfaceOptions,
 ) -> Result<FoundSurface, IsosurfaceError> {
-    check_memory(volume)?;
-    let (smoothed, threshold) = smoothed_threshold(volume.clone(), options)?;
-    surface_of_smoothed(&smoothed, threshold, options)
+    find_surface_consuming(volume.clone(), options)
 }
 
 /// [`find_surface`] of a volume that is not needed afterwards: it is smoothed in place, so
@@ -187,8 +193,26 @@ pub fn find_surface_consuming(
     options: &IsosurfaceOptions,
 ) -> Result<FoundSurface, IsosurfaceError> {
     check_memory(&volume)?;
-    let (smoothed, threshold) = smoothed_threshold(volume, options)?;
-    surface_of_smoothed(&smoothed, threshold, options)
+    let mut sigma = options.smoothing.unwrap_or(volume.voxel_size().max());
+    let widest = POROUS_SMOOTHING * volume.voxel_size().min();
+    let (mut smoothed, mut threshold) = smoothed_threshold(volume, sigma, options)?;
+    // A porous foreground (a nuclear label: nuclei with gaps between them) is smoothed more
+    // when the smoothing is ours to choose: twice as wide, by smoothing again by √3 σ.
+    for resmoothing in 0.. {
+        let may_resmooth = options.smoothing.is_none()
+            && options.genus == 0
+            && resmoothing < RESMOOTHINGS
+            && 2.0 * sigma <= widest;
+        if let Some(found) = surface_of_smoothed(&smoothed, threshold, options, may_resmooth)? {
+            return Ok(FoundSurface {
+                smoothing: sigma,
+                ..found
+            });
+        }
+        (smoothed, threshold) = smoothed_threshold(smoothed, 3f64.sqrt() * sigma, options)?;
+        sigma *= 2.0;
+    }
+    unreachable!("the loop returns once it may not smooth again")
 }
 
 /// The smoothed copy, the masks, the labels and the padded distance field, against the
@@ -199,19 +223,29 @@ fn check_memory(volume: &Volume) -> Result<(), IsosurfaceError> {
     Ok(crate::limits::check_items(what, voxels, BYTES_PER_VOXEL)?)
 }
 
-/// Steps 3 to 7 (module docs) on the smoothed volume and its threshold.
+/// Steps 3 to 7 (module docs) on the smoothed volume and its threshold; `None` where the
+/// foreground is porous and `may_resmooth`.
 fn surface_of_smoothed(
     smoothed: &Volume,
     threshold: f32,
     options: &IsosurfaceOptions,
-) -> Result<FoundSurface, IsosurfaceError> {
+    may_resmooth: bool,
+) -> Result<Option<FoundSurface>, IsosurfaceError> {
     let values = smoothed.values();
     let t = f64::from(threshold);
     let foreground: Vec<bool> = values.par_iter().map(|&v| v > threshold).collect();
     let foreground_voxels = foreground.par_iter().filter(|&&f| f).count();
-    let object =
-        Object::of_foreground(&foreground, foreground_voxels, options, smoothed, threshold)?;
+    let object = Object::of_foreground(
+        &foreground,
+        foreground_voxels,
+        options,
+        (smoothed, threshold),
+        may_resmooth,
+    )?;
     drop(foreground);
+    let Some(object) = object else {
+        return Ok(None);
+    };
     let (mut positions, faces, mesh) = object.surface;
     let neighbours = VertexNeighbours::open(&mesh);
     // Smoothed before the layer's middle is looked for along the normals: the voxel
@@ -236,9 +270,11 @@ fn surface_of_smoothed(
         folded,
         |_, x| x,
     );
-    Ok(FoundSurface {
+    Ok(Some(FoundSurface {
+        smoothing: 0.0, // set by the caller
         genus: object.genus,
         closing_radius: object.radius,
+        slices_filled: object.slices_filled,
         closings_tried: object.tried,
         layer_vertices,
         layer_thickness,
@@ -252,7 +288,7 @@ fn surface_of_smoothed(
         component_share: object.share,
         filled_voxels: object.filled_voxels,
         border_voxels: object.border_voxels,
-    })
+    }))
 }
 
 /// The object found (step 3) and its surface (steps 4 and 5), and how it was made.
@@ -261,6 +297,7 @@ struct Object {
     surface: Piece,
     genus: usize,
     radius: f64,
+    slices_filled: bool,
     /// The radius of the largest ball inside it ([`closing::inscribed_radius`]).
     thickness: f64,
     tried: Vec<ClosingTried>,
@@ -276,17 +313,20 @@ impl Object {
     /// most `options.genus` handles. The closing's radius starts at `options.closing` (by
     /// default none: a clean layer needs no closing, and costs none), and where the genus is
     /// wrong or the object is not [`THICK`] (its cavity open through a gap of the layer, or
-    /// only one nucleus of many), it jumps to a quarter of the foreground's smallest extent for
-    /// genus 0 (the largest voxel side for more handles), then grows by half, up to half the
-    /// foreground's smallest extent, where closing nears the convex hull. Past that, the
+    /// only one nucleus of many), it goes to the largest voxel side, then grows by half, up to
+    /// half the foreground's smallest extent, where closing nears the convex hull. For genus 0
+    /// the same radii are then tried with the slices' holes filled too. Past that, the
     /// thickest object of the right genus is kept.
+    ///
+    /// `None` where `may_resmooth` and the first try has more than [`POROUS_GENUS`] handles:
+    /// the foreground is porous, and is better smoothed more than closed.
     fn of_foreground(
         foreground: &[bool],
         foreground_voxels: usize,
         options: &IsosurfaceOptions,
-        volume: &Volume,
-        threshold: f32,
-    ) -> Result<Self, IsosurfaceError> {
+        (volume, threshold): (&Volume, f32),
+        may_resmooth: bool,
+    ) -> Result<Option<Self>, IsosurfaceError> {
         if let Some(r) = options.closing.filter(|r| !(r.is_finite() && *r >= 0.0)) {
             return Err(IsosurfaceError::BadClosing(r));
         }
@@ -299,13 +339,9 @@ impl Object {
                 (Vector3::new(sides[2], sides[1], sides[0]).component_mul(&voxel)).min()
             })
             .unwrap_or(0.0);
-        // After no closing, the first: a quarter of the object's smallest extent for genus 0
-        // (the gaps of a layer of nuclei or of a patchy layer are then sealed at once), the
-        // largest voxel side for more handles (which a wide ball would close).
-        let first = match options.genus {
-            0 => 0.25 * extent,
-            _ => voxel.max(),
-        };
+        // After no closing, the first: the largest voxel side (a tunnel of noise is sealed
+        // at once, and the object keeps its shape), then wider by half each time.
+        let first = voxel.max();
         let next = |r: f64| match r > 0.0 {
             true => 1.5 * r,
             false => first,
@@ -316,7 +352,13 @@ impl Object {
             .map(|(_, r)| r);
         let mut tried: Vec<ClosingTried> = Vec::new();
         let mut best: Option<Object> = None;
-        for radius in radii {
+        // For genus 0, a last pass fills the slices' holes too: a cavity opened by a hole
+        // wider than any closing (a cut through the lumen) is still ringed in its slices.
+        let radii: Vec<f64> = radii.collect();
+        let slice_filled = radii.iter().map(|&r| (r, true));
+        let passes =
+            (radii.iter().map(|&r| (r, false))).chain(slice_filled.filter(|_| options.genus == 0));
+        for (radius, fill_slices) in passes {
             let closed;
             let mask: &[bool] = match radius > 0.0 {
                 true => {
@@ -329,14 +371,18 @@ impl Object {
                 mask,
                 foreground,
                 foreground_voxels,
-                radius,
+                (radius, fill_slices),
                 volume,
                 threshold,
             ) else {
                 continue;
             };
+            if may_resmooth && tried.is_empty() && object.genus > POROUS_GENUS {
+                return Ok(None);
+            }
             tried.push(ClosingTried {
                 radius,
+                slices_filled: fill_slices,
                 genus: object.genus as i64,
                 share: object.share,
                 thickness: object.thickness,
@@ -345,14 +391,14 @@ impl Object {
                 continue;
             }
             if object.thickness >= THICK * extent {
-                return Ok(Self { tried, ..object });
+                return Ok(Some(Self { tried, ..object }));
             }
             if best.as_ref().is_none_or(|b| object.thickness > b.thickness) {
                 best = Some(object);
             }
         }
         match best {
-            Some(object) => Ok(Self { tried, ..object }),
+            Some(object) => Ok(Some(Self { tried, ..object })),
             None => Err(IsosurfaceError::Genus {
                 genus: tried.iter().map(|t| t.genus).min().unwrap_or(0),
                 radius: tried.last().map_or(0.0, |t| t.radius),
@@ -360,13 +406,14 @@ impl Object {
         }
     }
 
-    /// The largest component of `mask` (the foreground closed by `radius`), holes filled and
-    /// made well composed, and its surface; `None` where nothing is left of it.
+    /// The largest component of `mask` (the foreground closed by `radius`), holes filled
+    /// (with `fill_slices`, the slices' holes too) and made well composed, and its surface;
+    /// `None` where nothing is left of it.
     fn of_mask(
         mask: &[bool],
         foreground: &[bool],
         foreground_voxels: usize,
-        radius: f64,
+        (radius, fill_slices): (f64, bool),
         volume: &Volume,
         threshold: f32,
     ) -> Option<Self> {
@@ -378,6 +425,10 @@ impl Object {
             .count();
         let mut solid = filled(&component, shape);
         drop(component);
+        if fill_slices {
+            with_slice_holes_filled(&mut solid, shape);
+            solid = filled(&solid, shape);
+        }
         well_composed(&mut solid, shape);
         let filled_voxels = solid.iter().filter(|&&s| s).count() - component_voxels;
         let thickness = closing::inscribed_radius(&solid, shape, volume.voxel_size().into());
@@ -389,6 +440,7 @@ impl Object {
             surface,
             genus,
             radius,
+            slices_filled: fill_slices,
             thickness,
             tried: Vec::new(),
             component_voxels,
@@ -474,10 +526,10 @@ fn on_border([nz, ny, nx]: [usize; 3]) -> impl Iterator<Item = usize> {
 /// image is constant or the threshold leaves no voxel above it, or none below.
 pub(super) fn smoothed_threshold(
     volume: Volume,
+    sigma: f64,
     options: &IsosurfaceOptions,
 ) -> Result<(Volume, f32), IsosurfaceError> {
-    let largest_voxel = volume.voxel_size().max();
-    let smoothed = volume.into_smoothed(options.smoothing.unwrap_or(largest_voxel))?;
+    let smoothed = volume.into_smoothed(sigma)?;
     let values = smoothed.values();
     let (min, max) = values
         .par_iter()
@@ -728,6 +780,17 @@ fn well_composed(solid: &mut [bool], [nz, ny, nx]: [usize; 3]) {
 /// The most passes [`well_composed`] makes (each fills what the one before left critical).
 const WELL_COMPOSED_PASSES: usize = 8;
 
+/// More handles than this at the first closing tried: the foreground is porous (nuclei with
+/// gaps between them), and is smoothed twice as wide, [`RESMOOTHINGS`] times at most. A
+/// neural-tube organoid's nuclear label has 35 handles smoothed by a voxel, 3 by two.
+const POROUS_GENUS: usize = 8;
+const RESMOOTHINGS: usize = 1;
+
+/// The widest smoothing a porous foreground gets, in smallest voxel sides: wider would blur a
+/// layer across its thickness where voxels are long in z (a shell of nuclei in voxels 1 × 1 × 3
+/// lost its layer at σ = 6).
+const POROUS_SMOOTHING: f64 = 2.5;
+
 /// The share of vertices with a layer below them above which the layer is whole, not nuclei
 /// or patches ([`to_layer_middle`]).
 const WHOLE_LAYER: f64 = 0.9;
@@ -878,6 +941,55 @@ fn filled(object: &[bool], shape: [usize; 3]) -> Vec<bool> {
     let mut solid = flood(on_border(shape), |at| !object[at], shape);
     solid.iter_mut().for_each(|s| *s = !*s);
     solid
+}
+
+/// `solid` with the holes of its slices filled, along each axis in turn: every voxel of a
+/// slice that the slice's border cannot reach through empty voxels (4-connected) joins it. A
+/// cavity open to the outside through a hole too wide to close (an organoid's lumen cut open
+/// by the stack's first slice, a cup) is closed where a slice rings it.
+fn with_slice_holes_filled(solid: &mut [bool], shape: [usize; 3]) {
+    for axis in 0..3 {
+        let [a, b] = match axis {
+            0 => [1, 2],
+            1 => [0, 2],
+            _ => [0, 1],
+        };
+        let (na, nb) = (shape[a], shape[b]);
+        let index = |s: usize, i: usize, j: usize| {
+            let mut at = [0; 3];
+            (at[axis], at[a], at[b]) = (s, i, j);
+            (at[0] * shape[1] + at[1]) * shape[2] + at[2]
+        };
+        let fills: Vec<Vec<usize>> = (0..shape[axis])
+            .into_par_iter()
+            .map(|s| {
+                let empty = |i: usize, j: usize| !solid[index(s, i, j)];
+                let mut outside = vec![false; na * nb];
+                let mut stack: Vec<(usize, usize)> = (0..na)
+                    .flat_map(|i| [(i, 0), (i, nb - 1)])
+                    .chain((0..nb).flat_map(|j| [(0, j), (na - 1, j)]))
+                    .collect();
+                while let Some((i, j)) = stack.pop() {
+                    if outside[i * nb + j] || !empty(i, j) {
+                        continue;
+                    }
+                    outside[i * nb + j] = true;
+                    let next = [
+                        (i > 0).then(|| (i - 1, j)),
+                        (i + 1 < na).then(|| (i + 1, j)),
+                        (j > 0).then(|| (i, j - 1)),
+                        (j + 1 < nb).then(|| (i, j + 1)),
+                    ];
+                    stack.extend(next.into_iter().flatten());
+                }
+                (0..na * nb)
+                    .filter(|&c| !outside[c] && empty(c / nb, c % nb))
+                    .map(|c| index(s, c / nb, c % nb))
+                    .collect()
+            })
+            .collect();
+        fills.into_iter().flatten().for_each(|at| solid[at] = true);
+    }
 }
 
 /// What finding a surface holds per voxel, bounded: the volume and its smoothed copy (8 bytes;

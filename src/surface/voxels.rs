@@ -58,7 +58,8 @@ pub fn foreground_points(
     volume: &Volume,
     options: &IsosurfaceOptions,
 ) -> Result<ForegroundPoints, IsosurfaceError> {
-    let (smoothed, threshold) = smoothed_threshold(volume.clone(), options)?;
+    let sigma = options.smoothing.unwrap_or(volume.voxel_size().max());
+    let (smoothed, threshold) = smoothed_threshold(volume.clone(), sigma, options)?;
     let values = smoothed.values();
     let foreground_voxels = values.iter().filter(|&&v| v > threshold).count();
     let stride = foreground_voxels.div_ceil(MAX_POINTS).max(1);

@@ -44,7 +44,7 @@ mod trim;
 
 use crate::connection::vertex_normals;
 use crate::flow::{FlowError, MeshSequence};
-use crate::geometry::folds::{folded_halfedges, smooth_out};
+use crate::geometry::folds::{folded_halfedges, smooth_out_widening};
 use crate::geometry::SurfacePoint;
 use crate::mesh::{ConnectivityError, Mesh, VertexNeighbours};
 use crate::shapes::Surface;
@@ -584,9 +584,8 @@ pub const FAR_HIT_RATIO: f64 = 3.0;
 const UNCOVERED_DISTANCE: f64 = 1e-6;
 
 /// The most rounds of [`Tracker::repair_folds`] in one step for each width of the region it
-/// moves: the rings of vertices around each fold, tried in turn while folds are left.
+/// moves ([`crate::geometry::folds::WIDENING_RINGS`]).
 const FOLD_REPAIR_ROUNDS: usize = 30;
-const FOLD_RINGS: [usize; 3] = [2, 4, 8];
 
 /// Area, relative to the reference's, below which a tracked triangle counts as collapsed.
 const COLLAPSED_AREA: f64 = 1e-9;
@@ -753,22 +752,14 @@ impl Tracker<'_> {
             return 0;
         }
         let onto = |_: usize, x: Vector3<f64>| surface.closest_point(&x).position;
-        // A fold that its own rings cannot undo (a vertex whose normal missed the surface and
-        // took a far closest point) gets wider rings.
-        for rings in FOLD_RINGS {
-            let rounds = smooth_out(
-                self.mesh,
-                &self.neighbours,
-                &mut positions,
-                FOLD_REPAIR_ROUNDS,
-                rings,
-                &turned,
-                onto,
-            );
-            if rounds <= FOLD_REPAIR_ROUNDS {
-                break;
-            }
-        }
+        smooth_out_widening(
+            self.mesh,
+            &self.neighbours,
+            &mut positions,
+            FOLD_REPAIR_ROUNDS,
+            turned,
+            onto,
+        );
         for (sample, x) in samples.iter_mut().zip(&positions) {
             if sample.position != *x {
                 *sample = surface.closest_point(x);

@@ -16,7 +16,7 @@
 //! target at or above frame 0's vertex count returns frame 0's mesh.
 
 use super::FrameSurface;
-use crate::geometry::folds::{folded_edges, smooth_out};
+use crate::geometry::folds::{folded_edges, smooth_out_widening};
 use crate::mesh::Mesh;
 use crate::shapes::Surface;
 use nalgebra::Vector3;
@@ -230,12 +230,11 @@ fn smooth_on(mesh: &mut Surface, positions: &[Vector3<f64>], faces: &[[u32; 3]])
     let vertex_neighbours = crate::mesh::VertexNeighbours::open(&connectivity);
     let folded = |x: &[Vector3<f64>]| folded_edges(&connectivity, x);
     let onto = |_: usize, x: Vector3<f64>| surface.closest_point(&x).position;
-    smooth_out(
+    smooth_out_widening(
         &connectivity,
         &vertex_neighbours,
         &mut mesh.positions,
         UNFOLD_ROUNDS,
-        2,
         folded,
         onto,
     );

@@ -88,8 +88,9 @@ pub struct ClosedRequest<'a> {
     pub out: &'a Path,
     pub placement: VolumeOptions,
     pub finding: IsosurfaceOptions,
-    /// About this many vertices in the tracked mesh.
-    pub vertices: usize,
+    /// About this many vertices in the tracked mesh; `None`: [`DEFAULT_VERTICES`], or fewer
+    /// where edges would be shorter than the smoothing's σ.
+    pub vertices: Option<usize>,
     /// How the tracked mesh follows the frames' surfaces (`reference_vertices` and
     /// `keep_uncovered` are set from `vertices` and the surface being closed).
     pub tracking: TrackOptions,
@@ -145,7 +146,17 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
             let source = stream.voxel_size_source().expect("known after a frame");
             bar.suspend(|| crate::sample::report_voxel_size(request.volumes, source));
         }
-        let mut surface = find_surface_consuming(volume, &request.finding)
+        // The closing starts where earlier frames needed it: the same object, closed alike,
+        // keeps its shape from frame to frame.
+        // So does the smoothing, where frame 0's foreground was porous.
+        let widest = found.iter().map(|f| f.closing_radius).fold(0.0, f64::max);
+        let smoothest = found.iter().map(|f| f.smoothing).fold(0.0, f64::max);
+        let finding = IsosurfaceOptions {
+            closing: request.finding.closing.or((widest > 0.0).then_some(widest)),
+            smoothing: (request.finding.smoothing).or((k > 0).then_some(smoothest)),
+            ..request.finding
+        };
+        let mut surface = find_surface_consuming(volume, &finding)
             .map_err(|e| Error::from(e).in_file(format!("{} (frame {k})", file.display())))?;
         bar.suspend(|| {
             stdout_line!("  frame {k:3}: {}", describe_found(&surface));
@@ -165,14 +176,17 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
     let first = next(&mut found)?.expect("a recording has a frame");
     // Surface nets' triangles are slivers where the surface cuts a voxel's corner: the
     // reference is always a simplified, cleaned mesh, at most half of frame 0's vertices.
-    let vertices = request.vertices.min(found[0].vertices / 2);
-    if vertices < request.vertices {
+    // By default, no finer than the smoothing: the frames' surfaces are not known below σ,
+    // and a finer mesh tracks their noise (and folds there).
+    let coarsest = triangle_mesh_vertices(surface_area(&first), found[0].smoothing);
+    let asked = request.vertices.unwrap_or(DEFAULT_VERTICES.min(coarsest));
+    let vertices = asked.min(found[0].vertices / 2);
+    if vertices < asked {
         bar.suspend(|| {
             stdout_line!(
-                "frame 0's surface has {} vertices: the tracked mesh gets {vertices} (half; {} \
-                 were asked)",
+                "frame 0's surface has {} vertices: the tracked mesh gets {vertices} (half; \
+                 {asked} were asked)",
                 found[0].vertices,
-                request.vertices
             )
         });
     }
@@ -221,10 +235,14 @@ struct FoldedFrame {
     folded_edges: usize,
 }
 
+/// The share of the tracked mesh's edges that may be folded in a frame before it is an error
+/// (without `--keep-going`): a lone crease is a warning, a tangle is not written.
+const FOLDS_TOLERATED: f64 = 1e-3;
+
 /// The tracked mesh checked before anything is written: one closed, connected manifold (its
 /// connectivity was built as one) of the genus found in frame 0, and no frame folded over
-/// itself. A fold is an error naming the frame, or with `--keep-going` a fault listed in
-/// `surface.json`.
+/// itself. Folds at more than [`FOLDS_TOLERATED`] of the edges are an error naming the frame;
+/// fewer (or with `--keep-going`, any) are warnings, listed in `surface.json`.
 fn check_frames(
     tracked: &Tracked,
     found: &[FoundSurface],
@@ -245,17 +263,19 @@ fn check_frames(
         )));
     }
     let mut faults = vec![];
+    let tolerated = (FOLDS_TOLERATED * mesh.n_edges() as f64).floor() as usize;
     for k in 0..sequence.n_frames() {
         let positions = sequence.positions(k).expect("tracked in R^3");
         let folded = meshflow::geometry::folds::folded_edges(mesh, positions).len() / 2;
         if folded == 0 {
             continue;
         }
-        if !keep_going {
+        if folded > tolerated && !keep_going {
             return Err(crate::usage(format!(
-                "frame {k}: the tracked mesh folds over itself at {folded} edge(s) (their \
-                 triangles face opposite ways); try fewer --vertices, --align rigid, or \
-                 --keep-going to write it anyway"
+                "frame {k}: the tracked mesh folds over itself at {folded} of its {} edges \
+                 (their triangles face opposite ways); try fewer --vertices, or --keep-going \
+                 to write it anyway",
+                mesh.n_edges()
             )));
         }
         faults.push(FoldedFrame {
@@ -266,19 +286,46 @@ fn check_frames(
     Ok(faults)
 }
 
+/// The area of a frame's surface.
+fn surface_area(frame: &TrackFrame) -> f64 {
+    let x = &frame.positions;
+    (frame.faces.iter())
+        .map(|f| {
+            let [a, b, c] = f.map(|v| x[v as usize]);
+            0.5 * (b - a).cross(&(c - a)).norm()
+        })
+        .sum()
+}
+
+/// About how many vertices a mesh of equilateral triangles of side `edge` has over `area`:
+/// two triangles of `√3/4 edge²` per vertex.
+fn triangle_mesh_vertices(area: f64, edge: f64) -> usize {
+    (area / (3f64.sqrt() / 2.0 * edge * edge)).round().max(4.0) as usize
+}
+
 /// One frame's line: what `surface.json` records of it.
 fn describe_found(s: &FoundSurface) -> String {
     format!(
         "threshold {:.4e}; the largest component holds {:.1} % of the {} voxels above it \
-         ({} filled in); {}; {} vertices, {} faces, genus {}; {}",
+         ({} filled in) after smoothing by {:.3e}; {}; {} vertices, {} faces, genus {}; {}",
         s.threshold,
         100.0 * s.component_share,
         s.foreground_voxels,
         s.filled_voxels,
-        match s.closing_radius {
-            0.0 => "no closing".to_string(),
-            r => format!(
-                "gaps closed at radius {r:.3e} ({} tried)",
+        s.smoothing,
+        match (s.closing_radius, s.slices_filled) {
+            (0.0, false) => "no closing".to_string(),
+            (0.0, true) => format!(
+                "the slices' holes filled ({} closings tried)",
+                s.closings_tried.len()
+            ),
+            (r, slices) => format!(
+                "gaps closed at radius {r:.3e}{} ({} tried)",
+                if slices {
+                    " and the slices' holes filled"
+                } else {
+                    ""
+                },
                 s.closings_tried.len()
             ),
         },
@@ -652,7 +699,7 @@ impl SurfaceArgs {
                 genus: self.genus.unwrap_or(0),
                 closing: self.closing,
             },
-            vertices: self.vertices.unwrap_or(DEFAULT_VERTICES),
+            vertices: self.vertices,
             tracking: self.tracking.options(meshflow::track::Alignment::Rigid),
             times: self.times.clone(),
             overwrite: self.force.overwrite(),
