@@ -932,9 +932,10 @@ def find_surface(
     genus : int
         The handles the object has: 0 (a sphere's topology) unless it really has some.
     closing : float, optional
-        The radius of the ball that closes the gaps of the object's layer (physical units; 0:
-        none). Default: a quarter of the object's smallest extent for genus 0, none for more;
-        it grows until the surface has ``genus`` handles.
+        The radius of the ball that first closes the gaps of the object's layer (physical
+        units; 0: none). Default: none; where the genus is wrong or the object thin it grows
+        from the largest voxel side by half each time until the surface has at most ``genus``
+        handles, then (genus 0) the same with every slice's holes filled too.
 
     Returns
     -------
@@ -942,7 +943,8 @@ def find_surface(
         ``positions`` (V, 3) and ``faces`` (F, 3) of the surface (its own vertices: track
         several frames' surfaces into one mesh with :func:`track`), and ``threshold``,
         ``foreground_voxels``, ``component_voxels``, ``component_share``, ``filled_voxels``,
-        ``genus``, ``closing_radius`` (0 where no gap needed sealing), ``layer_vertices``,
+        ``genus``, ``closing_radius`` (0 where no gap needed sealing), ``slices_filled``,
+        ``smoothing`` (the σ used: doubled for a porous foreground), ``layer_vertices``,
         ``layer_thickness``, ``border_voxels`` as ``surface.json`` has them, and ``warnings``
         (the object touching the border, or split).
 

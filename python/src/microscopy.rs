@@ -179,6 +179,8 @@ pub(crate) fn find_surface<'py>(
     out.set_item("filled_voxels", found.filled_voxels)?;
     out.set_item("genus", found.genus)?;
     out.set_item("closing_radius", found.closing_radius)?;
+    out.set_item("slices_filled", found.slices_filled)?;
+    out.set_item("smoothing", found.smoothing)?;
     out.set_item("layer_vertices", found.layer_vertices)?;
     out.set_item("layer_thickness", found.layer_thickness)?;
     out.set_item("border_voxels", found.border_voxels)?;

@@ -7,9 +7,22 @@
 //! 2. **Threshold** at a level `c`: given, or Otsu's (the level that maximizes the
 //!    between-class variance `ω₀ω₁(μ₀ − μ₁)²` of a 256-bin histogram of the smoothed values).
 //!    A probability map works at 0.5.
-//! 3. **Keep the largest 6-connected component** of `v > c`, with its holes filled: every voxel
-//!    that the outside (the volume's border, 6-connected) cannot reach joins it. A hollow shell
-//!    becomes a solid, so its outer boundary is the surface.
+//! 3. **The object, of the right topology.** Drop the specks of `v > c` (components under
+//!    [`SPECK_SHARE`] of it), close the rest by a ball of radius `r` (dilate, then erode, by
+//!    an exact anisotropic Euclidean distance transform: `closing`) and keep the
+//!    largest 6-connected component, with its holes filled: every voxel that the outside (the
+//!    volume's border, 6-connected) cannot reach joins it. A hollow shell becomes a solid, so
+//!    its outer boundary is the surface. `r` starts at none ([`IsosurfaceOptions::closing`])
+//!    and grows from the largest voxel side by half, up to half the object's smallest extent,
+//!    until the surface (steps 4–5) has at most [`IsosurfaceOptions::genus`] handles and the
+//!    object is [`THICK`] (a shell whose cavity opens through a gap of its layer is as thin as
+//!    the layer). That closes the gaps between nuclei and the holes a threshold opens where
+//!    cells are dim, as morphological snakes or level sets do in TubULAR and ImSAnE, at the
+//!    smallest scale that gives the topology. For genus 0 the radii are then tried again with
+//!    the holes of every slice (along z, y and x) filled too: a cavity cut open by the stack's
+//!    first slice is ringed in its slices. A porous foreground (more than `POROUS_GENUS` (8)
+//!    handles at the first try: a nuclear label) is smoothed twice as wide first, when the
+//!    smoothing is ours to choose.
 //! 4. **Take the isosurface** `φ = 0` of `φ = c − v`, clamped to the component
 //!    (`φ ≤ −ε` inside it, `φ ≥ ε` outside), by naive surface nets (the `fast-surface-nets`
 //!    crate): a vertex per grid cell the surface crosses, at the mean of its edges' linear
@@ -25,15 +38,20 @@
 //!    each vertex `p` with outward normal `n`, the smoothed image is read inward along
 //!    `p − t n` (steps of half the smallest voxel side, each crossing then bisected to a
 //!    sixteenth): where it rises above the threshold (`t₀`) and where it falls below again
-//!    (`t₁`). If it falls within a quarter of
-//!    the object's smallest extent (its axis-aligned box), the vertex moves to
-//!    `p − d n`, the middle of the layer: `d` is `(t₀ + t₁)/2` averaged over the vertex and
-//!    its neighbours (five rounds), so that noise in where the layer ends does not fold the
-//!    surface. A solid object, bright throughout, keeps its boundary.
-//! 7. **Smooth** by Taubin's λ|μ steps (twenty rounds, λ = 0.5, μ = −0.53): the voxel
+//!    (`t₁`). If it falls within a quarter of the object's smallest extent (its axis-aligned
+//!    box), the layer's middle lies at depth `d = (t₀ + t₁)/2` below the vertex. Where that is
+//!    so below at least a third (`SHELL_SHARE`) of the vertices, every vertex moves to `p − d n`:
+//!    vertices over a gap take their neighbours' depths, ring by ring, and the depths are
+//!    averaged over the neighbours five rounds (a whole layer) or about `(thickness / edge)²`
+//!    rounds (nuclei, patches), so that neither noise nor the gaps fold the surface. A solid
+//!    object, bright throughout or a layer only in places, keeps its boundary.
+//! 7. **Smooth** by Taubin's λ|μ steps (twenty rounds, λ = 0.5, μ = −0.53; also before
+//!    step 6, so that the staircase's normals do not scatter the depths): the voxel
 //!    staircase goes, and so do the folds left where neighbours moved by different depths in
 //!    step 6 (3078 of 679,444 faces turned inward on a 128 × 512 × 512 frame before, and the
 //!    reference simplified from it pinched), without the shrinking of plain Laplacian steps.
+//!    Edges whose triangles still face opposite ways are smoothed out where they are
+//!    ([`crate::geometry::folds`]).
 //!
 //! The frames' meshes have their own vertices; `meshflow surface --shape closed` then tracks
 //! one reference through them ([`crate::track`]), which makes the fixed connectivity.
