@@ -97,6 +97,8 @@ pub(crate) fn track<'py>(
         },
         alignment: align.parse().map_err(PyValueError::new_err)?,
         keep_uncovered,
+        // As `meshflow track`: the alignment's motion is taken out.
+        keep_coordinates: false,
     };
     let tracked = py
         .detach(|| tracking::track(&frames, times, &options))
