@@ -541,10 +541,10 @@ fn align_to(
     warnings: &mut Vec<String>,
 ) -> (TrackFrame, AlignmentReport, Option<Motion>) {
     let alignment = options.alignment;
-    let (motion, mut report) = align::fit(&frame.positions, target, alignment);
+    let (motion, report) = align::fit(&frame.positions, target, alignment);
     let spacing = median_edge_length(&frame.positions, &frame.faces);
     let (before, after) = (report.median_distance_before, report.median_distance_after);
-    report.applied = alignment != Alignment::None;
+    // `fit` reports every alignment but `None` as applied.
     if !report.applied && align::explains_drift(&report, spacing) {
         warnings.push(format!(
             "frame {k} looks misaligned against frame {}: a rigid motion ({:.1}°, translation \
@@ -737,8 +737,6 @@ impl Tracker<'_> {
                 .filter(|h| creased_before.binary_search(h).is_err())
                 .collect()
         };
-        let turned_triangles = |x: &[Vector3<f64>]| turned_over(x).len();
-        let new_folds = |x: &[Vector3<f64>]| folded_anew(x).len();
         let turned = |x: &[Vector3<f64>]| -> Vec<usize> {
             let faces = turned_over(x).into_iter().map(|f| self.mesh.faces()[f]);
             let edges = folded_anew(x).into_iter();
@@ -747,7 +745,7 @@ impl Tracker<'_> {
                 .collect()
         };
         let mut positions: Vec<Vector3<f64>> = samples.iter().map(|p| p.position).collect();
-        let faults = turned_triangles(&positions) + new_folds(&positions);
+        let faults = turned_over(&positions).len() + folded_anew(&positions).len();
         if faults == 0 {
             return 0;
         }

@@ -266,7 +266,7 @@ fn check_frames(
     let tolerated = (FOLDS_TOLERATED * mesh.n_edges() as f64).floor() as usize;
     for k in 0..sequence.n_frames() {
         let positions = sequence.positions(k).expect("tracked in R^3");
-        let folded = meshflow::geometry::folds::folded_edges(mesh, positions).len() / 2;
+        let folded = meshflow::geometry::folds::folded_halfedges(mesh, positions).len();
         if folded == 0 {
             continue;
         }
