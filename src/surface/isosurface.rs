@@ -156,9 +156,9 @@ pub struct FoundSurface {
     pub faces_count: usize,
 }
 
-/// One closing tried (step 3): its radius, whether slices were filled, the genus of the surface it gave, the share of the
-/// voxels above the threshold that the object holds, and the object's thickness (the radius
-/// of the largest ball inside it).
+/// One closing tried (step 3): its radius, whether slices were filled, the genus of the
+/// surface it gave, the share of the voxels above the threshold that the object holds, and
+/// the object's thickness (the radius of the largest ball inside it).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct ClosingTried {
     pub radius: f64,
@@ -417,6 +417,10 @@ impl Object {
         }
         match best {
             Some(object) => Ok(Some(Self { tried, ..object })),
+            // No closing left a surface to bound: the object is a voxel or a sliver.
+            None if tried.is_empty() => Err(IsosurfaceError::TooSmall {
+                voxels: largest_component(shape, |at| kept[at]).1,
+            }),
             None => Err(IsosurfaceError::Genus {
                 genus: tried.iter().map(|t| t.genus).min().unwrap_or(0),
                 radius: tried.last().map_or(0.0, |t| t.radius),
