@@ -71,6 +71,25 @@ pub fn bounding_diameter(positions: &[Vector3<f64>]) -> f64 {
     (high - low).norm()
 }
 
+/// The mean length of `mesh`'s edges at `positions` (0 without edges), where no
+/// [`Geometry`] is built.
+pub fn mean_edge_length_at(mesh: &Mesh, positions: &[Vector3<f64>]) -> f64 {
+    let total: f64 = (mesh.edges().iter())
+        .map(|&[i, j]| (positions[i as usize] - positions[j as usize]).norm())
+        .sum();
+    total / mesh.n_edges().max(1) as f64
+}
+
+/// The total area `Σ ½ |(b − a) × (c − a)|` of the triangles `faces` at `positions`.
+pub fn surface_area(faces: &[[u32; 3]], positions: &[Vector3<f64>]) -> f64 {
+    (faces.iter())
+        .map(|f| {
+            let [a, b, c] = f.map(|v| positions[v as usize]);
+            0.5 * (b - a).cross(&(c - a)).norm()
+        })
+        .sum()
+}
+
 /// Length of every undirected edge (indexed like [`Mesh::edges`]) of an embedding in R^3.
 pub fn edge_lengths(mesh: &Mesh, positions: &[Vector3<f64>]) -> Result<Vec<f64>, GeometryError> {
     check_positions(mesh, positions)?;

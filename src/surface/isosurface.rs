@@ -654,7 +654,7 @@ fn to_layer_middle(
         return (0, 0.0);
     }
     let thickness = crate::statistics::median(thicknesses.clone());
-    let edge = mean_edge_length(mesh, positions);
+    let edge = crate::geometry::mean_edge_length_at(mesh, positions);
     let rounds = match thicknesses.len() as f64 >= WHOLE_LAYER * positions.len() as f64 {
         true => LAYER_SMOOTHING,
         false => ((thickness / edge).powi(2) as usize).clamp(LAYER_SMOOTHING, MAX_LAYER_SMOOTHING),
@@ -673,14 +673,6 @@ fn to_layer_middle(
         *p -= *depth * n;
     }
     (thicknesses.len(), thickness)
-}
-
-/// The mean length of `mesh`'s edges at `positions`.
-fn mean_edge_length(mesh: &Mesh, positions: &[Vector3<f64>]) -> f64 {
-    let total: f64 = (mesh.edges().iter())
-        .map(|&[i, j]| (positions[i as usize] - positions[j as usize]).norm())
-        .sum();
-    total / mesh.n_edges().max(1) as f64
 }
 
 /// Taubin's λ|μ smoothing (Taubin 1995, "A signal processing approach to fair surface

@@ -792,7 +792,7 @@ impl Tracker<'_> {
         current: &[Vector3<f64>],
         landings: &[Landing],
     ) -> Vec<usize> {
-        let mean_edge = relax::mean_edge_length(self.mesh, current);
+        let mean_edge = crate::geometry::mean_edge_length_at(self.mesh, current);
         (landings.iter().enumerate())
             .filter_map(|(i, landing)| match landing {
                 Landing::Fallback(p) | Landing::Beyond(p) => Some((i, p.position)),

@@ -40,6 +40,7 @@
 
 use super::SurfaceSample;
 use crate::fem::VertexPattern;
+use crate::geometry::{mean_edge_length_at, surface_area};
 use crate::linalg::cholesky::{analyze, CholeskyFactor};
 use crate::mesh::Mesh;
 use crate::spatial::FrameSurface;
@@ -120,11 +121,11 @@ impl Relaxer {
     ) -> Result<Relaxed, String> {
         let faces = rest_faces(mesh, rest);
         let total_area: f64 = faces.iter().map(|f| f.area).sum();
-        let mean_edge = mean_edge_length(mesh, rest);
+        let mean_edge = mean_edge_length_at(mesh, rest);
         // From the normal step, once: recomputed from the iterates, a surface with a free
         // boundary would shrink a little more with every step.
         let start_positions: Vec<Vector3<f64>> = start.iter().map(|s| s.position).collect();
-        let growth = (surface_area(mesh, &start_positions) / total_area).sqrt();
+        let growth = (surface_area(mesh.faces(), &start_positions) / total_area).sqrt();
         let mut samples = start;
         let mut clamped = Vec::new();
         // Rounds of steps; a further round only while triangles remain flipped. The tangent
@@ -227,7 +228,7 @@ fn iterate(
         }
     }
     factor.solve_in_place(&mut rhs, Par::Seq);
-    let clamp_tolerance = 1e-6 * mean_edge_length(mesh, &p);
+    let clamp_tolerance = 1e-6 * mean_edge_length_at(mesh, &p);
     let moved: Vec<Move> = (p.par_iter().zip(bases).enumerate())
         .map(|(i, (x, basis))| {
             let step = basis * Vector2::new(rhs[2 * i], rhs[2 * i + 1]);
@@ -280,24 +281,6 @@ fn rest_faces(mesh: &Mesh, rest: &[Vector3<f64>]) -> Vec<RestFace> {
             }
         })
         .collect()
-}
-
-fn surface_area(mesh: &Mesh, x: &[Vector3<f64>]) -> f64 {
-    (mesh.faces().iter())
-        .map(|f| {
-            let [a, b, c] = f.map(|v| x[v as usize]);
-            0.5 * (b - a).cross(&(c - a)).norm()
-        })
-        .sum()
-}
-
-pub(super) fn mean_edge_length(mesh: &Mesh, x: &[Vector3<f64>]) -> f64 {
-    let edges = mesh.edges();
-    let total: f64 = edges
-        .iter()
-        .map(|&[i, j]| (x[i as usize] - x[j as usize]).norm())
-        .sum();
-    total / edges.len().max(1) as f64
 }
 
 /// The unit normal of the plane a face is rotated into: the face's own plane, oriented like

@@ -178,7 +178,10 @@ pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
     // reference is always a simplified, cleaned mesh, at most half of frame 0's vertices.
     // By default, no finer than the smoothing: the frames' surfaces are not known below σ,
     // and a finer mesh tracks their noise (and folds there).
-    let coarsest = triangle_mesh_vertices(surface_area(&first), found[0].smoothing);
+    let coarsest = triangle_mesh_vertices(
+        meshflow::geometry::surface_area(&first.faces, &first.positions),
+        found[0].smoothing,
+    );
     let asked = request.vertices.unwrap_or(DEFAULT_VERTICES.min(coarsest));
     let vertices = asked.min(found[0].vertices / 2);
     if vertices < asked {
@@ -284,17 +287,6 @@ fn check_frames(
         });
     }
     Ok(faults)
-}
-
-/// The area of a frame's surface.
-fn surface_area(frame: &TrackFrame) -> f64 {
-    let x = &frame.positions;
-    (frame.faces.iter())
-        .map(|f| {
-            let [a, b, c] = f.map(|v| x[v as usize]);
-            0.5 * (b - a).cross(&(c - a)).norm()
-        })
-        .sum()
 }
 
 /// About how many vertices a mesh of equilateral triangles of side `edge` has over `area`:
