@@ -4,6 +4,10 @@
 //! {1e-4, 3e-4, 1e-3} and the default temporal smoothing (time scale 1 frame). Mean angular
 //! error against the true flow `ω ẑ × x`, and the cost of warping relative to one solve.
 //!
+//! The last column is the default solve, which checks its linear flow against the warped
+//! images and warps by itself when the motion is too large for it (`flow::motion`): its error,
+//! the linearization error `η` it measured and whether it warped.
+//!
 //! The column "minimizer" separates the two sources of error: it warps from the *true* flow
 //! (three warps on the original images, at the γ `--large-motion` chose), which converges to
 //! the energy's own minimizer near the truth. Its error is the model's at that γ (the covariant
@@ -16,7 +20,7 @@
 
 use meshflow::accuracy::compare_result;
 use meshflow::flow::{
-    compute_flow, warped_slab, FlowParams, FlowProblem, Regularizer, Warping, Weight,
+    compute_flow, warped_slab, FlowParams, FlowProblem, MotionCheck, Regularizer, Warping, Weight,
 };
 use meshflow::synth::{rotating_sphere, shearing_sphere, GroundTruth};
 use std::time::Instant;
@@ -44,47 +48,73 @@ fn main() -> Result<(), meshflow::Error> {
     ] {
         println!("texture {name} on the level-{level} icosphere, {frames} frames, {regularizer:?} regularizer, mean angular error (best γ)");
         println!(
-            "{:>10} {:>22} {:>22} {:>10} {:>10}",
-            "rad/frame", "single solve", "--large-motion", "minimizer", "cost"
+            "{:>10} {:>22} {:>22} {:>10} {:>10} {:>24}",
+            "rad/frame", "single solve", "--large-motion", "minimizer", "cost", "default (η, warped?)"
         );
-        for rotation in [0.05, 0.3, 0.6, 1.0] {
+        for rotation in [0.05, 0.1, 0.2, 0.3, 0.6, 1.0] {
             let scene: GroundTruth = scene(level, frames as usize, 1.0, rotation)?;
-            let single = best_of_gammas(&scene, Warping::NONE, regularizer)?;
-            let warped = best_of_gammas(&scene, Warping::LARGE_MOTION, regularizer)?;
-            let floor = minimizer_error(&scene, warped.1, regularizer)?;
+            let single = best_of_gammas(&scene, Warping::NONE, false, regularizer)?;
+            let warped = best_of_gammas(&scene, Warping::LARGE_MOTION, false, regularizer)?;
+            let default = best_of_gammas(&scene, Warping::NONE, true, regularizer)?;
+            let floor = minimizer_error(&scene, warped.gamma, regularizer)?;
+            let check = default.check.expect("the default checks its linearization");
             println!(
-                "{rotation:>10} {:>12.2}° (γ {:.0e}) {:>12.2}° (γ {:.0e}) {floor:>9.2}° {:>9.1}×",
-                single.0,
-                single.1,
-                warped.0,
-                warped.1,
-                warped.2 / single.2
+                "{rotation:>10} {:>12.2}° (γ {:.0e}) {:>12.2}° (γ {:.0e}) {floor:>9.2}° {:>9.1}× {:>9.2}° ({:.2}, {})",
+                single.error,
+                single.gamma,
+                warped.error,
+                warped.gamma,
+                warped.seconds / single.seconds,
+                default.error,
+                check.linearization_error,
+                if check.warped { "warped" } else { "linear" },
             );
         }
     }
     Ok(())
 }
 
-/// The least mean angular error over [`GAMMAS`], with its γ and seconds.
+/// The best of the γs: its mean angular error, γ, seconds and check of the linear model.
+struct Best {
+    error: f64,
+    gamma: f64,
+    seconds: f64,
+    check: Option<MotionCheck>,
+}
+
+/// The least mean angular error over [`GAMMAS`] with `warping` (and, with `detect`, the check
+/// that switches warping on by itself).
 fn best_of_gammas(
     scene: &GroundTruth,
     warping: Warping,
+    detect: bool,
     regularizer: Regularizer,
-) -> Result<(f64, f64, f64), meshflow::Error> {
-    let mut best = (f64::INFINITY, 0.0, 0.0);
+) -> Result<Best, meshflow::Error> {
+    let mut best = Best {
+        error: f64::INFINITY,
+        gamma: 0.0,
+        seconds: 0.0,
+        check: None,
+    };
     for gamma in GAMMAS {
         let params = FlowParams {
             warping,
             regularizer,
             gamma: Weight::Value(gamma),
+            detect_large_motion: detect,
             ..FlowParams::default()
         };
         let start = Instant::now();
         let result = compute_flow(&scene.sequence, &params)?;
         let seconds = start.elapsed().as_secs_f64();
         let error = compare_result(&scene.sequence, &result, &scene.flow)?.mean_angular_degrees;
-        if error < best.0 {
-            best = (error, gamma, seconds);
+        if error < best.error {
+            best = Best {
+                error,
+                gamma,
+                seconds,
+                check: result.motion_check,
+            };
         }
     }
     Ok(best)

@@ -121,6 +121,18 @@ impl DataElement {
         self.linear += other.linear * w;
         self.constant += other.constant * w;
     }
+
+    /// `self + w · other`.
+    pub fn plus_scaled(mut self, other: &DataElement, w: f64) -> Self {
+        self.add_scaled(other, w);
+        self
+    }
+
+    /// The form at the corner values `x`: `xᵀ Q x + 2 lᵀ x + c`, the face's integral of the
+    /// squared residual.
+    pub fn value(&self, x: &Vector6<f64>) -> f64 {
+        x.dot(&(self.quadratic * x)) + 2.0 * self.linear.dot(x) + self.constant
+    }
 }
 
 /// The data element for P1 intensity `intensity` (face gradient `G`) and P1 temporal rate

@@ -123,8 +123,7 @@ fn spatial_terms(
     for (f, face) in mesh.faces().iter().enumerate() {
         let x = x(face);
         let e = slab.face_elements(face, f, &params.regularizer);
-        terms.data += slab.dt
-            * (x.dot(&(e.data.quadratic * x)) + 2.0 * e.data.linear.dot(&x) + e.data.constant);
+        terms.data += slab.dt * e.data.value(&x);
         if weights.beta != 0.0 {
             let rotations = &slab.connection.face_rotations(f);
             terms.speed +=

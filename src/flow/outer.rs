@@ -8,10 +8,12 @@
 //! system is solved; the few scalars the iterations decide on (the robust energy) are summed
 //! over processes with [`SlabSolver::sum`].
 
+use super::motion::{check_linearization, MotionCheck};
 use super::problem::{FlowProblem, FlowResult, SolveStep, Timings};
 use super::solve::{FactorReuse, InRun, RunFactors};
-use super::{DataScales, FlowError, FlowParams, MeshSequence};
-use super::{Slab, SolveObserver, Weights};
+use super::{robust, warp, DataScales, FlowError, FlowParams, MeshSequence};
+use super::{Slab, SolveEvent, SolveObserver, Warping, Weights};
+use std::borrow::Cow;
 use std::ops::Range;
 use std::time::Instant;
 
@@ -44,6 +46,7 @@ pub(super) trait SlabSolver {
 
 /// What an outer iteration starts from: the problem's parameters, the weights and scales its
 /// original data resolved, and the seconds its assembly took.
+#[derive(Clone, Copy)]
 pub(super) struct OuterStart<'a> {
     pub params: &'a FlowParams,
     pub weights: Weights,
@@ -53,15 +56,70 @@ pub(super) struct OuterStart<'a> {
 
 impl OuterStart<'_> {
     /// The parameters with the weights fixed at the original data's, so that warped or
-    /// reweighted slabs do not re-resolve them.
+    /// reweighted slabs do not re-resolve them, and the check for large motions off (the solves
+    /// of an outer iteration are its steps, not new problems).
     pub fn fixed_params(&self) -> FlowParams {
         FlowParams {
             alpha: super::Weight::Value(self.weights.alpha),
             beta: super::Weight::Value(self.weights.beta),
             gamma: super::Weight::Value(self.weights.gamma),
+            detect_large_motion: false,
             ..self.params.clone()
         }
     }
+}
+
+/// Whether the minimization of `params` starts with one plain linear solve whose flow
+/// [`after_first_solve`] takes on: with the check for large motions, unless warping is asked
+/// for.
+pub(super) fn checks_motion(params: &FlowParams) -> bool {
+    params.detect_large_motion && !params.warping.is_active()
+}
+
+/// What follows the first linear solve `first` (of the quadratic, unwarped model) when the
+/// motion is checked ([`checks_motion`]): the check of its linearization
+/// ([`super::motion`]) on the own slabs (`slab(i)` the `i`-th own one, with the original
+/// images); if the motion is large, the coarse-to-fine solve of [`Warping::LARGE_MOTION`] (its
+/// timings led by `first`'s); otherwise the robust reweighting from `first` when the
+/// parameters ask for it (`robust_slabs()`: all the frames' slabs), or `first` itself. The
+/// result carries the check.
+pub(super) fn after_first_solve<'a>(
+    solver: &dyn SlabSolver,
+    start: &OuterStart,
+    first: FlowResult,
+    slab: &(dyn Fn(usize) -> Cow<'a, Slab> + Sync),
+    robust_slabs: impl FnOnce() -> Vec<Slab>,
+    observer: &dyn SolveObserver,
+) -> Result<FlowResult, FlowError> {
+    let channel_weights = start.params.channel_weights_for(solver.frames().n_channels())?;
+    let check = check_linearization(solver, slab, &first, &channel_weights)?;
+    if check.is_large() {
+        observer.notify(SolveEvent::LargeMotion {
+            linearization_error: check.linearization_error,
+            threshold: check.threshold,
+        })?;
+        let params = FlowParams {
+            warping: Warping::LARGE_MOTION,
+            ..start.params.clone()
+        };
+        let warping = OuterStart {
+            params: &params,
+            ..*start
+        };
+        let mut result = warp::coarse_to_fine(solver, &warping, observer)?;
+        result.timings.lead_with("linear solve, checked", &first);
+        result.motion_check = Some(MotionCheck {
+            warped: true,
+            ..check
+        });
+        return Ok(result);
+    }
+    let mut result = match start.params.is_robust() {
+        true => robust::reweighted(solver, start, robust_slabs(), Some(&first), observer)?,
+        false => first,
+    };
+    result.motion_check = Some(check);
+    Ok(result)
 }
 
 /// The whole sequence in one process, with what its solves hand on to each other

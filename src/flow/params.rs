@@ -198,6 +198,22 @@ pub struct FlowParams {
     /// default) or of each principal direction (anisotropic; [`super::robust`]). Only with
     /// `robust_smoothness`.
     pub flow_driven: FlowDriven,
+    /// `Some(ε)`: the robust (Charbonnier) data term `2ε(√(d(u) + ε²) − ε)` of the face's mean
+    /// squared residual `d = ⨍ (∂_t I + dI(u))²` in place of `d`, by reweighted solves
+    /// ([`super::robust`], "The data term"); `ε` in the residual's units (grey value per
+    /// time), or `auto`: per slab, [`super::robust::AUTO_DATA_SCALE`] times the size of the
+    /// first (quadratic) solve's residual where its energy is. `None`: the paper's quadratic
+    /// data term.
+    pub robust_data: Option<Scale>,
+    /// Between the warps of coarse-to-fine warping, replace the flow the next warp is
+    /// linearized around by its weighted median over each vertex's star
+    /// ([`super::median`]; Sun, Roth & Black 2010). Only with warping.
+    pub median_filter: bool,
+    /// When [`Self::warping`] is [`Warping::NONE`]: after the first linear solve, measure how
+    /// far the linear model is from the images warped by its flow ([`super::motion`]) and, if
+    /// the motion is too large for it, solve again coarse to fine with
+    /// [`Warping::LARGE_MOTION`]. `false`: the paper's single linear solve, always.
+    pub detect_large_motion: bool,
     /// The weight `w_c` of each image channel in the data term `Σ_c w_c (∂_t I_c + dI_c(u))²`,
     /// one per channel of the sequence; `None`: 1 for every channel.
     pub channel_weights: Option<Vec<f64>>,
@@ -293,6 +309,9 @@ impl Default for FlowParams {
             anisotropy: None,
             robust_smoothness: None,
             flow_driven: FlowDriven::Isotropic,
+            robust_data: None,
+            median_filter: false,
+            detect_large_motion: true,
             channel_weights: None,
             boundary: Boundary::Neumann,
             time_coupling: TimeCoupling::Lumped,
@@ -307,14 +326,23 @@ impl Default for FlowParams {
 }
 
 impl FlowParams {
-    /// The paper's weights as given (in the data's units), other settings at their defaults.
+    /// The paper's model with its weights as given (in the data's units): one linear solve,
+    /// never switched to warping ([`Self::detect_large_motion`] off); other settings at their
+    /// defaults.
     pub fn paper(alpha: f64, beta: f64, gamma: f64) -> Self {
         Self {
             alpha: Weight::Value(alpha),
             beta: Weight::Value(beta),
             gamma: Weight::Value(gamma),
+            detect_large_motion: false,
             ..Self::default()
         }
+    }
+
+    /// Whether a robust penalty (smoothness or data) makes the minimization a run of
+    /// reweighted solves.
+    pub fn is_robust(&self) -> bool {
+        self.robust_smoothness.is_some() || self.robust_data.is_some()
     }
 
     /// Checks every parameter; the error names the first invalid one.
@@ -360,6 +388,14 @@ impl FlowParams {
                 epsilon,
                 epsilon > 0.0 && epsilon.is_finite(),
                 "a positive number (the |∇u| where the penalty turns from quadratic to linear), or auto",
+            )?;
+        }
+        if let Some(Scale::Value(epsilon)) = self.robust_data {
+            check(
+                "robust_data",
+                epsilon,
+                epsilon > 0.0 && epsilon.is_finite(),
+                "a positive number (the residual ∂_t I + dI(u) where the penalty turns from quadratic to linear), or auto",
             )?;
         }
         if self.flow_driven == FlowDriven::Anisotropic {

@@ -3,11 +3,11 @@
 //! linear solve, or the outer loops of warping and robust reweighting) and returns a
 //! [`FlowResult`] with the fields, the energy, the solver's figures and [`Timings`].
 
-use super::outer::{OuterStart, WholeSequence};
+use super::outer::{self, OuterStart, WholeSequence};
 use super::solve::InRun;
 use super::{energy, robust, slab, solve, uniqueness, warp};
 use super::{DataScales, EnergyTerms, FlowError, FlowParams, MeshSequence, Slab};
-use super::{SolveObserver, SolverMethod, SpaceTimeSystem, Weights};
+use super::{MotionCheck, SolveObserver, SolverMethod, SpaceTimeSystem, Weights};
 use crate::connection::{push_forward, vertex_frames_in_r3};
 use crate::mesh::Mesh;
 use nalgebra::{Vector2, Vector3};
@@ -89,7 +89,31 @@ pub struct FlowResult {
     /// Per slab, the scale `ε` of robust smoothness (`auto` resolved); empty without it, and
     /// over ranks.
     pub robust_scales: Vec<f64>,
+    /// Per slab, the scale `ε` of the robust data term (`auto` resolved); empty without it,
+    /// and over ranks.
+    pub robust_data_scales: Vec<f64>,
+    /// The check of the linear model against the images warped by its flow
+    /// ([`FlowParams::detect_large_motion`]); `None` where it did not run (warping asked for,
+    /// or the check off).
+    pub motion_check: Option<MotionCheck>,
     pub timings: Timings,
+}
+
+impl Timings {
+    /// These timings of a run, led by the solve `first` before it (labelled `label`): its
+    /// phases added, its own time a first step.
+    pub(super) fn lead_with(&mut self, label: &str, first: &FlowResult) {
+        let part = &first.timings;
+        self.factorization += part.factorization;
+        self.solve += part.solve;
+        self.total += part.total - part.assembly;
+        let step = SolveStep {
+            label: label.to_string(),
+            seconds: part.total - part.assembly,
+            iterations: first.iterations_in_all(),
+        };
+        self.steps.insert(0, step);
+    }
 }
 
 impl FlowResult {
@@ -123,6 +147,8 @@ impl FlowResult {
             warped_residual: None,
             anisotropic_contrasts: Vec::new(),
             robust_scales: Vec::new(),
+            robust_data_scales: Vec::new(),
+            motion_check: None,
             reweightings: 0,
         }
     }
@@ -364,10 +390,26 @@ impl<'a> FlowProblem<'a> {
         if self.params.warping.is_active() {
             return warp::coarse_to_fine(&whole, &outer, observer);
         }
-        if let Some(epsilon) = self.params.robust_smoothness {
-            let slabs = self.slabs().into_owned();
-            return robust::reweighted(&whole, &outer, slabs, epsilon, previous, observer);
+        let robust_slabs = || self.slabs().into_owned();
+        if !outer::checks_motion(&self.params) {
+            if self.params.is_robust() {
+                return robust::reweighted(&whole, &outer, robust_slabs(), previous, observer);
+            }
+            return self.linear_solve(previous, run, observer);
         }
+        let first = self.linear_solve(previous, run, observer)?;
+        let slab = |s| self.slab(s);
+        outer::after_first_solve(&whole, &outer, first, &slab, robust_slabs, observer)
+    }
+
+    /// One solve of the assembled system (the quadratic model, unwarped), warm-started from
+    /// `previous` when given, as one of `run` when given.
+    fn linear_solve(
+        &self,
+        previous: Option<&FlowResult>,
+        run: Option<InRun<'_>>,
+        observer: &dyn SolveObserver,
+    ) -> Result<FlowResult, FlowError> {
         let first = previous.map(FlowResult::next_start);
         let start = Instant::now();
         let (system, params) = (&self.system, &self.params);

@@ -53,6 +53,9 @@ pub struct Slab {
     /// Per face, the weight of the regularizer (robust smoothness, [`crate::flow::robust`]);
     /// `None` for 1 everywhere.
     pub smoothness_weights: Option<Vec<f64>>,
+    /// Per face, the weight of the data term (the robust data term,
+    /// [`crate::flow::robust`]); `None` for 1 everywhere.
+    pub data_weights: Option<Vec<f64>>,
     /// The vertex frames `P_i` in R³ on frame `s` (embedded sequences; the embedded
     /// regularizer uses them), `None` for intrinsic ones.
     pub embedding_frames: Option<Vec<Matrix3x2<f64>>>,
@@ -106,6 +109,7 @@ impl Slab {
             channels,
             linearization,
             smoothness_weights: None,
+            data_weights: None,
             embedding_frames: None,
             diffusion_tensors: None,
             contrast: None,
@@ -121,8 +125,8 @@ impl Slab {
     }
 
     /// The data element of face `f`: `Σ_c w_c` times channel `c`'s [`element::data_element`],
-    /// each rate shifted by the linearization (if any).
-    fn data_element(&self, face: &[u32; 3], f: usize) -> DataElement {
+    /// each rate shifted by the linearization (if any); without the robust weight.
+    pub(super) fn data_element(&self, face: &[u32; 3], f: usize) -> DataElement {
         let triangle = self.geometry.triangle(f);
         let rotations = &self.connection.face_rotations(f);
         let at = |values: &[f64]| face.map(|v| values[v as usize]);
@@ -153,8 +157,12 @@ impl Slab {
         f: usize,
         regularizer: &Regularizer,
     ) -> FaceElements {
+        let mut data = self.data_element(face, f);
+        if let Some(weights) = &self.data_weights {
+            data = DataElement::zero().plus_scaled(&data, weights[f]);
+        }
         FaceElements {
-            data: self.data_element(face, f),
+            data,
             mass: element::consistent_mass(self.geometry.triangle(f)),
             stiffness: self.regularizer_element(face, f, regularizer)
                 * self.smoothness_weights.as_ref().map_or(1.0, |w| w[f]),

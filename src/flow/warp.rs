@@ -30,6 +30,7 @@
 
 use super::outer::{OuterStart, RunClock, SlabSolver};
 use super::problem::FlowResult;
+use super::median::star_median;
 use super::pyramid::scale_pyramid;
 use super::slab::{Slab, SlabChannel};
 use super::solve::FactorReuse;
@@ -50,6 +51,7 @@ pub(super) fn coarse_to_fine(
     let mut clock = RunClock::start(start.assembly_seconds);
     let frames = solver.frames();
     let warping = start.params.warping;
+    let warping_median = start.params.median_filter;
     let pyramid = scale_pyramid(frames, warping.levels)?;
     let channel_weights = start.params.channel_weights_for(frames.n_channels())?;
     let own = solver.own();
@@ -73,7 +75,9 @@ pub(super) fn coarse_to_fine(
                 solves: warping.solves(),
             })?;
             clock.begin_step();
-            let slabs = warped_slabs(frames, &pyramid[level], &flow, &channel_weights)?;
+            // The zero flow of the first warp has nothing to filter.
+            let median = warping_median && solves > 1;
+            let slabs = warped_slabs(frames, &pyramid[level], &flow, &channel_weights, median)?;
             // The last solve's flow is a first guess (the energy is the total flow's).
             // A level's next warp differs by the re-linearized data term alone: it
             // preconditions with this warp's factors.
@@ -89,7 +93,7 @@ pub(super) fn coarse_to_fine(
     }
     let mut result = result.expect("warping solves at least once");
     result.scales = start.scales;
-    let last = warped_slabs(frames, &pyramid[0], &flow, &channel_weights)?;
+    let last = warped_slabs(frames, &pyramid[0], &flow, &channel_weights, false)?;
     result.warped_residual = Some(last[own].iter().map(warped_residual).collect());
     result.timings = clock.finish();
     Ok(result)
@@ -112,18 +116,28 @@ fn warped_residual(slab: &Slab) -> Vec<f64> {
         .collect()
 }
 
-/// Every slab with its two images warped halfway by `flow` and linearized around it.
+/// Every slab with its two images warped halfway by `flow` and linearized around it; with
+/// `median`, around `flow`'s weighted median over each vertex's star instead
+/// ([`super::median`]).
 fn warped_slabs(
     sequence: &MeshSequence,
     images: &Images,
     flow: &[Vec<Vector2<f64>>],
     channel_weights: &[f64],
+    median: bool,
 ) -> Result<Vec<Slab>, FlowError> {
     (0..sequence.n_slabs())
         .into_par_iter()
         .map(|s| {
             let frames = (images.frame(s), images.frame(s + 1));
-            warped_slab(sequence, s, frames, &flow[s], channel_weights)
+            let mut slab = Slab::with_channels(sequence, s, Vec::new(), None)?;
+            let u = match median {
+                true => star_median(sequence.mesh(), &slab.geometry, &slab.connection, &flow[s]),
+                false => flow[s].clone(),
+            };
+            slab.channels = warped_channels(sequence.mesh(), &slab, frames, &u, channel_weights);
+            slab.linearization = Some(u);
+            Ok(slab)
         })
         .collect()
 }
@@ -134,13 +148,26 @@ fn warped_slabs(
 pub fn warped_slab(
     sequence: &MeshSequence,
     s: usize,
-    (before, after): (&[Vec<f64>], &[Vec<f64>]),
+    frames: (&[Vec<f64>], &[Vec<f64>]),
     u: &[Vector2<f64>],
     channel_weights: &[f64],
 ) -> Result<Slab, FlowError> {
-    let mesh = sequence.mesh();
     // The slab's own geometry and connection serve the traces; its channels come after.
     let mut slab = Slab::with_channels(sequence, s, Vec::new(), Some(u.to_vec()))?;
+    slab.channels = warped_channels(sequence.mesh(), &slab, frames, u, channel_weights);
+    Ok(slab)
+}
+
+/// The channels between `I⁻` and `I⁺` (module docs): the images `before` and `after` read
+/// halfway back and forth along `u` on `slab`'s geometry, channel `c` weighted by
+/// `channel_weights[c]` (`slab`'s own channels are not read).
+pub(super) fn warped_channels(
+    mesh: &crate::mesh::Mesh,
+    slab: &Slab,
+    (before, after): (&[Vec<f64>], &[Vec<f64>]),
+    u: &[Vector2<f64>],
+    channel_weights: &[f64],
+) -> Vec<SlabChannel> {
     let (geometry, connection, dt) = (&slab.geometry, &slab.connection, slab.dt);
     // Each vertex's two traces serve every channel.
     let (minus, plus): (Vec<SurfacePoint>, Vec<SurfacePoint>) = (0..mesh.n_vertices())
@@ -156,8 +183,7 @@ pub fn warped_slab(
     let sample = |points: &[SurfacePoint], image: &[f64]| -> Vec<f64> {
         points.iter().map(|p| p.interpolate(mesh, image)).collect()
     };
-    slab.channels = (before.iter().zip(after).zip(channel_weights))
+    (before.iter().zip(after).zip(channel_weights))
         .map(|((b, a), &w)| SlabChannel::between(&sample(&minus, b), &sample(&plus, a), dt, w))
-        .collect();
-    Ok(slab)
+        .collect()
 }

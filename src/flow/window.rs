@@ -20,7 +20,7 @@
 //! each checks its own slabs and links and the parts that couple all slabs are summed.
 
 use super::distributed::{gather_to_first, next_rank_first_slab, solve_window_in_run, TimeRanks};
-use super::outer::{OuterStart, SlabSolver};
+use super::outer::{after_first_solve, checks_motion, OuterStart, SlabSolver};
 use super::problem::{
     energy_and_vectors, intrinsic_fields, kept_slab_bytes, FlowResult, Timings, KEEP_SLABS_BYTES,
 };
@@ -259,7 +259,7 @@ pub fn flow_of_own_slabs(
 ) -> Result<FlowResult, FlowError> {
     let start = Instant::now();
     let offset = window.frames().start;
-    let slabs = WindowSlabs::new(frames, offset, window.clone(), params)?;
+    let mut slabs = WindowSlabs::new(frames, offset, window.clone(), params)?;
     let mut sums = slabs.scale_sums(frames).to_array();
     ranks.sum(&mut sums);
     let scales = ScaleSums::from_array(sums).scales();
@@ -276,17 +276,22 @@ pub fn flow_of_own_slabs(
         scales,
         assembly_seconds: start.elapsed().as_secs_f64(),
     };
-    let result = match (params.warping.is_active(), params.robust_smoothness) {
-        (true, _) => {
-            drop(slabs); // warping builds its own slabs from the images
-            coarse_to_fine(&solver, &outer, observer)?
+    if params.warping.is_active() {
+        drop(slabs); // warping builds its own slabs from the images
+        return coarse_to_fine(&solver, &outer, observer);
+    }
+    if !checks_motion(params) {
+        if params.is_robust() {
+            return reweighted(&solver, &outer, slabs.slabs, None, observer);
         }
-        (false, Some(epsilon)) => {
-            reweighted(&solver, &outer, slabs.slabs, epsilon, None, observer)?
-        }
-        (false, None) => solver.solve_window_slabs(slabs, params, (None, None), observer, start)?,
-    };
-    Ok(result)
+        return solver.solve_window_slabs(&mut slabs, params, (None, None), observer, start);
+    }
+    let robust = params.is_robust().then(|| slabs.slabs.clone());
+    let first = solver.solve_window_slabs(&mut slabs, params, (None, None), observer, start)?;
+    let own = solver.own();
+    let slab = |i: usize| slabs.slab(frames, params, own.start + i);
+    let robust_slabs = || robust.expect("kept when robust");
+    after_first_solve(&solver, &outer, first, &slab, robust_slabs, observer)
 }
 
 /// One rank's time window as the [`SlabSolver`] of warping and reweighting.
@@ -319,23 +324,23 @@ impl SlabSolver for RankWindow<'_> {
         observer: &dyn SolveObserver,
     ) -> Result<FlowResult, FlowError> {
         let start = Instant::now();
-        if let Some(epsilon) = params.robust_smoothness {
+        if params.is_robust() {
             let outer = OuterStart {
                 params,
                 weights: params.weights(&self.scales)?,
                 scales: self.scales,
                 assembly_seconds: 0.0,
             };
-            return reweighted(self, &outer, slabs, epsilon, previous, observer);
+            return reweighted(self, &outer, slabs, previous, observer);
         }
         let offset = self.window.frames().start;
-        let slabs =
+        let mut slabs =
             WindowSlabs::with_slabs(self.frames, offset, self.window.clone(), params, slabs)?;
         let run = InRun {
             factors: &self.factors,
             reuse,
         };
-        self.solve_window_slabs(slabs, params, (previous, Some(run)), observer, start)
+        self.solve_window_slabs(&mut slabs, params, (previous, Some(run)), observer, start)
     }
 
     fn sum(&self, values: &mut [f64]) {
@@ -349,7 +354,7 @@ impl RankWindow<'_> {
     /// the window's own slabs (its flow theirs, its energy terms summed over ranks).
     fn solve_window_slabs(
         &self,
-        mut slabs: WindowSlabs,
+        slabs: &mut WindowSlabs,
         params: &FlowParams,
         (previous, run): (Option<&FlowResult>, Option<InRun<'_>>),
         observer: &dyn SolveObserver,

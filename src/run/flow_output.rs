@@ -617,6 +617,12 @@ pub(super) fn summary_of(
     if !result.anisotropic_contrasts.is_empty() {
         summary["anisotropic_contrasts"] = serde_json::json!(result.anisotropic_contrasts);
     }
+    if !result.robust_data_scales.is_empty() {
+        summary["robust_data_scales"] = serde_json::json!(result.robust_data_scales);
+    }
+    if let Some(check) = &result.motion_check {
+        summary["large_motion"] = serde_json::json!(check);
+    }
     if !result.robust_scales.is_empty() {
         summary["robust_scales"] = serde_json::json!(result.robust_scales);
     }

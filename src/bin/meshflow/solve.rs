@@ -222,18 +222,54 @@ fn print_result(
     if let Some(line) = describe_anisotropy(params, result) {
         stdout_line!("{line}");
     }
+    if let Some(check) = &result.motion_check {
+        stdout_line!("{}", describe_motion_check(check));
+    }
     if result.reweightings > 0 {
-        stdout_line!(
-            "robust smoothness ({}{}): {} reweighted solves until the energy settled",
+        stdout_line!("{}", describe_robust(params, result));
+    }
+}
+
+/// The check of the linear model, in one line.
+fn describe_motion_check(check: &meshflow::flow::MotionCheck) -> String {
+    let error = check.linearization_error;
+    match check.warped {
+        true => format!(
+            "large motion: the linear model's error against the warped images is {error:.2} \
+             (above {}), so the flow was solved coarse to fine (--large-motion); \
+             --no-large-motion keeps the single linear solve",
+            check.threshold
+        ),
+        false => format!(
+            "small motion: the linear model's error against the warped images is {error:.2} \
+             (warping from {}; --large-motion forces it)",
+            check.threshold
+        ),
+    }
+}
+
+/// The robust penalties and their reweighted solves, in one line.
+fn describe_robust(params: &FlowParams, result: &FlowResult) -> String {
+    let mut penalties = Vec::new();
+    if params.robust_smoothness.is_some() {
+        penalties.push(format!(
+            "robust smoothness ({}{})",
             match params.flow_driven {
                 FlowDriven::Isotropic => "flow-driven isotropic",
                 FlowDriven::Anisotropic => "flow-driven anisotropic",
             },
             describe_range("ε", params.robust_smoothness, &result.robust_scales)
                 .map_or(String::new(), |range| format!(", {range}")),
-            result.reweightings
-        );
+        ));
     }
+    if let Some(range) = describe_range("ε", params.robust_data, &result.robust_data_scales) {
+        penalties.push(format!("robust data term ({range})"));
+    }
+    format!(
+        "{}: {} reweighted solves until the energy settled",
+        penalties.join(" and "),
+        result.reweightings
+    )
 }
 
 /// `name = value` as given, or `auto`'s range over the slabs as used (`values`).
@@ -402,6 +438,14 @@ fn show(progress: &crate::progress::Progress, event: SolveEvent) {
         } => progress.println(format!(
             "warping: solve {solve} of {solves} (level {level}, warp {})",
             warp + 1
+        )),
+        SolveEvent::LargeMotion {
+            linearization_error,
+            threshold,
+        } => progress.println(format!(
+            "the motion is large for the linear model (linearization error {linearization_error:.2} \
+             > {threshold}): solving again coarse to fine, as --large-motion does \
+             (--no-large-motion keeps the linear solve)"
         )),
         SolveEvent::Iteration {
             iteration,
@@ -635,6 +679,17 @@ pub(crate) struct SolveArgs {
     /// quadratic solve; reweighted solves until the energy settles)
     #[arg(long, value_name = "EPS|auto", allow_negative_numbers = true)]
     pub(crate) robust_smoothness: Option<meshflow::flow::Scale>,
+    /// Robust (Charbonnier) data term, the smooth TV-L1: each face's residual ∂_t I + dI(u)
+    /// costs 2·EPS·|residual| beyond EPS instead of its square, so that where the image breaks
+    /// brightness constancy (cells appearing, occlusions, noise) it pulls less (EPS in grey value
+    /// per time, or auto: per slab a tenth of the residual's size where its energy is, after a
+    /// first quadratic solve; reweighted solves until the energy settles)
+    #[arg(long, value_name = "EPS|auto", allow_negative_numbers = true)]
+    pub(crate) robust_data: Option<meshflow::flow::Scale>,
+    /// With warping: replace the flow each warp is linearized around by its weighted median
+    /// over each vertex's star (Sun, Roth & Black's median filtering between warps)
+    #[arg(long)]
+    pub(crate) median_filter: bool,
     /// With --robust-smoothness: isotropic (the penalty of |∇u|, one weight per face) or
     /// anisotropic (of each principal direction of ∇u: the flow may jump across a boundary
     /// and stay smooth along it; with --anisotropic, along the image's edges)
@@ -658,9 +713,14 @@ pub(crate) struct SolveArgs {
     #[arg(long, value_name = "M")]
     pub(crate) warps: Option<usize>,
     /// Motions larger than the image's features (a texture turning by several triangle widths
-    /// per frame): coarse-to-fine symmetric warping with 4 levels and 2 warps each (8 solves)
-    #[arg(long)]
+    /// per frame): coarse-to-fine symmetric warping with 4 levels and 2 warps each (8 solves).
+    /// Without it (and without --levels) the solve checks its linear flow against the warped
+    /// images and warps by itself when the motion is too large for the linear model
+    #[arg(long, conflicts_with = "no_large_motion")]
     pub(crate) large_motion: bool,
+    /// Never warp by itself: the paper's single linear solve, however large the motion
+    #[arg(long)]
+    pub(crate) no_large_motion: bool,
     /// Relative residual at which the iterative solver stops
     #[arg(long, default_value_t = FlowParams::default().tolerance, allow_negative_numbers = true)]
     pub(crate) tolerance: f64,
@@ -767,6 +827,9 @@ impl SolveArgs {
             anisotropic_in_time: self.anisotropic_in_time,
             robust_smoothness: self.robust_smoothness,
             flow_driven: self.flow_driven,
+            robust_data: self.robust_data,
+            median_filter: self.median_filter,
+            detect_large_motion: !self.no_large_motion,
             channel_weights: self.channel_weights.clone(),
             boundary: self.boundary,
             time_coupling: self.time_coupling,

@@ -340,6 +340,13 @@ pub enum SolveEvent {
         solve: usize,
         solves: usize,
     },
+    /// The first linear solve's flow moves the image too far for the linear model (its
+    /// linearization error `η` above `threshold`, [`crate::flow::motion`]): the flow is solved
+    /// again coarse to fine.
+    LargeMotion {
+        linearization_error: f64,
+        threshold: f64,
+    },
 }
 
 /// Receives a running solve's [`SolveEvent`]s, and may stop it. Any `Fn(SolveEvent) + Sync`
