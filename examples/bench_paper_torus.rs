@@ -4,8 +4,9 @@
 //! (`meshflow::analysis`: divergence, curl, Hodge parts, strain rate) against the solve's.
 //!
 //! `cargo run --release --example bench_paper_torus [-- N1 N2 FRAMES [solver]]
-//! [--anisotropic LAMBDA|auto]` (the image-driven anisotropic regularizer: its cost against the
-//! quadratic solve's).
+//! [--anisotropic LAMBDA|auto] [--robust-data EPS|auto] [--check-motion]` (the image-driven
+//! anisotropic regularizer, the robust data term, the default's check of the linear model
+//! (`flow::motion`): their cost against the paper's quadratic solve's).
 
 use meshflow::flow::{Anisotropy, FlowParams, FlowProblem, Scale, SolveEvent};
 use meshflow::synth::paper_torus;
@@ -17,17 +18,14 @@ use memory::peak_memory_bytes;
 
 fn main() -> Result<(), meshflow::Error> {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let anisotropy = match args.iter().position(|a| a == "--anisotropic") {
+    let anisotropy = scale_flag(&mut args, "--anisotropic").map(Anisotropy::with);
+    let robust_data = scale_flag(&mut args, "--robust-data");
+    let detect_large_motion = match args.iter().position(|a| a == "--check-motion") {
         Some(at) => {
-            let lambda = args.get(at + 1).map(|l| l.parse::<Scale>());
-            args.drain(at..(at + 2).min(args.len()));
-            Some(Anisotropy::with(
-                lambda
-                    .expect("a λ after --anisotropic")
-                    .expect("auto or a number"),
-            ))
+            args.remove(at);
+            true
         }
-        None => None,
+        None => false,
     };
     let number = |i: usize, default: usize| {
         args.get(i)
@@ -41,6 +39,8 @@ fn main() -> Result<(), meshflow::Error> {
     let params = FlowParams {
         solver,
         anisotropy,
+        robust_data,
+        detect_large_motion,
         ..FlowParams::paper(1.0, 0.0, 1.0)
     };
     println!(
@@ -90,7 +90,19 @@ fn main() -> Result<(), meshflow::Error> {
         analysed.len()
     );
     println!("solver              {}", result.method);
-    println!("iterations          {}", result.iterations);
+    println!(
+        "iterations          {} ({} in all; {} reweightings)",
+        result.iterations,
+        result.iterations_in_all(),
+        result.reweightings
+    );
+    if let Some(check) = &result.motion_check {
+        println!(
+            "motion check        η = {:.3} ({})",
+            check.linearization_error,
+            if check.warped { "warped" } else { "linear" }
+        );
+    }
     println!("relative residual   {:.2e}", result.relative_residual);
     println!(
         "energy              {:.6e} (zero flow {:.6e})",
@@ -102,4 +114,13 @@ fn main() -> Result<(), meshflow::Error> {
         peak_memory_bytes() as f64 / 1e9
     );
     Ok(())
+}
+
+/// The scale after `flag` (`auto` or a number), taken out of `args`; `None` without the flag.
+fn scale_flag(args: &mut Vec<String>, flag: &str) -> Option<Scale> {
+    let at = args.iter().position(|a| a == flag)?;
+    let value = args.get(at + 1).map(|l| l.parse::<Scale>());
+    args.drain(at..(at + 2).min(args.len()));
+    let value = value.unwrap_or_else(|| panic!("a scale after {flag}"));
+    Some(value.expect("auto or a number"))
 }

@@ -271,3 +271,48 @@ fn embedded_regularizer_is_covariant_when_flat_and_adds_the_second_fundamental_f
     let error = compute_flow(&intrinsic, &params).unwrap_err();
     assert_eq!(error, FlowError::NeedsEmbedding);
 }
+
+/// The Charbonnier data term with ε → ∞ is the paper's quadratic one (one reweighted solve
+/// that changes nothing); with a small ε it shrugs off frames that break brightness
+/// constancy: a texture turning on the sphere whose middle frame has a bright flash on part of
+/// it (grey values +2 over a cap), which drags the quadratic flow off the rotation there.
+#[test]
+fn the_robust_data_term_is_quadratic_for_a_huge_scale_and_resists_a_flash() {
+    let scene = rotating_sphere(4, 3, 1.0, 0.05).unwrap();
+    let params = |robust_data| FlowParams {
+        robust_data,
+        ..FlowParams::paper(1.0, 0.0, 1e-3)
+    };
+    let quadratic = compute_flow(&scene.sequence, &params(None)).unwrap();
+    let huge = compute_flow(&scene.sequence, &params(Some(Scale::Value(1e8)))).unwrap();
+    let difference = (quadratic.intrinsic.concat().iter())
+        .zip(huge.intrinsic.concat())
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    assert!(difference < 1e-9, "{difference}");
+    assert_eq!(huge.reweightings, 1);
+    assert!((huge.energy - quadratic.energy).abs() < 1e-9 * quadratic.energy);
+    assert_eq!(huge.robust_data_scales, vec![1e8; 2]);
+
+    let sphere = icosphere(4);
+    let mut frames: Vec<Vec<f64>> = (0..3).map(|k| scene.sequence.intensities(k).to_vec()).collect();
+    for (i, x) in sphere.positions.iter().enumerate() {
+        if x.z > 0.7 {
+            frames[1][i] += 2.0;
+        }
+    }
+    let positions = vec![sphere.positions.clone(); 3];
+    let flashed = MeshSequence::new(sphere.mesh().unwrap(), positions, frames, None).unwrap();
+    let error = |robust_data| {
+        let result = compute_flow(&flashed, &params(robust_data)).unwrap();
+        let scores = compare_result(&flashed, &result, &scene.flow).unwrap();
+        (scores.mean_angular_degrees, result.reweightings, result.robust_data_scales)
+    };
+    let (plain, _, _) = error(None);
+    let (robust, reweightings, _) = error(Some(Scale::Value(0.01)));
+    let (auto, _, scales) = error(Some(Scale::Auto));
+    println!("flash: mean angular error {plain:.2}° quadratic, {robust:.2}° robust ({reweightings} reweightings), {auto:.2}° auto (ε {scales:?})");
+    assert!(robust < 0.7 * plain, "{robust} vs {plain}");
+    assert!(auto < plain, "{auto} vs {plain}");
+    assert!((2..crate_max()).contains(&reweightings));
+}

@@ -3,6 +3,7 @@
 use meshflow::accuracy::compare_result;
 use meshflow::flow::{compute_flow, heat_times, scale_pyramid, warped_slab, FlowParams};
 use meshflow::flow::{FlowResult, MeshSequence, SolverChoice, SolverMethod, Warping};
+use meshflow::flow::LARGE_MOTION_ERROR;
 use meshflow::shapes::icosphere;
 use meshflow::synth::rotating_sphere;
 use nalgebra::Vector2;
@@ -216,4 +217,106 @@ fn a_levels_next_warp_solves_with_the_factors_of_the_last() {
             "{solver:?}: {difference:e} of {scale:e}"
         );
     }
+}
+
+/// The check of the linear model (`flow::motion`): its error `η` is the second difference of
+/// the warped rate, which is exactly 0 while every trace stays in the face it starts in (the
+/// P1 image is linear there) and grows with the motion once traces cross edges (level 4: edges
+/// of 0.08 rad); a turn of a feature's size per frame passes the threshold, and the default
+/// solve then warps by itself, exactly as `--large-motion` does.
+#[test]
+fn the_linear_model_checks_itself_and_warps_when_the_motion_is_large() {
+    let eta = |omega: f64| {
+        let scene = rotating_sphere(4, 2, 1.0, omega).unwrap();
+        let params = FlowParams {
+            detect_large_motion: true,
+            ..FlowParams::default()
+        };
+        let result = compute_flow(&scene.sequence, &params).unwrap();
+        let check = result.motion_check.unwrap();
+        (check.linearization_error, check.warped)
+    };
+    let etas: Vec<(f64, bool)> = [0.0, 0.02, 0.15, 0.3].into_iter().map(eta).collect();
+    println!("η at 0, 0.02, 0.15, 0.3 rad per frame: {etas:?}");
+    assert!(etas[0].0 < 1e-12 && etas[1].0 < 1e-12, "{etas:?}");
+    assert!(etas[2].0 > 1e-3 && etas[3].0 > 2.0 * etas[2].0, "{etas:?}");
+    assert!(etas.iter().all(|&(eta, warped)| !warped && eta < LARGE_MOTION_ERROR));
+
+    let scene = rotating_sphere(4, 2, 1.0, 0.6).unwrap();
+    let auto = compute_flow(&scene.sequence, &FlowParams::default()).unwrap();
+    let check = auto.motion_check.unwrap();
+    println!("0.6 rad per frame: {check:?}");
+    assert!(check.warped && check.linearization_error > check.threshold);
+    let forced = FlowParams {
+        warping: Warping::LARGE_MOTION,
+        ..FlowParams::default()
+    };
+    let warped = compute_flow(&scene.sequence, &forced).unwrap();
+    assert!(warped.motion_check.is_none());
+    assert_eq!(auto.intrinsic, warped.intrinsic);
+    // The check's linear solve leads the run's steps.
+    assert_eq!(auto.timings.steps.len(), warped.timings.steps.len() + 1);
+    assert_eq!(auto.timings.steps[0].label, "linear solve, checked");
+    // Off, the paper's single linear solve stays.
+    let linear = FlowParams {
+        detect_large_motion: false,
+        ..FlowParams::default()
+    };
+    let single = compute_flow(&scene.sequence, &linear).unwrap();
+    assert!(single.motion_check.is_none() && single.timings.steps.is_empty());
+    let error = |r: &FlowResult| {
+        compare_result(&scene.sequence, r, &scene.flow)
+            .unwrap()
+            .mean_angular_degrees
+    };
+    println!("mean angular error: {:.2}° linear, {:.2}° warped by itself", error(&single), error(&auto));
+    assert!(error(&auto) < 0.5 * error(&single));
+}
+
+/// Median filtering between warps (`flow::median`): a field linear over a flat regular star
+/// is kept at interior vertices, an outlier at one vertex becomes its neighbours' value, and
+/// with warping the filtered run stays as accurate as the unfiltered one.
+#[test]
+fn the_star_median_keeps_smooth_fields_and_removes_an_outlier() {
+    use meshflow::connection::Connection;
+    use meshflow::flow::median::star_median;
+    use meshflow::geometry::IntrinsicGeometry;
+    let plane = meshflow::shapes::grid(6, 6, 1.0, 1.0);
+    let mesh = plane.mesh().unwrap();
+    let geometry = IntrinsicGeometry::from_positions(&mesh, &plane.positions).unwrap();
+    let connection = Connection::new(&mesh, &geometry);
+    let frames =
+        meshflow::connection::vertex_frames_in_r3(&mesh, &geometry, &connection, &plane.positions)
+            .unwrap();
+    let field = |x: &nalgebra::Vector3<f64>| nalgebra::Vector3::new(0.3 + x.x, 0.5 * x.y - 0.2, 0.0);
+    let u: Vec<Vector2<f64>> = (plane.positions.iter().zip(&frames))
+        .map(|(x, p)| p.transpose() * field(x))
+        .collect();
+    let filtered = star_median(&mesh, &geometry, &connection, &u);
+    let interior: Vec<usize> = (0..u.len()).filter(|&i| !mesh.is_boundary_vertex(i)).collect();
+    for &i in &interior {
+        assert!((filtered[i] - u[i]).norm() < 1e-12, "vertex {i}");
+    }
+    let outlier = interior[interior.len() / 2];
+    let mut spoiled = u.clone();
+    spoiled[outlier] += Vector2::new(5.0, -4.0);
+    let filtered = star_median(&mesh, &geometry, &connection, &spoiled);
+    let size = u[outlier].norm();
+    assert!((filtered[outlier] - u[outlier]).norm() < 0.3 * size, "{:?} vs {:?}", filtered[outlier], u[outlier]);
+
+    let scene = rotating_sphere(4, 2, 1.0, 0.6).unwrap();
+    let run = |median_filter| {
+        let params = FlowParams {
+            warping: Warping::LARGE_MOTION,
+            median_filter,
+            ..FlowParams::default()
+        };
+        let result = compute_flow(&scene.sequence, &params).unwrap();
+        compare_result(&scene.sequence, &result, &scene.flow)
+            .unwrap()
+            .mean_angular_degrees
+    };
+    let (plain, filtered) = (run(false), run(true));
+    println!("0.6 rad per frame, warped: {plain:.3}° plain, {filtered:.3}° median-filtered");
+    assert!(filtered != plain && filtered < 1.2 * plain);
 }

@@ -132,11 +132,18 @@ pub(super) fn reweighted(
     super::slab::complete_slabs(&mut slabs, solver.frames(), &params)?;
     let mut penalties = Penalties::new(start, &slabs[own.clone()]);
     let mut clock = RunClock::start(start.assembly_seconds);
+    // Each reweighted system differs from the last by its weights alone: the iterative solvers
+    // precondition it with the last one's slab factors (still symmetric positive definite),
+    // which the first reweightings' few iterations pay for many times over (the direct
+    // solvers factor anew).
     let mut result = solver.solve(
         &params,
         slabs.clone(),
         previous,
-        FactorReuse::NONE,
+        FactorReuse {
+            take: false,
+            keep: true,
+        },
         observer,
     )?;
     clock.end_step("first solve".into(), &result);
@@ -153,7 +160,10 @@ pub(super) fn reweighted(
             &params,
             slabs.clone(),
             Some(&result),
-            FactorReuse::NONE,
+            FactorReuse {
+                take: true,
+                keep: reweightings + 1 < MAX_REWEIGHTINGS,
+            },
             observer,
         )?;
         reweightings += 1;
