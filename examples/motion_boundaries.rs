@@ -17,7 +17,8 @@
 //! The models: Weickert & Schnörr's taxonomy as meshflow has it (homogeneous = the defaults,
 //! image-driven anisotropic, flow-driven isotropic and anisotropic, image- and flow-driven; the
 //! image-driven ones also with the space-time tensor's weight in time), each with its `auto`
-//! scales, then (with `SWEEP=1`) `λ` and `ε` swept. It draws the boundary
+//! scales, and the robust data term (`--robust-data auto`) alone, with robust smoothness, and
+//! with both and warping; then (with `SWEEP=1`) `λ` and `ε` swept. It draws the boundary
 //! scene's flow under the defaults and under `--anisotropic auto --robust-smoothness auto`
 //! (arrows on the image, and the endpoint error over the cap's speed) into
 //! `out/motion_boundaries/`.
@@ -144,6 +145,28 @@ fn models(sequence: &MeshSequence) -> Vec<(String, FlowParams)> {
         (
             "robust 0.01 (the issue's)".into(),
             with(None, Some(Scale::Value(0.01)), iso),
+        ),
+        (
+            "robust data: --robust-data auto".into(),
+            FlowParams {
+                robust_data: auto,
+                ..FlowParams::default()
+            },
+        ),
+        (
+            "robust data + robust smoothness".into(),
+            FlowParams {
+                robust_data: auto,
+                ..with(None, auto, iso)
+            },
+        ),
+        (
+            "robust data + robust, --large-motion".into(),
+            FlowParams {
+                robust_data: auto,
+                warping: meshflow::flow::Warping::LARGE_MOTION,
+                ..with(None, auto, iso)
+            },
         ),
     ];
     if std::env::var_os("SWEEP").is_none() {

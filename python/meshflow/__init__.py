@@ -155,6 +155,8 @@ def compute_flow(
     anisotropic_in_time: bool = False,
     robust_smoothness: Union[float, str, None] = None,
     flow_driven: str = "isotropic",
+    robust_data: Union[float, str, None] = None,
+    median_filter: bool = False,
     channels: str = "auto",
     channel_weights: Optional[SequenceOf[float]] = None,
     boundary: str = "neumann",
@@ -163,7 +165,7 @@ def compute_flow(
     tolerance: float = 1e-8,
     levels: Optional[int] = None,
     warps: Optional[int] = None,
-    large_motion: bool = False,
+    large_motion: Optional[bool] = None,
     weld: bool = True,
     weld_tolerance: float = DEFAULT_WELD_TOLERANCE,
     repair: bool = False,
@@ -217,6 +219,14 @@ def compute_flow(
         With ``robust_smoothness``: the penalty of ``|∇u|`` (one weight per face) or of each
         principal direction of ``∇u`` (``tr Ψ(∇uᵀ∇u)``, Weickert–Schnörr's flow-driven
         anisotropic; with ``anisotropic``, image- and flow-driven).
+    robust_data : float or "auto", optional
+        ``ε``: the Charbonnier data term ``2ε(√(d + ε²) − ε)`` of each face's mean squared
+        residual ``d`` (linear growth beyond ``ε``: the smooth TV-L1, for images that break
+        brightness constancy here and there), by reweighted solves; ``"auto"``: per slab, a
+        tenth of the residual's size where its energy is, after a first quadratic solve.
+    median_filter : bool
+        With warping: linearize each warp around the flow's weighted median over each
+        vertex's star (Sun, Roth & Black's median filtering between warps).
     channels : {"auto", "rgb", "luma", "grey"}
         Which channels of a (K, V, C) ``intensity`` to use: all (``auto``), the three colour
         channels (``rgb``), their Rec. 709 luma, or their mean (``grey``).
@@ -229,7 +239,10 @@ def compute_flow(
         Relative residual at which the iterative solvers stop.
     levels, warps, large_motion
         Coarse-to-fine warping for motions larger than the image's features
-        (``large_motion=True``: 4 levels × 2 warps); default the paper's single linear solve.
+        (``large_motion=True``: 4 levels × 2 warps). Default (``large_motion=None``): one
+        linear solve, checked against the images warped by its flow, and warped by itself when
+        the motion is too large for the linear model (``Flow.large_motion`` says what the
+        check found); ``large_motion=False``: the paper's single linear solve, always.
     weld, weld_tolerance, repair
         How the mesh is built from ``faces`` (as the CLI's ``--no-weld``,
         ``--weld-tolerance``, ``--repair``). Results are in the input's vertex numbering
@@ -237,7 +250,8 @@ def compute_flow(
     progress : callable, optional
         Called with a dict per solver event: ``{"kind": "iteration", "iteration": n,
         "relative_residual": r}``, ``{"kind": "factorizing", "slabs": n}`` or ``{"kind":
-        "warp", "level": l, "warp": w, "solve": i, "solves": n}``. An exception it raises
+        "warp", "level": l, "warp": w, "solve": i, "solves": n}`` or ``{"kind":
+        "large_motion", "linearization_error": e, "threshold": t}``. An exception it raises
         stops the solve and propagates.
 
     Returns
@@ -275,6 +289,8 @@ def compute_flow(
         "anisotropic_in_time": bool(anisotropic_in_time),
         "robust_smoothness": _scale("robust_smoothness", robust_smoothness),
         "flow_driven": str(flow_driven),
+        "robust_data": _scale("robust_data", robust_data),
+        "median_filter": bool(median_filter),
         "channel_weights": _channel_weights(channel_weights),
         "boundary": str(boundary),
         "time_coupling": str(time_coupling),
@@ -282,7 +298,7 @@ def compute_flow(
         "tolerance": float(tolerance),
         "levels": None if levels is None else int(levels),
         "warps": None if warps is None else int(warps),
-        "large_motion": bool(large_motion),
+        "large_motion": None if large_motion is None else bool(large_motion),
     }
     return _meshflow.compute_flow(
         positions,

@@ -79,6 +79,14 @@ pub(crate) fn event_dict<'py>(py: Python<'py>, event: SolveEvent) -> PyResult<Bo
             dict.set_item("solve", solve)?;
             dict.set_item("solves", solves)?;
         }
+        SolveEvent::LargeMotion {
+            linearization_error,
+            threshold,
+        } => {
+            dict.set_item("kind", "large_motion")?;
+            dict.set_item("linearization_error", linearization_error)?;
+            dict.set_item("threshold", threshold)?;
+        }
     }
     Ok(dict)
 }
@@ -129,6 +137,8 @@ pub(crate) struct ParamArgs {
     anisotropic_in_time: bool,
     robust_smoothness: Option<String>,
     flow_driven: String,
+    robust_data: Option<String>,
+    median_filter: bool,
     channel_weights: Option<Vec<f64>>,
     boundary: String,
     time_coupling: String,
@@ -136,7 +146,8 @@ pub(crate) struct ParamArgs {
     tolerance: f64,
     levels: Option<usize>,
     warps: Option<usize>,
-    large_motion: bool,
+    /// `None`: checked (the default); `True`: always warp; `False`: never.
+    large_motion: Option<bool>,
 }
 
 impl ParamArgs {
@@ -160,6 +171,9 @@ impl ParamArgs {
                 "robust_smoothness",
             )?,
             flow_driven: parse(&self.flow_driven, "flow_driven")?,
+            robust_data: optional_parse(self.robust_data.as_deref(), "robust_data")?,
+            median_filter: self.median_filter,
+            detect_large_motion: self.large_motion != Some(false),
             channel_weights: self.channel_weights.clone(),
             boundary: parse(&self.boundary, "boundary")?,
             time_coupling: parse(&self.time_coupling, "time_coupling")?,
@@ -167,7 +181,7 @@ impl ParamArgs {
             tolerance: self.tolerance,
             levels: self.levels,
             warps: self.warps,
-            large_motion: self.large_motion,
+            large_motion: self.large_motion == Some(true),
         };
         options.params().map_err(|e| to_py_err(e.into()))
     }
@@ -281,6 +295,28 @@ impl Flow {
     #[getter]
     fn robust_scales(&self) -> Vec<f64> {
         self.result.robust_scales.clone()
+    }
+
+    /// Per slab, the scale `ε` of the robust data term as used (`"auto"` resolved); empty
+    /// without it.
+    #[getter]
+    fn robust_data_scales(&self) -> Vec<f64> {
+        self.result.robust_data_scales.clone()
+    }
+
+    /// The check of the linear model against the images warped by its flow, as
+    /// `{"linearization_error", "threshold", "warped"}`; `None` where it did not run
+    /// (`large_motion` True or False, or warping asked for).
+    #[getter]
+    fn large_motion<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(check) = &self.result.motion_check else {
+            return Ok(None);
+        };
+        let dict = PyDict::new(py);
+        dict.set_item("linearization_error", check.linearization_error)?;
+        dict.set_item("threshold", check.threshold)?;
+        dict.set_item("warped", check.warped)?;
+        Ok(Some(dict))
     }
 
     /// Solver iterations (0 for a direct solve).

@@ -106,6 +106,20 @@ def test_robust_smoothness_auto_records_its_scale_per_slab(sample):
     assert all(e > 0 for e in flow.robust_scales)
 
 
+def test_robust_data_and_the_motion_check_reach_the_solver(sample):
+    flow = meshflow.compute_flow(sample.positions, sample.faces, sample.intensity,
+                                 robust_data="auto")
+    assert flow.reweightings >= 1
+    assert len(flow.robust_data_scales) == sample.positions.shape[0] - 1
+    assert all(e > 0 for e in flow.robust_data_scales)
+    check = flow.large_motion
+    assert check is not None and not check["warped"]
+    assert 0 <= check["linearization_error"] < check["threshold"]
+    never = meshflow.compute_flow(sample.positions, sample.faces, sample.intensity,
+                                  large_motion=False)
+    assert never.large_motion is None
+
+
 def test_flow_driven_anisotropic_with_a_huge_scale_is_the_quadratic_flow(sample, reference):
     flow = meshflow.compute_flow(sample.positions, sample.faces, sample.intensity, gamma=1e-3,
                                  robust_smoothness=1e9, flow_driven="anisotropic")

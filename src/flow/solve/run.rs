@@ -45,13 +45,6 @@ pub struct FactorReuse {
     pub keep: bool,
 }
 
-impl FactorReuse {
-    /// Each solve factors its own blocks (robust reweighting, a single solve).
-    pub const NONE: Self = Self {
-        take: false,
-        keep: false,
-    };
-}
 
 /// The factors a run's solves hand on: a pool of `f32` buffers and the last solve's
 /// preconditioner when it was kept.
