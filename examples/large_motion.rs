@@ -49,7 +49,12 @@ fn main() -> Result<(), meshflow::Error> {
         println!("texture {name} on the level-{level} icosphere, {frames} frames, {regularizer:?} regularizer, mean angular error (best γ)");
         println!(
             "{:>10} {:>22} {:>22} {:>10} {:>10} {:>24}",
-            "rad/frame", "single solve", "--large-motion", "minimizer", "cost", "default (η, warped?)"
+            "rad/frame",
+            "single solve",
+            "--large-motion",
+            "minimizer",
+            "cost",
+            "default (η, warped?)"
         );
         for rotation in [0.05, 0.1, 0.2, 0.3, 0.6, 1.0] {
             let scene: GroundTruth = scene(level, frames as usize, 1.0, rotation)?;

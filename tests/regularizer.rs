@@ -295,7 +295,9 @@ fn the_robust_data_term_is_quadratic_for_a_huge_scale_and_resists_a_flash() {
     assert_eq!(huge.robust_data_scales, vec![1e8; 2]);
 
     let sphere = icosphere(4);
-    let mut frames: Vec<Vec<f64>> = (0..3).map(|k| scene.sequence.intensities(k).to_vec()).collect();
+    let mut frames: Vec<Vec<f64>> = (0..3)
+        .map(|k| scene.sequence.intensities(k).to_vec())
+        .collect();
     for (i, x) in sphere.positions.iter().enumerate() {
         if x.z > 0.7 {
             frames[1][i] += 2.0;
@@ -306,7 +308,11 @@ fn the_robust_data_term_is_quadratic_for_a_huge_scale_and_resists_a_flash() {
     let error = |robust_data| {
         let result = compute_flow(&flashed, &params(robust_data)).unwrap();
         let scores = compare_result(&flashed, &result, &scene.flow).unwrap();
-        (scores.mean_angular_degrees, result.reweightings, result.robust_data_scales)
+        (
+            scores.mean_angular_degrees,
+            result.reweightings,
+            result.robust_data_scales,
+        )
     };
     let (plain, _, _) = error(None);
     let (robust, reweightings, _) = error(Some(Scale::Value(0.01)));

@@ -1,9 +1,9 @@
 //! Coarse-to-fine warping: the scale pyramid, the warp, and what they buy on large motions.
 
 use meshflow::accuracy::compare_result;
+use meshflow::flow::LARGE_MOTION_ERROR;
 use meshflow::flow::{compute_flow, heat_times, scale_pyramid, warped_slab, FlowParams};
 use meshflow::flow::{FlowResult, MeshSequence, SolverChoice, SolverMethod, Warping};
-use meshflow::flow::LARGE_MOTION_ERROR;
 use meshflow::shapes::icosphere;
 use meshflow::synth::rotating_sphere;
 use nalgebra::Vector2;
@@ -240,7 +240,9 @@ fn the_linear_model_checks_itself_and_warps_when_the_motion_is_large() {
     println!("η at 0, 0.02, 0.15, 0.3 rad per frame: {etas:?}");
     assert!(etas[0].0 < 1e-12 && etas[1].0 < 1e-12, "{etas:?}");
     assert!(etas[2].0 > 1e-3 && etas[3].0 > 2.0 * etas[2].0, "{etas:?}");
-    assert!(etas.iter().all(|&(eta, warped)| !warped && eta < LARGE_MOTION_ERROR));
+    assert!(etas
+        .iter()
+        .all(|&(eta, warped)| !warped && eta < LARGE_MOTION_ERROR));
 
     let scene = rotating_sphere(4, 2, 1.0, 0.6).unwrap();
     let auto = compute_flow(&scene.sequence, &FlowParams::default()).unwrap();
@@ -269,7 +271,11 @@ fn the_linear_model_checks_itself_and_warps_when_the_motion_is_large() {
             .unwrap()
             .mean_angular_degrees
     };
-    println!("mean angular error: {:.2}° linear, {:.2}° warped by itself", error(&single), error(&auto));
+    println!(
+        "mean angular error: {:.2}° linear, {:.2}° warped by itself",
+        error(&single),
+        error(&auto)
+    );
     assert!(error(&auto) < 0.5 * error(&single));
 }
 
@@ -288,12 +294,15 @@ fn the_star_median_keeps_smooth_fields_and_removes_an_outlier() {
     let frames =
         meshflow::connection::vertex_frames_in_r3(&mesh, &geometry, &connection, &plane.positions)
             .unwrap();
-    let field = |x: &nalgebra::Vector3<f64>| nalgebra::Vector3::new(0.3 + x.x, 0.5 * x.y - 0.2, 0.0);
+    let field =
+        |x: &nalgebra::Vector3<f64>| nalgebra::Vector3::new(0.3 + x.x, 0.5 * x.y - 0.2, 0.0);
     let u: Vec<Vector2<f64>> = (plane.positions.iter().zip(&frames))
         .map(|(x, p)| p.transpose() * field(x))
         .collect();
     let filtered = star_median(&mesh, &geometry, &connection, &u);
-    let interior: Vec<usize> = (0..u.len()).filter(|&i| !mesh.is_boundary_vertex(i)).collect();
+    let interior: Vec<usize> = (0..u.len())
+        .filter(|&i| !mesh.is_boundary_vertex(i))
+        .collect();
     for &i in &interior {
         assert!((filtered[i] - u[i]).norm() < 1e-12, "vertex {i}");
     }
@@ -302,7 +311,12 @@ fn the_star_median_keeps_smooth_fields_and_removes_an_outlier() {
     spoiled[outlier] += Vector2::new(5.0, -4.0);
     let filtered = star_median(&mesh, &geometry, &connection, &spoiled);
     let size = u[outlier].norm();
-    assert!((filtered[outlier] - u[outlier]).norm() < 0.3 * size, "{:?} vs {:?}", filtered[outlier], u[outlier]);
+    assert!(
+        (filtered[outlier] - u[outlier]).norm() < 0.3 * size,
+        "{:?} vs {:?}",
+        filtered[outlier],
+        u[outlier]
+    );
 
     let scene = rotating_sphere(4, 2, 1.0, 0.6).unwrap();
     let run = |median_filter| {

@@ -88,7 +88,9 @@ pub(super) fn check_linearization<'a>(
             slab_errors(mesh, &slab, &whole, &halfway)
         })
         .collect();
-    let mut sums = parts.iter().fold([0.0; 2], |a, p| [a[0] + p[0], a[1] + p[1]]);
+    let mut sums = parts
+        .iter()
+        .fold([0.0; 2], |a, p| [a[0] + p[0], a[1] + p[1]]);
     solver.sum(&mut sums);
     let linearization_error = match sums[1] > 0.0 {
         true => (sums[0] / sums[1]).sqrt(),

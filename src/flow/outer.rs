@@ -91,7 +91,9 @@ pub(super) fn after_first_solve<'a>(
     robust_slabs: impl FnOnce() -> Vec<Slab>,
     observer: &dyn SolveObserver,
 ) -> Result<FlowResult, FlowError> {
-    let channel_weights = start.params.channel_weights_for(solver.frames().n_channels())?;
+    let channel_weights = start
+        .params
+        .channel_weights_for(solver.frames().n_channels())?;
     let check = check_linearization(solver, slab, &first, &channel_weights)?;
     if check.is_large() {
         observer.notify(SolveEvent::LargeMotion {

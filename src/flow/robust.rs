@@ -354,8 +354,8 @@ impl RobustData {
     /// term an L1 one everywhere the cells are, which weakens the data against the smoothness
     /// (on the zebrafish the flow fell to a quarter of the cells' speed).
     fn auto_scale(areas: impl Iterator<Item = f64>, densities: &[f64]) -> f64 {
-        let (energy, squares) = (areas.zip(densities))
-            .fold((0.0, 0.0), |(e, q), (a, &d)| (e + a * d, q + a * d * d));
+        let (energy, squares) =
+            (areas.zip(densities)).fold((0.0, 0.0), |(e, q), (a, &d)| (e + a * d, q + a * d * d));
         match energy > 0.0 {
             true => AUTO_DATA_SCALE * (squares / energy).sqrt(),
             false => 1.0,
@@ -376,7 +376,11 @@ impl RobustData {
             .map(|(s, (slab, d))| {
                 let areas = slab.geometry.triangles().iter().map(|t| t.area);
                 let e = self.epsilons[s];
-                slab.dt * areas.zip(d).map(|(a, &d)| a * charbonnier(e, d)).sum::<f64>()
+                slab.dt
+                    * areas
+                        .zip(d)
+                        .map(|(a, &d)| a * charbonnier(e, d))
+                        .sum::<f64>()
             })
             .sum()
     }

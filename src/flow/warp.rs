@@ -28,9 +28,9 @@
 //! `γ` doubles per level coarser (a blurred image has weaker gradients, and the coarse flow
 //! should be smooth). All slabs are warped and solved together at every step.
 
+use super::median::star_median;
 use super::outer::{OuterStart, RunClock, SlabSolver};
 use super::problem::FlowResult;
-use super::median::star_median;
 use super::pyramid::scale_pyramid;
 use super::slab::{Slab, SlabChannel};
 use super::solve::FactorReuse;
@@ -130,14 +130,10 @@ fn warped_slabs(
         .into_par_iter()
         .map(|s| {
             let frames = (images.frame(s), images.frame(s + 1));
-            let mut slab = Slab::with_channels(sequence, s, Vec::new(), None)?;
-            let u = match median {
+            warped_slab_around(sequence, s, frames, channel_weights, |slab| match median {
                 true => star_median(sequence.mesh(), &slab.geometry, &slab.connection, &flow[s]),
                 false => flow[s].clone(),
-            };
-            slab.channels = warped_channels(sequence.mesh(), &slab, frames, &u, channel_weights);
-            slab.linearization = Some(u);
-            Ok(slab)
+            })
         })
         .collect()
 }
@@ -152,9 +148,22 @@ pub fn warped_slab(
     u: &[Vector2<f64>],
     channel_weights: &[f64],
 ) -> Result<Slab, FlowError> {
-    // The slab's own geometry and connection serve the traces; its channels come after.
-    let mut slab = Slab::with_channels(sequence, s, Vec::new(), Some(u.to_vec()))?;
-    slab.channels = warped_channels(sequence.mesh(), &slab, frames, u, channel_weights);
+    warped_slab_around(sequence, s, frames, channel_weights, |_| u.to_vec())
+}
+
+/// [`warped_slab`] linearized around `point(slab)`, a flow that may depend on the slab's own
+/// geometry and connection (built first: they also serve the traces).
+fn warped_slab_around(
+    sequence: &MeshSequence,
+    s: usize,
+    frames: (&[Vec<f64>], &[Vec<f64>]),
+    channel_weights: &[f64],
+    point: impl FnOnce(&Slab) -> Vec<Vector2<f64>>,
+) -> Result<Slab, FlowError> {
+    let mut slab = Slab::with_channels(sequence, s, Vec::new(), None)?;
+    let u = point(&slab);
+    slab.channels = warped_channels(sequence.mesh(), &slab, frames, &u, channel_weights);
+    slab.linearization = Some(u);
     Ok(slab)
 }
 

@@ -45,7 +45,6 @@ pub struct FactorReuse {
     pub keep: bool,
 }
 
-
 /// The factors a run's solves hand on: a pool of `f32` buffers and the last solve's
 /// preconditioner when it was kept.
 pub struct RunFactors {
