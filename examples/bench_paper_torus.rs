@@ -103,6 +103,12 @@ fn main() -> Result<(), meshflow::Error> {
             if check.warped { "warped" } else { "linear" }
         );
     }
+    for step in &result.timings.steps {
+        println!(
+            "  {:<17} {:8.2} s  ({} iterations)",
+            step.label, step.seconds, step.iterations
+        );
+    }
     println!("relative residual   {:.2e}", result.relative_residual);
     println!(
         "energy              {:.6e} (zero flow {:.6e})",

@@ -5,7 +5,7 @@
 use meshflow::accuracy::compare_result;
 use meshflow::connection::{vertex_frames_in_r3, Connection};
 use meshflow::flow::{
-    compute_flow, FlowError, FlowParams, MeshSequence, Regularizer, Scale, Warping,
+    compute_flow, FlowError, FlowParams, MeshSequence, Regularizer, Scale, SolverChoice, Warping,
 };
 use meshflow::geometry::IntrinsicGeometry;
 use meshflow::shapes::{grid, icosphere, Surface};
@@ -321,4 +321,40 @@ fn the_robust_data_term_is_quadratic_for_a_huge_scale_and_resists_a_flash() {
     assert!(robust < 0.7 * plain, "{robust} vs {plain}");
     assert!(auto < plain, "{auto} vs {plain}");
     assert!((2..crate_max()).contains(&reweightings));
+}
+
+/// With an iterative solver the reweightings stop early until the energy settles
+/// (`flow::robust`, "Inexact steps"), then one solves at the run's tolerance: the same
+/// minimizer as the direct solver's exact reweightings, to the stopping rule's accuracy.
+#[test]
+fn inexact_reweightings_reach_the_exact_reweightings_minimizer() {
+    let scene = rotating_sphere(3, 4, 1.0, 0.05).unwrap();
+    let params = |solver| FlowParams {
+        robust_data: Some(Scale::Auto),
+        robust_smoothness: Some(Scale::Auto),
+        solver,
+        tolerance: 1e-10,
+        ..FlowParams::paper(1.0, 0.0, 1e-3)
+    };
+    let exact = compute_flow(&scene.sequence, &params(SolverChoice::Direct)).unwrap();
+    let inexact = compute_flow(&scene.sequence, &params(SolverChoice::PcgSlabGaussSeidel)).unwrap();
+    let (a, b) = (exact.intrinsic.concat(), inexact.intrinsic.concat());
+    let size = a.iter().map(|u| u.norm()).fold(0.0, f64::max);
+    let difference = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| (x - y).norm())
+        .fold(0.0, f64::max);
+    println!(
+        "direct: {} reweightings, energy {:e}; PCG: {} reweightings, energy {:e}; flows differ by {:.1e} of the largest",
+        exact.reweightings, exact.energy, inexact.reweightings, inexact.energy, difference / size
+    );
+    assert!(
+        inexact.relative_residual < 1e-10,
+        "{}",
+        inexact.relative_residual
+    );
+    assert!((inexact.energy - exact.energy).abs() < 1e-4 * exact.energy);
+    assert!(difference < 1e-2 * size, "{difference:e} of {size:e}");
+    assert!(inexact.reweightings >= 2 && inexact.reweightings < crate_max());
 }

@@ -157,6 +157,7 @@ def compute_flow(
     flow_driven: str = "isotropic",
     robust_data: Union[float, str, None] = None,
     median_filter: bool = False,
+    local_integration: Optional[float] = None,
     channels: str = "auto",
     channel_weights: Optional[SequenceOf[float]] = None,
     boundary: str = "neumann",
@@ -227,6 +228,10 @@ def compute_flow(
     median_filter : bool
         With warping: linearize each warp around the flow's weighted median over each
         vertex's star (Sun, Roth & Black's median filtering between warps).
+    local_integration : float, optional
+        The combined local-global data term (Bruhn, Weickert & Schnörr): the motion tensor
+        averaged over a Gaussian of this standard deviation (a length on the surface), so that
+        the flow at a vertex explains its neighbourhood's brightness change.
     channels : {"auto", "rgb", "luma", "grey"}
         Which channels of a (K, V, C) ``intensity`` to use: all (``auto``), the three colour
         channels (``rgb``), their Rec. 709 luma, or their mean (``grey``).
@@ -291,6 +296,7 @@ def compute_flow(
         "flow_driven": str(flow_driven),
         "robust_data": _scale("robust_data", robust_data),
         "median_filter": bool(median_filter),
+        "local_integration": None if local_integration is None else float(local_integration),
         "channel_weights": _channel_weights(channel_weights),
         "boundary": str(boundary),
         "time_coupling": str(time_coupling),

@@ -24,19 +24,20 @@ def test_keywords_reach_the_solver_as_the_cli_flags_do(cli, sample, tmp_path):
              "--time-coupling", "consistent", "--solver", "pcg-slab-gauss-seidel",
              "--tolerance", "1e-10", "--levels", "2", "--warps", "1",
              "--regularizer", "strain", "--dirichlet-mix", "0.25", "--robust-smoothness", "0.05",
-             "--robust-data", "0.5", "--median-filter"]
+             "--robust-data", "0.5", "--median-filter", "--local-integration", "0.2"]
     run(cli, "solve", SAMPLE, "--out", tmp_path / "cli", "--format", "npy", *flags)
     flow = sample.compute_flow(gamma=1e-3, time_scale=2, boundary="dirichlet",
                                time_coupling="consistent", solver="pcg-slab-gauss-seidel",
                                tolerance=1e-10, levels=2, warps=1,
                                regularizer="strain", dirichlet_mix=0.25, robust_smoothness=0.05,
-                               robust_data=0.5, median_filter=True)
+                               robust_data=0.5, median_filter=True, local_integration=0.2)
     assert np.array_equal(flow.vectors, np.load(tmp_path / "cli" / "flow.npy"))
     assert flow.warped_residual is not None and flow.warped_residual.shape == (5, 642)
     summary = json.loads(flow.summary_json())
     assert summary["params"]["regularizer"] == {"kind": "strain", "dirichlet": 0.25}
     assert summary["params"]["robust_smoothness"] == 0.05
     assert summary["params"]["robust_data"] == 0.5 and summary["params"]["median_filter"]
+    assert summary["params"]["local_integration"] == 0.2
     assert flow.reweightings >= 1 and summary["reweightings"] == flow.reweightings
 
 

@@ -45,6 +45,7 @@ pub mod advect;
 pub mod anisotropy;
 mod energy;
 mod error;
+pub mod local;
 pub mod median;
 pub mod motion;
 mod options;

@@ -31,6 +31,7 @@ pub struct FlowOptions {
     pub flow_driven: FlowDriven,
     pub robust_data: Option<Scale>,
     pub median_filter: bool,
+    pub local_integration: Option<f64>,
     /// `false`: `--no-large-motion`.
     pub detect_large_motion: bool,
     pub channel_weights: Option<Vec<f64>>,
@@ -62,6 +63,7 @@ impl Default for FlowOptions {
             flow_driven: defaults.flow_driven,
             robust_data: defaults.robust_data,
             median_filter: defaults.median_filter,
+            local_integration: defaults.local_integration,
             detect_large_motion: defaults.detect_large_motion,
             channel_weights: defaults.channel_weights,
             boundary: defaults.boundary,
@@ -102,6 +104,7 @@ impl FlowOptions {
             flow_driven: self.flow_driven,
             robust_data: self.robust_data,
             median_filter: self.median_filter,
+            local_integration: self.local_integration,
             detect_large_motion: self.detect_large_motion,
             channel_weights: self.channel_weights.clone(),
             boundary: self.boundary,

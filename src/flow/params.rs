@@ -209,6 +209,10 @@ pub struct FlowParams {
     /// linearized around by its weighted median over each vertex's star
     /// ([`super::median`]; Sun, Roth & Black 2010). Only with warping.
     pub median_filter: bool,
+    /// `Some(ρ)`: the combined local-global data term ([`super::local`]; Bruhn, Weickert &
+    /// Schnörr 2005), the motion tensor averaged over a Gaussian of standard deviation `ρ` (a
+    /// length) on the surface, lumped; `None`: the paper's data term.
+    pub local_integration: Option<f64>,
     /// When [`Self::warping`] is [`Warping::NONE`]: after the first linear solve, measure how
     /// far the linear model is from the images warped by its flow ([`super::motion`]) and, if
     /// the motion is too large for it, solve again coarse to fine with
@@ -311,6 +315,7 @@ impl Default for FlowParams {
             flow_driven: FlowDriven::Isotropic,
             robust_data: None,
             median_filter: false,
+            local_integration: None,
             detect_large_motion: true,
             channel_weights: None,
             boundary: Boundary::Neumann,
@@ -396,6 +401,14 @@ impl FlowParams {
                 epsilon,
                 epsilon > 0.0 && epsilon.is_finite(),
                 "a positive number (the residual ∂_t I + dI(u) where the penalty turns from quadratic to linear), or auto",
+            )?;
+        }
+        if let Some(rho) = self.local_integration {
+            check(
+                "local_integration",
+                rho,
+                rho >= 0.0 && rho.is_finite(),
+                "a length ≥ 0 (the standard deviation of the motion tensor's average)",
             )?;
         }
         if self.flow_driven == FlowDriven::Anisotropic {

@@ -16,6 +16,14 @@
 //! flow, and the robust energy never increases (majorize–minimize). It stops when the energy
 //! changes by less than [`ENERGY_CHANGE`] relative, or after [`MAX_REWEIGHTINGS`].
 //!
+//! **Inexact steps.** With an iterative solver the reweighted solves stop at the relative
+//! residual [`REWEIGHT_TOLERANCE`] until the energy has settled, and one more reweighting then
+//! solves at the run's tolerance, so the result is as accurate as a quadratic solve's. Each
+//! step is still a descent step: PCG started from the last flow never raises the quadratic
+//! model's energy above its value there, which is the robust energy's. On the paper's torus
+//! this took the robust data term (`--robust-data auto`) from 153 PCG iterations and 41 s to
+//! 75 iterations and 33 s on 2 cores (the quadratic solve: 6 iterations, 5 s).
+//!
 //! With coarse-to-fine warping, every warp reweights from its own linear solve (the prototype
 //! found the per-level γ schedule necessary for stability at large motions).
 //!
@@ -76,6 +84,9 @@ use nalgebra::{Matrix2, SymmetricEigen, Vector2, Vector6};
 pub const ENERGY_CHANGE: f64 = 1e-4;
 /// Reweighted solves at most.
 pub const MAX_REWEIGHTINGS: usize = 30;
+/// The iterative solvers' relative residual in the reweighted solves before the energy has
+/// settled (module docs); the last one runs at the run's tolerance.
+pub const REWEIGHT_TOLERANCE: f64 = 1e-4;
 
 /// How the robust penalty sees the gradient of the flow (module docs): `ψ` of its size
 /// (isotropic, one weight per face) or of each principal direction (anisotropic, a tensor per
@@ -152,17 +163,25 @@ pub(super) fn reweighted(
     let mut arguments = penalties.arguments(mesh, &slabs[own.clone()], &result);
     penalties.set_scales(&slabs[own.clone()], &arguments);
     let mut energy = penalties.robust_energy(solver, &slabs[own.clone()], &arguments, &mut result);
+    // Inexact until the energy settles, then one reweighting at the run's tolerance.
+    let inexact = result.method.is_iterative() && params.tolerance < REWEIGHT_TOLERANCE;
+    let loose = FlowParams {
+        tolerance: REWEIGHT_TOLERANCE,
+        ..params.clone()
+    };
+    let mut settled = !inexact;
     let mut reweightings = 0;
     while reweightings < MAX_REWEIGHTINGS {
         penalties.reweight(&mut slabs[own.clone()], &arguments);
         clock.begin_step();
+        let last = (settled && inexact) || reweightings + 1 == MAX_REWEIGHTINGS;
         result = solver.solve(
-            &params,
+            if settled { &params } else { &loose },
             slabs.clone(),
             Some(&result),
             FactorReuse {
                 take: true,
-                keep: reweightings + 1 < MAX_REWEIGHTINGS,
+                keep: !last,
             },
             observer,
         )?;
@@ -172,9 +191,10 @@ pub(super) fn reweighted(
         let next = penalties.robust_energy(solver, &slabs[own.clone()], &arguments, &mut result);
         let change = (energy - next).abs() / next.abs().max(f64::MIN_POSITIVE);
         energy = next;
-        if change <= ENERGY_CHANGE {
+        if last || (settled && change <= ENERGY_CHANGE) {
             break;
         }
+        settled |= change <= ENERGY_CHANGE;
     }
     result.reweightings = reweightings;
     if own.len() == slabs.len() {

@@ -2,6 +2,7 @@
 //! (`docs/discretization.md` §3).
 
 use super::anisotropy::{time_entries, SpaceTimeStructure};
+use super::local::{local_motion_tensors, lumped_data_element, MotionTensor};
 use super::{FlowError, FlowParams, MeshSequence, Regularizer, TimeCoupling, Weights};
 use crate::connection::{polar_rotations, vertex_frames_in_r3, Connection};
 use crate::fem::element::{self, DataElement};
@@ -67,6 +68,9 @@ pub struct Slab {
     /// Per face, the presmoothed image's space-time gradient, for the anisotropic coupling in
     /// time ([`crate::flow::anisotropy`], "In time"); `None`: the paper's coupling.
     pub space_time: Option<Vec<SpaceTimeStructure>>,
+    /// Per vertex, the averaged motion tensor of the combined local-global data term
+    /// ([`crate::flow::local`]); `None`: the paper's data term.
+    pub local_motion: Option<Vec<MotionTensor>>,
 }
 
 /// The element matrices of one face of one slab, before weighting by `Δt`, `β`, `γ`
@@ -114,6 +118,7 @@ impl Slab {
             diffusion_tensors: None,
             contrast: None,
             space_time: None,
+            local_motion: None,
         })
     }
 
@@ -125,9 +130,13 @@ impl Slab {
     }
 
     /// The data element of face `f`: `Σ_c w_c` times channel `c`'s [`element::data_element`],
-    /// each rate shifted by the linearization (if any); without the robust weight.
+    /// each rate shifted by the linearization (if any); the lumped element of the averaged
+    /// motion tensors with the combined local-global term; without the robust weight.
     pub(super) fn data_element(&self, face: &[u32; 3], f: usize) -> DataElement {
         let triangle = self.geometry.triangle(f);
+        if let Some(tensors) = &self.local_motion {
+            return lumped_data_element(face, triangle.area, tensors);
+        }
         let rotations = &self.connection.face_rotations(f);
         let at = |values: &[f64]| face.map(|v| values[v as usize]);
         let mut sum = DataElement::zero();
@@ -210,6 +219,9 @@ impl Slab {
     ) -> Result<(), FlowError> {
         if params.regularizer.needs_embedding() {
             self.embed(sequence, s)?;
+        }
+        if let (Some(rho), None) = (params.local_integration, &self.local_motion) {
+            self.local_motion = Some(local_motion_tensors(sequence.mesh(), self, rho)?);
         }
         if let (Some(anisotropy), None) = (&params.anisotropy, &self.diffusion_tensors) {
             let tensors = anisotropy.face_tensors(sequence, self)?;

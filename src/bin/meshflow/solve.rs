@@ -690,6 +690,12 @@ pub(crate) struct SolveArgs {
     /// over each vertex's star (Sun, Roth & Black's median filtering between warps)
     #[arg(long)]
     pub(crate) median_filter: bool,
+    /// Combined local-global data term (Bruhn, Weickert & Schnörr): the flow at a vertex
+    /// explains the brightness change of its neighbourhood, the motion tensor averaged over a
+    /// Gaussian of standard deviation RHO (a length on the surface), so that sparse bright
+    /// cells inform their dark surroundings
+    #[arg(long, value_name = "RHO")]
+    pub(crate) local_integration: Option<f64>,
     /// With --robust-smoothness: isotropic (the penalty of |∇u|, one weight per face) or
     /// anisotropic (of each principal direction of ∇u: the flow may jump across a boundary
     /// and stay smooth along it; with --anisotropic, along the image's edges)
@@ -829,6 +835,7 @@ impl SolveArgs {
             flow_driven: self.flow_driven,
             robust_data: self.robust_data,
             median_filter: self.median_filter,
+            local_integration: self.local_integration,
             detect_large_motion: !self.no_large_motion,
             channel_weights: self.channel_weights.clone(),
             boundary: self.boundary,

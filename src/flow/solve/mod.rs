@@ -311,6 +311,14 @@ pub enum SolverMethod {
     PcgJacobi,
 }
 
+impl SolverMethod {
+    /// Whether it iterates to a tolerance (the preconditioned conjugate gradients) rather than
+    /// factoring the system.
+    pub fn is_iterative(&self) -> bool {
+        !matches!(self, SolverMethod::Direct | SolverMethod::SlabwiseDirect)
+    }
+}
+
 impl std::fmt::Display for SolverMethod {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
