@@ -18,7 +18,9 @@
 //! image-driven anisotropic, flow-driven isotropic and anisotropic, image- and flow-driven; the
 //! image-driven ones also with the space-time tensor's weight in time), each with its `auto`
 //! scales, and the robust data term (`--robust-data auto`) alone, with robust smoothness, and
-//! with both and warping; then (with `SWEEP=1`) `λ` and `ε` swept. It draws the boundary
+//! with both and warping, and the combined local-global data term (`--local-integration`,
+//! two mean edge lengths) alone and with the robust data term; then (with `SWEEP=1`) `λ` and
+//! `ε` swept. It draws the boundary
 //! scene's flow under the defaults and under `--anisotropic auto --robust-smoothness auto`
 //! (arrows on the image, and the endpoint error over the cap's speed) into
 //! `out/motion_boundaries/`.
@@ -169,6 +171,27 @@ fn models(sequence: &MeshSequence) -> Vec<(String, FlowParams)> {
             },
         ),
     ];
+    // The combined local-global data term over two mean edge lengths.
+    let rho = 2.0
+        * meshflow::geometry::mean_edge_length_at(
+            sequence.mesh(),
+            sequence.positions(0).expect("embedded"),
+        );
+    models.push((
+        "CLG: --local-integration 2h̄".into(),
+        FlowParams {
+            local_integration: Some(rho),
+            ..FlowParams::default()
+        },
+    ));
+    models.push((
+        "CLG + robust data".into(),
+        FlowParams {
+            local_integration: Some(rho),
+            robust_data: auto,
+            ..FlowParams::default()
+        },
+    ));
     if std::env::var_os("SWEEP").is_none() {
         return models;
     }

@@ -223,8 +223,9 @@ def compute_flow(
     robust_data : float or "auto", optional
         ``ε``: the Charbonnier data term ``2ε(√(d + ε²) − ε)`` of each face's mean squared
         residual ``d`` (linear growth beyond ``ε``: the smooth TV-L1, for images that break
-        brightness constancy here and there), by reweighted solves; ``"auto"``: per slab, a
-        tenth of the residual's size where its energy is, after a first quadratic solve.
+        brightness constancy here and there), by reweighted solves; ``"auto"``: the residual
+        that a flow wrong by a tenth of an edge length per frame leaves at the image's typical
+        gradient.
     median_filter : bool
         With warping: linearize each warp around the flow's weighted median over each
         vertex's star (Sun, Roth & Black's median filtering between warps).

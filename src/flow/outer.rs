@@ -10,6 +10,7 @@
 
 use super::motion::{check_linearization, MotionCheck};
 use super::problem::{FlowProblem, FlowResult, SolveStep, Timings};
+use super::robust::FirstSolve::Given;
 use super::solve::{FactorReuse, InRun, RunFactors};
 use super::{robust, warp, DataScales, FlowError, FlowParams, MeshSequence};
 use super::{Slab, SolveEvent, SolveObserver, Warping, Weights};
@@ -109,7 +110,8 @@ pub(super) fn after_first_solve<'a>(
             ..*start
         };
         let mut result = warp::coarse_to_fine(solver, &warping, observer)?;
-        result.timings.lead_with("linear solve, checked", &first);
+        let iterations = first.iterations_in_all();
+        (result.timings).lead_with("linear solve, checked", &first.timings, iterations);
         result.motion_check = Some(MotionCheck {
             warped: true,
             ..check
@@ -117,7 +119,13 @@ pub(super) fn after_first_solve<'a>(
         return Ok(result);
     }
     let mut result = match start.params.is_robust() {
-        true => robust::reweighted(solver, start, robust_slabs(), Some(&first), observer)?,
+        true => robust::reweighted(
+            solver,
+            start,
+            robust_slabs(),
+            Given(Box::new(first)),
+            observer,
+        )?,
         false => first,
     };
     result.motion_check = Some(check);
@@ -130,7 +138,7 @@ pub(super) fn after_first_solve<'a>(
 /// that each fault on first touch), and the factors a warp keeps for the next.
 pub(super) struct WholeSequence<'a> {
     sequence: &'a MeshSequence,
-    factors: RunFactors,
+    pub factors: RunFactors,
 }
 
 impl<'a> WholeSequence<'a> {

@@ -201,9 +201,9 @@ pub struct FlowParams {
     /// `Some(ε)`: the robust (Charbonnier) data term `2ε(√(d(u) + ε²) − ε)` of the face's mean
     /// squared residual `d = ⨍ (∂_t I + dI(u))²` in place of `d`, by reweighted solves
     /// ([`super::robust`], "The data term"); `ε` in the residual's units (grey value per
-    /// time), or `auto`: per slab, [`super::robust::AUTO_DATA_SCALE`] times the size of the
-    /// first (quadratic) solve's residual where its energy is. `None`: the paper's quadratic
-    /// data term.
+    /// time), or `auto`: [`super::robust::AUTO_DATA_SCALE`] `· S h̄ / Δt̄`, the residual a
+    /// flow wrong by a tenth of an edge length per frame leaves at the image's gradient scale
+    /// `S`. `None`: the paper's quadratic data term.
     pub robust_data: Option<Scale>,
     /// Between the warps of coarse-to-fine warping, replace the flow the next warp is
     /// linearized around by its weighted median over each vertex's star

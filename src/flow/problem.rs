@@ -4,7 +4,8 @@
 //! [`FlowResult`] with the fields, the energy, the solver's figures and [`Timings`].
 
 use super::outer::{self, OuterStart, WholeSequence};
-use super::solve::InRun;
+use super::robust::FirstSolve::Given;
+use super::solve::{FactorReuse, InRun};
 use super::{energy, robust, slab, solve, uniqueness, warp};
 use super::{DataScales, EnergyTerms, FlowError, FlowParams, MeshSequence, Slab};
 use super::{MotionCheck, SolveObserver, SolverMethod, SpaceTimeSystem, Weights};
@@ -102,15 +103,14 @@ pub struct FlowResult {
 impl Timings {
     /// These timings of a run, led by the solve `first` before it (labelled `label`): its
     /// phases added, its own time a first step.
-    pub(super) fn lead_with(&mut self, label: &str, first: &FlowResult) {
-        let part = &first.timings;
+    pub(super) fn lead_with(&mut self, label: &str, part: &Timings, iterations: usize) {
         self.factorization += part.factorization;
         self.solve += part.solve;
         self.total += part.total - part.assembly;
         let step = SolveStep {
             label: label.to_string(),
             seconds: part.total - part.assembly,
-            iterations: first.iterations_in_all(),
+            iterations,
         };
         self.steps.insert(0, step);
     }
@@ -391,11 +391,30 @@ impl<'a> FlowProblem<'a> {
             return warp::coarse_to_fine(&whole, &outer, observer);
         }
         let robust_slabs = || self.slabs().into_owned();
+        // The robust reweightings precondition with the first solve's factors.
+        let keep = InRun {
+            factors: &whole.factors,
+            reuse: FactorReuse {
+                take: false,
+                keep: true,
+            },
+        };
+        let run = match self.params.is_robust() {
+            true => run.or(Some(keep)),
+            false => run,
+        };
         if !outer::checks_motion(&self.params) {
-            if self.params.is_robust() {
-                return robust::reweighted(&whole, &outer, robust_slabs(), previous, observer);
-            }
-            return self.linear_solve(previous, run, observer);
+            let first = self.linear_solve(previous, run, observer)?;
+            return match self.params.is_robust() {
+                true => robust::reweighted(
+                    &whole,
+                    &outer,
+                    robust_slabs(),
+                    Given(Box::new(first)),
+                    observer,
+                ),
+                false => Ok(first),
+            };
         }
         let first = self.linear_solve(previous, run, observer)?;
         let slab = |s| self.slab(s);

@@ -24,7 +24,7 @@ use super::outer::{after_first_solve, checks_motion, OuterStart, SlabSolver};
 use super::problem::{
     energy_and_vectors, intrinsic_fields, kept_slab_bytes, FlowResult, Timings, KEEP_SLABS_BYTES,
 };
-use super::robust::reweighted;
+use super::robust::{reweighted, FirstSolve::From};
 use super::slab::{build_slabs, complete_slabs, time_links, Slab};
 use super::solve::{FactorReuse, InRun, RunFactors};
 use super::system::SystemWindow;
@@ -282,7 +282,7 @@ pub fn flow_of_own_slabs(
     }
     if !checks_motion(params) {
         if params.is_robust() {
-            return reweighted(&solver, &outer, slabs.slabs, None, observer);
+            return reweighted(&solver, &outer, slabs.slabs, From(None), observer);
         }
         return solver.solve_window_slabs(&mut slabs, params, (None, None), observer, start);
     }
@@ -331,7 +331,7 @@ impl SlabSolver for RankWindow<'_> {
                 scales: self.scales,
                 assembly_seconds: 0.0,
             };
-            return reweighted(self, &outer, slabs, previous, observer);
+            return reweighted(self, &outer, slabs, From(previous), observer);
         }
         let offset = self.window.frames().start;
         let mut slabs =

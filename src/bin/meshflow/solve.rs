@@ -682,8 +682,8 @@ pub(crate) struct SolveArgs {
     /// Robust (Charbonnier) data term, the smooth TV-L1: each face's residual ∂_t I + dI(u)
     /// costs 2·EPS·|residual| beyond EPS instead of its square, so that where the image breaks
     /// brightness constancy (cells appearing, occlusions, noise) it pulls less (EPS in grey value
-    /// per time, or auto: per slab a tenth of the residual's size where its energy is, after a
-    /// first quadratic solve; reweighted solves until the energy settles)
+    /// per time, or auto: the residual that a flow wrong by a tenth of an edge length per frame
+    /// leaves at the image's typical gradient; reweighted solves until the energy settles)
     #[arg(long, value_name = "EPS|auto", allow_negative_numbers = true)]
     pub(crate) robust_data: Option<meshflow::flow::Scale>,
     /// With warping: replace the flow each warp is linearized around by its weighted median
