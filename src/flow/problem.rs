@@ -4,7 +4,7 @@
 //! [`FlowResult`] with the fields, the energy, the solver's figures and [`Timings`].
 
 use super::outer::{self, OuterStart, WholeSequence};
-use super::robust::FirstSolve::Given;
+use super::robust::FirstSolve::{From, Given};
 use super::solve::{FactorReuse, InRun};
 use super::{energy, robust, slab, solve, uniqueness, warp};
 use super::{DataScales, EnergyTerms, FlowError, FlowParams, MeshSequence, Slab};
@@ -399,13 +399,15 @@ impl<'a> FlowProblem<'a> {
                 keep: true,
             },
         };
-        let run = match self.params.is_robust() {
-            true => run.or(Some(keep)),
-            false => run,
-        };
+        let robust = self.params.is_robust();
+        if robust && run.is_some() {
+            // A step of an outer run (a warp): reweighted from its own first solve, as on ranks.
+            return robust::reweighted(&whole, &outer, robust_slabs(), From(previous), observer);
+        }
+        let run = if robust { Some(keep) } else { run };
         if !outer::checks_motion(&self.params) {
             let first = self.linear_solve(previous, run, observer)?;
-            return match self.params.is_robust() {
+            return match robust {
                 true => robust::reweighted(
                     &whole,
                     &outer,
