@@ -25,7 +25,8 @@
 //! iterations and 41 s to 75 iterations and 33 s on 2 cores (the quadratic solve: 6
 //! iterations, 5 s). The first, quadratic solve is the one the problem or the check of large
 //! motions made already ([`FirstSolve::Given`]), with its slab factors kept for the
-//! reweightings.
+//! reweightings; within a warp of coarse-to-fine warping the reweightings make their own, as
+//! every rank of a distributed solve does, so that both give the same flow.
 //!
 //! With coarse-to-fine warping, every warp reweights from its own linear solve (the prototype
 //! found the per-level γ schedule necessary for stability at large motions).
