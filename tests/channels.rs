@@ -4,6 +4,7 @@
 mod common;
 
 use meshflow::accuracy::compare_result;
+use meshflow::fem::vertex_areas;
 use meshflow::flow::{
     compute_flow, FlowError, FlowParams, FlowProblem, FlowResult, Images, MeshSequence, Warping,
 };
@@ -411,7 +412,7 @@ fn local_integration_spreads_a_flash_to_its_gaussian_width() {
     let problem = FlowProblem::new(&sequence, &params).unwrap();
     let slab = &problem.slabs()[0];
     let tensors = slab.local_motion.as_ref().unwrap();
-    let masses = lumped_masses(&sequence, slab);
+    let masses = vertex_areas(sequence.mesh(), &slab.geometry);
     let total: f64 = tensors.iter().zip(&masses).map(|(j, m)| m * j.time).sum();
     assert!(
         (total - masses[centre]).abs() < 1e-12,
@@ -430,14 +431,4 @@ fn local_integration_spreads_a_flash_to_its_gaussian_width() {
         "second moment {moment} against 2ρ² = {}",
         2.0 * rho * rho
     );
-}
-
-fn lumped_masses(sequence: &MeshSequence, slab: &meshflow::flow::Slab) -> Vec<f64> {
-    let mut masses = vec![0.0; sequence.mesh().n_vertices()];
-    for (f, face) in sequence.mesh().faces().iter().enumerate() {
-        for &v in face {
-            masses[v as usize] += slab.geometry.triangle(f).area / 3.0;
-        }
-    }
-    masses
 }

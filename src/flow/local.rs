@@ -42,6 +42,7 @@ use super::params::check;
 use super::slab::Slab;
 use super::FlowError;
 use crate::fem::element::{face_gradient, DataElement};
+use crate::fem::vertex_areas;
 use crate::mesh::Mesh;
 use nalgebra::{Matrix2, Vector2};
 use rayon::prelude::*;
@@ -105,7 +106,7 @@ pub fn local_motion_tensors(
         steps <= MAX_STEPS,
         "at most about 18 mean edge lengths of the surface (a wider average: a coarser mesh)",
     )?;
-    let masses = lumped_masses(mesh, slab);
+    let masses = vertex_areas(mesh, &slab.geometry);
     let mut tensors = vertex_tensors(mesh, slab, &masses);
     for _ in 0..steps {
         tensors = averaged(mesh, slab, &masses, &tensors);
@@ -132,16 +133,6 @@ pub fn lumped_data_element(face: &[u32; 3], area: f64, tensors: &[MotionTensor])
     element
 }
 
-fn lumped_masses(mesh: &Mesh, slab: &Slab) -> Vec<f64> {
-    let mut masses = vec![0.0; mesh.n_vertices()];
-    for (f, face) in mesh.faces().iter().enumerate() {
-        for &v in face {
-            masses[v as usize] += slab.geometry.triangle(f).area / 3.0;
-        }
-    }
-    masses
-}
-
 /// `j_a` of the module docs: each face's corner tensors, area-weighted over the star.
 fn vertex_tensors(mesh: &Mesh, slab: &Slab, masses: &[f64]) -> Vec<MotionTensor> {
     let mut tensors = vec![MotionTensor::default(); mesh.n_vertices()];
@@ -150,19 +141,15 @@ fn vertex_tensors(mesh: &Mesh, slab: &Slab, masses: &[f64]) -> Vec<MotionTensor>
         let rotations = slab.connection.face_rotations(f);
         for channel in &slab.channels {
             let gradient = face_gradient(triangle, face.map(|v| channel.mid[v as usize]));
-            for (a, &v) in face.iter().enumerate() {
-                let v = v as usize;
-                let g = rotations[a].transpose() * gradient;
-                let mut rate = channel.rate[v];
-                if let Some(u) = &slab.linearization {
-                    rate -= g.dot(&u[v]);
-                }
+            let rates = slab.linearized_rates(channel, face, f, &rotations);
+            for ((&v, rotation), rate) in face.iter().zip(&rotations).zip(rates) {
+                let g = rotation.transpose() * gradient;
                 let corner = MotionTensor {
                     space: g * g.transpose(),
                     mixed: g * rate,
                     time: rate * rate,
                 };
-                tensors[v].add(&corner.scaled(channel.weight * triangle.area / 3.0));
+                tensors[v as usize].add(&corner.scaled(channel.weight * triangle.area / 3.0));
             }
         }
     }

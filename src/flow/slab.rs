@@ -138,23 +138,37 @@ impl Slab {
             return lumped_data_element(face, triangle.area, tensors);
         }
         let rotations = &self.connection.face_rotations(f);
-        let at = |values: &[f64]| face.map(|v| values[v as usize]);
         let mut sum = DataElement::zero();
         for channel in &self.channels {
-            let intensity = at(&channel.mid);
-            let mut rate = at(&channel.rate);
-            if let Some(u) = &self.linearization {
-                let gradient = element::face_gradient(triangle, intensity);
-                for (a, &v) in face.iter().enumerate() {
-                    rate[a] -= gradient.dot(&(rotations[a] * u[v as usize]));
-                }
-            }
+            let intensity = face.map(|v| channel.mid[v as usize]);
+            let rate = self.linearized_rates(channel, face, f, rotations);
             sum.add_scaled(
                 &element::data_element(triangle, rotations, intensity, rate),
                 channel.weight,
             );
         }
         sum
+    }
+
+    /// `channel`'s rates at the corners of face `f`, linearized around the slab's flow `ū`
+    /// (if any): `τ_a − G·R_a ū_a`, `G` the face gradient of the channel's mid image and `R_a`
+    /// the face's `rotations`.
+    pub(super) fn linearized_rates(
+        &self,
+        channel: &SlabChannel,
+        face: &[u32; 3],
+        f: usize,
+        rotations: &[Matrix2<f64>; 3],
+    ) -> [f64; 3] {
+        let mut rate = face.map(|v| channel.rate[v as usize]);
+        if let Some(u) = &self.linearization {
+            let intensity = face.map(|v| channel.mid[v as usize]);
+            let gradient = element::face_gradient(self.geometry.triangle(f), intensity);
+            for (a, &v) in face.iter().enumerate() {
+                rate[a] -= gradient.dot(&(rotations[a] * u[v as usize]));
+            }
+        }
+        rate
     }
 
     /// Data and regularizer (`regularizer`'s element: the connection stiffness for the paper's
