@@ -131,6 +131,8 @@ pub enum Error {
     Surface(#[from] surface::SurfaceError),
     #[error(transparent)]
     Isosurface(#[from] surface::IsosurfaceError),
+    #[error(transparent)]
+    Closed(#[from] surface::ClosedError),
     /// An error in the contents of a file, with the file's name.
     #[error("{}: {source}", path.display())]
     InFile { path: PathBuf, source: Box<Error> },

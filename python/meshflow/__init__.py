@@ -55,6 +55,7 @@ __all__ = [
     "advect",
     "analyze",
     "compute_flow",
+    "closed_surface_sequence",
     "find_surface",
     "fit_surface",
     "load_mesh_sequence",
@@ -579,16 +580,31 @@ def write_outputs(
     *,
     formats: SequenceOf[str] = ("npy", "vtu", "glb"),
     force: bool = False,
+    recording: Optional[Dict[str, Any]] = None,
 ) -> None:
     """Writes ``flow`` as ``meshflow solve --out OUT`` does: flow.npy, flow_intrinsic.npy,
     flow_SSSS.vtu + flow.pvd (ParaView), flow.glb and summary.json, staged and renamed into
     place whole. A directory holding files meshflow did not write is refused unless
     ``force``; an earlier meshflow output there is replaced. The run also holds the sequence
     (positions.npy, faces.npy, intensity.npy, times.txt), so ``meshflow advect OUT`` and
-    ``meshflow render OUT`` work on it as on a run of the command line."""
+    ``meshflow render OUT`` work on it as on a run of the command line.
+
+    ``recording`` names the microscope recording the image was sampled from, as ``meshflow
+    sample`` names it in the sequence's manifest, so that viewers (``meshflow.napari``) show
+    the surface over it: a dict with ``path``, ``shape`` (its frames' (Z, Y, X)),
+    ``voxel_size`` and ``origin`` (x, y, z), ``channel`` (or None) and ``resolution_level``."""
     if isinstance(formats, str):
         formats = [formats]
-    flow.write(_path(out), [str(f) for f in formats], bool(force))
+    if recording is not None:
+        recording = {
+            "path": _path(recording["path"]),
+            "shape": [int(n) for n in recording["shape"]],
+            "voxel_size": list(_triple("voxel_size", recording["voxel_size"])),
+            "origin": list(_triple("origin", recording.get("origin", (0.0, 0.0, 0.0)))),
+            "channel": None if recording.get("channel") is None else int(recording["channel"]),
+            "resolution_level": int(recording.get("resolution_level", 0)),
+        }
+    flow.write(_path(out), [str(f) for f in formats], bool(force), recording)
 
 
 def track(
@@ -1003,6 +1019,75 @@ def find_surface(
         _optional_float("smoothing", smoothing),
         _count("genus", genus),
         _optional_float("closing", closing),
+    )
+
+
+def closed_surface_sequence(
+    path: Union[str, PathLike],
+    voxel_size: Optional[SequenceOf[float]] = None,
+    *,
+    origin: SequenceOf[float] = (0.0, 0.0, 0.0),
+    channel: Optional[int] = None,
+    resolution_level: int = 0,
+    level: Union[str, float] = "auto",
+    smoothing: Optional[float] = None,
+    genus: int = 0,
+    closing: Optional[float] = None,
+    vertices: Optional[int] = None,
+    times: Optional[SequenceOf[float]] = None,
+    relax_iterations: int = 20,
+    keep_going: bool = False,
+    progress: Optional[Progress] = None,
+) -> Sequence:
+    """The object's surface in every frame of the recording at ``path``, tracked into one
+    moving mesh: what ``meshflow surface PATH --shape closed`` writes, computed by the same
+    library function, frame by frame (one volume held at a time).
+
+    Each frame's surface is found as :func:`find_surface` finds it (``level``, ``smoothing``,
+    ``genus``, ``closing``; each frame's closing and smoothing start where earlier frames
+    needed them), and a reference of about ``vertices`` vertices (default 16,000, or fewer
+    where its edges would be shorter than the smoothing) follows them, rigidly aligned and
+    relaxed (``relax_iterations``; 0: none). A tracked mesh that folds at more than 0.1 % of
+    its edges in a frame is a ``ValueError`` unless ``keep_going``. ``progress`` is called with
+    ``{"kind": "surface", "frame": k, "frames": K}`` as each frame's surface is found.
+
+    Returns a :class:`Sequence` without an image (``intensity`` None; :func:`sample_volume`
+    gives it), with ``report`` (``surface.json``'s) and the voxel size used in
+    ``report["voxel_size"]``.
+    """
+    if isinstance(level, str):
+        text = level
+    elif isinstance(level, (int, float)) and not isinstance(level, bool):
+        text = repr(float(level))
+    else:
+        raise ValueError(f"level must be \"auto\" or a number, got {level!r}")
+    found = _meshflow.closed_surface_sequence(
+        _path(path),
+        None if voxel_size is None else _triple("voxel_size", voxel_size),
+        _triple("origin", origin),
+        None if channel is None else _count("channel", channel),
+        _level("resolution_level", resolution_level),
+        text,
+        _optional_float("smoothing", smoothing),
+        _count("genus", genus),
+        _optional_float("closing", closing),
+        None if vertices is None else _count("vertices", vertices),
+        None if times is None else [float(t) for t in times],
+        _count("relax_iterations", relax_iterations),
+        bool(keep_going),
+        progress,
+    )
+    report = json.loads(found["report"])
+    report["voxel_size"] = found["voxel_size"]
+    return Sequence(
+        found["positions"],
+        found["faces"],
+        None,
+        found["times"],
+        None,
+        report.get("warnings", []),
+        str(path),
+        report,
     )
 
 

@@ -72,7 +72,13 @@ class Flow:
         """``alpha``, ``beta``, ``gamma`` as used, in the data's units."""
     def summary_json(self) -> str:
         """The CLI's summary.json as a string."""
-    def write(self, out: Union[str, PathLike[str]], formats: List[str], force: bool) -> None: ...
+    def write(
+        self,
+        out: Union[str, PathLike[str]],
+        formats: List[str],
+        force: bool,
+        recording: Optional[Dict[str, Any]] = None,
+    ) -> None: ...
     def score_tracks(self, tracks: npt.NDArray[np.float64]) -> Tuple[str, Dict[str, Any]]:
         """Summary JSON and per-point arrays of the flow scored at tracks (K, N, 3)."""
     def analysis(self) -> Dict[str, Any]:
@@ -176,7 +182,7 @@ def sample_volume_file(
     allow_outside: bool,
 ) -> Dict[str, Any]:
     """As ``sample_volume``, the volumes read one frame at a time from ``path``; adds
-    ``voxel_size`` and ``voxel_size_source``."""
+    ``voxel_size``, ``voxel_size_source``, ``shape`` (z, y, x) and ``origin``."""
 def read_volumes(
     path: str,
     voxel_size: Optional[Tuple[float, float, float]],
@@ -194,3 +200,33 @@ def find_surface(
     smoothing: Optional[float],
 ) -> Dict[str, Any]:
     """``positions`` (V, 3), ``faces`` (F, 3), the report's numbers and ``warnings``."""
+def closed_surface_sequence(
+    path: str,
+    voxel_size: Optional[Tuple[float, float, float]],
+    origin: Tuple[float, float, float],
+    channel: Optional[int],
+    resolution_level: int,
+    level: str,
+    smoothing: Optional[float],
+    genus: int,
+    closing: Optional[float],
+    vertices: Optional[int],
+    times: Optional[List[float]],
+    relax_iterations: int,
+    keep_going: bool,
+    progress: Optional[Any],
+) -> Dict[str, Any]:
+    """``positions`` (K, V, 3), ``faces`` (F, 3), ``times``, ``voxel_size``, ``report`` (JSON)."""
+def read_run(run: str, arrays: List[str], documents: List[str]) -> Dict[str, Any]:
+    """``command``, ``files``, ``surface`` (``positions``, ``faces``, ``intensity``, ``times``,
+    ``vertex_map``), ``arrays``, ``documents`` and ``recording`` (or None) of a run."""
+def write_sequence(
+    out: str,
+    positions: npt.NDArray[np.float64],
+    faces: npt.NDArray[np.int64],
+    values: Optional[npt.NDArray[np.float64]],
+    times: List[float],
+    vectors: Optional[npt.NDArray[np.float64]],
+    force: bool,
+) -> None:
+    """An NPY sequence with surface_KKKK.vtu and surface.pvd, staged into ``out``."""

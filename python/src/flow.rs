@@ -495,13 +495,17 @@ impl Flow {
     }
 
     /// Writes the CLI's outputs (`formats` of npy, vtu, glb; summary.json always) into `out`,
-    /// staged and renamed into place whole.
+    /// staged and renamed into place whole; with `recording` (the recording the image was
+    /// sampled from: `path`, `shape` (z, y, x), `voxel_size`, `origin` (x, y, z), `channel`,
+    /// `resolution_level`) named in its manifest, as `meshflow sample` names it.
+    #[pyo3(signature = (out, formats, force, recording=None))]
     fn write(
         &self,
         py: Python<'_>,
         out: PathBuf,
         formats: Vec<String>,
         force: bool,
+        recording: Option<RecordingArgs>,
     ) -> PyResult<()> {
         let formats = formats
             .iter()
@@ -517,6 +521,9 @@ impl Flow {
             staged.record_command(["python", "-c", "meshflow.write_outputs(...)"]);
             let load = LoadOptions::default();
             staged.record_solve(SolveRecord::new(None, load, &out));
+            if let Some(recording) = recording {
+                staged.record_recording(recording.record(&out));
+            }
             write_run_input(staged.path(), &self.loaded).map_err(|e| staged.in_target(e))?;
             let view = self.view();
             write_flow_outputs(
@@ -693,5 +700,31 @@ pub(crate) fn compute_flow(
             .take_failure()
             .unwrap_or_else(|| value_error("interrupted"))),
         Err(error) => Err(to_py_err(error)),
+    }
+}
+
+/// The recording a flow's image was sampled from, as `Flow.write` takes it.
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+pub(crate) struct RecordingArgs {
+    path: PathBuf,
+    shape: [usize; 3],
+    voxel_size: [f64; 3],
+    origin: [f64; 3],
+    channel: Option<usize>,
+    resolution_level: usize,
+}
+
+impl RecordingArgs {
+    /// The manifest's record for the output `out`.
+    fn record(self, out: &std::path::Path) -> meshflow::run::RecordingRecord {
+        meshflow::run::RecordingRecord {
+            path: meshflow::run::RecordingRecord::path_from(out, &self.path),
+            shape: self.shape,
+            voxel_size: self.voxel_size,
+            origin: self.origin,
+            channel: self.channel,
+            resolution_level: self.resolution_level,
+        }
     }
 }

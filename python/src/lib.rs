@@ -22,6 +22,7 @@ mod flow;
 mod keywords;
 mod load;
 mod microscopy;
+mod run;
 mod tracks;
 
 use crate::flow::Flow;
@@ -113,6 +114,9 @@ fn _meshflow(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(microscopy::sample_volume, m)?)?;
     m.add_function(wrap_pyfunction!(microscopy::sample_volume_file, m)?)?;
     m.add_function(wrap_pyfunction!(microscopy::read_volumes, m)?)?;
+    m.add_function(wrap_pyfunction!(microscopy::closed_surface_sequence, m)?)?;
+    m.add_function(wrap_pyfunction!(run::read_run, m)?)?;
+    m.add_function(wrap_pyfunction!(run::write_sequence, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -1,7 +1,9 @@
 //! Microscopy: surfaces fitted through points (`meshflow surface`) or found in volumes
 //! (`--shape closed`), and volumes sampled onto surfaces (`meshflow sample`).
 
-use crate::convert::{faces_array, parse, points_array, read_faces, read_points, read_positions};
+use crate::convert::{
+    faces_array, frames_array, parse, points_array, read_faces, read_points, read_positions,
+};
 use crate::{to_py_err, value_error};
 use meshflow::mesh::Mesh;
 use meshflow::surface::{
@@ -143,6 +145,7 @@ pub(crate) fn read_volume(array: &PyReadonlyArray3<f32>) -> ([usize; 3], Vec<f32
 /// numbers.
 #[pyfunction]
 #[pyo3(signature = (volume, voxel_size, origin, level, smoothing, genus, closing))]
+#[allow(clippy::too_many_arguments)] // the Python signature, one argument per option
 pub(crate) fn find_surface<'py>(
     py: Python<'py>,
     volume: PyReadonlyArray3<'py, f32>,
@@ -330,7 +333,8 @@ fn voxel_size_said(source: Option<&VoxelSizeSource>) -> Option<String> {
 
 /// [`sample_volume`] of the volumes that `path` names (NPY, TIFF, ImageJ hyperstack, OME-Zarr,
 /// or a directory of them), read and sampled one frame at a time. The dict adds
-/// `voxel_size` (as used) and `voxel_size_source`.
+/// `voxel_size` (as used), `voxel_size_source`, and the frames' `shape` (z, y, x) and `origin`
+/// (voxel (0, 0, 0)'s centre, an OME-Zarr image's own translation included).
 #[pyfunction]
 #[pyo3(signature = (path, positions, faces, voxel_size, origin, channel, resolution_level, smoothing, shell, layers, reduce, allow_outside))]
 #[allow(clippy::too_many_arguments)] // the Python signature, one argument per option
@@ -352,7 +356,7 @@ pub(crate) fn sample_volume_file<'py>(
     let surface = SampledSurface::read(&positions, &faces)?;
     let options = sample_options(smoothing, shell, layers, reduce, allow_outside)?;
     let placement = volume_options(voxel_size, origin, channel, resolution_level);
-    let (sampled, voxel, said) = py
+    let (sampled, voxel, said, grid) = py
         .detach(|| -> Result<_, Error> {
             let mesh = surface.mesh()?;
             let mut stream = VolumeStream::open(&path, &placement)?;
@@ -370,11 +374,14 @@ pub(crate) fn sample_volume_file<'py>(
                 &mut on_event,
             )?;
             let size = stream.voxel_size();
-            Ok((sampled, size, voxel))
+            let grid = (stream.shape(), stream.origin());
+            Ok((sampled, size, voxel, grid))
         })
         .map_err(to_py_err)?;
     let out = sampled_dict(py, sampled, surface.n_vertices)?;
     out.set_item("voxel_size", voxel.map(|v| (v.x, v.y, v.z)))?;
+    out.set_item("shape", grid.0)?;
+    out.set_item("origin", grid.1.map(|o| (o.x, o.y, o.z)))?;
     out.set_item("voxel_size_source", voxel_size_said(said.as_ref()))?;
     Ok(out)
 }
@@ -425,5 +432,97 @@ pub(crate) fn read_volumes<'py>(
     out.set_item("voxel_size", voxel.map(|v| (v.x, v.y, v.z)))?;
     out.set_item("origin", origin.map(|o| (o.x, o.y, o.z)))?;
     out.set_item("voxel_size_source", voxel_size_said(source.as_ref()))?;
+    Ok(out)
+}
+
+/// The object's surface found in every frame of the recording `path` and tracked into one
+/// moving mesh, as `meshflow surface PATH --shape closed` makes it ([`surface::closed_sequence`]).
+/// Returns a dict: `positions` (K, V, 3), `faces` (F, 3), `times` (K,), `voxel_size` (as
+/// used), `report` (`surface.json`'s, as JSON text). `progress` is called with
+/// `{"kind": "surface", "frame": k, "frames": K}` as each frame's surface is found.
+#[pyfunction]
+#[pyo3(signature = (path, voxel_size, origin, channel, resolution_level, level, smoothing, genus, closing, vertices, times, relax_iterations, keep_going, progress))]
+#[allow(clippy::too_many_arguments)] // the Python signature, one argument per option
+pub(crate) fn closed_surface_sequence<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    voxel_size: Option<(f64, f64, f64)>,
+    origin: (f64, f64, f64),
+    channel: Option<usize>,
+    resolution_level: usize,
+    level: &str,
+    smoothing: Option<f64>,
+    genus: usize,
+    closing: Option<f64>,
+    vertices: Option<usize>,
+    times: Option<Vec<f64>>,
+    relax_iterations: usize,
+    keep_going: bool,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use meshflow::track::{Alignment, Relaxation, TrackOptions};
+    let placement = volume_options(voxel_size, origin, channel, resolution_level);
+    let options = surface::ClosedOptions {
+        finding: IsosurfaceOptions {
+            smoothing,
+            level: parse::<Level>(level, "level")?,
+            genus,
+            closing,
+        },
+        vertices,
+        // As the command line's defaults for a closed surface: rigid alignment.
+        tracking: TrackOptions {
+            keep_going,
+            relaxation: match relax_iterations {
+                0 => Relaxation::None,
+                iterations => Relaxation::Arap { iterations },
+            },
+            alignment: Alignment::Rigid,
+            ..TrackOptions::default()
+        },
+        times,
+    };
+    let (closed, used) = py
+        .detach(|| -> Result<_, Error> {
+            let mut stream = VolumeStream::open(&path, &placement)?;
+            let frames = stream.n_frames();
+            let mut on_event = |event: surface::ClosedEvent| {
+                if let (surface::ClosedEvent::Found { frame, .. }, Some(callback)) =
+                    (event, progress.as_ref())
+                {
+                    // Progress only: an exception here is the caller's to see in its log.
+                    Python::attach(|py| {
+                        let report = PyDict::new(py);
+                        let _ = report.set_item("kind", "surface");
+                        let _ = report.set_item("frame", frame);
+                        let _ = report.set_item("frames", frames);
+                        if let Err(e) = callback.call1(py, (report,)) {
+                            e.print(py);
+                        }
+                    });
+                }
+            };
+            let closed = surface::closed_sequence(&mut stream, &options, &mut on_event).map_err(
+                |e| match e {
+                    Error::Closed(surface::ClosedError::OneFrame(_)) => e.in_file(&path),
+                    other => other,
+                },
+            )?;
+            Ok((closed, stream.voxel_size()))
+        })
+        .map_err(to_py_err)?;
+    let sequence = &closed.tracked.sequence;
+    let positions: Vec<Vec<Vector3<f64>>> = (0..sequence.n_frames())
+        .map(|k| sequence.positions(k).map(<[_]>::to_vec).unwrap_or_default())
+        .collect();
+    let out = PyDict::new(py);
+    out.set_item("positions", frames_array(&positions).into_pyarray(py))?;
+    out.set_item(
+        "faces",
+        faces_array(sequence.mesh().faces()).into_pyarray(py),
+    )?;
+    out.set_item("times", sequence.times().to_vec().into_pyarray(py))?;
+    out.set_item("voxel_size", used.map(|v| (v.x, v.y, v.z)))?;
+    out.set_item("report", closed.report().to_string())?;
     Ok(out)
 }

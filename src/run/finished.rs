@@ -139,6 +139,54 @@ impl SolveInput {
     }
 }
 
+/// The microscope recording a sequence was sampled from (`meshflow sample` writes it into the
+/// sequence directory's manifest): what a viewer needs to show the surface over it, in the
+/// physical coordinates of the surface (`x = o + (i d_x, j d_y, k d_z)`, [`crate::volume`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RecordingRecord {
+    /// The recording (NPY or TIFF file, directory of them, OME-Zarr store), relative to the
+    /// sequence directory.
+    pub path: PathBuf,
+    /// The frames' `(n_z, n_y, n_x)` when sampled: a recording that no longer has it is not
+    /// the one sampled.
+    pub shape: [usize; 3],
+    /// `(d_x, d_y, d_z)` as sampled (given, or from the files' metadata).
+    pub voxel_size: [f64; 3],
+    /// The centre of voxel `(0, 0, 0)`, an OME-Zarr image's own translation included.
+    pub origin: [f64; 3],
+    /// The channel of an OME-Zarr store or ImageJ hyperstack (`None`: 0).
+    pub channel: Option<usize>,
+    /// The OME-Zarr resolution level sampled (0: the finest).
+    pub resolution_level: usize,
+}
+
+impl RecordingRecord {
+    /// `recording` (named from the current working directory) as the manifest of the sequence
+    /// directory `sequence` records it: relative to `sequence`.
+    pub fn path_from(sequence: &Path, recording: &Path) -> PathBuf {
+        relative_path(&resolve(sequence), &resolve(recording))
+    }
+
+    /// The recording `sequence`'s manifest names, where it is now: relative to `sequence`, an
+    /// absolute path only with `--allow-external-files` (a record is untrusted, like a solve
+    /// record); `None` when the manifest names none.
+    pub fn of_sequence(sequence: &Path) -> Result<Option<(PathBuf, Self)>, IoError> {
+        let manifest = RunManifest::read_run(sequence)?;
+        let Some(record) = manifest.recording else {
+            return Ok(None);
+        };
+        if record.path.is_absolute() && linked_files() == LinkedFiles::Contained {
+            let why = format!(
+                "its recording {} is an absolute path: a sequence names its recording relative \
+                 to itself (--allow-external-files reads it)",
+                quoted(&record.path.to_string_lossy())
+            );
+            return Err(IoError::format(sequence.join(RUN_MANIFEST), why));
+        }
+        Ok(Some((sequence.join(&record.path), record)))
+    }
+}
+
 /// The directory a record's relative paths start from: the run, or for an earlier version's
 /// record (relative to the solve's working directory, which the manifest itself names) that
 /// directory, only with `--allow-external-files`.

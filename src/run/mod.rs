@@ -24,7 +24,7 @@ mod track_output;
 pub use analysis_output::{
     analysis_arrays, analysis_json, file_faces, write_analysis_outputs, AnalysisArray,
 };
-pub use finished::{read_flow, run_file, RecordBase, SolveInput, SolveRecord};
+pub use finished::{read_flow, run_file, RecordBase, RecordingRecord, SolveInput, SolveRecord};
 pub use flow_output::{
     summary_json, track_scores_json, write_flow_outputs, write_run_input, write_slab_vtus,
     write_slab_vtus_with_cells, GroundTruthReport, OutputFormat, Scores, TrackReport,

@@ -82,6 +82,10 @@ pub struct RunManifest {
     /// earlier versions): what [`super::SolveInput::of_run`] reads back.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub solve: Option<SolveRecord>,
+    /// The microscope recording that `meshflow sample` read onto this sequence, for viewers
+    /// that show the surface over it (absent elsewhere).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recording: Option<super::RecordingRecord>,
 }
 
 /// A file a run read, as it was then.
@@ -415,6 +419,7 @@ pub struct StagedDir {
     inputs: Vec<RecordedInput>,
     /// The solve's input, when the output is a solve's.
     solve: Option<SolveRecord>,
+    recording: Option<super::RecordingRecord>,
     committed: bool,
 }
 
@@ -494,6 +499,7 @@ impl StagedDir {
             kept: Vec::new(),
             inputs: Vec::new(),
             solve: None,
+            recording: None,
             committed: false,
         };
         let manifest = match &existing {
@@ -551,6 +557,12 @@ impl StagedDir {
         self.solve = Some(record);
     }
 
+    /// Records in the manifest the recording this output's surface was sampled from (its
+    /// path relative to the output, [`super::RecordingRecord::path_from`]).
+    pub fn record_recording(&mut self, record: super::RecordingRecord) {
+        self.recording = Some(record);
+    }
+
     /// Records the files `paths` stand for ([`input_files`]) with their sizes and hashes, for
     /// the commands that read them again later ([`RunManifest::check_inputs`]).
     pub fn record_inputs(&mut self, paths: &[&Path]) -> Result<(), IoError> {
@@ -600,6 +612,7 @@ impl StagedDir {
             directory: self.directory.take(),
             inputs: std::mem::take(&mut self.inputs),
             solve: self.solve.take(),
+            recording: self.recording.take(),
         };
         write_atomically(&self.staging.join(RUN_MANIFEST), |w| {
             serde_json::to_writer_pretty(&mut *w, &manifest).map_err(std::io::Error::other)?;

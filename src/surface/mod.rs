@@ -44,12 +44,14 @@
 //! `λ = S⁴ d̄²`, and scaling the points scales the surface and nothing else. One factorization
 //! order (METIS) serves all frames; each frame's `B` differs, so each is factorized anew.
 
+pub mod closed;
 mod closing;
 pub mod isosurface;
 mod points;
 mod reference;
 pub mod voxels;
 
+pub use closed::{closed_sequence, ClosedError, ClosedEvent, ClosedOptions, ClosedSequence};
 pub use isosurface::{
     find_surface, find_surface_consuming, FoundSurface, IsosurfaceError, IsosurfaceOptions, Level,
 };

@@ -53,6 +53,17 @@ pub fn stage_output(
         .collect();
     let mut staged = StagedDir::create_apart_from(&inputs, out, overwrite)?;
     staged.record_command(crate::command_line());
+    // The surface the output lies on, as the run's own record says it (relative to `out`),
+    // so that readers of `out` alone (napari) find it; its files outside `out` fingerprinted.
+    let surface: Vec<&Path> = std::iter::once(input.input.as_path())
+        .chain(input.load.intensity.as_deref())
+        .collect();
+    staged.record_inputs(&surface)?;
+    staged.record_solve(SolveRecord::new(
+        Some(&input.input),
+        input.load.clone(),
+        out,
+    ));
     Ok(staged)
 }
 

@@ -11,7 +11,9 @@ use meshflow::format::{
 };
 use meshflow::load::{count_frames, load_geometry, LoadOptions};
 use meshflow::mesh::Mesh;
-use meshflow::run::{input_files, refuse_output_over_inputs, OutputKind, RunManifest};
+use meshflow::run::{
+    input_files, refuse_output_over_inputs, OutputKind, RecordingRecord, RunManifest,
+};
 use meshflow::volume::{
     count_volume_frames, sample_stream, SampleOptions, SampledSequence, StreamEvent, VolumeError,
     VolumeOptions, VolumeStream, VoxelSizeSource,
@@ -41,7 +43,7 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
         load_geometry(request.sequence, &request.load)
     })?;
     crate::print_warnings(&geometry.warnings);
-    let sampled = sample_streamed(&request, &geometry.mesh, &geometry.positions)?;
+    let (sampled, recording) = sample_streamed(&request, &geometry.mesh, &geometry.positions)?;
     let map = &geometry.vertex_map;
     let image: Vec<Vec<Vec<f64>>> = (sampled.values.iter())
         .map(|frame| vec![map.file_rows(frame, 0.0)])
@@ -52,7 +54,7 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
     // Together: a failure leaves the earlier image and its mask, never one beside the other.
     write_image_and_no_data(&out, &image, &no_data_file(&out), &no_data)?;
     if replaces_intensity(&request, &out) {
-        register_in_manifest(request.sequence)?;
+        register_in_manifest(request.sequence, recording)?;
     }
     let outside: usize = sampled.outside.iter().sum();
     if outside > 0 {
@@ -71,12 +73,13 @@ pub fn run(request: SampleRequest) -> Result<(), Error> {
 }
 
 /// The volumes read and sampled one frame at a time ([`sample_stream`]): only one frame's
-/// volume and its smoothed copy are held, whatever the recording's length.
+/// volume and its smoothed copy are held, whatever the recording's length. Also the record of
+/// the recording for the sequence's manifest (its grid as read).
 fn sample_streamed(
     request: &SampleRequest,
     mesh: &Mesh,
     positions: &[Vec<Vector3<f64>>],
-) -> Result<SampledSequence, Error> {
+) -> Result<(SampledSequence, Option<RecordingRecord>), Error> {
     let mut stream = VolumeStream::open(request.volumes, &request.volume)?;
     let bar = count_progress(
         stream.n_frames() as u64,
@@ -101,7 +104,18 @@ fn sample_streamed(
         &mut on_event,
     )?;
     bar.finish();
-    Ok(sampled)
+    let recording = match (stream.voxel_size(), stream.origin()) {
+        (Some(voxel_size), Some(origin)) => Some(RecordingRecord {
+            path: RecordingRecord::path_from(request.sequence, request.volumes),
+            shape: stream.shape(),
+            voxel_size: voxel_size.into(),
+            origin: origin.into(),
+            channel: request.volume.channel,
+            resolution_level: request.volume.resolution_level,
+        }),
+        _ => None,
+    };
+    Ok((sampled, recording))
 }
 
 /// Warns that frame `frame` of the OME-Zarr image `volumes` lacked `missing` of its `chunks`.
@@ -176,8 +190,9 @@ fn check_frame_counts(request: &SampleRequest) -> Result<(), Error> {
 
 /// Lists `intensity.npy` in the sequence directory's run manifest (where it is a meshflow
 /// output, e.g. of `meshflow surface`), so that the next output written there (a new surface)
-/// replaces it instead of leaving an image of the old surface beside the new one.
-fn register_in_manifest(sequence: &Path) -> Result<(), Error> {
+/// replaces it instead of leaving an image of the old surface beside the new one; and the
+/// recording it came from, which viewers show the surface over (napari).
+fn register_in_manifest(sequence: &Path, recording: Option<RecordingRecord>) -> Result<(), Error> {
     use std::io::Write;
     let Some(mut manifest) = RunManifest::read(sequence) else {
         return Ok(());
@@ -188,6 +203,7 @@ fn register_in_manifest(sequence: &Path) -> Result<(), Error> {
         }
     }
     manifest.files.sort();
+    manifest.recording = recording;
     manifest.commands.push(crate::command_line());
     let path = sequence.join(meshflow::run::RUN_MANIFEST);
     write_atomically(&path, |w| {

@@ -10,12 +10,11 @@ use meshflow::format::format_number;
 use meshflow::format::{write_atomically, write_npy, write_npy_sequence, IoError};
 use meshflow::run::{refuse_output_over_inputs, OutputKind, Overwrite, StagedDir};
 use meshflow::surface::voxels::voxel_spacing;
-use meshflow::surface::{
-    find_surface_consuming, foreground_points, FoundSurface, IsosurfaceOptions, Level,
-};
+use meshflow::surface::ClosedSequence;
+use meshflow::surface::{closed_sequence, ClosedError, ClosedEvent, ClosedOptions};
 use meshflow::surface::{fit_surface, fit_surface_weighted, read_points, FitOptions};
+use meshflow::surface::{foreground_points, FoundSurface, IsosurfaceOptions, Level};
 use meshflow::surface::{FittedSurface, ForegroundPoints, Reference};
-use meshflow::track::{track_as_they_come, TrackEvent, TrackFrame, TrackOptions, Tracked};
 use meshflow::volume::{VolumeOptions, VolumeStream};
 use meshflow::Error;
 use std::path::{Path, PathBuf};
@@ -87,212 +86,77 @@ pub struct ClosedRequest<'a> {
     pub volumes: &'a Path,
     pub out: &'a Path,
     pub placement: VolumeOptions,
-    pub finding: IsosurfaceOptions,
-    /// About this many vertices in the tracked mesh; `None`: [`DEFAULT_VERTICES`], or fewer
-    /// where edges would be shorter than the smoothing's σ.
-    pub vertices: Option<usize>,
-    /// How the tracked mesh follows the frames' surfaces (`reference_vertices` and
-    /// `keep_uncovered` are set from `vertices` and the surface being closed).
-    pub tracking: TrackOptions,
-    pub times: Option<Vec<f64>>,
+    pub options: ClosedOptions,
     pub overwrite: Overwrite,
 }
 
-/// The tracked mesh's size when `--vertices` is not given (as for surfaces through points).
-const DEFAULT_VERTICES: usize = 16000;
-
-/// `meshflow surface VOLUMES --shape closed`: each frame's surface found in its volume
-/// ([`find_surface`]), then one reference of about `vertices` vertices tracked through them
-/// (`meshflow track`'s machinery), written as an NPY sequence with `surface.json`.
+/// `meshflow surface VOLUMES --shape closed`: each frame's surface found in its volume, then
+/// one reference tracked through them ([`closed_sequence`]), written as an NPY sequence with
+/// `surface.json`.
 pub fn run_closed(request: ClosedRequest) -> Result<(), Error> {
     let staged = staged_output(
         request.volumes,
         request.out,
         request.overwrite,
-        &request.times,
+        &request.options.times,
     )?;
-    // Frames are read one at a time and dropped once their surface is found.
     let mut stream = VolumeStream::open(request.volumes, &request.placement)?;
-    let n_frames = stream.n_frames();
-    if n_frames < 2 {
-        return Err(crate::usage(format!(
-            "{} holds {n_frames} frame: a moving surface needs 2 frames at least (one frame's surface: meshflow.find_surface in Python)",
-            request.volumes.display()
-        )));
-    }
     // From the files' headers: a wrong --times fails before any reading.
-    if let Some(times) = request.times.as_ref().filter(|t| t.len() != n_frames) {
+    let times = request.options.times.as_ref();
+    if let Some(times) = times.filter(|t| t.len() != stream.n_frames()) {
         return Err(crate::usage(format!(
-            "--times gives {} times for the {n_frames} frames of {}",
+            "--times gives {} times for the {} frames of {}",
             times.len(),
+            stream.n_frames(),
             request.volumes.display()
         )));
     }
-    // Each frame's surface is tracked as soon as it is found, then dropped: memory holds one
-    // volume and two frames' surfaces whatever the recording's length.
-    let bar = crate::progress::count_progress(n_frames as u64, "finding and tracking surfaces");
-    let mut found: Vec<FoundSurface> = Vec::with_capacity(n_frames);
-    let mut next = |found: &mut Vec<FoundSurface>| -> Result<Option<TrackFrame>, Error> {
-        let Some(read) = stream.next() else {
-            return Ok(None);
-        };
-        let (volume, file) = read?;
-        let k = found.len();
-        if let Some((missing, chunks)) = stream.missing_chunks() {
-            let volumes = request.volumes;
-            bar.suspend(|| crate::sample::report_missing_chunks(volumes, k, missing, chunks));
+    let bar =
+        crate::progress::count_progress(stream.n_frames() as u64, "finding and tracking surfaces");
+    let volumes = request.volumes;
+    let mut on_event = |event: ClosedEvent| match event {
+        ClosedEvent::VoxelSize(source) => {
+            bar.suspend(|| crate::sample::report_voxel_size(volumes, source))
         }
-        if k == 0 {
-            let source = stream.voxel_size_source().expect("known after a frame");
-            bar.suspend(|| crate::sample::report_voxel_size(request.volumes, source));
-        }
-        // The closing starts where earlier frames needed it: the same object, closed alike,
-        // keeps its shape from frame to frame.
-        // So does the smoothing, where frame 0's foreground was porous.
-        let widest = found.iter().map(|f| f.closing_radius).fold(0.0, f64::max);
-        let smoothest = found.iter().map(|f| f.smoothing).fold(0.0, f64::max);
-        let finding = IsosurfaceOptions {
-            closing: request.finding.closing.or((widest > 0.0).then_some(widest)),
-            smoothing: (request.finding.smoothing).or((k > 0).then_some(smoothest)),
-            ..request.finding
-        };
-        let mut surface = find_surface_consuming(volume, &finding)
-            .map_err(|e| Error::from(e).in_file(format!("{} (frame {k})", file.display())))?;
-        bar.suspend(|| {
-            stdout_line!("  frame {k:3}: {}", describe_found(&surface));
+        ClosedEvent::MissingChunks {
+            frame,
+            missing,
+            chunks,
+        } => bar.suspend(|| crate::sample::report_missing_chunks(volumes, frame, missing, chunks)),
+        ClosedEvent::Found { frame, surface } => bar.suspend(|| {
+            stdout_line!("  frame {frame:3}: {}", describe_found(surface));
             for warning in surface.warnings() {
-                stderr_line!("meshflow: warning: frame {k}: {warning}");
+                stderr_line!("meshflow: warning: frame {frame}: {warning}");
             }
-        });
-        // The mesh moves to the tracker; `found` keeps the report (`vertices`, `faces`).
-        let frame = TrackFrame {
-            intensity: vec![0.0; surface.positions.len()],
-            positions: std::mem::take(&mut surface.positions),
-            faces: std::mem::take(&mut surface.faces),
-        };
-        found.push(surface);
-        Ok(Some(frame))
-    };
-    let first = next(&mut found)?.expect("a recording has a frame");
-    // Surface nets' triangles are slivers where the surface cuts a voxel's corner: the
-    // reference is always a simplified, cleaned mesh, at most half of frame 0's vertices.
-    // By default, no finer than the smoothing: the frames' surfaces are not known below σ,
-    // and a finer mesh tracks their noise (and folds there).
-    let coarsest = triangle_mesh_vertices(
-        meshflow::geometry::surface_area(&first.faces, &first.positions),
-        found[0].smoothing,
-    );
-    let asked = request.vertices.unwrap_or(DEFAULT_VERTICES.min(coarsest));
-    let vertices = asked.min(found[0].vertices / 2);
-    if vertices < asked {
-        bar.suspend(|| {
+        }),
+        ClosedEvent::FewerVertices {
+            vertices,
+            asked,
+            frame_vertices,
+        } => bar.suspend(|| {
             stdout_line!(
-                "frame 0's surface has {} vertices: the tracked mesh gets {vertices} (half; \
-                 {asked} were asked)",
-                found[0].vertices,
+                "frame 0's surface has {frame_vertices} vertices: the tracked mesh gets \
+                 {vertices} (half; {asked} were asked)"
             )
-        });
-    }
-    // A closed surface has no boundary to trim at: a vertex whose normal misses the next
-    // frame's surface takes its closest point.
-    let options = TrackOptions {
-        reference_vertices: Some(vertices),
-        keep_uncovered: true,
-        keep_coordinates: true,
-        ..request.tracking
+        }),
+        ClosedEvent::Track(event) => crate::track::show_event(&bar, event),
     };
-    let mut failure: Option<Error> = None;
-    let tracked = {
-        let mut rest = std::iter::from_fn(|| match next(&mut found) {
-            Ok(frame) => frame,
-            Err(e) => {
-                failure = Some(e);
-                None
-            }
-        });
-        let mut on_event = |event: TrackEvent| crate::track::show_event(&bar, event);
-        track_as_they_come(first, &mut rest, request.times, &options, &mut on_event)
-    };
+    let closed = closed_sequence(&mut stream, &request.options, &mut on_event)
+        .map_err(|e| in_volumes(e, volumes));
     bar.finish();
-    if let Some(error) = failure {
-        return Err(error);
-    }
-    let tracked = tracked?;
-    let faults = check_frames(
-        &tracked,
-        &found,
-        request.finding.genus,
-        request.tracking.keep_going,
-    )?;
-    write_closed(&staged, &tracked, &found, &faults).map_err(|e| staged.error_in_target(e))?;
+    let closed = closed?;
+    write_closed(&staged, &closed).map_err(|e| staged.error_in_target(e))?;
     staged.commit()?;
-    crate::track::print_summary(&tracked, request.out);
+    crate::track::print_summary(&closed.tracked, request.out);
     Ok(())
 }
 
-/// Edges whose triangles face opposite ways, a frame of the tracked mesh at a time: where the
-/// mesh folded over itself ([`meshflow::geometry::folds::folded_edges`]).
-#[derive(serde::Serialize)]
-struct FoldedFrame {
-    frame: usize,
-    folded_edges: usize,
-}
-
-/// The share of the tracked mesh's edges that may be folded in a frame before it is an error
-/// (without `--keep-going`): a lone crease is a warning, a tangle is not written.
-const FOLDS_TOLERATED: f64 = 1e-3;
-
-/// The tracked mesh checked before anything is written: one closed, connected manifold (its
-/// connectivity was built as one) of the genus found in frame 0, and no frame folded over
-/// itself. Folds at more than [`FOLDS_TOLERATED`] of the edges are an error naming the frame;
-/// fewer (or with `--keep-going`, any) are warnings, listed in `surface.json`.
-fn check_frames(
-    tracked: &Tracked,
-    found: &[FoundSurface],
-    genus: usize,
-    keep_going: bool,
-) -> Result<Vec<FoldedFrame>, Error> {
-    let sequence = &tracked.sequence;
-    let mesh = sequence.mesh();
-    let components = mesh.connected_components().len();
-    let tracked_genus = (2 - mesh.euler_characteristic()) / 2;
-    let wanted = found.first().map_or(genus, |f| f.genus);
-    if !mesh.is_closed() || components != 1 || tracked_genus != wanted as i64 {
-        return Err(crate::usage(format!(
-            "frame 0: the tracked mesh is {} with {components} component(s) and genus \
-             {tracked_genus}, where frame 0's surface is closed, connected and of genus \
-             {wanted}; try other --vertices",
-            if mesh.is_closed() { "closed" } else { "open" }
-        )));
+/// Errors of the sequence as a whole name the recording.
+fn in_volumes(error: Error, volumes: &Path) -> Error {
+    match error {
+        Error::Closed(ClosedError::OneFrame(_)) => error.in_file(volumes),
+        other => other,
     }
-    let mut faults = vec![];
-    let tolerated = (FOLDS_TOLERATED * mesh.n_edges() as f64).floor() as usize;
-    for k in 0..sequence.n_frames() {
-        let positions = sequence.positions(k).expect("tracked in R^3");
-        let folded = meshflow::geometry::folds::folded_halfedges(mesh, positions).len();
-        if folded == 0 {
-            continue;
-        }
-        if folded > tolerated && !keep_going {
-            return Err(crate::usage(format!(
-                "frame {k}: the tracked mesh folds over itself at {folded} of its {} edges \
-                 (their triangles face opposite ways); try fewer --vertices, or --keep-going \
-                 to write it anyway",
-                mesh.n_edges()
-            )));
-        }
-        faults.push(FoldedFrame {
-            frame: k,
-            folded_edges: folded,
-        });
-    }
-    Ok(faults)
-}
-
-/// About how many vertices a mesh of equilateral triangles of side `edge` has over `area`:
-/// two triangles of `√3/4 edge²` per vertex.
-fn triangle_mesh_vertices(area: f64, edge: f64) -> usize {
-    (area / (3f64.sqrt() / 2.0 * edge * edge)).round().max(4.0) as usize
 }
 
 /// One frame's line: what `surface.json` records of it.
@@ -336,44 +200,15 @@ fn describe_found(s: &FoundSurface) -> String {
 
 /// positions.npy, faces.npy, times.txt and surface.json (the frames' surfaces and the
 /// tracking).
-fn write_closed(
-    staged: &StagedDir,
-    tracked: &Tracked,
-    found: &[FoundSurface],
-    folds: &[FoldedFrame],
-) -> Result<(), Error> {
+fn write_closed(staged: &StagedDir, closed: &ClosedSequence) -> Result<(), Error> {
     let dir = staged.path();
-    let sequence = &tracked.sequence;
+    let sequence = &closed.tracked.sequence;
     let positions: Vec<_> = (0..sequence.n_frames())
         .map(|k| sequence.positions(k).expect("tracked in R^3").to_vec())
         .collect();
     let faces = sequence.mesh().faces();
     write_npy_sequence(dir, &positions, faces, None, sequence.times())?;
-    let warnings: Vec<String> = (found.iter().enumerate())
-        .flat_map(|(k, s)| {
-            s.warnings()
-                .into_iter()
-                .map(move |w| format!("frame {k}: {w}"))
-        })
-        .chain(folds.iter().map(|f| {
-            format!(
-                "frame {}: the tracked mesh folds over itself at {} edge(s)",
-                f.frame, f.folded_edges
-            )
-        }))
-        .collect();
-    let mesh = sequence.mesh();
-    let report = serde_json::json!({
-        "shape": "closed",
-        "vertices": mesh.n_vertices(),
-        "faces": faces.len(),
-        "genus": (2 - mesh.euler_characteristic()) / 2,
-        "folds": folds,
-        "frames": found,
-        "tracking": tracked.report,
-        "warnings": warnings,
-    });
-    let report = serde_json::to_string_pretty(&report).expect("a report serializes");
+    let report = serde_json::to_string_pretty(&closed.report()).expect("a report serializes");
     write_atomically(&dir.join("surface.json"), |w| {
         use std::io::Write;
         writeln!(w, "{report}")
@@ -685,15 +520,17 @@ impl SurfaceArgs {
             volumes: &self.points,
             out: &self.out,
             placement: self.placement.options()?,
-            finding: IsosurfaceOptions {
-                smoothing: self.smooth,
-                level: self.level.unwrap_or(Level::Otsu),
-                genus: self.genus.unwrap_or(0),
-                closing: self.closing,
+            options: ClosedOptions {
+                finding: IsosurfaceOptions {
+                    smoothing: self.smooth,
+                    level: self.level.unwrap_or(Level::Otsu),
+                    genus: self.genus.unwrap_or(0),
+                    closing: self.closing,
+                },
+                vertices: self.vertices,
+                tracking: self.tracking.options(meshflow::track::Alignment::Rigid),
+                times: self.times.clone(),
             },
-            vertices: self.vertices,
-            tracking: self.tracking.options(meshflow::track::Alignment::Rigid),
-            times: self.times.clone(),
             overwrite: self.force.overwrite(),
         })
     }
