@@ -1005,12 +1005,7 @@ def find_surface(
         if channel is not None or resolution_level != 0 or frame != 0:
             raise ValueError("frame, channel and resolution_level apply to a path, not an array")
         image = _volume_frames([volume])[0]
-    if isinstance(level, str):
-        text = level
-    elif isinstance(level, (int, float)) and not isinstance(level, bool):
-        text = repr(float(level))
-    else:
-        raise ValueError(f"level must be \"auto\" or a number, got {level!r}")
+    text = _level_text(level)
     return _meshflow.find_surface(
         image,
         _triple("voxel_size", (1.0, 1.0, 1.0) if voxel_size is None else voxel_size),
@@ -1055,12 +1050,7 @@ def closed_surface_sequence(
     gives it), with ``report`` (``surface.json``'s) and the voxel size used in
     ``report["voxel_size"]``.
     """
-    if isinstance(level, str):
-        text = level
-    elif isinstance(level, (int, float)) and not isinstance(level, bool):
-        text = repr(float(level))
-    else:
-        raise ValueError(f"level must be \"auto\" or a number, got {level!r}")
+    text = _level_text(level)
     found = _meshflow.closed_surface_sequence(
         _path(path),
         None if voxel_size is None else _triple("voxel_size", voxel_size),
@@ -1089,6 +1079,15 @@ def closed_surface_sequence(
         str(path),
         report,
     )
+
+
+def _level_text(level: Union[str, float]) -> str:
+    """``level`` as the library parses it: ``"auto"`` (Otsu's) or a number."""
+    if isinstance(level, str):
+        return level
+    if isinstance(level, (int, float)) and not isinstance(level, bool):
+        return repr(float(level))
+    raise ValueError(f"level must be \"auto\" or a number, got {level!r}")
 
 
 def _triple(name: str, value: Any) -> Tuple[float, float, float]:

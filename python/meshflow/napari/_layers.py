@@ -85,7 +85,7 @@ def run_layers(
     documents = read["documents"]
     layers: List[LayerData] = []
     if read["recording"] is not None and recording:
-        layers.append(recording_layer(read["recording"], surface.n_frames))
+        layers.append(recording_layer(read["recording"], surface.n_frames, surface.grey))
     if read["command"] == "analyze":
         layers.extend(analysis_layers(surface, arrays, name))
     else:
@@ -95,7 +95,12 @@ def run_layers(
     if "trajectories.npy" in arrays:
         layers.append(tracks_layer(surface, arrays["trajectories.npy"], f"{name}: trajectories", tracks))
     if "track_errors.csv" in documents:
-        layers.extend(cell_layers(documents["track_errors.csv"], name))
+        # The cells' displacements are drawn at the flow's scale (a displacement over a frame
+        # spacing of 1 is that velocity's arrow), so the two compare on screen.
+        flows = [kwargs["metadata"] for _, kwargs, kind in layers if kind == "vectors"]
+        length = flows[0]["length"] if flows else 1.0
+        size = 1.5 * (flows[0]["spacing"] if flows else arrow_spacing(surface, DEFAULT_ARROWS))
+        layers.extend(cell_layers(documents["track_errors.csv"], name, length, size))
     return layers
 
 
@@ -146,7 +151,7 @@ class Surface:
         if values is None:
             values = self.grey if self.grey is not None else np.zeros(self.positions.shape[:2])
             kwargs.setdefault("colormap", "gray")
-            kwargs.setdefault("contrast_limits", finite_limits(values))
+            kwargs.setdefault("contrast_limits", robust_range(values))
         frames = values.shape[0]
         data = (self.vertices(frames), self.stacked_faces(frames), values.reshape(-1))
         metadata = {"times": self.times[:frames].tolist(), "meshflow": "surface"}
@@ -188,11 +193,12 @@ def first_file_vertex(vertex_map: np.ndarray, n_vertices: int) -> np.ndarray:
     return first
 
 
-def finite_limits(values: np.ndarray) -> Tuple[float, float]:
+def robust_range(values: np.ndarray) -> Tuple[float, float]:
+    """The 0.5th to 99.8th percentile of the finite ``values`` (a range wider than zero)."""
     finite = values[np.isfinite(values)]
     if finite.size == 0:
         return (0.0, 1.0)
-    low, high = float(finite.min()), float(finite.max())
+    low, high = (float(p) for p in np.percentile(finite, [0.5, 99.8]))
     return (low, high) if high > low else (low, low + 1.0)
 
 
@@ -239,8 +245,11 @@ def spread_vertices(points: np.ndarray, count: Optional[int], area: float) -> np
 def flow_layer(surface: Surface, flow: np.ndarray, name: str, arrows: Optional[int]) -> LayerData:
     """``flow.npy`` (S, V_file, 3) as napari vectors ``(N, 2, 4)``: at about ``arrows`` vertices
     of each frame ``s < S``, position ``(s, z, y, x)`` and projection ``(0, u_z, u_y, u_x)``.
-    ``length`` makes the PNGs' reference arrow (:func:`arrow_scale`) two mean edge lengths
-    long; ``features`` hold each arrow's ``vertex``, ``slab`` and ``speed``."""
+    As in the PNGs, the reference arrow (:func:`arrow_scale`) is as long as the arrows'
+    spacing, ``√(area / arrows drawn)``, so the typical arrow reaches its neighbour and the
+    faster quarter overlaps. ``features`` hold each arrow's ``vertex``, ``slab`` and
+    ``speed``; the arrows are one bright colour (speed is their length; colour them by the
+    ``speed`` feature in napari's layer controls)."""
     vectors = surface.at_mesh_vertices(flow)
     slabs = vectors.shape[0]
     chosen = spread_vertices(surface.positions[0], arrows, surface.area())
@@ -253,7 +262,8 @@ def flow_layer(surface: Surface, flow: np.ndarray, name: str, arrows: Optional[i
     data[:, 0, 1:] = at.reshape(-1, 3)
     data[:, 1, 1:] = u.reshape(-1, 3)
     speed = np.linalg.norm(vectors, axis=2)
-    length = 2.0 * surface.mean_edge_length() / arrow_scale(speed.reshape(-1))
+    spacing = arrow_spacing(surface, n)
+    length = spacing / arrow_scale(speed.reshape(-1))
     features = {
         "vertex": np.tile(chosen, slabs),
         "slab": np.repeat(np.arange(slabs), n),
@@ -264,12 +274,21 @@ def flow_layer(surface: Surface, flow: np.ndarray, name: str, arrows: Optional[i
         "length": length,
         "vector_style": "arrow",
         "features": features,
-        "edge_color": "speed",
-        "edge_colormap": "viridis",
-        "edge_width": 0.15 * surface.mean_edge_length(),
-        "metadata": {"times": surface.times[:slabs].tolist(), "meshflow": "flow", "length": length},
+        "edge_color": "cyan",
+        "edge_width": 0.1 * spacing,
+        "metadata": {
+            "times": surface.times[:slabs].tolist(),
+            "meshflow": "flow",
+            "length": length,
+            "spacing": spacing,
+        },
     }
     return data, kwargs, "vectors"
+
+
+def arrow_spacing(surface: Surface, arrows: int) -> float:
+    """The spacing of ``arrows`` arrows spread over the surface's frame 0: ``√(area / arrows)``."""
+    return float(np.sqrt(surface.area() / max(arrows, 1)))
 
 
 def analysis_layers(surface: Surface, arrays: Dict[str, np.ndarray], name: str) -> List[LayerData]:
@@ -310,9 +329,10 @@ def tracks_layer(surface: Surface, trajectories: np.ndarray, name: str, most: Op
     return data, kwargs, "tracks"
 
 
-def cell_layers(text: str, name: str) -> List[LayerData]:
-    """``track_errors.csv``: the scored cells as Points at ``(s, z, y, x)`` coloured by their
-    endpoint error, and their true and computed displacements as two Vectors layers."""
+def cell_layers(text: str, name: str, length: float = 1.0, size: float = 4.0) -> List[LayerData]:
+    """``track_errors.csv``: the scored cells as Points of ``size`` at ``(s, z, y, x)``
+    coloured by their endpoint error, and their true and computed displacements as two
+    Vectors layers drawn ``length`` times their size."""
     rows = list(csv.DictReader(io.StringIO(text)))
     if not rows:
         return []
@@ -338,7 +358,7 @@ def cell_layers(text: str, name: str) -> List[LayerData]:
             "features": features,
             "face_color": "endpoint_error",
             "face_colormap": "magma",
-            "size": 4.0,
+            "size": size,
             "metadata": {"meshflow": "cells"},
         },
         "points",
@@ -346,25 +366,28 @@ def cell_layers(text: str, name: str) -> List[LayerData]:
 
     def displacement(vectors: np.ndarray, label: str, color: str) -> LayerData:
         data = np.stack([at, vectors], axis=1)
-        kwargs = {"name": f"{name}: {label}", "edge_color": color, "length": 1.0, "vector_style": "arrow", "metadata": {"meshflow": label}}
+        kwargs = {
+            "name": f"{name}: {label}",
+            "edge_color": color,
+            "length": length,
+            "vector_style": "arrow",
+            "metadata": {"meshflow": label},
+        }
         return data, kwargs, "vectors"
 
     return [points, displacement(true, "true displacement", "white"), displacement(computed, "flow displacement", "orange")]
 
 
-def recording_layer(recording: Dict[str, Any], n_frames: int) -> LayerData:
-    """The recording the surface was sampled from (``n_frames`` frames, as the surface), opened
-    lazily (:mod:`._recording`), with
+def recording_layer(recording: Dict[str, Any], n_frames: int, grey: Optional[np.ndarray]) -> LayerData:
+    """The recording the surface was sampled from (``n_frames`` frames, as the surface, whose
+    ``grey`` values were sampled from it), opened lazily (:mod:`._recording`), with
     ``scale`` ``(1, d_z, d_y, d_x)`` and ``translate`` ``(0, o_z, o_y, o_x)``."""
     from ._recording import open_recording
 
     data = open_recording(recording, n_frames)
-    # The frame napari shows first is read now anyway: its robust range is the contrast (a
-    # dask array's default range comes from a corner plane, mostly background).
-    first = np.asarray(data[0])
-    contrast = (float(np.percentile(first, 0.5)), float(np.percentile(first, 99.8)))
-    if not contrast[1] > contrast[0]:
-        contrast = (contrast[0], contrast[0] + 1.0)
+    # The contrast of the values sampled from it onto the surface (its bright layer and the
+    # dark between): opening then reads nothing, and napari's first draw reads one frame.
+    contrast = robust_range(grey) if grey is not None else None
     dx, dy, dz = recording["voxel_size"]
     ox, oy, oz = recording["origin"]
     kwargs = {
@@ -372,7 +395,7 @@ def recording_layer(recording: Dict[str, Any], n_frames: int) -> LayerData:
         "scale": (1.0, dz, dy, dx),
         "translate": (0.0, oz, oy, ox),
         "colormap": "gray",
-        "contrast_limits": contrast,
+        **({} if contrast is None else {"contrast_limits": contrast}),
         "blending": "additive",
         "rendering": "mip",
         "metadata": {"meshflow": "recording", "path": str(recording["path"])},

@@ -16,14 +16,20 @@ import numpy as np
 
 
 def open_recording(recording: Dict[str, Any], n_frames: int):
-    """``(n_frames, Z, Y, X)`` float32, lazy: frame ``k`` is read on first use. A frame whose
-    shape is no longer the recorded ``shape`` raises ``ValueError`` naming the path."""
+    """``(n_frames, Z, Y, X)`` float32, lazy: frame ``k`` is read on first use (and the last two
+    frames read are kept). A frame whose shape is no longer the recorded ``shape`` raises
+    ``ValueError`` naming the path."""
     import dask
     import dask.array as da
+
+    import functools
 
     shape = tuple(int(n) for n in recording["shape"])
     path = str(recording["path"])
 
+    # napari asks for one plane at a time in 2-D; the library reads whole frames, so the last
+    # two read are kept (a frame of a 2.6 GB recording of 20 frames is 130 MB).
+    @functools.lru_cache(maxsize=2)
     def frame(k: int) -> np.ndarray:
         from .. import read_volumes
 
