@@ -251,6 +251,24 @@ def test_the_pipeline_equals_the_command_line(shell_runs):
         assert abs(np.median(radii) - 17.0) < 0.5
 
 
+def test_the_recording_record_is_kept_and_checked(cli, shell_runs, tmp_path):
+    import shutil
+
+    root, _ = shell_runs
+    # Drawing pictures into a run keeps the recording it names.
+    run(cli, "render", root / "pipeline_run", "--slabs", "0", "--size", "64x48")
+    manifest = json.loads((root / "pipeline_run" / "meshflow_run.json").read_text())
+    assert manifest["recording"]["path"] == "../shell.npy"
+    assert _layers.read_run(root / "pipeline_run")["recording"]["shape"] == [48, 56, 56]
+    # A recording named by an absolute path is read only with allow_external_files.
+    copied = tmp_path / "absolute"
+    shutil.copytree(root / "pipeline_run", copied)
+    manifest["recording"]["path"] = str((root / "shell.npy").resolve())
+    (copied / "meshflow_run.json").write_text(json.dumps(manifest))
+    with pytest.raises(ValueError, match="recording .* is an absolute path"):
+        _layers.run_layers(copied)
+
+
 def test_the_pipeline_measures_the_turn(shell_runs):
     # The shell turns about z by SHELL_TURN a frame: its material velocity is ω ẑ × (x − c).
     # The tracked mesh follows the spots' bumps part of the way (velocity.npy adds its motion

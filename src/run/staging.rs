@@ -512,6 +512,7 @@ impl StagedDir {
             staged.directory = manifest.directory.clone();
             staged.inputs = manifest.inputs.clone();
             staged.solve = manifest.solve.clone();
+            staged.recording = manifest.recording.clone();
             staged.kept = manifest.files.iter().filter(|n| keep(n)).cloned().collect();
         }
         // A whole directory is swapped in: the kept files must be in it. (Forced into a
